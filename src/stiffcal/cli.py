@@ -1,0 +1,117 @@
+"""The ``stiffcal`` command (contract in DESIGN.md).
+
+``stiffcal design --robot FILE --test-pose-deg Q1,Q2,... --force-N FX,FY[,FZ] --experiments M
+[--criterion ot|a|t|d|g|mdc|o1|o2|o3|o4] [--sigma S]`` prints one JSON object.
+
+Bad input gives one line on stderr naming the file or option and what was expected, and exit code 2;
+never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+
+from . import criteria
+from .design import Problem, optimal_single_pose
+from .errors import InputError
+from .robot import load_robot
+from .tables import plan_summary
+
+
+def _floats(option: str, text: str) -> np.ndarray:
+    try:
+        vals = np.array([float(v) for v in text.split(",")], float)
+    except ValueError:
+        raise InputError(f"expected comma-separated numbers, got {text!r}", field=option) from None
+    if not np.all(np.isfinite(vals)):
+        raise InputError(f"expected finite numbers, got {text!r}", field=option)
+    return vals
+
+
+def _json_number(x: float):
+    """JSON has no inf: an infinite value (unidentifiable) is written as the string 'inf'."""
+    x = float(x)
+    return x if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+
+
+def design(args) -> dict:
+    """Run ``stiffcal design``; returns the JSON-ready dict."""
+    robot = load_robot(args.robot)
+    q_t = _floats("--test-pose-deg", args.test_pose_deg)
+    force = _floats("--force-N", args.force_N)
+    if q_t.size != robot.n_joints:
+        raise InputError(f"expected {robot.n_joints} joint angles for robot {robot.name!r} "
+                         f"({args.robot}), got {q_t.size}", field="--test-pose-deg")
+    if force.size != robot.task_dim:
+        raise InputError(f"expected {robot.task_dim} force components for a {robot.kind} robot, "
+                         f"got {force.size}", field="--force-N")
+    if not np.any(force):
+        raise InputError("expected a nonzero force", field="--force-N")
+    if args.experiments < 1:
+        raise InputError(f"expected a number of experiments >= 1, got {args.experiments}", field="--experiments")
+    if not args.sigma > 0:
+        raise InputError(f"expected sigma > 0, got {args.sigma}", field="--sigma")
+    if args.experiments != 1:
+        raise InputError("plans of more than one pose are not available in this version "
+                         "(single-experiment design only)", field="--experiments")
+    prob = Problem(robot, force, args.criterion, 1, np.radians(q_t), None, args.sigma)
+    res = optimal_single_pose(prob)
+    from .study import Study
+
+    study = Study(robot.name, robot, np.radians(q_t), force, args.sigma, (args.criterion,), 1.0, 1.0)
+    summ = plan_summary(study, res.pose_deg[None, :])
+    n = robot.n_joints
+    return {
+        "criterion": args.criterion,
+        "criterion_label": criteria.label(args.criterion),
+        "robot": robot.name,
+        "experiments": 1,
+        "poses_deg": [[round(float(a), 6) for a in res.pose_deg]],
+        "O_t": _json_number(summ["O_t"]),
+        "O_t_star": criteria.o_t_star(n, 1, args.sigma),
+        "chi": _json_number(summ["chi"]),
+        "cov_diag": [_json_number(summ[f"E_dk{i + 1}"]) for i in range(n)],
+        "criterion_value": _json_number(res.value),
+        "lower_bound": None,
+        "optimal_set_deg": [[round(float(a), 6) for a in p] for p in res.optimal_set_deg],
+        "degenerate": res.degenerate,
+        "notes": res.notes,
+        "sigma": args.sigma,
+        "test_pose_deg": q_t.tolist(),
+        "force_N": force.tolist(),
+    }
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="stiffcal", description=__doc__.split("\n")[0])
+    sub = p.add_subparsers(dest="command", required=True)
+    d = sub.add_parser("design", help="optimal measurement poses for a test pose (prints JSON)")
+    d.add_argument("--robot", required=True, help="robot YAML file")
+    d.add_argument("--test-pose-deg", required=True, help="test pose q*, comma-separated degrees")
+    d.add_argument("--force-N", required=True, help="force F in newtons, comma-separated")
+    d.add_argument("--experiments", type=int, default=1, help="number of measurement poses M (default 1)")
+    d.add_argument("--criterion", default="ot", choices=criteria.CRITERIA_KEYS, help="criterion (default ot)")
+    d.add_argument("--sigma", type=float, default=1.0, help="measurement noise s.t.d. (default 1)")
+    d.set_defaults(func=design)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        out = args.func(args)
+    except InputError as err:
+        print(f"stiffcal {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    print(json.dumps(out, indent=2))
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

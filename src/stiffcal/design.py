@@ -1,0 +1,267 @@
+"""Choosing measurement poses: the optimal single pose for every criterion (Tables 2-3, Figs. 3-5).
+
+Global search for one pose
+--------------------------
+Every criterion is a continuous function of the joint angles on a compact domain (the torus of full
+turns, or the box of the joint limits), so the search is exhaustive rather than started from a guess:
+
+1. evaluate the criterion at every node of a regular grid covering the whole domain (vectorised);
+2. take every grid node that is no worse than its 2n axis neighbours (a grid local minimum: every basin
+   wider than one grid step contains one), keep the best ``n_refine`` of them;
+3. polish each with Nelder-Mead (derivative-free, so the max() kinks of MDC and G are no obstacle);
+4. the optimum is the best polished value; the *optimal set* is every polished pose within a relative
+   ``set_rtol`` of it, duplicates merged.
+
+No starting point is involved, so the result does not depend on one; the test-suite checks it against
+an independent brute force on a finer grid and against shifted grids.
+
+Symmetries and the representative pose
+--------------------------------------
+For a fixed force, a planar arm's information matrix is unchanged by turning the arm half a turn
+(``q1 + 180``: J -> -J, so each column ``J_j (J_j^T F)`` is unchanged) and by mirroring it about the
+force line through the base (``q1 -> 2 phi - q1``, ``q_i -> -q_i``); every criterion, O_t included,
+depends on the measurement pose only through that matrix, so optima come in sets of (usually) four.
+The representative reported is chosen by one documented rule (:func:`representative`): the copy
+with positive "elbow" (first nonzero of q2..qn) and ``q1`` in (-90, 90], ties to the largest q1, q2, ...
+For the paper's arm this rule selects every pose printed in Table 2.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import minimize
+
+from . import criteria
+from .errors import InputError
+from .robot import Robot
+from .stiffness import observation_matrix
+
+TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True)
+class Problem:
+    """A pose-selection problem.
+
+    robot; force: (d,) [N] applied in every measurement; criterion: key of :data:`criteria.CRITERIA_KEYS`;
+    m: number of measurement poses; test_pose: (n,) [rad] (needed for 'ot'); test_force: (d,) [N]
+    (default: ``force``); sigma: measurement noise standard deviation [m].
+    """
+
+    robot: Robot
+    force: np.ndarray
+    criterion: str = "ot"
+    m: int = 1
+    test_pose: np.ndarray | None = None
+    test_force: np.ndarray | None = None
+    sigma: float = 1.0
+
+    @property
+    def At(self) -> np.ndarray | None:
+        """Observation matrix at the test pose, (d, n), or None."""
+        if self.test_pose is None:
+            return None
+        F = self.force if self.test_force is None else self.test_force
+        return observation_matrix(self.robot.jacobian(self.test_pose), F)
+
+
+def plan_observations(problem: Problem, q: np.ndarray) -> np.ndarray:
+    """Stacked observation matrices of plans. q: (..., m, n) [rad]. Returns (..., m d, n)."""
+    A = observation_matrix(problem.robot.jacobian(q), problem.force)
+    return A.reshape(A.shape[:-3] + (A.shape[-3] * A.shape[-2], A.shape[-1]))
+
+
+def plan_loss(problem: Problem, q: np.ndarray) -> np.ndarray:
+    """Criterion to minimise for plans q: (..., m, n) [rad]. Returns (...,); +inf where singular."""
+    return criteria.loss(problem.criterion, plan_observations(problem, q), problem.m, problem.At,
+                         problem.sigma)
+
+
+def plan_value(problem: Problem, q: np.ndarray) -> np.ndarray:
+    """Natural (Table 1 / eq. 16) value of the criterion for plans q: (..., m, n) [rad]."""
+    return criteria.evaluate(problem.criterion, plan_observations(problem, q), problem.m, problem.At,
+                             problem.sigma)
+
+
+# ---------------------------------------------------------------------------------------------------
+# grid search helpers
+
+def joint_grids(robot: Robot, step_deg: float) -> list[np.ndarray]:
+    """Per-joint grid [rad]: full-turn joints get ``[-180, 180)`` (periodic), limited joints their
+    closed interval, each at (at most) ``step_deg`` spacing."""
+    grids = []
+    for lo, hi in robot.joint_limits_rad:
+        if _is_full_turn(lo, hi):
+            count = int(np.ceil(360.0 / step_deg - 1e-9))
+            grids.append(-np.pi + TWO_PI * np.arange(count) / count)
+        else:
+            count = int(np.ceil(np.degrees(hi - lo) / step_deg - 1e-9)) + 1
+            grids.append(np.linspace(lo, hi, count))
+    return grids
+
+
+def _is_full_turn(lo: float, hi: float) -> bool:
+    return hi - lo >= TWO_PI - 1e-12
+
+
+def grid_local_minima(values: np.ndarray, periodic: list[bool]) -> np.ndarray:
+    """Boolean mask of grid nodes no worse than their 2n axis neighbours (finite values only).
+
+    values: (N1, ..., Nn); periodic: per axis, whether the grid wraps around.
+    """
+    mask = np.isfinite(values)
+    for ax, wrap in enumerate(periodic):
+        for shift in (1, -1):
+            nb = np.roll(values, shift, axis=ax)
+            if not wrap:
+                edge = [slice(None)] * values.ndim
+                edge[ax] = 0 if shift == 1 else -1
+                nb[tuple(edge)] = np.inf
+            mask &= values <= nb
+    return mask
+
+
+def evaluate_grid(problem: Problem, grids: list[np.ndarray], chunk: int = 1 << 16) -> np.ndarray:
+    """Single-pose loss at every node of the product grid, in chunks to bound memory.
+
+    Returns an array of shape ``tuple(len(g) for g in grids)``.
+    """
+    shape = tuple(len(g) for g in grids)
+    total = int(np.prod(shape))
+    out = np.empty(total)
+    for start in range(0, total, chunk):
+        idx = np.unravel_index(np.arange(start, min(start + chunk, total)), shape)
+        q = np.stack([g[i] for g, i in zip(grids, idx)], axis=-1)[:, None, :]
+        out[start:start + q.shape[0]] = plan_loss(problem, q)
+    return out.reshape(shape)
+
+
+def wrap_deg(q_deg: np.ndarray) -> np.ndarray:
+    """Wrap angles to [-180, 180) degrees (values within 1e-9 deg of +180 become -180)."""
+    w = (np.asarray(q_deg, float) + 180.0) % 360.0 - 180.0
+    return np.where(np.isclose(w, 180.0, atol=1e-9), -180.0, w)
+
+
+def representative(poses_deg: np.ndarray, tie_deg: float = 1e-3) -> np.ndarray:
+    """Pick one pose from a set of equally optimal ones by the documented rule.
+
+    The rule first picks the symmetry copy in a fixed fundamental domain, then breaks accidental ties:
+
+    1. the first nonzero angle among ``q2 .. qn`` is positive ("elbow" sign; removes the mirror copy);
+    2. ``q1`` lies in ``(-90, 90]`` (removes the half-turn copy);
+    3. the largest ``q1``, then the largest ``q2``, ``q3``, ... .
+
+    Each step keeps the candidates within ``tie_deg`` of the best. For the paper's arm this selects
+    every pose printed in Table 2. poses_deg: (k, n) wrapped to [-180, 180). Returns (n,).
+    """
+    cand = np.asarray(poses_deg, float)
+
+    def elbow_sign(c):
+        rest = np.where(np.abs(c[:, 1:]) > tie_deg, c[:, 1:], 0.0)
+        first = np.array([r[np.flatnonzero(r)[0]] if np.any(r) else 0.0 for r in rest])
+        return (first < 0).astype(float)
+
+    keys = [elbow_sign, lambda c: ((c[:, 0] <= -90 + tie_deg) | (c[:, 0] > 90 + tie_deg)).astype(float)]
+    keys += [lambda c, j=j: -c[:, j] for j in range(cand.shape[1])]
+    for key_fn in keys:
+        key = key_fn(cand)
+        cand = cand[key <= key.min() + tie_deg]
+    return cand[0]
+
+
+def dedupe(poses_rad: np.ndarray, tol_rad: float = 1e-4) -> np.ndarray:
+    """Drop poses (rows) that repeat an earlier one within ``tol_rad`` on every joint, modulo 2 pi."""
+    kept: list[np.ndarray] = []
+    for p in poses_rad:
+        if not any(np.all(np.abs(np.angle(np.exp(1j * (p - k)))) < tol_rad) for k in kept):
+            kept.append(p)
+    return np.array(kept)
+
+
+# ---------------------------------------------------------------------------------------------------
+# single pose
+
+@dataclass
+class SinglePoseResult:
+    """Result of :func:`optimal_single_pose`.
+
+    pose_deg: (n,) the representative; optimal_set_deg: (k, n) all equally optimal poses found;
+    loss: minimised value; value: the criterion's natural value; degenerate: True when the criterion
+    is constant over all nonsingular poses (no pose is better than another).
+    """
+
+    pose_deg: np.ndarray
+    optimal_set_deg: np.ndarray
+    loss: float
+    value: float
+    degenerate: bool = False
+    notes: list[str] = field(default_factory=list)
+
+
+def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int = 24,
+                        set_rtol: float = 1e-7, xatol: float = 1e-10) -> SinglePoseResult:
+    """Global optimum of the criterion over one measurement pose (see the module docstring).
+
+    step_deg: grid spacing; n_refine: grid local minima polished; set_rtol: relative tolerance that
+    defines "equally optimal". Deterministic: no random numbers are used.
+    """
+    assert problem.m == 1, "optimal_single_pose is for one measurement pose"
+    robot = problem.robot
+    grids = joint_grids(robot, step_deg)
+    values = evaluate_grid(problem, grids)
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        d, n = robot.task_dim, robot.n_joints
+        why = (f"one pose gives {d} equations for {n} compliances; use at least {-(-n // d)} poses"
+               if d < n else "no pose of the joint space identifies every compliance with this force")
+        raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every pose: {why}")
+    if finite.max() - finite.min() <= 1e-9 * max(1.0, abs(finite.min())):
+        return _degenerate_result(problem, grids, values)
+
+    periodic = [_is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad]
+    mask = grid_local_minima(values, periodic)
+    idx = np.argwhere(mask)
+    order = np.argsort(values[mask], kind="stable")[:n_refine]
+    starts = np.array([[g[i] for g, i in zip(grids, idx[o])] for o in order])
+
+    bounds = [None if p else (lo, hi) for p, (lo, hi) in zip(periodic, robot.joint_limits_rad)]
+    polished = [_polish(problem, x0, bounds, xatol) for x0 in starts]
+    xs = np.array([p[0] for p in polished])
+    fs = np.array([p[1] for p in polished])
+    best = fs.min()
+    near = fs <= best + set_rtol * max(abs(best), 1e-300)
+    opt = dedupe(xs[near][np.argsort(fs[near], kind="stable")])
+    opt_deg = wrap_deg(np.degrees(opt))
+    rep = representative(opt_deg)
+    value = float(plan_value(problem, np.radians(rep)[None, None, :])[0])
+    return SinglePoseResult(rep, opt_deg, float(best), value)
+
+
+def _polish(problem: Problem, x0: np.ndarray, bounds, xatol: float):
+    """Nelder-Mead from x0 on the single-pose loss; returns (x, f)."""
+    def f(x):
+        return float(plan_loss(problem, x[None, None, :])[0])
+
+    f0 = f(x0)
+    has_bounds = any(b is not None for b in bounds)
+    bnds = [b if b is not None else (None, None) for b in bounds] if has_bounds else None
+    res = minimize(f, x0, method="Nelder-Mead", bounds=bnds,
+                   options=dict(xatol=xatol, fatol=1e-15 * max(1.0, abs(f0)), maxiter=4000 * len(x0),
+                                maxfev=8000 * len(x0), initial_simplex=x0 + np.vstack(
+                                    [np.zeros(len(x0)), np.eye(len(x0)) * np.radians(0.5)])))
+    if res.fun <= f0:
+        return res.x, float(res.fun)
+    return x0, f0
+
+
+def _degenerate_result(problem: Problem, grids, values) -> SinglePoseResult:
+    """Every nonsingular pose is optimal: report the rule's pick among all finite grid nodes."""
+    idx = np.argwhere(np.isfinite(values))
+    poses = wrap_deg(np.degrees(np.array([[g[i] for g, i in zip(grids, row)] for row in idx])))
+    rep = representative(poses, tie_deg=0.0)
+    value = float(plan_value(problem, np.radians(rep)[None, None, :])[0])
+    note = (f"{criteria.label(problem.criterion)} is constant ({value:.6g}) over every nonsingular pose: "
+            "one pose gives as many equations as parameters, so no pose is better than another")
+    return SinglePoseResult(rep, poses[:0], float(values[np.isfinite(values)].min()), value, True, [note])

@@ -1,0 +1,123 @@
+"""One function per workflow step: paths in, files out. The Snakemake scripts only unpack
+``snakemake.input/output/config`` and call these, so every step is testable without Snakemake and also
+runs standalone (``python -m stiffcal.pipeline STEP ...`` is not needed: import and call).
+
+Each step writes its outputs only after everything is computed, so a failure leaves no partial file.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from . import plots, report, reproduction, tables
+from .study import Study, study_from_config
+
+
+def _study(config: dict) -> Study:
+    return study_from_config(config, ".", "config/config.yaml")
+
+
+def _read(path) -> pd.DataFrame:
+    return pd.read_csv(path, keep_default_na=False, na_values=[""])
+
+
+def _log(msg: str) -> None:
+    print(f"[stiffcal {time.strftime('%H:%M:%S')}] {msg}", flush=True)
+
+
+def table2(config: dict, out_csv: str) -> None:
+    """Table 2 for the study of ``config``."""
+    study = _study(config)
+    _log(f"Table 2: optimising {len(study.criteria)} criteria for {study.robot.name}")
+    tables.write_csv(tables.table2(study), out_csv)
+
+
+def table3(config: dict, table2_csv: str, out_csv: str) -> None:
+    tables.write_csv(tables.table3(_study(config), _read(table2_csv)), out_csv)
+
+
+def comparison(config: dict, table2_csv: str, table3_csv: str, printed_yaml: str, out_csv: str) -> None:
+    study = _study(config)
+    cmp = reproduction.compare_tables(study, _read(table2_csv), _read(table3_csv),
+                                      reproduction.load_printed(printed_yaml))
+    s = reproduction.summary(cmp)
+    _log(f"paper comparison: {s['reproduced']} of {s['total']} printed numbers reproduced; reasons {s['reasons']}")
+    tables.write_csv(cmp, out_csv)
+
+
+def _optimal_poses(t2: pd.DataFrame, n: int) -> dict[str, np.ndarray]:
+    cols = [f"q{i + 1}_deg" for i in range(n)]
+    return {r["criterion"]: r[cols].to_numpy(float) for _, r in t2.iterrows() if not r["degenerate"]}
+
+
+def validation(config: dict, table2_csv: str, out_csv: str) -> None:
+    """Monte Carlo check of eqs. 11 and 16 on the O_t- and A-optimal single poses."""
+    study = _study(config)
+    poses = _optimal_poses(_read(table2_csv), study.robot.n_joints)
+    plans = {f"{k}-optimal pose": poses[k][None, :] for k in ("ot", "a") if k in poses}
+    df = tables.monte_carlo_check(study, plans, int(config["monte_carlo"]["samples"]), int(config["seed"]))
+    tables.write_csv(df, out_csv)
+
+
+def chi_map(config: dict, out_csv: str) -> None:
+    tables.write_csv(tables.chi_map(_study(config)), out_csv)
+
+
+def _optimal_set(t2: pd.DataFrame, key: str) -> np.ndarray:
+    text = t2.set_index("criterion").loc[key, "optimal_set_deg"]
+    return np.array([[float(v) for v in p.split()] for p in str(text).split(";")])
+
+
+def fig3(table2_csv: str, out_png: str) -> None:
+    plots.save(plots.fig3_accuracy(_read(table2_csv)), Path(out_png).with_suffix(""))
+
+
+def fig4(config: dict, table2_csv: str, out_png: str) -> None:
+    study = _study(config)
+    pose = _optimal_poses(_read(table2_csv), study.robot.n_joints)["ot"]
+    plots.save(plots.fig4_poses(study, pose), Path(out_png).with_suffix(""))
+
+
+def fig5(table2_csv: str, chi_csv: str, out_png: str) -> None:
+    t2 = _read(table2_csv)
+    pose = _optimal_poses(t2, 2)["ot"]
+    plots.save(plots.fig5_chi_map(_read(chi_csv), _optimal_set(t2, "ot"), pose), Path(out_png).with_suffix(""))
+
+
+def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: str, rules: dict,
+                template_dir: str, out_html: str) -> None:
+    """Render the HTML report from the generated tables and figures."""
+    prov = {"commit": report.git_commit(), "config_hash": report.config_hash(config), **rules}
+    ctx = report.build_context(config, tables_in, figures_in, printed_yaml, prov)
+    html = report.render_html(ctx, template_dir)
+    Path(out_html).parent.mkdir(parents=True, exist_ok=True)
+    Path(out_html).write_text(html, encoding="utf-8")
+
+
+def report_pdf(html: str, out_pdf: str) -> None:
+    report.write_pdf(html, out_pdf)
+
+
+def run(snakemake, step, *args) -> None:
+    """Run one step from a Snakemake script: output to the rule's log, and a bad input as one clear
+    line (on stderr and in the log) with exit status 1 instead of a traceback."""
+    import contextlib
+    import sys
+
+    from .errors import InputError
+
+    log = Path(snakemake.log[0]) if snakemake.log else None
+    if log:
+        log.parent.mkdir(parents=True, exist_ok=True)
+    with open(log, "w", encoding="utf-8") if log else contextlib.nullcontext(sys.stdout) as fh:
+        with contextlib.redirect_stdout(fh):
+            try:
+                step(*args)
+            except InputError as err:
+                print(f"stiffcal: error: {err}", file=fh)
+                print(f"stiffcal: error: {err}", file=sys.stderr)
+                sys.exit(1)

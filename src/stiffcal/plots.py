@@ -1,0 +1,116 @@
+"""The paper's figures from our generated tables (matplotlib, Agg backend, deterministic output).
+
+Plot functions only draw: they read data frames produced by :mod:`stiffcal.tables` and never compute a
+design, so restyling a figure never reruns an optimisation.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+
+from .study import Study  # noqa: E402
+
+STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.fontsize": 8,
+         "figure.dpi": 100, "savefig.dpi": 150, "svg.hashsalt": "stiffcal", "svg.fonttype": "none"}
+
+
+def save(fig, stem: str | Path) -> list[Path]:
+    """Write ``<stem>.png`` and ``<stem>.svg`` without timestamps (reproducible bytes)."""
+    stem = Path(stem)
+    stem.parent.mkdir(parents=True, exist_ok=True)
+    paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
+    fig.savefig(paths[0], metadata={"Software": None}, bbox_inches="tight")
+    fig.savefig(paths[1], metadata={"Date": None, "Creator": None}, bbox_inches="tight")
+    plt.close(fig)
+    return paths
+
+
+def fig3_accuracy(t2: pd.DataFrame):
+    """Figure 3: identification accuracy E[dk_i^2] of the optimal single pose per criterion (log bars;
+    an unidentifiable compliance is drawn as a hatched bar at the top marked 'inf')."""
+    with plt.rc_context(STYLE):
+        n = sum(c.startswith("E_dk") for c in t2.columns)
+        rows = t2[~t2["degenerate"].astype(bool)]
+        vals = rows[[f"E_dk{i + 1}" for i in range(n)]].to_numpy(float)
+        finite = vals[np.isfinite(vals)]
+        top = finite.max() * 4 if finite.size else 10.0
+        fig, ax = plt.subplots(figsize=(6.4, 3.2))
+        x = np.arange(len(rows))
+        w = 0.8 / n
+        for i in range(n):
+            v = vals[:, i]
+            bars = ax.bar(x + (i - (n - 1) / 2) * w, np.where(np.isfinite(v), v, top), w,
+                          label=f"E[dk{i + 1}²]", color=f"C{i}")
+            for b, vi in zip(bars, v):
+                if not np.isfinite(vi):
+                    b.set_hatch("//")
+                    b.set_alpha(0.4)
+                    ax.text(b.get_x() + b.get_width() / 2, top, "inf", ha="center", va="bottom", fontsize=7)
+        ax.set_yscale("log")
+        ax.set_xticks(x, rows["label"], rotation=30, ha="right")
+        ax.set_ylabel("E[δk²]  [rad²/N², σ = 1]")
+        ax.set_title("Identification accuracy at each criterion's optimal pose (one experiment)")
+        ax.set_ylim(top=top * 3)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0))
+        ax.grid(axis="y", which="major", alpha=0.3)
+        return fig
+
+
+def _draw_arm(ax, points, style, label):
+    ax.plot(points[:, 0], points[:, 1], style, lw=2.5, ms=6, label=label)
+    ax.plot(points[0, 0], points[0, 1], "ks", ms=8)
+
+
+def fig4_poses(study: Study, measure_pose_deg: np.ndarray):
+    """Figure 4: the arm at the test pose and at the O_t-optimal measurement pose, with the force."""
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(4.6, 4.6))
+        reach = float(study.robot.links_m.sum())
+        test = study.robot.link_points(study.test_pose)
+        meas = study.robot.link_points(np.radians(measure_pose_deg))
+        _draw_arm(ax, test, "o-C0", "test pose q* = (" + ", ".join(f"{a:.0f}" for a in np.degrees(study.test_pose)) + ")°")
+        _draw_arm(ax, meas, "o-C3", "optimal measurement pose (" + ", ".join(f"{a:.2f}" for a in measure_pose_deg) + ")°")
+        f = study.force / np.linalg.norm(study.force) * 0.25 * reach
+        for pts in (test, meas):
+            ax.annotate("", xy=pts[-1] + f, xytext=pts[-1],
+                        arrowprops=dict(arrowstyle="-|>", color="C2", lw=1.5))
+        ax.plot([], [], color="C2", label="force F")
+        circle = plt.Circle((0, 0), reach, fill=False, ls=":", color="0.6")
+        ax.add_patch(circle)
+        ax.set_xlim(-1.15 * reach, 1.15 * reach)
+        ax.set_ylim(-1.15 * reach, 1.15 * reach)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.legend(loc="lower left", fontsize=7)
+        ax.set_title("Test pose and O_t-optimal measurement pose")
+        ax.grid(alpha=0.3)
+        return fig
+
+
+def fig5_chi_map(chi: pd.DataFrame, optimal_set_deg: np.ndarray, representative_deg: np.ndarray):
+    """Figure 5: chi (eq. 27) over the measurement-pose plane; the optimal poses marked."""
+    with plt.rc_context(STYLE):
+        q1 = np.unique(chi["q1_deg"])
+        q2 = np.unique(chi["q2_deg"])
+        Z = chi["chi"].to_numpy(float).reshape(len(q1), len(q2)).T
+        fig, ax = plt.subplots(figsize=(5.6, 4.4))
+        mesh = ax.pcolormesh(q1, q2, Z, shading="auto", cmap="viridis", vmin=0, vmax=np.nanmax(Z),
+                             rasterized=True)
+        ax.contour(q1, q2, Z, levels=[1, 2, 3, 4, 5], colors="w", linewidths=0.5)
+        fig.colorbar(mesh, ax=ax, label="χ = O_t* / O_t")
+        ax.plot(optimal_set_deg[:, 0], optimal_set_deg[:, 1], "o", mfc="none", mec="r", ms=9,
+                label="equally optimal poses")
+        ax.plot(representative_deg[0], representative_deg[1], "r*", ms=12, label="reported optimum")
+        ax.set_xlabel("q1 [deg]")
+        ax.set_ylabel("q2 [deg]")
+        ax.set_title("Accuracy gain χ of one measurement pose")
+        ax.legend(loc="lower right", fontsize=7)
+        return fig

@@ -1,0 +1,115 @@
+"""The HTML report (Jinja2) and its PDF (WeasyPrint), built only from generated files.
+
+Every number in the report comes from a CSV under ``results/`` or from the config; the template holds
+words only. Figures are embedded as PNG data URIs, so the HTML opens offline as one file.
+"""
+
+from __future__ import annotations
+
+import base64
+import hashlib
+import json
+import math
+import subprocess
+from pathlib import Path
+
+import jinja2
+import pandas as pd
+import yaml
+
+from .errors import InputError
+
+TEMPLATE_DIR = Path(__file__).resolve().parents[2] / "paper" / "templates"
+
+
+def fmt(x, digits: int = 4) -> str:
+    """Format a number for the report: fixed decimals, 'inf' for infinity, '' for missing."""
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return ""
+    if isinstance(x, str):
+        return x
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    if abs(x) >= 1e6:
+        return f"{x:.{digits}e}"
+    text = f"{x:.{digits}f}"
+    return text.lstrip("-") if float(text) == 0 else text
+
+
+def fmt_like(x, printed: str, extra: int = 2) -> str:
+    """Format ``x`` with the printed number's decimals plus ``extra`` (to show where they differ)."""
+    from .reproduction import printed_decimals
+
+    return fmt(x, printed_decimals(printed) + extra)
+
+
+def image_data_uri(path: str | Path) -> str:
+    """PNG file -> ``data:image/png;base64,...`` (embedded so the HTML is self-contained)."""
+    return "data:image/png;base64," + base64.b64encode(Path(path).read_bytes()).decode("ascii")
+
+
+def config_hash(config: dict) -> str:
+    """SHA-256 (first 12 hex digits) of the config, canonicalised as sorted JSON."""
+    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:12]
+
+
+def git_commit(root: str | Path = ".") -> str:
+    """Current commit (short) with '-dirty' when the work tree has changes; 'unknown' outside git."""
+    try:
+        sha = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=root, capture_output=True,
+                             text=True, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
+                               capture_output=True, text=True, check=True).stdout.strip()
+        return sha + ("-dirty" if dirty else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def render_html(context: dict, template_dir: str | Path = TEMPLATE_DIR) -> str:
+    """Render ``report.html.j2`` with ``context``; undefined names are errors, not blanks."""
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(template_dir)),
+                             undefined=jinja2.StrictUndefined, autoescape=jinja2.select_autoescape(["html"]),
+                             trim_blocks=True, lstrip_blocks=True)
+    env.filters["num"] = fmt
+    env.filters["num_like"] = fmt_like
+    return env.get_template("report.html.j2").render(**context)
+
+
+def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str, str | Path],
+                  printed_path: str | Path, provenance: dict) -> dict:
+    """Collect everything the template shows.
+
+    tables: name -> CSV path (table2, table3, comparison, validation); figures: name -> PNG path;
+    provenance: rule name per table/figure plus 'commit' and 'config_hash'.
+    """
+    from .reproduction import summary
+
+    from .reproduction import FLAT_RTOL
+
+    frames = {k: pd.read_csv(v, keep_default_na=False, na_values=[""], dtype={"printed": str, "reason": str})
+              for k, v in tables.items()}
+    printed = yaml.safe_load(Path(printed_path).read_text(encoding="utf-8"))
+    cmp = frames["comparison"]
+    cmp["reason"] = cmp["reason"].fillna("")
+    return {
+        "config": config,
+        "study": config["study"],
+        "tables": {k: df.to_dict("records") for k, df in frames.items()},
+        "n_joints": len(config["study"]["test_pose_deg"]),
+        "figures": {k: image_data_uri(v) for k, v in figures.items()},
+        "summary": summary(cmp),
+        "notes": printed.get("notes", {}),
+        "provenance": provenance,
+        "flat_rtol": FLAT_RTOL,
+    }
+
+
+def write_pdf(html_path: str | Path, pdf_path: str | Path) -> None:
+    """Print the HTML to PDF with WeasyPrint; a missing system library gives one clear message."""
+    try:
+        from weasyprint import HTML
+    except OSError as err:  # cffi cannot load Pango/HarfBuzz/etc.
+        raise InputError(f"WeasyPrint cannot load a system library it needs ({err}); install Pango "
+                         "(e.g. Debian: apt-get install libpango-1.0-0 libpangoft2-1.0-0) or use the HTML "
+                         "report", source=str(pdf_path)) from None
+    HTML(filename=str(html_path)).write_pdf(str(pdf_path))

@@ -1,0 +1,36 @@
+"""Shared fixtures: the paper's arm and study (l1 = 0.6 m, l2 = 0.4 m, q* = (60, 30) deg, F = (0, -1) N)."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from stiffcal.robot import load_robot
+from stiffcal.study import load_config, study_from_config
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="session")
+def root():
+    return ROOT
+
+
+@pytest.fixture(scope="session")
+def paper_robot():
+    return load_robot(ROOT / "config/robots/paper_2r.yaml")
+
+
+@pytest.fixture(scope="session")
+def paper_config():
+    return load_config(ROOT / "config/config.yaml")
+
+
+@pytest.fixture(scope="session")
+def paper_study(paper_config):
+    return study_from_config(paper_config, ROOT)
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)

@@ -1,0 +1,65 @@
+"""Table 1 criteria against independent formulas (numpy SVD and inverse), and their singular cases."""
+
+import numpy as np
+import pytest
+
+from stiffcal import criteria
+
+
+def _independent(key, A, m, At):
+    """Table 1 written directly from its formulas."""
+    M = A.T @ A
+    s = np.linalg.svd(A, compute_uv=False)  # descending
+    Minv = np.linalg.inv(M)
+    return {
+        "a": np.trace(Minv), "t": np.trace(M), "d": np.linalg.det(M),
+        "g": np.max(np.diag(A @ Minv @ A.T)), "mdc": np.max(np.diag(Minv)),
+        "o1": np.prod(s) ** (1 / len(s)) / np.sqrt(m), "o2": s[-1] / s[0], "o3": s[-1],
+        "o4": s[-1] ** 2 / s[0], "ot": np.trace(At @ Minv @ At.T),
+    }[key]
+
+
+@pytest.mark.parametrize("key", criteria.CRITERIA_KEYS)
+@pytest.mark.parametrize("m,n", [(1, 2), (3, 2), (2, 3), (4, 3)])
+def test_criteria_match_their_formulas(key, m, n, rng):
+    for _ in range(5):
+        A = rng.normal(size=(m * 2, n))
+        At = rng.normal(size=(2, n))
+        got = criteria.evaluate(key, A, m, At)
+        np.testing.assert_allclose(got, _independent(key, A, m, At), rtol=1e-9)
+
+
+def test_criteria_batch_over_plans(rng):
+    A = rng.normal(size=(7, 4, 2))
+    At = rng.normal(size=(2, 2))
+    batched = criteria.evaluate("ot", A, 2, At)
+    np.testing.assert_allclose(batched, [criteria.evaluate("ot", a, 2, At) for a in A], rtol=1e-12)
+
+
+def test_loss_turns_max_criteria_into_minimisation(rng):
+    A = rng.normal(size=(2, 2))
+    assert criteria.loss("d", A, 1) == pytest.approx(-np.linalg.det(A.T @ A))
+    assert criteria.loss("a", A, 1) == pytest.approx(np.trace(np.linalg.inv(A.T @ A)))
+
+
+def test_singular_plan_is_inf_for_inverse_criteria_and_finite_for_others():
+    A = np.array([[1.0, 2.0], [2.0, 4.0]])  # rank 1
+    At = np.eye(2)
+    for key in ("a", "g", "mdc", "ot"):
+        assert criteria.loss(key, A, 1, At) == np.inf
+    assert criteria.loss("t", A, 1) == pytest.approx(-25.0)
+    assert criteria.loss("d", A, 1) == pytest.approx(0.0, abs=1e-12)
+    assert criteria.loss("o3", A, 1) == 0.0
+
+
+def test_round_off_singularity_is_inf_not_a_huge_number():
+    """A matrix singular up to round-off (as at the T-optimal pose) must not give 1e16-sized values."""
+    A = np.array([[1.0, 1.0 + 1e-17], [0.4, 0.4]])
+    assert criteria.loss("a", A, 1) == np.inf
+
+
+def test_o_t_star_and_chi():
+    assert criteria.o_t_star(2, 1) == 2.0
+    assert criteria.o_t_star(6, 3, 0.5) == pytest.approx(0.5)
+    assert criteria.chi(0.5, 2, 1) == pytest.approx(4.0)
+    assert criteria.chi(np.inf, 2, 1) == 0.0

@@ -1,0 +1,88 @@
+"""Robot files (validation with clear messages) and kinematics (Jacobian against finite differences)."""
+
+import numpy as np
+import pytest
+
+from stiffcal.errors import InputError
+from stiffcal.robot import load_robot, planar_fk, planar_jacobian, planar_robot
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 5])
+def test_jacobian_matches_central_finite_differences(n, rng):
+    links = rng.uniform(0.1, 1.0, n)
+    q = rng.uniform(-np.pi, np.pi, (20, n))
+    J = planar_jacobian(links, q)
+    h = 1e-6
+    fd = np.stack([(planar_fk(links, q + h * np.eye(n)[j]) - planar_fk(links, q - h * np.eye(n)[j])) / (2 * h)
+                   for j in range(n)], axis=-1)
+    assert J.shape == (20, 2, n)
+    np.testing.assert_allclose(J, fd, atol=1e-8)
+
+
+def test_forward_kinematics_is_eq_18(paper_robot):
+    q1, q2 = np.radians([60.0, 30.0])
+    x = 0.6 * np.cos(q1) + 0.4 * np.cos(q1 + q2)
+    y = 0.6 * np.sin(q1) + 0.4 * np.sin(q1 + q2)
+    np.testing.assert_allclose(paper_robot.fk(np.array([q1, q2])), [x, y], rtol=1e-14)
+
+
+def test_jacobian_batches_over_any_leading_shape(paper_robot, rng):
+    q = rng.uniform(-3, 3, (4, 5, 2))
+    J = paper_robot.jacobian(q)
+    assert J.shape == (4, 5, 2, 2)
+    np.testing.assert_allclose(J[2, 3], paper_robot.jacobian(q[2, 3]))
+
+
+def test_paper_robot_file(paper_robot):
+    assert paper_robot.n_joints == 2
+    np.testing.assert_array_equal(paper_robot.links_m, [0.6, 0.4])
+    assert not paper_robot.has_joint_limits
+
+
+BAD_FILES = {
+    "missing_links": ("name: x\nkind: planar\n", "links_m"),
+    "negative_link": ("name: x\nkind: planar\nlinks_m: [0.6, -0.4]\n", "links_m[1]"),
+    "zero_link": ("name: x\nkind: planar\nlinks_m: [0.0]\n", "links_m[0]"),
+    "unknown_kind": ("name: x\nkind: delta\nlinks_m: [0.6, 0.4]\n", "kind"),
+    "non_numeric": ("name: x\nkind: planar\nlinks_m: [0.6, abc]\n", "links_m[1]"),
+    "limits_count": ("name: x\nkind: planar\nlinks_m: [0.6, 0.4]\njoint_limits_deg: [[-90, 90]]\n",
+                     "joint_limits_deg"),
+    "limits_order": ("name: x\nkind: planar\nlinks_m: [0.6, 0.4]\njoint_limits_deg: [[-90, 90], [10, -10]]\n",
+                     "joint_limits_deg[1]"),
+    "typo_field": ("name: x\nkind: planar\nlinks_m: [0.6]\nlink_m: [1]\n", "<top level>"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_bad_robot_file_names_file_and_field(case, tmp_path):
+    text, field = BAD_FILES[case]
+    path = tmp_path / f"{case}.yaml"
+    path.write_text(text)
+    with pytest.raises(InputError) as err:
+        load_robot(path)
+    msg = str(err.value)
+    assert str(path) in msg and f"'{field}'" in msg, msg
+    assert "\n" not in msg
+
+
+def test_yaml_syntax_error_and_missing_file(tmp_path):
+    bad = tmp_path / "broken.yaml"
+    bad.write_text("name: x\nlinks_m: [0.6, 0.4\n")
+    with pytest.raises(InputError, match=r"broken.yaml: not valid YAML at line"):
+        load_robot(bad)
+    with pytest.raises(InputError, match="cannot read file"):
+        load_robot(tmp_path / "absent.yaml")
+
+
+def test_joint_limits_are_read_in_radians(tmp_path):
+    path = tmp_path / "lim.yaml"
+    path.write_text("name: x\nkind: planar\nlinks_m: [0.6, 0.4]\njoint_limits_deg: [[-90, 90], [0, 150]]\n")
+    r = load_robot(path)
+    assert r.has_joint_limits
+    np.testing.assert_allclose(np.degrees(r.joint_limits_rad), [[-90, 90], [0, 150]])
+
+
+def test_in_memory_robot_matches_file(paper_robot):
+    r = planar_robot([0.6, 0.4])
+    q = np.radians([[10.0, 20.0], [-70.0, 130.0]])
+    np.testing.assert_array_equal(r.jacobian(q), paper_robot.jacobian(q))

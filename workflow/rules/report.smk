@@ -1,0 +1,34 @@
+# The report: HTML from the generated tables and figures, then the PDF printed from that HTML.
+
+
+rule report_html:
+    input:
+        table2=rules.table2.output.csv,
+        table3=rules.table3.output.csv,
+        comparison=rules.paper_comparison.output.csv,
+        validation=rules.validation.output.csv,
+        fig3=rules.fig3.output.png,
+        fig4=rules.fig4.output.png,
+        fig5=rules.fig5.output.png,
+        printed=PRINTED,
+        template="paper/templates/report.html.j2",
+        css="paper/templates/report.css",
+    output:
+        html="paper/build/report.html",
+    log:
+        f"{LOGS}/report_html.log",
+    script:
+        "../scripts/report_html.py"
+
+
+rule report_pdf:
+    input:
+        html=rules.report_html.output.html,
+    output:
+        pdf="paper/build/report.pdf",
+    log:
+        f"{LOGS}/report_pdf.log",
+    benchmark:
+        "benchmarks/out/report_pdf.tsv"
+    script:
+        "../scripts/report_pdf.py"

@@ -1,0 +1,5 @@
+"""Rule paper_comparison: every printed number of Tables 2-3 beside ours, with a status."""
+from stiffcal import pipeline
+
+i = snakemake.input
+pipeline.run(snakemake, pipeline.comparison, snakemake.config, i.table2, i.table3, i.printed, snakemake.output.csv)

@@ -1,0 +1,4 @@
+"""Rule report_pdf: print the HTML report to PDF with WeasyPrint."""
+from stiffcal import pipeline
+
+pipeline.run(snakemake, pipeline.report_pdf, snakemake.input.html, snakemake.output.pdf)
