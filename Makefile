@@ -27,7 +27,7 @@ lint: $(STAMP)
 	$(BIN)/snakemake --lint
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/bench_single_pose.py
+	$(BIN)/python benchmarks/bench_plans.py
 
 clean:
 	rm -rf results figures paper/build .snakemake

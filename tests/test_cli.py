@@ -29,7 +29,7 @@ def test_design_default_criterion_is_ot(root, capsys, monkeypatch):
     assert code == 0 and d["criterion"] == "ot"
     assert sig4(d["O_t"]) == 0.3869 and sig4(d["chi"]) == 5.169
     assert len(d["poses_deg"]) == 1 and len(d["poses_deg"][0]) == 2
-    assert d["lower_bound"] is None
+    assert 0 < d["lower_bound"] <= d["O_t"]  # certified bound for any single pose (issue 3)
     for key in ("criterion", "poses_deg", "O_t", "chi", "cov_diag", "lower_bound"):
         assert key in d
 

@@ -20,6 +20,7 @@ def _workdir(root: Path, tmp: Path, **study) -> Path:
     cfg = yaml.safe_load((root / "config/config.yaml").read_text())
     cfg["study"].update({"search_step_deg": 4.0, "fig5_step_deg": 6.0, **study})
     cfg["monte_carlo"]["samples"] = 500
+    cfg["plans"] = {"m_max": 3, "pool_step_deg": 6.0}
     (tmp / "config" / "test.yaml").write_text(yaml.safe_dump(cfg))
     return tmp
 
@@ -38,14 +39,17 @@ def built(root, tmp_path_factory):
 
 
 def test_workflow_writes_tables_figures_and_report(built):
-    for f in ("results/tables/table2.csv", "results/tables/table3.csv", "results/tables/paper_comparison.csv",
+    for f in ("results/tables/table2.csv", "results/tables/table3.csv", "results/tables/table4.csv",
+              "results/tables/table5.csv", "results/tables/approximate_design.csv", "results/tables/certificate.csv",
+              "results/tables/ot_versus_m.csv", "results/tables/paper_comparison.csv",
               "results/tables/validation.csv", "paper/build/report.html", "paper/build/report.pdf"):
         assert (built / f).stat().st_size > 0, f
-    for n in (3, 4, 5):
+    for name in ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m"):
         for ext in ("png", "svg"):
-            assert (built / f"figures/fig{n}.{ext}").stat().st_size > 0
+            assert (built / f"figures/{name}.{ext}").stat().st_size > 0
     html = (built / "paper/build/report.html").read_text()
-    for needle in ("Table 2", "Table 3", "Figure 3", "Figure 4", "Figure 5", "made by rule"):
+    for needle in ("Table 2", "Table 3", "Table 4", "Table 5", "Figure 3", "Figure 4", "Figure 5",
+                   "Optimal approximate design", "made by rule"):
         assert needle in html
     assert (built / "paper/build/report.pdf").read_bytes().startswith(b"%PDF")
 
@@ -53,7 +57,7 @@ def test_workflow_writes_tables_figures_and_report(built):
 def test_rerun_gives_identical_tables(built):
     before = {p: p.read_bytes() for p in (built / "results").rglob("*.csv")}
     shutil.rmtree(built / "results")
-    res = _snakemake(built, "--forcerun", "table2", "chi_map")
+    res = _snakemake(built, "--forcerun", "table2", "chi_map", "approximate_design")
     assert res.returncode == 0, res.stderr[-3000:]
     after = {p: p.read_bytes() for p in (built / "results").rglob("*.csv")}
     assert before.keys() == after.keys()

@@ -17,9 +17,12 @@ import sys
 import numpy as np
 
 from . import criteria
+from .certificate import approximate_design
 from .design import Problem, optimal_single_pose
+from .plans import optimise_plan, round_design
 from .errors import InputError
 from .robot import load_robot
+from .study import Study
 from .tables import plan_summary
 
 
@@ -56,32 +59,48 @@ def design(args) -> dict:
         raise InputError(f"expected a number of experiments >= 1, got {args.experiments}", field="--experiments")
     if not args.sigma > 0:
         raise InputError(f"expected sigma > 0, got {args.sigma}", field="--sigma")
-    if args.experiments != 1:
-        raise InputError("plans of more than one pose are not available in this version "
-                         "(single-experiment design only)", field="--experiments")
-    prob = Problem(robot, force, args.criterion, 1, np.radians(q_t), None, args.sigma)
-    res = optimal_single_pose(prob)
-    from .study import Study
-
+    m = args.experiments
     study = Study(robot.name, robot, np.radians(q_t), force, args.sigma, (args.criterion,), 1.0, 1.0)
-    summ = plan_summary(study, res.pose_deg[None, :])
+    notes, optimal_set, degenerate = [], [], False
+    single = None
+    try:
+        res1 = optimal_single_pose(Problem(robot, force, args.criterion, 1, np.radians(q_t), None, args.sigma))
+        single, notes, degenerate = res1.pose_deg, res1.notes, res1.degenerate
+        optimal_set = res1.optimal_set_deg
+    except InputError:
+        if m == 1:
+            raise
+    design = approximate_design(Problem(robot, force, "ot", 1, np.radians(q_t), None, args.sigma))
+    if m == 1:
+        poses = single[None, :]
+    else:
+        prob = Problem(robot, force, args.criterion, m, np.radians(q_t), None, args.sigma)
+        starts = [round_design(design, m)] + ([np.repeat(single[None], m, 0)] if single is not None else [])
+        plan = optimise_plan(prob, starts=starts, seed=args.seed)
+        poses, optimal_set, degenerate = plan.poses_deg, [], False
+    summ = plan_summary(study, poses)
+    bound = design.lower_bound(m, args.sigma) if args.criterion == "ot" else None
     n = robot.n_joints
     return {
         "criterion": args.criterion,
         "criterion_label": criteria.label(args.criterion),
         "robot": robot.name,
-        "experiments": 1,
-        "poses_deg": [[round(float(a), 6) for a in res.pose_deg]],
+        "experiments": m,
+        "poses_deg": [[round(float(a), 6) + 0.0 for a in p] for p in poses],
         "O_t": _json_number(summ["O_t"]),
-        "O_t_star": criteria.o_t_star(n, 1, args.sigma),
+        "O_t_star": criteria.o_t_star(n, m, args.sigma),
         "chi": _json_number(summ["chi"]),
         "cov_diag": [_json_number(summ[f"E_dk{i + 1}"]) for i in range(n)],
-        "criterion_value": _json_number(res.value),
-        "lower_bound": None,
-        "optimal_set_deg": [[round(float(a), 6) for a in p] for p in res.optimal_set_deg],
-        "degenerate": res.degenerate,
-        "notes": res.notes,
+        "lower_bound": bound,
+        "gap": None if bound is None else _json_number(float(summ["O_t"]) / bound - 1.0),
+        "optimal_set_deg": [[round(float(a), 6) for a in p] for p in optimal_set],
+        "degenerate": degenerate,
+        "approximate_design": {"support_deg": design.support_deg.round(6).tolist(),
+                               "weights": design.weights.round(9).tolist(),
+                               "equivalence_gap": design.equivalence_gap},
+        "notes": notes,
         "sigma": args.sigma,
+        "seed": args.seed,
         "test_pose_deg": q_t.tolist(),
         "force_N": force.tolist(),
     }
@@ -97,6 +116,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--experiments", type=int, default=1, help="number of measurement poses M (default 1)")
     d.add_argument("--criterion", default="ot", choices=criteria.CRITERIA_KEYS, help="criterion (default ot)")
     d.add_argument("--sigma", type=float, default=1.0, help="measurement noise s.t.d. (default 1)")
+    d.add_argument("--seed", type=int, default=0, help="seed of the random starts of M-pose plans (default 0)")
     d.set_defaults(func=design)
     return p
 

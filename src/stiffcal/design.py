@@ -123,8 +123,8 @@ def grid_local_minima(values: np.ndarray, periodic: list[bool]) -> np.ndarray:
     return mask
 
 
-def evaluate_grid(problem: Problem, grids: list[np.ndarray], chunk: int = 1 << 16) -> np.ndarray:
-    """Single-pose loss at every node of the product grid, in chunks to bound memory.
+def evaluate_grid(fun, grids: list[np.ndarray], chunk: int = 1 << 16) -> np.ndarray:
+    """``fun`` (q (k, n) [rad] -> (k,)) at every node of the product grid, in chunks to bound memory.
 
     Returns an array of shape ``tuple(len(g) for g in grids)``.
     """
@@ -133,15 +133,15 @@ def evaluate_grid(problem: Problem, grids: list[np.ndarray], chunk: int = 1 << 1
     out = np.empty(total)
     for start in range(0, total, chunk):
         idx = np.unravel_index(np.arange(start, min(start + chunk, total)), shape)
-        q = np.stack([g[i] for g, i in zip(grids, idx)], axis=-1)[:, None, :]
-        out[start:start + q.shape[0]] = plan_loss(problem, q)
+        q = np.stack([g[i] for g, i in zip(grids, idx)], axis=-1)
+        out[start:start + q.shape[0]] = fun(q)
     return out.reshape(shape)
 
 
 def wrap_deg(q_deg: np.ndarray) -> np.ndarray:
     """Wrap angles to [-180, 180) degrees (values within 1e-9 deg of +180 become -180)."""
     w = (np.asarray(q_deg, float) + 180.0) % 360.0 - 180.0
-    return np.where(np.isclose(w, 180.0, atol=1e-9), -180.0, w)
+    return np.where(np.isclose(w, 180.0, atol=1e-9), -180.0, w) + 0.0  # + 0.0 turns -0.0 into 0.0
 
 
 def representative(poses_deg: np.ndarray, tie_deg: float = 1e-3) -> np.ndarray:
@@ -160,7 +160,9 @@ def representative(poses_deg: np.ndarray, tie_deg: float = 1e-3) -> np.ndarray:
 
     def elbow_sign(c):
         rest = np.where(np.abs(c[:, 1:]) > tie_deg, c[:, 1:], 0.0)
-        first = np.array([r[np.flatnonzero(r)[0]] if np.any(r) else 0.0 for r in rest])
+        if rest.shape[1] == 0:
+            return np.zeros(len(c))
+        first = rest[np.arange(len(c)), np.argmax(rest != 0, axis=1)]  # 0 when all are zero
         return (first < 0).astype(float)
 
     keys = [elbow_sign, lambda c: ((c[:, 0] <= -90 + tie_deg) | (c[:, 0] > 90 + tie_deg)).astype(float)]
@@ -200,6 +202,36 @@ class SinglePoseResult:
     notes: list[str] = field(default_factory=list)
 
 
+def grid_minimise(fun, robot: Robot, step_deg: float = 1.0, n_refine: int = 24, xatol: float = 1e-10):
+    """Exhaustive global minimisation of ``fun`` over one pose of ``robot`` (module docstring, steps 1-3).
+
+    fun: q (..., n) [rad] -> (...,) values (+inf allowed). Returns ``(grids, values, xs, fs)``: the grid,
+    the values on it, and the polished grid local minima (k, n) [rad] with their values, best first.
+    """
+    grids = joint_grids(robot, step_deg)
+    values = evaluate_grid(fun, grids)
+    xs, fs = polish_grid_minima(fun, robot, grids, values, n_refine, xatol)
+    return grids, values, xs, fs
+
+
+def polish_grid_minima(fun, robot: Robot, grids, values, n_refine: int = 24, xatol: float = 1e-10):
+    """Polish the ``n_refine`` best grid local minima of ``values`` (module docstring, steps 2-3).
+
+    Returns (xs (k, n) [rad], fs (k,)), best first.
+    """
+    periodic = [_is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad]
+    mask = grid_local_minima(values, periodic)
+    idx = np.argwhere(mask)
+    order = np.argsort(values[mask], kind="stable")[:n_refine]
+    starts = np.array([[g[i] for g, i in zip(grids, idx[o])] for o in order]).reshape(-1, robot.n_joints)
+    bounds = [None if p else (lo, hi) for p, (lo, hi) in zip(periodic, robot.joint_limits_rad)]
+    polished = [_polish(fun, x0, bounds, xatol) for x0 in starts]
+    xs = np.array([p[0] for p in polished]).reshape(-1, robot.n_joints)
+    fs = np.array([p[1] for p in polished])
+    order = np.argsort(fs, kind="stable")
+    return xs[order], fs[order]
+
+
 def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int = 24,
                         set_rtol: float = 1e-7, xatol: float = 1e-10) -> SinglePoseResult:
     """Global optimum of the criterion over one measurement pose (see the module docstring).
@@ -209,8 +241,12 @@ def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int =
     """
     assert problem.m == 1, "optimal_single_pose is for one measurement pose"
     robot = problem.robot
+
+    def fun(q):
+        return plan_loss(problem, q[..., None, :])
+
     grids = joint_grids(robot, step_deg)
-    values = evaluate_grid(problem, grids)
+    values = evaluate_grid(fun, grids)
     finite = values[np.isfinite(values)]
     if finite.size == 0:
         d, n = robot.task_dim, robot.n_joints
@@ -219,38 +255,31 @@ def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int =
         raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every pose: {why}")
     if finite.max() - finite.min() <= 1e-9 * max(1.0, abs(finite.min())):
         return _degenerate_result(problem, grids, values)
-
-    periodic = [_is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad]
-    mask = grid_local_minima(values, periodic)
-    idx = np.argwhere(mask)
-    order = np.argsort(values[mask], kind="stable")[:n_refine]
-    starts = np.array([[g[i] for g, i in zip(grids, idx[o])] for o in order])
-
-    bounds = [None if p else (lo, hi) for p, (lo, hi) in zip(periodic, robot.joint_limits_rad)]
-    polished = [_polish(problem, x0, bounds, xatol) for x0 in starts]
-    xs = np.array([p[0] for p in polished])
-    fs = np.array([p[1] for p in polished])
-    best = fs.min()
+    xs, fs = polish_grid_minima(fun, robot, grids, values, n_refine, xatol)
+    best = fs[0]
     near = fs <= best + set_rtol * max(abs(best), 1e-300)
-    opt = dedupe(xs[near][np.argsort(fs[near], kind="stable")])
-    opt_deg = wrap_deg(np.degrees(opt))
+    opt_deg = wrap_deg(np.degrees(dedupe(xs[near])))
     rep = representative(opt_deg)
     value = float(plan_value(problem, np.radians(rep)[None, None, :])[0])
     return SinglePoseResult(rep, opt_deg, float(best), value)
 
 
-def _polish(problem: Problem, x0: np.ndarray, bounds, xatol: float):
-    """Nelder-Mead from x0 on the single-pose loss; returns (x, f)."""
+def _polish(fun, x0: np.ndarray, bounds, xatol: float):
+    """Nelder-Mead from x0 on ``fun`` (one pose); returns (x, f), never worse than x0."""
     def f(x):
-        return float(plan_loss(problem, x[None, None, :])[0])
+        return float(fun(x))
 
     f0 = f(x0)
     has_bounds = any(b is not None for b in bounds)
     bnds = [b if b is not None else (None, None) for b in bounds] if has_bounds else None
+    simplex = x0 + np.vstack([np.zeros(len(x0)), np.eye(len(x0)) * np.radians(0.5)])
+    if has_bounds:
+        lo = np.array([b[0] if b else -np.inf for b in bounds])
+        hi = np.array([b[1] if b else np.inf for b in bounds])
+        simplex = np.clip(simplex, lo, hi)
     res = minimize(f, x0, method="Nelder-Mead", bounds=bnds,
                    options=dict(xatol=xatol, fatol=1e-15 * max(1.0, abs(f0)), maxiter=4000 * len(x0),
-                                maxfev=8000 * len(x0), initial_simplex=x0 + np.vstack(
-                                    [np.zeros(len(x0)), np.eye(len(x0)) * np.radians(0.5)])))
+                                maxfev=8000 * len(x0), initial_simplex=simplex))
     if res.fun <= f0:
         return res.x, float(res.fun)
     return x0, f0

@@ -40,10 +40,16 @@ def table3(config: dict, table2_csv: str, out_csv: str) -> None:
     tables.write_csv(tables.table3(_study(config), _read(table2_csv)), out_csv)
 
 
-def comparison(config: dict, table2_csv: str, table3_csv: str, printed_yaml: str, out_csv: str) -> None:
+def comparison(config: dict, table2_csv: str, table3_csv: str, table4_csv: str, table5_csv: str,
+               printed_yaml: str, out_csv: str) -> None:
+    """Every printed number of Tables 2-5 beside ours, with a status and a reason."""
     study = _study(config)
-    cmp = reproduction.compare_tables(study, _read(table2_csv), _read(table3_csv),
-                                      reproduction.load_printed(printed_yaml))
+    printed = reproduction.load_printed(printed_yaml)
+    parts = [reproduction.compare_tables(study, _read(table2_csv), _read(table3_csv), printed)]
+    for name, path in (("table4", table4_csv), ("table5", table5_csv)):
+        parts.append(reproduction.compare_plans(study, _read(path), printed[name], name,
+                                                printed.get("explain", {}), seed=int(config["seed"])))
+    cmp = pd.concat(parts, ignore_index=True)
     s = reproduction.summary(cmp)
     _log(f"paper comparison: {s['reproduced']} of {s['total']} printed numbers reproduced; reasons {s['reasons']}")
     tables.write_csv(cmp, out_csv)
@@ -65,6 +71,63 @@ def validation(config: dict, table2_csv: str, out_csv: str) -> None:
 
 def chi_map(config: dict, out_csv: str) -> None:
     tables.write_csv(tables.chi_map(_study(config)), out_csv)
+
+
+def approximate_design(config: dict, out_json: str, out_support_csv: str, out_certificate_csv: str) -> None:
+    """The optimal approximate design for O_t and its certificate (one run serves every m)."""
+    import json
+
+    from .certificate import approximate_design as compute
+
+    study = _study(config)
+    _log("approximate design: multiplicative algorithm, polish, equivalence-theorem bound")
+    d = compute(study.problem("ot"), pool_step_deg=config.get("plans", {}).get("pool_step_deg"))
+    _log(f"Phi = {d.phi:.9g}, bound Phi* >= {d.phi_lower:.9g}, equivalence gap {d.equivalence_gap:.2e}")
+    tables.write_csv(tables.design_table(d), out_support_csv)
+    tables.write_csv(tables.certificate_table(d, study.sigma), out_certificate_csv)
+    Path(out_json).write_text(json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
+                                          "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
+                                          "iterations": d.iterations}, indent=1) + "\n", encoding="utf-8")
+
+
+def _design(path: str):
+    import json
+
+    from .certificate import ApproximateDesign
+
+    d = json.loads(Path(path).read_text(encoding="utf-8"))
+    return ApproximateDesign(np.array(d["support_deg"]), np.array(d["weights"]), d["phi"], d["max_phi"],
+                             d["phi_lower"], d["iterations"])
+
+
+def plans_table(config: dict, m: int, design_json: str, table2_csv: str, out_csv: str) -> None:
+    """Table 4 (m = 2) or 5 (m = 3): the paper's plans (i)-(iv) with the certified bound."""
+    study = _study(config)
+    single = _optimal_poses(_read(table2_csv), study.robot.n_joints)["ot"]
+    _log(f"plans (i)-(iv) of {m} poses")
+    df = tables.plans_table(study, m, int(config["seed"]), _design(design_json), single)
+    tables.write_csv(df, out_csv)
+
+
+def ot_versus_m(config: dict, design_json: str, out_csv: str) -> None:
+    """Best O_t against the number of poses, beside the bound."""
+    study = _study(config)
+    m_max = int(config.get("plans", {}).get("m_max", 10))
+    _log(f"best plans for m = 1..{m_max}")
+    tables.write_csv(tables.ot_versus_m(study, range(1, m_max + 1), int(config["seed"]), _design(design_json)),
+                     out_csv)
+
+
+def phi_map(config: dict, design_json: str, out_csv: str) -> None:
+    tables.write_csv(tables.phi_map(_study(config), _design(design_json)), out_csv)
+
+
+def fig_design(support_csv: str, phi_csv: str, out_png: str) -> None:
+    plots.save(plots.fig_design(_read(support_csv), _read(phi_csv)), Path(out_png).with_suffix(""))
+
+
+def fig_ot_versus_m(ot_m_csv: str, out_png: str) -> None:
+    plots.save(plots.fig_ot_versus_m(_read(ot_m_csv)), Path(out_png).with_suffix(""))
 
 
 def _optimal_set(t2: pd.DataFrame, key: str) -> np.ndarray:
@@ -103,10 +166,15 @@ def report_pdf(html: str, out_pdf: str) -> None:
 
 
 def run(snakemake, step, *args) -> None:
-    """Run one step from a Snakemake script: output to the rule's log, and a bad input as one clear
-    line (on stderr and in the log) with exit status 1 instead of a traceback."""
+    """Run one step from a Snakemake script, with its output in the rule's log.
+
+    A bad input (:class:`InputError`) is one clear line on stderr and in the log, exit status 1. Any
+    other failure is a bug: its traceback goes to the log and stderr names the log. Never a silent
+    failure, never a traceback in place of a message for the user's own mistakes.
+    """
     import contextlib
     import sys
+    import traceback
 
     from .errors import InputError
 
@@ -120,4 +188,9 @@ def run(snakemake, step, *args) -> None:
             except InputError as err:
                 print(f"stiffcal: error: {err}", file=fh)
                 print(f"stiffcal: error: {err}", file=sys.stderr)
+                sys.exit(1)
+            except Exception as err:  # noqa: BLE001 - report any bug with its traceback in the log
+                traceback.print_exc(file=fh)
+                print(f"stiffcal: internal error in {step.__name__}: {type(err).__name__}: {err} "
+                      f"(traceback in {log})", file=sys.stderr)
                 sys.exit(1)

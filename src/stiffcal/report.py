@@ -40,6 +40,8 @@ def fmt_like(x, printed: str, extra: int = 2) -> str:
     """Format ``x`` with the printed number's decimals plus ``extra`` (to show where they differ)."""
     from .reproduction import printed_decimals
 
+    if isinstance(x, str) or " " in printed:  # a pose, already formatted
+        return fmt(x)
     return fmt(x, printed_decimals(printed) + extra)
 
 
@@ -91,6 +93,7 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
     printed = yaml.safe_load(Path(printed_path).read_text(encoding="utf-8"))
     cmp = frames["comparison"]
     cmp["reason"] = cmp["reason"].fillna("")
+    cmp["ours"] = pd.to_numeric(cmp["ours"], errors="coerce").where(lambda v: v.notna(), cmp["ours"])
     return {
         "config": config,
         "study": config["study"],

@@ -12,6 +12,9 @@ each is a computed fact, shown beside the number in the report:
 * a named note from ``printed_values.yaml`` (``notes:``), attached by ``explain:`` there, whose claim
   is checked numerically by ``tests/test_paper.py``;
 * ``unexplained`` -- anything else (the tests require there be none).
+
+For the plans of Tables 4-5, a printed pose is *reproduced* when it rounds to one of our poses or to one
+of its symmetric copies (``symmetric-copy``: same information, see :mod:`stiffcal.plans`).
 """
 
 from decimal import Decimal
@@ -121,6 +124,65 @@ def compare_tables(study: Study, t2: pd.DataFrame, t3: pd.DataFrame, printed: di
                             "ours_at_printed_pose": np.nan if at_v is None or is_pose else at_v,
                             "box_low": lo, "box_high": hi,
                             "criterion_excess_at_printed_pose": excess, "status": status, "reason": reason})
+    return pd.DataFrame(out)
+
+
+def _matching_copy(study: Study, printed_pose: np.ndarray, plan_deg: np.ndarray, decimals: int):
+    """Our pose (or symmetric copy of one) that rounds to the printed pose, else None."""
+    from .plans import symmetric_copies
+
+    half = 0.5 * 10.0 ** -decimals + 1e-9
+    for pose in plan_deg:
+        for copy in symmetric_copies(study.robot, pose, study.force):
+            if np.all(np.abs(((copy - printed_pose) + 180.0) % 360.0 - 180.0) <= half):
+                return copy
+    return None
+
+
+def compare_plans(study: Study, table: pd.DataFrame, printed_rows: dict, name: str, explain: dict,
+                  seed: int = 0, samples: int = 4000) -> pd.DataFrame:
+    """Every printed number of Table 4 or 5 beside ours (same columns as :func:`compare_tables`).
+
+    Printed poses are matched to our plan up to the symmetric copies of each pose (half-turn, mirror);
+    numbers that differ are tested against the range over plans whose poses round to ours
+    (``rounding-box``, ``samples`` random plans within +-half a unit of the printed digits).
+    """
+    from .tables import parse_plan
+
+    rng = np.random.default_rng(seed)
+    ours_df = table.set_index("plan")
+    out = []
+    for key, entry in printed_rows.items():
+        plan = parse_plan(ours_df.loc[key, "poses_deg"])
+        box = plan_summary(study, plan + rng.uniform(-0.005, 0.005, (samples,) + plan.shape))
+        for qty, pr in entry.items():
+            if qty == "poses_deg":
+                for k, p in enumerate(pr):
+                    pose = np.array([float(v) for v in p])
+                    dec = max(printed_decimals(v) for v in p)
+                    copy = _matching_copy(study, pose, plan, dec)
+                    if copy is None:
+                        status, reason = "differs", explain.get(f"{name}/{key}/pose{k + 1}", "unexplained")
+                    else:
+                        as_is = any(_matching_copy(study, pose, q[None], dec) is not None
+                                    and np.allclose(_matching_copy(study, pose, q[None], dec), q) for q in plan)
+                        status, reason = "reproduced", "" if as_is else "symmetric-copy"
+                    out.append({"table": name, "row": key, "quantity": f"pose{k + 1}", "printed": " ".join(p),
+                                "ours": " ".join(f"{a:.2f}" for a in (copy if copy is not None else plan[k])),
+                                "ours_at_printed_pose": np.nan, "box_low": np.nan, "box_high": np.nan,
+                                "criterion_excess_at_printed_pose": np.nan, "status": status, "reason": reason})
+                continue
+            ours = float(ours_df.loc[key, qty])
+            lo, hi = float(np.min(box[qty])), float(np.max(box[qty]))
+            if matches(ours, pr):
+                status, reason = "reproduced", ""
+            elif lo - 1e-12 <= float(pr) <= hi + 1e-12:
+                status, reason = "differs", "rounding-box"
+            else:
+                status, reason = "differs", explain.get(f"{name}/{key}/{qty}", "unexplained")
+            out.append({"table": name, "row": key, "quantity": qty, "printed": pr, "ours": ours,
+                        "ours_at_printed_pose": np.nan, "box_low": lo, "box_high": hi,
+                        "criterion_excess_at_printed_pose": np.nan, "status": status, "reason": reason})
     return pd.DataFrame(out)
 
 

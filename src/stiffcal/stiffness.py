@@ -68,13 +68,13 @@ def spectral(M: np.ndarray):
     return w, V, null
 
 
-def functional_variance(M: np.ndarray, C: np.ndarray, sigma: float = 1.0) -> np.ndarray:
+def functional_variance(M: np.ndarray, C: np.ndarray, sigma: float = 1.0, spec=None) -> np.ndarray:
     """Variances of the least-squares estimates of ``C k`` for a plan with information matrix M (eq. 11).
 
     Returns ``sigma^2 diag(C M^+ C^T)`` with ``inf`` for every row of C that is not estimable.
-    M: (..., n, n); C: (..., r, n) or (r, n). Returns (..., r).
+    M: (..., n, n); C: (..., r, n) or (r, n); spec: ``spectral(M)`` if already computed. Returns (..., r).
     """
-    w, V, null = spectral(M)
+    w, V, null = spectral(M) if spec is None else spec
     inv_w = np.where(null, 0.0, 1.0 / np.where(null, 1.0, w))
     P = np.einsum("...rn,...nk->...rk", np.broadcast_to(C, M.shape[:-2] + np.shape(C)[-2:]), V)
     var = sigma**2 * np.einsum("...rk,...k->...r", P**2, inv_w)

@@ -144,3 +144,135 @@ def monte_carlo_check(study: Study, plans: dict[str, np.ndarray], samples: int, 
             rows.append({"plan": name, "quantity": q, "equation": eq, "formula": formula,
                          "monte_carlo": mean, "mc_std_error": se, "z": (mean - formula) / se})
     return pd.DataFrame(rows)
+
+
+# ---------------------------------------------------------------------------------------------------
+# plans of several poses (Tables 4-5), the approximate design and the certificate
+
+PLAN_VARIANTS = {
+    "i": "single optimum repeated",
+    "ii": "q1 free, other joints at the single optimum",
+    "iii": "q1 at the single optimum, other joints free",
+    "iv": "all joints free (global)",
+}
+
+
+def format_plan(poses_deg: np.ndarray) -> str:
+    """(m, n) poses -> 'q1 q2; q1 q2' with 4 decimals (the CSV form of a plan)."""
+    rounded = np.round(np.atleast_2d(poses_deg), 4) + 0.0  # + 0.0: no "-0.0000"
+    return "; ".join(" ".join(f"{a:.4f}" for a in p) for p in rounded)
+
+
+def parse_plan(text: str) -> np.ndarray:
+    """Inverse of :func:`format_plan`."""
+    return np.array([[float(v) for v in p.split()] for p in str(text).split(";")])
+
+
+def single_ot_pose(study: Study) -> np.ndarray:
+    """The O_t-optimal single measurement pose [deg] (the representative of Table 2)."""
+    return optimal_single_pose(study.problem("ot"), step_deg=study.search_step_deg).pose_deg
+
+
+def plan_variants(study: Study, m: int, seed: int, design=None, single_deg=None) -> dict[str, np.ndarray]:
+    """The paper's four m-pose plans (i)-(iv), each (m, n) [deg].
+
+    (i) the single-pose optimum repeated m times; (ii) every pose keeps joints 2..n at the single-pose
+    optimum and q1 is optimised for each pose; (iii) every pose keeps q1 at the single-pose optimum and
+    joints 2..n are optimised; (iv) the global optimum over all joints of all poses (this is our reading
+    of the paper's loosely described plans; see the report). Deterministic for a seed.
+    """
+    from .certificate import approximate_design, default_pool_step
+    from .design import joint_grids
+    from .plans import optimise_plan, round_design
+
+    n = study.robot.n_joints
+    single = single_ot_pose(study) if single_deg is None else np.asarray(single_deg, float)
+    prob = study.problem("ot", m)
+    repeat = np.repeat(single[None], m, axis=0)
+    out = {"i": repeat}
+    fine = joint_grids(study.robot, 0.5)
+    base = np.radians(single)
+    free_first = np.zeros(n, bool)
+    free_first[0] = True
+    pool_ii = np.tile(base, (len(fine[0]), 1))
+    pool_ii[:, 0] = fine[0]
+    out["ii"] = optimise_plan(prob, pool=pool_ii, free=free_first, starts=[repeat], seed=seed,
+                              canonical=False).poses_deg
+    rest = joint_grids(study.robot, 0.5 if n == 2 else default_pool_step(n))[1:]
+    grid_rest = np.stack(np.meshgrid(*rest, indexing="ij"), -1).reshape(-1, n - 1)
+    pool_iii = np.column_stack([np.full(len(grid_rest), base[0]), grid_rest])
+    out["iii"] = optimise_plan(prob, pool=pool_iii, free=~free_first, starts=[repeat], seed=seed,
+                               canonical=False).poses_deg
+    design = design or approximate_design(prob)
+    out["iv"] = optimise_plan(prob, starts=[round_design(design, m), repeat], seed=seed).poses_deg
+    return out
+
+
+def plans_table(study: Study, m: int, seed: int, design=None, single_deg=None) -> pd.DataFrame:
+    """Table 4 (m = 2) / Table 5 (m = 3): plans (i)-(iv) with O_t, chi, the poses, E[dk_i^2], the
+    certified lower bound on O_t for any m-pose plan and the gap O_t / bound - 1."""
+    from .certificate import approximate_design
+
+    design = design or approximate_design(study.problem("ot", m))
+    bound = design.lower_bound(m, study.sigma)
+    rows = []
+    for key, plan in plan_variants(study, m, seed, design, single_deg).items():
+        summ = plan_summary(study, plan)
+        row = {"plan": key, "variables": PLAN_VARIANTS[key], "m": m, "O_t": float(summ["O_t"]),
+               "chi": float(summ["chi"]), "poses_deg": format_plan(plan)}
+        row.update({f"E_dk{i + 1}": float(summ[f"E_dk{i + 1}"]) for i in range(study.robot.n_joints)})
+        row.update({"lower_bound": bound, "gap": float(summ["O_t"]) / bound - 1.0})
+        rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def design_table(design) -> pd.DataFrame:
+    """The optimal approximate design: support poses [deg] and weights."""
+    n = design.support_deg.shape[1]
+    df = pd.DataFrame(design.support_deg, columns=_pose_cols(n))
+    df["weight"] = design.weights
+    return df
+
+
+def certificate_table(design, sigma: float) -> pd.DataFrame:
+    """The certificate's numbers: Phi(xi), max_x phi(x, xi), the equivalence gap and Phi* bound."""
+    return pd.DataFrame([{"Phi": design.phi, "max_phi": design.max_phi,
+                          "equivalence_gap": design.equivalence_gap, "Phi_lower": design.phi_lower,
+                          "sigma": sigma, "multiplicative_iterations": design.iterations}])
+
+
+def ot_versus_m(study: Study, ms, seed: int, design=None) -> pd.DataFrame:
+    """Best O_t (plan (iv)) for each number of poses m, beside the certified bound and the repeated
+    single optimum (plan (i), O_t(1)/m). Columns: m, O_t, lower_bound, gap, O_t_repeat, gain_vs_repeat."""
+    from .certificate import approximate_design
+    from .plans import optimise_plan, round_design
+
+    design = design or approximate_design(study.problem("ot", 1))
+    single = single_ot_pose(study)
+    ot1 = float(plan_summary(study, single[None])["O_t"])
+    rows = []
+    for m in ms:
+        plan = optimise_plan(study.problem("ot", m), starts=[round_design(design, m),
+                                                             np.repeat(single[None], m, 0)], seed=seed)
+        bound = design.lower_bound(m, study.sigma)
+        rows.append({"m": m, "O_t": plan.loss, "lower_bound": bound, "gap": plan.loss / bound - 1.0,
+                     "O_t_repeat": ot1 / m, "gain_vs_repeat": (ot1 / m) / plan.loss,
+                     "poses_deg": format_plan(plan.poses_deg)})
+    return pd.DataFrame(rows)
+
+
+def phi_map(study: Study, design, step_deg: float = 2.0) -> pd.DataFrame:
+    """phi(x, xi) / Phi(xi) over the (q1, q2) plane for the approximate design xi (2-joint robots).
+
+    design: a :class:`stiffcal.certificate.ApproximateDesign`. Columns q1_deg, q2_deg, ratio.
+    """
+    g = np.arange(-180.0, 180.0, step_deg)
+    Q1, Q2 = np.meshgrid(g, g, indexing="ij")
+    prob = study.problem("ot")
+    X = np.radians(design.support_deg)
+    M = np.einsum("k,kij->ij", design.weights,
+                  information_matrix(observation_matrix(study.robot.jacobian(X), study.force)[:, None]))
+    C = np.linalg.inv(M) @ prob.At.T
+    A = observation_matrix(study.robot.jacobian(np.radians(np.stack([Q1, Q2], -1))), study.force)
+    ratio = np.sum((A @ C) ** 2, axis=(-2, -1)) / design.phi
+    return pd.DataFrame({"q1_deg": Q1.ravel(), "q2_deg": Q2.ravel(), "ratio": ratio.ravel()})

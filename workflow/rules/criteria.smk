@@ -29,8 +29,10 @@ rule table3:
 
 rule paper_comparison:
     input:
-        table2=rules.table2.output.csv,
-        table3=rules.table3.output.csv,
+        table2=f"{TABLES}/table2.csv",
+        table3=f"{TABLES}/table3.csv",
+        table4=f"{TABLES}/table4.csv",
+        table5=f"{TABLES}/table5.csv",
         printed=PRINTED,
     output:
         csv=f"{TABLES}/paper_comparison.csv",
@@ -62,3 +64,63 @@ rule chi_map:
         f"{LOGS}/chi_map.log",
     script:
         "../scripts/chi_map.py"
+
+
+# Plans of several poses: the approximate design and its certificate, Tables 4-5, O_t against m.
+
+
+rule approximate_design:
+    input:
+        robot=ROBOT,
+    output:
+        json="results/design/approximate_design.json",
+        support=f"{TABLES}/approximate_design.csv",
+        certificate=f"{TABLES}/certificate.csv",
+    log:
+        f"{LOGS}/approximate_design.log",
+    benchmark:
+        "benchmarks/out/approximate_design.tsv"
+    script:
+        "../scripts/approximate_design.py"
+
+
+rule plans_table:
+    input:
+        design=rules.approximate_design.output.json,
+        table2=rules.table2.output.csv,
+    output:
+        csv=f"{TABLES}/table{{number}}.csv",
+    wildcard_constraints:
+        number="4|5",
+    params:
+        m=lambda wc: {"4": 2, "5": 3}[wc.number],
+    log:
+        f"{LOGS}/table{{number}}.log",
+    benchmark:
+        "benchmarks/out/table{number}.tsv"
+    script:
+        "../scripts/plans_table.py"
+
+
+rule ot_versus_m:
+    input:
+        design=rules.approximate_design.output.json,
+    output:
+        csv=f"{TABLES}/ot_versus_m.csv",
+    log:
+        f"{LOGS}/ot_versus_m.log",
+    benchmark:
+        "benchmarks/out/ot_versus_m.tsv"
+    script:
+        "../scripts/ot_versus_m.py"
+
+
+rule phi_map:
+    input:
+        design=rules.approximate_design.output.json,
+    output:
+        csv="results/maps/design_phi.csv",
+    log:
+        f"{LOGS}/phi_map.log",
+    script:
+        "../scripts/phi_map.py"

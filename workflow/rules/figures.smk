@@ -36,3 +36,28 @@ rule fig5:
         f"{LOGS}/fig5.log",
     script:
         "../scripts/fig5.py"
+
+
+rule fig_design:
+    input:
+        support=rules.approximate_design.output.support,
+        phi=rules.phi_map.output.csv,
+    output:
+        png=f"{FIGURES}/fig_design.png",
+        svg=f"{FIGURES}/fig_design.svg",
+    log:
+        f"{LOGS}/fig_design.log",
+    script:
+        "../scripts/fig_design.py"
+
+
+rule fig_ot_versus_m:
+    input:
+        csv=rules.ot_versus_m.output.csv,
+    output:
+        png=f"{FIGURES}/fig_ot_versus_m.png",
+        svg=f"{FIGURES}/fig_ot_versus_m.svg",
+    log:
+        f"{LOGS}/fig_ot_versus_m.log",
+    script:
+        "../scripts/fig_ot_versus_m.py"
