@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 CORES  ?= 2
 
-.PHONY: install report test archive lint bench clean
+.PHONY: install report test archive lint bench derive clean
 
 $(STAMP): requirements.lock pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,12 @@ lint: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plans.py
+	$(BIN)/python benchmarks/bench_maps.py
+
+# Regenerate src/stiffcal/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.
+derive: $(STAMP)
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check sympy==1.14.0
+	$(BIN)/python tools/derive_map_polynomials.py src/stiffcal/_map_polynomials.py
 
 clean:
 	rm -rf results figures paper/build .snakemake

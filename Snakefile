@@ -15,6 +15,7 @@ validate(config, "workflow/schemas/config.schema.yaml")
 include: "workflow/rules/common.smk"
 include: "workflow/rules/criteria.smk"
 include: "workflow/rules/figures.smk"
+include: "workflow/rules/maps.smk"
 include: "workflow/rules/report.smk"
 
 

@@ -21,6 +21,7 @@ def _workdir(root: Path, tmp: Path, **study) -> Path:
     cfg["study"].update({"search_step_deg": 4.0, "fig5_step_deg": 6.0, **study})
     cfg["monte_carlo"]["samples"] = 500
     cfg["plans"] = {"m_max": 3, "pool_step_deg": 6.0}
+    cfg["maps"].update({"step_deg": 10.0, "tile_cells": 200, "statistics_steps_deg": [30, 10]})
     (tmp / "config" / "test.yaml").write_text(yaml.safe_dump(cfg))
     return tmp
 
@@ -44,20 +45,44 @@ def test_workflow_writes_tables_figures_and_report(built):
               "results/tables/ot_versus_m.csv", "results/tables/paper_comparison.csv",
               "results/tables/validation.csv", "paper/build/report.html", "paper/build/report.pdf"):
         assert (built / f).stat().st_size > 0, f
-    for name in ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m"):
+    for name in ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m", "fig6", "fig7", "fig8", "fig9", "fig10"):
         for ext in ("png", "svg"):
             assert (built / f"figures/{name}.{ext}").stat().st_size > 0
     html = (built / "paper/build/report.html").read_text()
     for needle in ("Table 2", "Table 3", "Table 4", "Table 5", "Figure 3", "Figure 4", "Figure 5",
-                   "Optimal approximate design", "made by rule"):
+                   "Optimal approximate design", "made by rule", "Figure 6", "Figure 10", "what they depend on"):
         assert needle in html
     assert (built / "paper/build/report.pdf").read_bytes().startswith(b"%PDF")
+
+
+def test_maps_have_the_contract_columns_and_every_cell(built):
+    import pandas as pd
+
+    for study in ("b0.67", "b0.2", "b0.5", "b0.9"):
+        df = pd.read_csv(built / f"results/maps/{study}/map.csv")
+        assert list(df.columns) == ["link_ratio", "force_deg", "q1t_deg", "q2t_deg", "q1_opt_deg", "q2_opt_deg",
+                                    "O_t", "chi"]
+        assert len(df) == 36 * 36 and not df.duplicated(["q1t_deg", "q2t_deg"]).any()
+    assert not list((built / "results/maps").rglob("tiles/*.csv"))  # tiles are temporary
+    log = (built / "logs/maps/b0.67/tile0.log").read_text()
+    assert "cells/s" in log  # progress in the log
+    stats = pd.read_csv(built / "results/tables/map_statistics.csv")
+    assert {"mean", "median", "harmonic_mean", "white", "dark"} <= set(stats.statistic)
+
+
+def test_slurm_profile_dry_run(root, tmp_path):
+    wd = _workdir(root, tmp_path)
+    res = subprocess.run([str(SNAKEMAKE), "--workflow-profile", "workflow/profiles/slurm", "--configfile",
+                          "config/test.yaml", "-n"], cwd=wd, capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr[-3000:]
+    out = res.stdout + res.stderr
+    assert "map_tile" in out and "slurm" in out.lower()
 
 
 def test_rerun_gives_identical_tables(built):
     before = {p: p.read_bytes() for p in (built / "results").rglob("*.csv")}
     shutil.rmtree(built / "results")
-    res = _snakemake(built, "--forcerun", "table2", "chi_map", "approximate_design")
+    res = _snakemake(built, "--forcerun", "table2", "chi_map", "approximate_design", "map_tile")
     assert res.returncode == 0, res.stderr[-3000:]
     after = {p: p.read_bytes() for p in (built / "results").rglob("*.csv")}
     assert before.keys() == after.keys()

@@ -157,3 +157,46 @@ def fig_ot_versus_m(df: pd.DataFrame):
         ax2.grid(axis="y", alpha=0.3)
         fig.tight_layout()
         return fig
+
+
+def _map_grid(df: pd.DataFrame, column: str):
+    """(q1*, q2*, Z (n2, n1)) of a map table sorted by (q1t_deg, q2t_deg)."""
+    q1 = np.unique(df["q1t_deg"])
+    q2 = np.unique(df["q2t_deg"])
+    return q1, q2, df[column].to_numpy(float).reshape(len(q1), len(q2)).T
+
+
+def _map_axes(ax, title: str):
+    ax.set_xlabel("test pose q1* [deg]")
+    ax.set_ylabel("test pose q2* [deg]")
+    ax.set_xticks(np.arange(-180, 181, 90))
+    ax.set_yticks(np.arange(-180, 181, 90))
+    ax.set_title(title)
+
+
+def fig6_inverse_chi(df: pd.DataFrame):
+    """Figure 6: 1/chi over the test-pose plane (dark: little to gain over measuring at the test pose;
+    white: large gain). Cells with A_t = 0 (chi infinite) are white."""
+    with plt.rc_context(STYLE):
+        q1, q2, Z = _map_grid(df, "chi")
+        fig, ax = plt.subplots(figsize=(5.6, 4.4))
+        mesh = ax.pcolormesh(q1, q2, 1.0 / Z, shading="auto", cmap="gray_r", vmin=0, vmax=1, rasterized=True)
+        fig.colorbar(mesh, ax=ax, label="1 / χ")
+        _map_axes(ax, f"Maximum accuracy improvement, b = l2/l1 = {df['link_ratio'].iloc[0]:.2f}")
+        return fig
+
+
+def fig_optimal_poses(df: pd.DataFrame, figure: int):
+    """Figures 7-10: the optimal measurement pose (q1, q2) for every test pose (q1 is defined modulo 180
+    deg, so its colour map is cyclic)."""
+    with plt.rc_context(STYLE):
+        fig, axes = plt.subplots(1, 2, figsize=(9.6, 4.0), layout="constrained")
+        for ax, col, label, (lo, hi), cmap in zip(axes, ("q1_opt_deg", "q2_opt_deg"), ("q1", "q2"),
+                                                  ((-90, 90), (0, 180)), ("twilight", "viridis")):
+            q1, q2, Z = _map_grid(df, col)
+            mesh = ax.pcolormesh(q1, q2, Z, shading="auto", cmap=cmap, vmin=lo, vmax=hi, rasterized=True)
+            fig.colorbar(mesh, ax=ax, label=f"optimal {label} [deg]")
+            _map_axes(ax, f"Optimal measurement {label}")
+        fig.suptitle(f"Figure {figure}: optimal measurement pose, b = l2/l1 = {df['link_ratio'].iloc[0]:.2f}, "
+                     f"φ = {df['force_deg'].iloc[0]:g} deg")
+        return fig

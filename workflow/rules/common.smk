@@ -5,3 +5,27 @@ FIGURES = "figures"
 LOGS = "logs"
 PRINTED = config["paper_values"]
 ROBOT = config["study"]["robot"]
+
+# Maps over test poses (Figures 6-10): the studies of config `maps`, each split into tiles (one job each).
+import sys as _sys
+
+from stiffcal.errors import InputError as _InputError
+from stiffcal.maps import map_studies as _map_studies
+
+try:
+    _cfg_files = getattr(workflow, "configfiles", None) or ["config/config.yaml"]
+    MAP_STUDIES = {m.name: m for m in _map_studies(config, ".", str(_cfg_files[-1]))}
+except _InputError as _err:
+    _sys.exit(f"stiffcal: error: {_err}")
+MAPS = "results/maps"
+MAP_FIGURES = {m.figure: m.name for m in MAP_STUDIES.values()}
+
+
+def map_report_inputs(wildcards):
+    """The map statistics and Figures 6-10, when the config has map studies."""
+    if not MAP_STUDIES:
+        return {}
+    figs = {f"fig{n}": f"{FIGURES}/fig{n}.png" for n in sorted(MAP_FIGURES)}
+    if 7 in MAP_FIGURES:
+        figs["fig6"] = f"{FIGURES}/fig6.png"
+    return {"map_statistics": f"{TABLES}/map_statistics.csv", **figs}

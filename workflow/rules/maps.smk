@@ -1,0 +1,76 @@
+# Maps over test poses (Figures 6-10). Each map is split into tiles of `maps.tile_cells` symmetry classes,
+# one job each, so that `--cores N` or the SLURM profile (workflow/profiles/slurm) runs them in parallel.
+
+
+wildcard_constraints:
+    study="[A-Za-z0-9_.-]+",
+    tile="[0-9]+",
+    mapfig="7|8|9|10",
+
+
+rule map_tile:
+    output:
+        csv=temp(f"{MAPS}/{{study}}/tiles/{{tile}}.csv"),
+    log:
+        f"{LOGS}/maps/{{study}}/tile{{tile}}.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    script:
+        "../scripts/map_tile.py"
+
+
+rule map_merge:
+    input:
+        tiles=lambda wc: expand(f"{MAPS}/{wc.study}/tiles/{{tile}}.csv", tile=range(MAP_STUDIES[wc.study].n_tiles)),
+    output:
+        csv=f"{MAPS}/{{study}}/map.csv",
+    log:
+        f"{LOGS}/maps/{{study}}/merge.log",
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    script:
+        "../scripts/map_merge.py"
+
+
+rule map_statistics:
+    input:
+        maps=expand(f"{MAPS}/{{study}}/map.csv", study=MAP_STUDIES),
+        printed=PRINTED,
+    output:
+        csv=f"{TABLES}/map_statistics.csv",
+    log:
+        f"{LOGS}/map_statistics.log",
+    benchmark:
+        "benchmarks/out/map_statistics.tsv"
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    script:
+        "../scripts/map_statistics.py"
+
+
+rule fig6:
+    input:
+        map=lambda wc: f"{MAPS}/{MAP_FIGURES[7]}/map.csv",
+    output:
+        png=f"{FIGURES}/fig6.png",
+        svg=f"{FIGURES}/fig6.svg",
+    log:
+        f"{LOGS}/fig6.log",
+    script:
+        "../scripts/fig6.py"
+
+
+rule fig_map_poses:
+    input:
+        map=lambda wc: f"{MAPS}/{MAP_FIGURES[int(wc.mapfig)]}/map.csv",
+    output:
+        png=f"{FIGURES}/fig{{mapfig}}.png",
+        svg=f"{FIGURES}/fig{{mapfig}}.svg",
+    log:
+        f"{LOGS}/fig{{mapfig}}.log",
+    script:
+        "../scripts/fig_map_poses.py"
