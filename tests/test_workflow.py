@@ -13,7 +13,7 @@ SNAKEMAKE = Path(sys.executable).with_name("snakemake")
 
 
 def _workdir(root: Path, tmp: Path, **study) -> Path:
-    for item in ("Snakefile", "workflow", "config", "paper"):
+    for item in ("Snakefile", "workflow", "config", "paper", "data"):
         src = root / item
         (shutil.copytree if src.is_dir() else shutil.copy)(src, tmp / item)
     shutil.rmtree(tmp / "paper" / "build", ignore_errors=True)
@@ -68,6 +68,15 @@ def test_maps_have_the_contract_columns_and_every_cell(built):
     assert "cells/s" in log  # progress in the log
     stats = pd.read_csv(built / "results/tables/map_statistics.csv")
     assert {"mean", "median", "harmonic_mean", "white", "dark"} <= set(stats.statistic)
+
+
+def test_measured_data_get_a_verdict_and_a_report_section(built):
+    import json
+
+    v = json.loads((built / "results/discrepancy/synthetic-paper-2r/verdict.json").read_text())
+    assert v["cause"] == "backlash" and v["outlier_rows"] == [17]
+    html = (built / "paper/build/report.html").read_text()
+    assert "Measured data: synthetic-paper-2r" in html and "SYNTHETIC data" in html
 
 
 def test_slurm_profile_dry_run(root, tmp_path):

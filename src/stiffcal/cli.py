@@ -106,6 +106,25 @@ def design(args) -> dict:
     }
 
 
+def discrepancy(args) -> dict:
+    """``stiffcal discrepancy``: what the model gets wrong in measured data (writes DIR/verdict.json)."""
+    from .discrepancy import run
+
+    robot = load_robot(args.robot)
+    qt = None if args.test_pose_deg is None else np.radians(_floats("--test-pose-deg", args.test_pose_deg))
+    ft = None if args.force_N is None else _floats("--force-N", args.force_N)
+    if (qt is None) != (ft is None):
+        raise InputError("expected both --test-pose-deg and --force-N (the test pose and its force), or neither",
+                         field="--test-pose-deg")
+    if qt is not None and len(qt) != robot.n_joints:
+        raise InputError(f"expected {robot.n_joints} joint angles, got {len(qt)}", field="--test-pose-deg")
+    if ft is not None and len(ft) != robot.task_dim:
+        raise InputError(f"expected {robot.task_dim} force components, got {len(ft)}", field="--force-N")
+    v = run(robot, args.data, args.out, args.alpha, qt, ft)
+    return {k: v[k] for k in ("cause", "indistinguishable_from", "p_value", "outlier_rows")} | {
+        "verdict": f"{args.out}/verdict.json"}
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="stiffcal", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -118,6 +137,14 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--sigma", type=float, default=1.0, help="measurement noise s.t.d. (default 1)")
     d.add_argument("--seed", type=int, default=0, help="seed of the random starts of M-pose plans (default 0)")
     d.set_defaults(func=design)
+    x = sub.add_parser("discrepancy", help="what the stiffness model gets wrong in measured data (writes DIR/verdict.json)")
+    x.add_argument("--robot", required=True, help="robot YAML file")
+    x.add_argument("--data", required=True, help="measured-data CSV (DESIGN.md contract)")
+    x.add_argument("--out", required=True, help="output directory (verdict.json, residuals.png/svg)")
+    x.add_argument("--alpha", type=float, default=0.01, help="family-wise false-alarm rate (default 0.01)")
+    x.add_argument("--test-pose-deg", help="test pose for the predicted compensation error (optional)")
+    x.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")
+    x.set_defaults(func=discrepancy)
     return p
 
 

@@ -171,6 +171,23 @@ def fig_map_poses(map_csv: str, figure: int, out_png: str) -> None:
     plots.save(plots.fig_optimal_poses(_read(map_csv), figure), Path(out_png).with_suffix(""))
 
 
+def discrepancy(config: dict, name: str, out_verdict: str) -> None:
+    """One measured data set: verdict.json and residuals.png/svg beside it (stiffcal discrepancy)."""
+    from .discrepancy import run
+    from .robot import load_robot
+
+    entry = next(m for m in config["measured_data"] if m["name"] == name)
+    study = _study(config)
+    robot = load_robot(entry["robot"])
+    force = np.asarray(entry.get("force_N", config["study"]["force_N"]), float)
+    qt = study.test_pose if robot.n_joints == study.robot.n_joints else None
+    label = f"{name} ({'SYNTHETIC data' if entry.get('synthetic') else entry['data']})"
+    v = run(robot, entry["data"], str(Path(out_verdict).parent), float(entry.get("alpha", 0.01)), qt,
+            force if qt is not None else None, label)
+    _log(f"{name}: cause {v['cause']} (p = {v['p_value']:.3g}), indistinguishable from "
+         f"{v['indistinguishable_from'] or 'none'}, outlier rows {v['outlier_rows']}")
+
+
 def _optimal_set(t2: pd.DataFrame, key: str) -> np.ndarray:
     text = t2.set_index("criterion").loc[key, "optimal_set_deg"]
     return np.array([[float(v) for v in p.split()] for p in str(text).split(";")])
@@ -193,10 +210,14 @@ def fig5(table2_csv: str, chi_csv: str, out_png: str) -> None:
 
 
 def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: str, rules: dict,
-                template_dir: str, out_html: str) -> None:
-    """Render the HTML report from the generated tables and figures."""
+                template_dir: str, out_html: str, verdicts: dict | None = None) -> None:
+    """Render the HTML report from the generated tables, figures and discrepancy verdicts."""
+    import json
+
     prov = {"commit": report.git_commit(), "config_hash": report.config_hash(config), **rules}
     ctx = report.build_context(config, tables_in, figures_in, printed_yaml, prov)
+    ctx["verdicts"] = {k: json.loads(Path(v).read_text(encoding="utf-8")) for k, v in (verdicts or {}).items()}
+    ctx["measured"] = {m["name"]: m for m in config.get("measured_data", [])}
     html = report.render_html(ctx, template_dir)
     Path(out_html).parent.mkdir(parents=True, exist_ok=True)
     Path(out_html).write_text(html, encoding="utf-8")

@@ -200,3 +200,25 @@ def fig_optimal_poses(df: pd.DataFrame, figure: int):
         fig.suptitle(f"Figure {figure}: optimal measurement pose, b = l2/l1 = {df['link_ratio'].iloc[0]:.2f}, "
                      f"φ = {df['force_deg'].iloc[0]:g} deg")
         return fig
+
+
+def fig_residuals(features: dict[str, np.ndarray], resid: np.ndarray, sigma: float, title: str):
+    """Residuals of the nominal fit [m] against pose, force magnitude, force direction and joint torque
+    (one panel per feature; x and y components; the +-2 sigma band of the noise)."""
+    with plt.rc_context(STYLE):
+        k = len(features)
+        cols = min(3, k)
+        rows = int(np.ceil(k / cols))
+        fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.5 * rows), layout="constrained", squeeze=False)
+        for ax, (name, v) in zip(axes.ravel(), features.items()):
+            for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
+                if j < resid.shape[1]:
+                    ax.plot(v, resid[:, j] * 1e6, mk, ms=3, alpha=0.7, label=f"d{lab}")
+            ax.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
+            ax.set_xlabel(name)
+            ax.set_ylabel("residual [µm]")
+        for ax in axes.ravel()[k:]:
+            ax.axis("off")
+        axes[0, 0].legend(fontsize=7)
+        fig.suptitle(title)
+        return fig

@@ -29,3 +29,15 @@ def map_report_inputs(wildcards):
     if 7 in MAP_FIGURES:
         figs["fig6"] = f"{FIGURES}/fig6.png"
     return {"map_statistics": f"{TABLES}/map_statistics.csv", **figs}
+
+# Measured data sets (config `measured_data`), by name.
+MEASURED = {m["name"]: m for m in config.get("measured_data", [])}
+
+
+def discrepancy_report_inputs(wildcards):
+    """verdict.json and the residual figure of every measured data set."""
+    out = {}
+    for name in MEASURED:
+        out[f"verdict__{name}"] = f"results/discrepancy/{name}/verdict.json"
+        out[f"residuals__{name}"] = f"results/discrepancy/{name}/residuals.png"
+    return out

@@ -16,5 +16,8 @@ rules = {"table2": "table2", "table3": "table3", "table4": "plans_table (m = 2)"
          "fig_design": "approximate_design + phi_map + fig_design", "fig_ot_versus_m": "ot_versus_m + fig_ot_versus_m",
          "map_statistics": "map_tile + map_merge + map_statistics", "fig6": "map_tile + map_merge + fig6",
          "fig_map": "map_tile + map_merge + fig_map_poses"}
+verdicts = {k.split("__", 1)[1]: i[k] for k in i.keys() if k.startswith("verdict__")}
+figures.update({k: i[k] for k in i.keys() if k.startswith("residuals__")})
+rules["discrepancy"] = "discrepancy"
 pipeline.run(snakemake, pipeline.report_html, snakemake.config, tables, figures, i.printed, rules,
-             str(Path(i.template).parent), snakemake.output.html)
+             str(Path(i.template).parent), snakemake.output.html, verdicts)

@@ -1,0 +1,15 @@
+# Measured data: what the stiffness model gets wrong (stiffcal discrepancy), one job per data set.
+
+
+rule discrepancy:
+    input:
+        data=lambda wc: MEASURED[wc.dataset]["data"],
+        robot=lambda wc: MEASURED[wc.dataset]["robot"],
+    output:
+        verdict="results/discrepancy/{dataset}/verdict.json",
+        png="results/discrepancy/{dataset}/residuals.png",
+        svg="results/discrepancy/{dataset}/residuals.svg",
+    log:
+        f"{LOGS}/discrepancy/{{dataset}}.log",
+    script:
+        "../scripts/discrepancy.py"

@@ -1,0 +1,5 @@
+"""Rule discrepancy: verdict.json and the residual figure of one measured data set."""
+from stiffcal import pipeline
+
+pipeline.run(snakemake, pipeline.discrepancy, snakemake.config, snakemake.wildcards.dataset,
+             str(snakemake.output.verdict))
