@@ -4,6 +4,7 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
+TSTAMP := $(VENV)/.installed-test
 CORES  ?= 2
 
 .PHONY: install report test archive lint bench derive clean
@@ -14,13 +15,18 @@ $(STAMP): requirements.lock pyproject.toml
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
 	touch $(STAMP)
 
+# test-only dependencies (Pinocchio, to check our kinematics), pinned in requirements-test.lock
+$(TSTAMP): $(STAMP) requirements-test.lock
+	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements-test.lock
+	touch $(TSTAMP)
+
 install: $(STAMP)
 
 report: $(STAMP)
 	$(BIN)/snakemake --cores $(CORES) --workflow-profile workflow/profiles/default
 	@echo "report: paper/build/report.html and paper/build/report.pdf"
 
-test: $(STAMP)
+test: $(TSTAMP)
 	$(BIN)/python -m pytest
 
 lint: $(STAMP)
@@ -29,6 +35,7 @@ lint: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plans.py
 	$(BIN)/python benchmarks/bench_maps.py
+	$(BIN)/python benchmarks/bench_spatial.py
 
 # Regenerate src/stiffcal/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.
 derive: $(STAMP)

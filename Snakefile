@@ -17,6 +17,7 @@ include: "workflow/rules/criteria.smk"
 include: "workflow/rules/figures.smk"
 include: "workflow/rules/maps.smk"
 include: "workflow/rules/discrepancy.smk"
+include: "workflow/rules/studies.smk"
 include: "workflow/rules/report.smk"
 
 

@@ -22,8 +22,26 @@ def _workdir(root: Path, tmp: Path, **study) -> Path:
     cfg["monte_carlo"]["samples"] = 500
     cfg["plans"] = {"m_max": 3, "pool_step_deg": 6.0}
     cfg["maps"].update({"step_deg": 10.0, "tile_cells": 200, "statistics_steps_deg": [30, 10]})
+    for st in cfg["studies"]:
+        st.update({"m_values": [2, 3], "draw_m": 3})
+    # adding a robot is adding its YAML file and a study entry (no code change)
+    (tmp / "config/robots/added_rrr.yaml").write_text(ADDED_ROBOT)
+    cfg["studies"].append({"name": "added-rrr", "robot": "config/robots/added_rrr.yaml", "test_pose_deg": [30, -40, 60],
+                           "force_N": [100, 50, -200], "sigma_m": 1e-5, "m_values": [1, 2]})
     (tmp / "config" / "test.yaml").write_text(yaml.safe_dump(cfg))
     return tmp
+
+
+ADDED_ROBOT = """name: added-rrr
+kind: spatial
+dh_convention: modified
+dh:
+  - {a_m: 0.0, alpha_deg: 0, d_m: 0.4}
+  - {a_m: 0.1, alpha_deg: -90, d_m: 0.0}
+  - {a_m: 0.5, alpha_deg: 0, d_m: 0.0}
+tool_m: [0.45, 0.0, 0.0]
+joint_limits_deg: [[-170, 170], [-120, 60], [-150, 150]]
+"""
 
 
 def _snakemake(wd: Path, *extra):
@@ -77,6 +95,19 @@ def test_measured_data_get_a_verdict_and_a_report_section(built):
     assert v["cause"] == "backlash" and v["outlier_rows"] == [17]
     html = (built / "paper/build/report.html").read_text()
     assert "Measured data: synthetic-paper-2r" in html and "SYNTHETIC data" in html
+
+
+def test_every_design_study_gets_plans_figures_and_a_report_section(built):
+    import pandas as pd
+
+    html = (built / "paper/build/report.html").read_text()
+    for name, ms in (("kuka-kr210-machining", [2, 3]), ("added-rrr", [1, 2])):
+        df = pd.read_csv(built / f"results/studies/{name}/plans.csv")
+        assert list(df.m) == ms and df.within_limits.all() and (df.O_t >= df.lower_bound * (1 - 1e-12)).all()
+        for fig in ("plan", "versus_m"):
+            assert (built / f"figures/studies/{name}/{fig}.png").stat().st_size > 0
+        assert f"Design study: {name}" in html
+    assert "modified convention" in html and "standard convention" in html
 
 
 def test_slurm_profile_dry_run(root, tmp_path):

@@ -38,18 +38,32 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .design import Problem, grid_minimise, joint_grids, wrap_deg, _is_full_turn
+from .design import (Problem, global_minimise, is_sampled, joint_grids, sample_joint_space, sampled_minimise,
+                     wrap_deg, _is_full_turn)
 from .robot import Robot
 from .stiffness import observation_matrix, pose_information
 
 
+#: candidate pool of a sampled joint space (4+ joints): 2**POOL_LOG2 scrambled-Sobol poses
+POOL_LOG2 = 13
+
+
+def has_planar_symmetry(robot: Robot) -> bool:
+    """Whether a pose's half-turn and mirror copies carry the same information (planar arm, no limits)."""
+    return robot.kind == "planar" and robot.n_joints >= 2 and all(
+        _is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad)
+
+
 def candidate_pool(robot: Robot, step_deg: float) -> np.ndarray:
     """Candidate poses [rad], (N, n): a grid over the joint space, restricted to one symmetry cell
-    (q1 in [-90, 90), first nonzero of q2..qn >= 0) when every joint turns fully (both the half-turn and
-    the mirror copy of a pose carry the same information)."""
+    (q1 in [-90, 90), first nonzero of q2..qn >= 0) when the arm is planar and every joint turns fully
+    (both the half-turn and the mirror copy of a pose carry the same information). For 4+ joints
+    (:func:`stiffcal.design.is_sampled`): ``2**POOL_LOG2`` scrambled-Sobol poses within the limits."""
+    if is_sampled(robot, step_deg):
+        return sample_joint_space(robot, POOL_LOG2, seed=0)
     grids = joint_grids(robot, step_deg)
     q = np.stack(np.meshgrid(*grids, indexing="ij"), -1).reshape(-1, robot.n_joints)
-    if not all(_is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad) or robot.n_joints < 2:
+    if not has_planar_symmetry(robot):
         return q
     eps = 1e-12
     rest = q[:, 1:]
@@ -62,6 +76,26 @@ def candidate_pool(robot: Robot, step_deg: float) -> np.ndarray:
 def default_pool_step(n: int) -> float:
     """Grid step [deg] that keeps the pool near 10^4-10^5 poses: 2 deg for 2 joints, coarser beyond."""
     return float(max(2.0, np.ceil(360.0 / 120_000 ** (1.0 / n))))
+
+
+def check_identifiable(problem: Problem, pool: np.ndarray) -> None:
+    """Raise :class:`InputError` when no plan over the joint space can identify every compliance with this
+    force: the information summed over a pool covering the joint space is singular. Names the joints of the
+    combination that no pose excites (e.g. a vertical axis 1 under a vertical force: no torque about it)."""
+    from .errors import InputError
+    from .stiffness import spectral
+
+    M = _info(problem, pool).mean(axis=0)
+    w, V, null = spectral(M)
+    if not np.any(null) and w[0] > 1e-12 * w[-1]:
+        return
+    v = V[:, 0]
+    joints = [int(problem.robot.params[j]) + 1 for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
+    what = (f"the compliance of joint {joints[0]}" if len(joints) == 1 else
+            "a combination of the compliances of joints " + ", ".join(map(str, joints)))
+    raise InputError(f"{what} cannot be identified with the force {problem.force.tolist()} N at any pose: the force "
+                     "never loads it (zero torque about that axis, or the same effect as other joints); use a force "
+                     "with another direction", source=problem.robot.source)
 
 
 def _phi_design(W, M):
@@ -97,23 +131,25 @@ class ApproximateDesign:
 
 def _info(problem: Problem, q: np.ndarray) -> np.ndarray:
     """Per-pose information A^T A for poses q (..., n) [rad] -> (..., n, n)."""
-    return pose_information(observation_matrix(problem.robot.jacobian(q), problem.force))
+    return pose_information(observation_matrix(problem.robot.model_jacobian(q), problem.force))
 
 
-def multiplicative(P: np.ndarray, W: np.ndarray, iters: int = 3000, tol: float = 1e-7):
+def multiplicative(P: np.ndarray, W: np.ndarray, iters: int = 3000, tol: float = 1e-7, w0: np.ndarray | None = None):
     """Multiplicative algorithm for min trace(W M(w)^-1) over weights on a pool.
 
-    P: (N, n, n) pool information matrices; W: (n, n). Returns (w (N,), iterations used).
-    Stops when max_i phi_i / Phi - 1 < tol (equivalence theorem on the pool).
+    P: (N, n, n) pool information matrices; W: (n, n); w0: starting weights (default uniform).
+    Returns (w (N,), iterations used). Stops when max_i phi_i / Phi - 1 < tol (equivalence theorem on the pool).
     """
     N = P.shape[0]
-    w = np.full(N, 1.0 / N)
+    w = np.full(N, 1.0 / N) if w0 is None else np.asarray(w0, float) / np.sum(w0)
     it = 0
+    n = P.shape[-1]
+    P2 = P.reshape(N, n * n)  # matrix-vector products (BLAS) instead of einsum
     for it in range(1, iters + 1):
-        M = np.einsum("k,kij->ij", w, P)
+        M = (w @ P2).reshape(n, n)
         Phi, Minv = _phi_design(W, M)
         B = Minv @ W @ Minv
-        phi = np.einsum("kij,ji->k", P, B)
+        phi = P2 @ B.T.ravel()
         if phi.max() / Phi - 1.0 < tol:
             break
         w = w * np.sqrt(np.maximum(phi, 0.0))
@@ -192,6 +228,9 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     s_step = search_step_deg or min(step, 2.0)
     At = problem.At
     W = At.T @ At
+    check_identifiable(problem, candidate_pool(robot, step if not is_sampled(robot, step) else 90.0))
+    if is_sampled(robot, step):
+        return _sampled_design(problem, W, iters, target_gap)
     pool = candidate_pool(robot, step)
     w, it = multiplicative(_info(problem, pool), W, iters)
     sig = w >= 1e-3 * w.max()
@@ -204,14 +243,61 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
         C = Minv @ At.T  # (n, d)
 
         def neg_phi(q, C=C):
-            return -np.sum((observation_matrix(robot.jacobian(q), problem.force) @ C) ** 2, axis=(-2, -1))
+            return -np.sum((observation_matrix(robot.model_jacobian(q), problem.force) @ C) ** 2, axis=(-2, -1))
 
-        _, _, xs, fs = grid_minimise(neg_phi, robot, s_step, n_refine=8)
+        xs, fs = global_minimise(neg_phi, robot, s_step, n_refine=8)
         max_phi = max(-float(fs[0]), Phi)  # max_x phi >= Phi always (the mean of phi under xi is Phi)
         if max_phi / Phi - 1.0 <= target_gap:
             break
         keep = wts >= 1e-6
         X, wts = merge_support(*_polish_design(problem, W, np.vstack([X[keep], xs[:1]]),
                                                np.append(wts[keep] * 0.9, 0.1) / (wts[keep].sum() * 0.9 + 0.1)))
+    order = np.argsort(-wts, kind="stable")
+    return ApproximateDesign(wrap_deg(np.degrees(X[order])), wts[order], Phi, max_phi, Phi**2 / max_phi, it)
+
+
+def _neg_phi(problem: Problem, C: np.ndarray):
+    """q (..., n) [rad] -> -phi(q, xi) = -||A(q) M(xi)^-1 A_t^T||_F^2, with C = M(xi)^-1 A_t^T (n, d)."""
+    def f(q):
+        return -np.sum((observation_matrix(problem.robot.model_jacobian(q), problem.force) @ C) ** 2, axis=(-2, -1))
+    return f
+
+
+def _max_phi(problem: Problem, W, X: np.ndarray, w: np.ndarray, n_refine: int, xatol: float):
+    """(Phi(xi), max_x phi(x, xi), maximisers (k, n) [rad]) of the design (X, w), the maximum by
+    :func:`stiffcal.design.sampled_minimise` started also from the support."""
+    Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", w, _info(problem, X)))
+    xs, fs = sampled_minimise(_neg_phi(problem, Minv @ problem.At.T), problem.robot, n_refine, extra_starts=X,
+                              xatol=xatol)
+    return Phi, max(-float(fs[0]), Phi), xs
+
+
+def _sampled_design(problem: Problem, W, iters: int, target_gap: float, rounds: int = 12,
+                    add: int = 4) -> ApproximateDesign:
+    """The approximate design for 4+ joints (sampled joint space), by pool augmentation:
+
+    1. multiplicative algorithm on a scrambled-Sobol pool of ``2**POOL_LOG2`` poses;
+    2. the maximisers of phi(x, xi) over the joint space (Sobol sample + polish) join the pool and the
+       multiplicative algorithm resumes from the current weights, until the equivalence gap is below
+       ``target_gap`` or ``rounds`` are done (each round can only lower Phi);
+    3. the support is merged and polished jointly (poses and weights), and the bound is computed from the
+       final design with a fresh maximisation of phi.
+    """
+    pool = candidate_pool(problem.robot, 90.0)
+    P = _info(problem, pool)
+    w, it = multiplicative(P, W, iters)
+    for _ in range(rounds):
+        sup = w >= 1e-3 * w.max()
+        Phi, max_phi, xs = _max_phi(problem, W, pool[sup], w[sup] / w[sup].sum(), 6, 1e-6)
+        if max_phi / Phi - 1.0 <= target_gap:
+            break
+        pool = np.vstack([pool, xs[:add]])
+        P = np.concatenate([P, _info(problem, xs[:add])])
+        w, used = multiplicative(P, W, iters, w0=np.append(w, np.full(len(xs[:add]), 0.05 / add)))
+        it += used
+    keep = w >= 1e-4 * w.max()
+    X, wts = merge_support(pool[keep], w[keep] / w[keep].sum(), tol_deg=2.0)
+    X, wts = merge_support(*_polish_design(problem, W, X, wts))
+    Phi, max_phi, _ = _max_phi(problem, W, X, wts, 16, 1e-10)
     order = np.argsort(-wts, kind="stable")
     return ApproximateDesign(wrap_deg(np.degrees(X[order])), wts[order], Phi, max_phi, Phi**2 / max_phi, it)

@@ -59,6 +59,17 @@ def design(args) -> dict:
         raise InputError(f"expected a number of experiments >= 1, got {args.experiments}", field="--experiments")
     if not args.sigma > 0:
         raise InputError(f"expected sigma > 0, got {args.sigma}", field="--sigma")
+    if robot.has_joint_limits:
+        lo, hi = np.degrees(robot.joint_limits_rad.T)
+        out = np.flatnonzero((q_t < lo - 1e-9) | (q_t > hi + 1e-9))
+        if out.size:
+            j = int(out[0])
+            raise InputError(f"expected q{j + 1} within the joint limits [{lo[j]:g}, {hi[j]:g}] deg of {args.robot}, "
+                             f"got {q_t[j]:g}", field="--test-pose-deg")
+    if args.experiments * robot.task_dim < robot.n_params:
+        need = -(-robot.n_params // robot.task_dim)
+        raise InputError(f"expected at least {need} poses: {args.experiments} give {args.experiments * robot.task_dim} "
+                         f"equations for {robot.n_params} compliances", field="--experiments")
     m = args.experiments
     study = Study(robot.name, robot, np.radians(q_t), force, args.sigma, (args.criterion,), 1.0, 1.0)
     notes, optimal_set, degenerate = [], [], False
@@ -81,6 +92,10 @@ def design(args) -> dict:
     summ = plan_summary(study, poses)
     bound = design.lower_bound(m, args.sigma) if args.criterion == "ot" else None
     n = robot.n_joints
+    notes = list(notes) + [f"joint {j + 1}'s axis passes through the measured point at every pose: its compliance never "
+                           "deflects that point, cannot be identified from its position and is left out of the model "
+                           "(cov_diag 'inf'); measure a point off that axis (tool_m) to identify it"
+                           for j in robot.inert_joints]
     return {
         "criterion": args.criterion,
         "criterion_label": criteria.label(args.criterion),
@@ -88,7 +103,7 @@ def design(args) -> dict:
         "experiments": m,
         "poses_deg": [[round(float(a), 6) + 0.0 for a in p] for p in poses],
         "O_t": _json_number(summ["O_t"]),
-        "O_t_star": criteria.o_t_star(n, m, args.sigma),
+        "O_t_star": criteria.o_t_star(robot.n_params, m, args.sigma),
         "chi": _json_number(summ["chi"]),
         "cov_diag": [_json_number(summ[f"E_dk{i + 1}"]) for i in range(n)],
         "lower_bound": bound,

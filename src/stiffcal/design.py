@@ -64,12 +64,12 @@ class Problem:
         if self.test_pose is None:
             return None
         F = self.force if self.test_force is None else self.test_force
-        return observation_matrix(self.robot.jacobian(self.test_pose), F)
+        return observation_matrix(self.robot.model_jacobian(self.test_pose), F)
 
 
 def plan_observations(problem: Problem, q: np.ndarray) -> np.ndarray:
     """Stacked observation matrices of plans. q: (..., m, n) [rad]. Returns (..., m d, n)."""
-    A = observation_matrix(problem.robot.jacobian(q), problem.force)
+    A = observation_matrix(problem.robot.model_jacobian(q), problem.force)
     return A.reshape(A.shape[:-3] + (A.shape[-3] * A.shape[-2], A.shape[-1]))
 
 
@@ -90,12 +90,14 @@ def plan_value(problem: Problem, q: np.ndarray) -> np.ndarray:
 
 def joint_grids(robot: Robot, step_deg: float) -> list[np.ndarray]:
     """Per-joint grid [rad]: full-turn joints get ``[-180, 180)`` (periodic), limited joints their
-    closed interval, each at (at most) ``step_deg`` spacing."""
+    closed interval, each at (at most) ``step_deg`` spacing. A limited joint whose range spans a full turn
+    or more (e.g. +-350 deg) gets one turn centred in its range: further angles repeat the same poses."""
     grids = []
     for lo, hi in robot.joint_limits_rad:
         if _is_full_turn(lo, hi):
             count = int(np.ceil(360.0 / step_deg - 1e-9))
-            grids.append(-np.pi + TWO_PI * np.arange(count) / count)
+            start = -np.pi if hi - lo <= TWO_PI + 1e-12 else 0.5 * (lo + hi) - np.pi
+            grids.append(start + TWO_PI * np.arange(count) / count)
         else:
             count = int(np.ceil(np.degrees(hi - lo) / step_deg - 1e-9)) + 1
             grids.append(np.linspace(lo, hi, count))
@@ -104,6 +106,39 @@ def joint_grids(robot: Robot, step_deg: float) -> list[np.ndarray]:
 
 def _is_full_turn(lo: float, hi: float) -> bool:
     return hi - lo >= TWO_PI - 1e-12
+
+
+def _periodic(robot: Robot) -> list[bool]:
+    """Joints whose grid wraps around (exactly one full turn: no limits)."""
+    return [abs(hi - lo - TWO_PI) <= 1e-12 for lo, hi in robot.joint_limits_rad]
+
+
+def _bounds(robot: Robot) -> list[tuple[float, float] | None]:
+    """Bounds for local polishing: None for a free full-turn joint, the limits otherwise."""
+    return [None if p else (lo, hi) for p, (lo, hi) in zip(_periodic(robot), robot.joint_limits_rad)]
+
+
+def grid_size(robot: Robot, step_deg: float) -> int:
+    """Number of nodes of :func:`joint_grids` (without building them)."""
+    return int(np.prod([len(g) for g in joint_grids(robot, step_deg)], dtype=float))
+
+
+#: largest grid searched exhaustively; beyond it (typically 4+ joints) the search samples the joint space
+MAX_GRID_NODES = 400_000
+#: quasi-random (scrambled Sobol) samples of the joint space when the grid would be too large
+SAMPLES_LOG2 = 15
+
+
+def sample_joint_space(robot: Robot, log2_count: int = SAMPLES_LOG2, seed: int = 0) -> np.ndarray:
+    """``2**log2_count`` scrambled-Sobol poses (k, n) [rad] filling the joint-limit box (one turn for
+    joints with a full turn or more). Deterministic for a seed."""
+    from scipy.stats import qmc
+
+    lo, hi = robot.joint_limits_rad.T
+    span = np.minimum(hi - lo, TWO_PI)
+    start = np.where(hi - lo > TWO_PI, 0.5 * (lo + hi) - np.pi, lo)
+    u = qmc.Sobol(robot.n_joints, scramble=True, seed=seed).random_base2(log2_count)
+    return start + u * span
 
 
 def grid_local_minima(values: np.ndarray, periodic: list[bool]) -> np.ndarray:
@@ -219,17 +254,63 @@ def polish_grid_minima(fun, robot: Robot, grids, values, n_refine: int = 24, xat
 
     Returns (xs (k, n) [rad], fs (k,)), best first.
     """
-    periodic = [_is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad]
-    mask = grid_local_minima(values, periodic)
+    mask = grid_local_minima(values, [_is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad])
     idx = np.argwhere(mask)
     order = np.argsort(values[mask], kind="stable")[:n_refine]
     starts = np.array([[g[i] for g, i in zip(grids, idx[o])] for o in order]).reshape(-1, robot.n_joints)
-    bounds = [None if p else (lo, hi) for p, (lo, hi) in zip(periodic, robot.joint_limits_rad)]
-    polished = [_polish(fun, x0, bounds, xatol) for x0 in starts]
+    return _polish_all(fun, robot, starts, xatol)
+
+
+def _polish_all(fun, robot: Robot, starts: np.ndarray, xatol: float = 1e-10, smooth: bool = False):
+    """Polish every start (k, n) [rad]: Nelder-Mead, or for a ``smooth`` function L-BFGS-B with batched
+    central-difference gradients (:func:`polish_smooth`). Returns (xs, fs) best first."""
+    one = polish_smooth if smooth else _polish
+    polished = [one(fun, x0, _bounds(robot), xatol) for x0 in starts]
     xs = np.array([p[0] for p in polished]).reshape(-1, robot.n_joints)
     fs = np.array([p[1] for p in polished])
     order = np.argsort(fs, kind="stable")
     return xs[order], fs[order]
+
+
+def sampled_minimise(fun, robot: Robot, n_refine: int = 16, log2_count: int = SAMPLES_LOG2, seed: int = 1,
+                     extra_starts: np.ndarray | None = None, min_separation_deg: float = 10.0,
+                     xatol: float = 1e-10):
+    """Global minimisation of ``fun`` over one pose when a grid is too large (4+ joints).
+
+    ``fun`` is evaluated at ``2**log2_count`` scrambled-Sobol poses (plus ``extra_starts`` (k, n) [rad]);
+    the ``n_refine`` best that are at least ``min_separation_deg`` apart on some joint are polished
+    (L-BFGS-B within the limits: ``fun`` must be smooth). Unlike the grid search this finds the global optimum only with high
+    probability; the tests compare it with an independent brute-force random search.
+    Returns ``(xs (k, n) [rad], fs (k,))``, best first.
+    """
+    q = sample_joint_space(robot, log2_count, seed)
+    if extra_starts is not None and len(extra_starts):
+        q = np.vstack([np.atleast_2d(extra_starts), q])
+    v = np.concatenate([fun(q[i:i + 8192]) for i in range(0, len(q), 8192)])
+    starts: list[np.ndarray] = []
+    sep = np.radians(min_separation_deg)
+    for i in np.argsort(v, kind="stable"):
+        if not np.isfinite(v[i]) or len(starts) == n_refine:
+            break
+        if all(np.any(np.abs(np.angle(np.exp(1j * (q[i] - s)))) > sep) for s in starts):
+            starts.append(q[i])
+    if not starts:
+        return q[:0], v[:0]
+    return _polish_all(fun, robot, np.array(starts), xatol, smooth=True)
+
+
+def is_sampled(robot: Robot, step_deg: float) -> bool:
+    """Whether searches over one pose sample the joint space instead of gridding it: for 4+ joints (a grid
+    fine enough to resolve the optimum would be too large) or a grid above :data:`MAX_GRID_NODES`."""
+    return robot.n_joints >= 4 or grid_size(robot, step_deg) > MAX_GRID_NODES
+
+
+def global_minimise(fun, robot: Robot, step_deg: float, n_refine: int = 8, extra_starts=None, xatol=1e-10):
+    """:func:`grid_minimise` at ``step_deg`` or, when :func:`is_sampled`, :func:`sampled_minimise`.
+    Returns ``(xs (k, n) [rad], fs (k,))``, best first."""
+    if not is_sampled(robot, step_deg):
+        return grid_minimise(fun, robot, step_deg, n_refine, xatol)[2:]
+    return sampled_minimise(fun, robot, n_refine, extra_starts=extra_starts, xatol=xatol)
 
 
 def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int = 24,
@@ -241,27 +322,55 @@ def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int =
     """
     assert problem.m == 1, "optimal_single_pose is for one measurement pose"
     robot = problem.robot
+    d, n = robot.task_dim, robot.n_params
+    few = f"one pose gives {d} equations for {n} compliances; use at least {-(-n // d)} poses"
+    if d < n and problem.criterion in criteria.NEEDS_INVERSE:
+        raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every pose: {few}")
 
     def fun(q):
         return plan_loss(problem, q[..., None, :])
 
-    grids = joint_grids(robot, step_deg)
-    values = evaluate_grid(fun, grids)
-    finite = values[np.isfinite(values)]
-    if finite.size == 0:
-        d, n = robot.task_dim, robot.n_joints
-        why = (f"one pose gives {d} equations for {n} compliances; use at least {-(-n // d)} poses"
-               if d < n else "no pose of the joint space identifies every compliance with this force")
-        raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every pose: {why}")
-    if finite.max() - finite.min() <= 1e-9 * max(1.0, abs(finite.min())):
-        return _degenerate_result(problem, grids, values)
-    xs, fs = polish_grid_minima(fun, robot, grids, values, n_refine, xatol)
+    if is_sampled(robot, step_deg):
+        if d < n and problem.criterion != "t":
+            raise InputError(f"criterion {criteria.label(problem.criterion)} is zero at every pose: {few}")
+        xs, fs = sampled_minimise(fun, robot, n_refine)
+    else:
+        grids = joint_grids(robot, step_deg)
+        values = evaluate_grid(fun, grids)
+        finite = values[np.isfinite(values)]
+        if finite.size == 0:
+            raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every pose: no pose of "
+                             "the joint space identifies every compliance with this force")
+        if finite.max() - finite.min() <= 1e-9 * max(1.0, abs(finite.min())):
+            return _degenerate_result(problem, grids, values)
+        xs, fs = polish_grid_minima(fun, robot, grids, values, n_refine, xatol)
     best = fs[0]
     near = fs <= best + set_rtol * max(abs(best), 1e-300)
     opt_deg = wrap_deg(np.degrees(dedupe(xs[near])))
     rep = representative(opt_deg)
     value = float(plan_value(problem, np.radians(rep)[None, None, :])[0])
     return SinglePoseResult(rep, opt_deg, float(best), value)
+
+
+def polish_smooth(fun, x0: np.ndarray, bounds, xatol: float = 1e-10, h: float = 1e-6):
+    """L-BFGS-B from x0 on a smooth batched ``fun`` (q (k, n) -> (k,)): the value and the central-difference
+    gradient come from one call on 2n + 1 poses. Returns (x, f), never worse than x0."""
+    n = len(x0)
+    steps = np.vstack([np.zeros(n), h * np.eye(n), -h * np.eye(n)])
+
+    def fg(x):
+        v = fun(x + steps)
+        if not np.all(np.isfinite(v)):
+            return float(v[0]), np.zeros(n)
+        return float(v[0]), (v[1:n + 1] - v[n + 1:]) / (2 * h)
+
+    f0 = fg(x0)[0]
+    bnds = [b if b is not None else (None, None) for b in bounds]
+    res = minimize(fg, x0, jac=True, method="L-BFGS-B", bounds=bnds,
+                   options=dict(maxiter=500, ftol=1e-15, gtol=max(xatol, 1e-12)))
+    if np.isfinite(res.fun) and res.fun <= f0:
+        return res.x, float(res.fun)
+    return x0, f0
 
 
 def _polish(fun, x0: np.ndarray, bounds, xatol: float):

@@ -29,8 +29,9 @@ from scipy import stats
 
 from .errors import InputError
 from .measurements import Measurements
-from .robot import Robot
-from .stiffness import observation_matrix
+from .robot import Robot, as_xyz
+from .design import sample_joint_space
+from .stiffness import observation_matrix, random_directions
 
 CAUSES = ("link_compliance", "joint_coupling", "nonlinear_joint_stiffness", "backlash", "measurement_offset")
 #: relative singular value below which a direction of a design matrix counts as absent
@@ -45,25 +46,32 @@ def torques(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
 
 
 def nominal_columns(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """(N, d, n): the observation matrices A of eq. 4, one per measurement."""
-    return observation_matrix(robot.jacobian(q), force)
+    """(N, d, n): the observation matrices A of eq. 4, one per measurement (the model's parameters:
+    a joint that never moves the measured point is left out, see :attr:`Robot.params`)."""
+    return observation_matrix(robot.model_jacobian(q), force)
 
 
 def _link_columns(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-    pts = robot.link_points(q)
+    """(N, d, segments): per link segment (consecutive ``robot.link_points``), the end-effector displacement
+    per unit 1/(E I) of a cantilever loaded at its distal end by the force F and the moment M = r x F it
+    transmits (bending only): tip deflection (L^3/3) F_perp + (L^2/2) M_perp x u, tip rotation
+    (L^2/2) u x F_perp + L M_perp, carried to the end effector by the lever r."""
+    pts = as_xyz(robot.link_points(q))
+    F = as_xyz(force)
     pe = pts[:, -1, :]
     cols = []
-    for i in range(robot.n_joints):
+    for i in range(pts.shape[1] - 1):
         seg = pts[:, i + 1, :] - pts[:, i, :]
         L = np.linalg.norm(seg, axis=-1)
-        u = seg / L[:, None]
-        nrm = np.stack([-u[:, 1], u[:, 0]], axis=-1)
+        u = seg / np.where(L > 0, L, 1.0)[:, None]
         r = pe - pts[:, i + 1, :]
-        P = np.einsum("nd,nd->n", force, nrm)
-        M = r[:, 0] * force[:, 1] - r[:, 1] * force[:, 0]
-        zr = np.stack([-r[:, 1], r[:, 0]], axis=-1)
-        cols.append((P * L**3 / 3 + M * L**2 / 2)[:, None] * nrm + (P * L**2 / 2 + M * L)[:, None] * zr)
-    return np.stack(cols, axis=-1)
+        F_perp = F - np.einsum("nd,nd->n", F, u)[:, None] * u
+        M = np.cross(r, F)
+        M_perp = M - np.einsum("nd,nd->n", M, u)[:, None] * u
+        tip = (L**3 / 3)[:, None] * F_perp + (L**2 / 2)[:, None] * np.cross(M_perp, u)
+        turn = (L**2 / 2)[:, None] * np.cross(u, F_perp) + L[:, None] * M_perp
+        cols.append(tip + np.cross(turn, r))
+    return np.stack(cols, axis=-1)[:, : robot.task_dim, :]
 
 
 def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
@@ -205,7 +213,7 @@ def _spans_within(a: np.ndarray, b: np.ndarray) -> bool:
 
 def check_identifiable(robot: Robot, meas: Measurements) -> None:
     """Enough equations for the compliances and a nonsingular plan, or one clear error."""
-    n, d, N = robot.n_joints, robot.task_dim, meas.n_rows
+    n, d, N = robot.n_params, robot.task_dim, meas.n_rows
     if N * d < n:
         raise InputError(f"expected at least {n} equations for the {n} joint compliances, got {N * d} "
                          f"({N} measurements of {d} coordinates)", source=meas.source)
@@ -324,8 +332,7 @@ def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe:
     rng = np.random.default_rng(0)
     lims = robot.joint_limits_rad
     q = rng.uniform(lims[:, 0], lims[:, 1], (n_probe, robot.n_joints))
-    ang = rng.uniform(-np.pi, np.pi, n_probe)
-    f = np.stack([np.cos(ang), np.sin(ang)], axis=-1) * np.median(np.linalg.norm(meas.force, axis=1))
+    f = random_directions(rng, n_probe, robot.task_dim) * np.median(np.linalg.norm(meas.force, axis=1))
     X0 = _stack(nominal_columns(robot, q, f))
     A, B = (_stack(cause_columns(c, robot, q, f)) for c in (a, b))
     if _spans_within(B, np.hstack([X0, A])) or _spans_within(A, np.hstack([X0, B])):
@@ -337,8 +344,11 @@ def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe:
     P = B - Xa @ np.linalg.lstsq(Xa, B, rcond=None)[0]
     per_pose = np.linalg.norm(P.reshape(n_probe, -1, P.shape[1]), axis=(1, 2))
     i = int(np.argmax(per_pose))
+    u = f[i] / np.linalg.norm(f[i])
+    where = (f"at {np.degrees(np.arctan2(u[1], u[0])):.0f} deg" if len(u) == 2 else
+             f"along ({', '.join(f'{c:.2f}' for c in u)})")
     return (f"these data do not separate {a} from {b}; a measurement at q = "
-            f"{np.round(np.degrees(q[i]), 1).tolist()} deg with the force at {np.degrees(ang[i]):.0f} deg "
+            f"{np.round(np.degrees(q[i]), 1).tolist()} deg with the force {where} "
             f"would (it is where their predictions differ most)")
 
 
@@ -352,7 +362,8 @@ def _extended(des: Design, f: Fit, cause: str, sigma: float, t: float, robot: Ro
 
 def parameter_names(cause: str, robot: Robot) -> list[str]:
     n = robot.n_joints
-    return {"link_compliance": [f"c{i + 1}_1/(N m^2)" for i in range(n)],
+    segments = robot.link_points(np.zeros(n)).shape[-2] - 1  # n links; a spatial arm adds the tool segment
+    return {"link_compliance": [f"c{i + 1}_1/(N m^2)" for i in range(segments)],
             "joint_coupling": [f"k{i + 1}{j + 1}_rad/(N m)" for i in range(n) for j in range(i + 1, n)],
             "nonlinear_joint_stiffness": [f"g{i + 1}_rad/(N m)^3" for i in range(n)],
             "backlash": [f"b{i + 1}_rad" for i in range(n)],
@@ -494,9 +505,12 @@ def optimal_plan(robot: Robot, cause: str | None, test_pose: np.ndarray, test_fo
     """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
     model nominal + ``cause``, the test force used in every measurement (as in the paper): Fedorov exchange
     over a step_deg grid of poses within the joint limits. Returns (poses [deg] (m, n), O_t / sigma^2)."""
-    lims = np.degrees(robot.joint_limits_rad)
-    axes = [np.arange(lo, hi + 1e-9, step_deg) for lo, hi in lims]
-    pool = np.radians(np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, robot.n_joints))
+    if robot.n_joints >= 4:
+        pool = sample_joint_space(robot, 12, seed=0)  # a grid would be too large: 4096 quasi-random poses
+    else:
+        lims = np.degrees(robot.joint_limits_rad)
+        axes = [np.arange(lo, hi + 1e-9, step_deg) for lo, hi in lims]
+        pool = np.radians(np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, robot.n_joints))
     F = np.broadcast_to(test_force, (len(pool), len(test_force)))
     Xp = _design_of(robot, pool, F, cause)
     Xt = _design_of(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), cause)[0]

@@ -73,21 +73,59 @@ def chi_map(config: dict, out_csv: str) -> None:
     tables.write_csv(tables.chi_map(_study(config)), out_csv)
 
 
-def approximate_design(config: dict, out_json: str, out_support_csv: str, out_certificate_csv: str) -> None:
-    """The optimal approximate design for O_t and its certificate (one run serves every m)."""
+def approximate_design(config: dict, out_json: str, out_support_csv: str, out_certificate_csv: str,
+                       name: str | None = None) -> None:
+    """The optimal approximate design for O_t and its certificate (one run serves every m), for the paper's
+    study or, with ``name``, for the design study of that name."""
     import json
 
     from .certificate import approximate_design as compute
 
-    study = _study(config)
-    _log("approximate design: multiplicative algorithm, polish, equivalence-theorem bound")
-    d = compute(study.problem("ot"), pool_step_deg=config.get("plans", {}).get("pool_step_deg"))
-    _log(f"Phi = {d.phi:.9g}, bound Phi* >= {d.phi_lower:.9g}, equivalence gap {d.equivalence_gap:.2e}")
+    study = _study(config) if name is None else _design_study(config, name)[0]
+    _log(f"approximate design for {study.name} ({study.robot.n_joints} joints): multiplicative algorithm, "
+         "polish, equivalence-theorem bound")
+    step = config.get("plans", {}).get("pool_step_deg") if name is None else None
+    d = compute(study.problem("ot"), pool_step_deg=step)
+    _log(f"Phi = {d.phi:.9g}, bound Phi* >= {d.phi_lower:.9g}, equivalence gap {d.equivalence_gap:.2e}, "
+         f"{len(d.weights)} support poses")
     tables.write_csv(tables.design_table(d), out_support_csv)
     tables.write_csv(tables.certificate_table(d, study.sigma), out_certificate_csv)
     Path(out_json).write_text(json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
                                           "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
                                           "iterations": d.iterations}, indent=1) + "\n", encoding="utf-8")
+
+
+def _design_study(config: dict, name: str):
+    from .study import design_studies
+
+    return design_studies(config, ".", "config/config.yaml")[name]
+
+
+def study_plan(config: dict, name: str, m: int, design_json: str, out_csv: str) -> None:
+    """One row of a design study: the best m-pose plan, its O_t, chi, bound and gap."""
+    study, _ = _design_study(config, name)
+    _log(f"{name}: best plan of {m} poses")
+    row = tables.best_plan_row(study, m, int(config["seed"]), _design(design_json))
+    _log(f"{name}: m = {m}, O_t = {row['O_t']:.6g} (RMS {row['rms_m']:.4g}), bound {row['lower_bound']:.6g}, "
+         f"gap {100 * row['gap']:.2f} %, within limits: {row['within_limits']}")
+    tables.write_csv(pd.DataFrame([row]), out_csv)
+
+
+def study_plans(plan_csvs: list[str], out_csv: str) -> None:
+    """The rows of every m, sorted by m."""
+    tables.write_csv(pd.concat([_read(p) for p in plan_csvs]).sort_values("m", kind="stable"), out_csv)
+
+
+def fig_study_plan(config: dict, name: str, plans_csv: str, out_png: str) -> None:
+    study, entry = _design_study(config, name)
+    df = _read(plans_csv).set_index("m")
+    m = int(entry["draw_m"])
+    plots.save(plots.fig_study_plan(study, tables.parse_plan(df.loc[m, "poses_deg"]), m), Path(out_png).with_suffix(""))
+
+
+def fig_study_versus_m(config: dict, name: str, plans_csv: str, out_png: str) -> None:
+    study, _ = _design_study(config, name)
+    plots.save(plots.fig_study_versus_m(_read(plans_csv), study.sigma), Path(out_png).with_suffix(""))
 
 
 def _design(path: str):
@@ -210,14 +248,19 @@ def fig5(table2_csv: str, chi_csv: str, out_png: str) -> None:
 
 
 def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: str, rules: dict,
-                template_dir: str, out_html: str, verdicts: dict | None = None) -> None:
-    """Render the HTML report from the generated tables, figures and discrepancy verdicts."""
+                template_dir: str, out_html: str, verdicts: dict | None = None, studies: dict | None = None) -> None:
+    """Render the HTML report from the generated tables, figures, discrepancy verdicts and design studies
+    (name -> paths of 'studycert', 'studyplans', 'studyfigplan', 'studyfigm')."""
     import json
+
+    from .study import design_studies
 
     prov = {"commit": report.git_commit(), "config_hash": report.config_hash(config), **rules}
     ctx = report.build_context(config, tables_in, figures_in, printed_yaml, prov)
     ctx["verdicts"] = {k: json.loads(Path(v).read_text(encoding="utf-8")) for k, v in (verdicts or {}).items()}
     ctx["measured"] = {m["name"]: m for m in config.get("measured_data", [])}
+    loaded = design_studies(config, ".", "config/config.yaml") if studies else {}
+    ctx["studies"] = {name: report.study_context(*loaded[name], paths) for name, paths in (studies or {}).items()}
     html = report.render_html(ctx, template_dir)
     Path(out_html).parent.mkdir(parents=True, exist_ok=True)
     Path(out_html).write_text(html, encoding="utf-8")

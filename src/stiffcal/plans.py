@@ -27,7 +27,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from . import criteria
-from .certificate import ApproximateDesign, candidate_pool, default_pool_step
+from .certificate import ApproximateDesign, candidate_pool, default_pool_step, has_planar_symmetry
 from .design import Problem, _is_full_turn, plan_loss, representative, wrap_deg
 from .stiffness import information_matrix, observation_matrix, pose_information
 
@@ -55,10 +55,11 @@ def symmetric_copies(robot, pose_deg: np.ndarray, force: np.ndarray) -> np.ndarr
 
 
 def canonical_plan(problem: Problem, plan_deg: np.ndarray) -> np.ndarray:
-    """Each pose replaced by its representative symmetric copy, poses sorted (by q1, then q2, ...)."""
+    """Each pose replaced by its representative symmetric copy (planar arms without limits only), poses
+    sorted (by q1, then q2, ...)."""
     plan = wrap_deg(np.atleast_2d(plan_deg))
     robot = problem.robot
-    if all(_is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad):
+    if has_planar_symmetry(robot):
         plan = np.array([representative(symmetric_copies(robot, p, problem.force)) for p in plan])
     order = np.lexsort(plan.T[::-1])
     return plan[order]
@@ -66,7 +67,7 @@ def canonical_plan(problem: Problem, plan_deg: np.ndarray) -> np.ndarray:
 
 def _plan_A(problem: Problem, q: np.ndarray) -> np.ndarray:
     """Stacked observation rows of poses q (..., n) [rad] -> (..., d, n)."""
-    return observation_matrix(problem.robot.jacobian(q), problem.force)
+    return observation_matrix(problem.robot.model_jacobian(q), problem.force)
 
 
 def ot_exchange_values(M_rest: np.ndarray, pool_A: np.ndarray, At: np.ndarray, sigma: float) -> np.ndarray | None:

@@ -222,3 +222,64 @@ def fig_residuals(features: dict[str, np.ndarray], resid: np.ndarray, sigma: flo
         axes[0, 0].legend(fontsize=7)
         fig.suptitle(title)
         return fig
+
+
+def fig_study_plan(study: Study, plan_deg: np.ndarray, m: int):
+    """A design study's m-pose plan drawn in 3-D (a planar arm in its plane): the arm at the test pose with
+    the force, and at every measurement pose of the plan."""
+    robot = study.robot
+    reach = robot.reach_m
+    with plt.rc_context(STYLE):
+        fig = plt.figure(figsize=(6.4, 5.2))
+        ax = fig.add_subplot(projection="3d")
+
+        def xyz(points):
+            return points if points.shape[-1] == 3 else np.concatenate([points, np.zeros(points.shape[:-1] + (1,))], -1)
+
+        test = xyz(robot.link_points(study.test_pose))
+        ax.plot(*test.T, "o-", color="k", lw=2.5, ms=3, label="test pose q*")
+        f = xyz(study.force[None])[0]
+        f = f / np.linalg.norm(f) * 0.25 * reach
+        ax.quiver(*test[-1], *f, color="C2", lw=2, label="force F")
+        every = [test, test[-1:] + f]
+        for i, pose in enumerate(np.atleast_2d(plan_deg)):
+            pts = xyz(robot.link_points(np.radians(pose)))
+            every.append(pts)
+            ax.plot(*pts.T, "o-", color=f"C{i % 10}", lw=1.2, ms=2, alpha=0.85,
+                    label="measurement poses" if i == 0 else None)
+            ax.text(*pts[-1], f" {i + 1}", fontsize=7, color=f"C{i % 10}")
+        allp = np.concatenate(every)
+        lo, hi = allp.min(0), allp.max(0)
+        half = 0.55 * max(np.max(hi - lo), 0.2 * reach)
+        mid = 0.5 * (lo + hi)
+        ax.set_xlim(mid[0] - half, mid[0] + half)
+        ax.set_ylim(mid[1] - half, mid[1] + half)
+        ax.set_zlim(mid[2] - half, mid[2] + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.set_zlabel("z [m]")
+        ax.view_init(elev=22, azim=-60)
+        ax.legend(loc="upper left", fontsize=7)
+        ax.set_title(f"{study.name}: O_t-optimal plan of {m} poses")
+        return fig
+
+
+def fig_study_versus_m(df: pd.DataFrame, sigma: float):
+    """A design study: the RMS compensation error sqrt(O_t) of the best plan and the certified bound
+    against the number of poses M (left), and chi (eq. 27) against M (right)."""
+    with plt.rc_context(STYLE):
+        fig, (ax, ax2) = plt.subplots(1, 2, figsize=(7.2, 3.0))
+        unit, scale = ("µm", 1e6) if sigma < 1e-2 else ("σ units", 1.0)
+        ax.plot(df.m, scale * np.sqrt(df.O_t), "o-", label="best plan")
+        ax.plot(df.m, scale * np.sqrt(df.lower_bound), "k:", label="certified lower bound")
+        ax.set_xlabel("number of measurement poses M")
+        ax.set_ylabel(f"RMS compensation error √O_t [{unit}]")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        ax2.plot(df.m, df.chi, "s-", color="C3")
+        ax2.set_xlabel("M")
+        ax2.set_ylabel("χ = O_t* / O_t  (eq. 27)")
+        ax2.grid(alpha=0.3)
+        fig.tight_layout()
+        return fig

@@ -107,6 +107,32 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
     }
 
 
+def study_context(study, entry: dict, paths: dict) -> dict:
+    """What the report shows of one design study: the robot (kind, joints, source, DH table), test pose,
+    force, sigma, the certificate, the plans against M and the two figures (embedded)."""
+    import numpy as np
+
+    robot = study.robot
+    dh = None
+    if robot.dh is not None:
+        dh = [{"a_m": r[0], "alpha_deg": float(np.degrees(r[1])), "d_m": r[2], "offset_deg": float(np.degrees(r[3]))}
+              for r in robot.dh]
+    plans = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
+    return {
+        "entry": entry, "robot": {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "d": robot.task_dim,
+                                  "source": (yaml.safe_load(Path(robot.source).read_text(encoding="utf-8")) or {}).get(
+                                      "source", ""), "dh": dh, "convention": robot.convention,
+                                  "tool_m": None if robot.tool_m is None else robot.tool_m.tolist(),
+                                  "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
+                                  "has_limits": robot.has_joint_limits},
+        "test_pose_deg": np.degrees(study.test_pose).round(6).tolist(), "force_N": study.force.tolist(),
+        "sigma": study.sigma, "micro": study.sigma < 1e-2,
+        "certificate": pd.read_csv(paths["studycert"]).to_dict("records")[0],
+        "plans": plans.to_dict("records"),
+        "fig_plan": image_data_uri(paths["studyfigplan"]), "fig_m": image_data_uri(paths["studyfigm"]),
+    }
+
+
 def write_pdf(html_path: str | Path, pdf_path: str | Path) -> None:
     """Print the HTML to PDF with WeasyPrint; a missing system library gives one clear message."""
     try:

@@ -4,8 +4,17 @@ Conventions
 -----------
 * Joint angles are radians inside the library, degrees only at the edges (files, CLI, tables).
 * A batch of poses is an array ``q`` of shape ``(..., n)``; every function broadcasts over ``...``.
-* Planar arm: revolute joints about z, joint i at the base of link i, ``q_i`` relative to link i-1
-  (``q_1`` from the base x axis), so link k points along the absolute angle ``c_k = q_1 + ... + q_k``.
+* Planar arm (``kind: planar``, the DESIGN.md contract): revolute joints about z, joint i at the base of
+  link i, ``q_i`` relative to link i-1 (``q_1`` from the base x axis), so link k points along the
+  absolute angle ``c_k = q_1 + ... + q_k``. Measured coordinates: x, y (d = 2).
+* Spatial serial arm (``kind: spatial``): revolute joints given by a Denavit-Hartenberg table, in the
+  *standard* convention (Denavit & Hartenberg 1955; Spong, Hutchinson & Vidyasagar, *Robot Modeling and
+  Control*, sec. 3.2), ``T_{i-1,i} = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i)`` with
+  ``theta_i = q_i + offset_i`` and joint i turning about ``z_{i-1}``; or the *modified* convention
+  (Craig, *Introduction to Robotics*, sec. 3.4), ``T_{i-1,i} = Rot_x(alpha_{i-1}) Trans_x(a_{i-1})
+  Rot_z(theta_i) Trans_z(d_i)`` with joint i turning about ``z_i`` (row i of the file then holds
+  ``a_{i-1}, alpha_{i-1}, d_i, offset_i``, as Craig's tables print them). The measured point is the tool
+  point ``tool_m`` given in the last frame. Measured coordinates: x, y, z (d = 3).
 """
 
 from __future__ import annotations
@@ -54,12 +63,71 @@ def planar_link_points(links: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.concatenate([zero, np.cumsum(seg, axis=-2)], axis=-2)
 
 
+def as_xyz(v: np.ndarray) -> np.ndarray:
+    """Lift planar vectors (..., 2) to (..., 3) with z = 0; spatial ones (..., 3) pass through."""
+    v = np.asarray(v, float)
+    return v if v.shape[-1] == 3 else np.concatenate([v, np.zeros(v.shape[:-1] + (1,))], axis=-1)
+
+
+def dh_link_transforms(dh: np.ndarray, q: np.ndarray, convention: str = "standard") -> np.ndarray:
+    """Homogeneous transforms ``T_{i-1,i}`` of every link (module docstring, both conventions).
+
+    dh: (n, 4) rows ``[a [m], alpha [rad], d [m], offset [rad]]``; q: (..., n) [rad].
+    Returns (..., n, 4, 4).
+    """
+    a, alpha, d, off = (dh[:, j] for j in range(4))
+    th = np.asarray(q, float) + off
+    ct, st = np.cos(th), np.sin(th)
+    ca, sa = np.broadcast_to(np.cos(alpha), th.shape), np.broadcast_to(np.sin(alpha), th.shape)
+    a, d = np.broadcast_to(a, th.shape), np.broadcast_to(d, th.shape)
+    zero, one = np.zeros_like(th), np.ones_like(th)
+    if convention == "standard":
+        rows = [[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [zero, sa, ca, d]]
+    elif convention == "modified":
+        rows = [[ct, -st, zero, a], [st * ca, ct * ca, -sa, -sa * d], [st * sa, ct * sa, ca, ca * d]]
+    else:
+        raise ValueError(f"unknown DH convention {convention!r}")
+    rows.append([zero, zero, zero, one])
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def dh_frames(dh: np.ndarray, q: np.ndarray, convention: str = "standard") -> np.ndarray:
+    """Base-frame poses of frames 0..n, ``T_{0,i}``. dh: (n, 4); q: (..., n) [rad]. Returns (..., n+1, 4, 4)."""
+    A = dh_link_transforms(dh, q, convention)
+    T = [np.broadcast_to(np.eye(4), A.shape[:-3] + (4, 4))]
+    for i in range(A.shape[-3]):
+        T.append(T[-1] @ A[..., i, :, :])
+    return np.stack(T, axis=-3)
+
+
+def dh_tool_point(frames: np.ndarray, tool: np.ndarray) -> np.ndarray:
+    """Tool point in the base frame: frames (..., n+1, 4, 4), tool (3,) [m] in frame n. Returns (..., 3)."""
+    T = frames[..., -1, :, :]
+    return T[..., :3, :3] @ tool + T[..., :3, 3]
+
+
+def dh_jacobian(dh: np.ndarray, tool: np.ndarray, q: np.ndarray, convention: str = "standard") -> np.ndarray:
+    """Position Jacobian of the tool point of a revolute DH arm: column i is ``z_i x (p - o_i)`` for the
+    axis ``z_i`` through ``o_i`` of joint i (frame i-1 in the standard convention, frame i in the modified).
+
+    dh: (n, 4); tool: (3,) [m]; q: (..., n) [rad]. Returns (..., 3, n) [m/rad].
+    """
+    F = dh_frames(dh, q, convention)
+    axes = F[..., :-1, :, :] if convention == "standard" else F[..., 1:, :, :]
+    z, o = axes[..., :3, 2], axes[..., :3, 3]  # (..., n, 3)
+    p = dh_tool_point(F, tool)
+    return np.swapaxes(np.cross(z, p[..., None, :] - o), -1, -2)
+
+
 @dataclass(frozen=True)
 class Robot:
     """A serial robot read from a robot file (DESIGN.md contract).
 
-    Attributes: ``name``; ``kind`` ('planar'); ``links_m`` (n,) [m]; ``joint_limits_rad`` (n, 2) [rad];
-    ``compliances`` (n,) [rad/(N m)] or None; ``source`` (the file it came from, for messages).
+    Attributes: ``name``; ``kind`` ('planar' or 'spatial'); ``links_m`` (n,) [m] link lengths of a planar
+    arm (for a spatial arm: the distances between consecutive joint axes' origins, for drawing and scale);
+    ``joint_limits_rad`` (n, 2) [rad]; ``compliances`` (n,) [rad/(N m)] or None; ``source`` (the file it
+    came from, for messages); for spatial arms ``dh`` (n, 4) ``[a, alpha, d, offset]`` [m, rad],
+    ``convention`` ('standard' or 'modified') and ``tool_m`` (3,) [m] the measured point in the last frame.
     """
 
     name: str
@@ -69,32 +137,68 @@ class Robot:
     compliances: np.ndarray | None = None
     source: str = "<memory>"
     has_joint_limits: bool = field(default=False)
+    dh: np.ndarray | None = None
+    convention: str = "standard"
+    tool_m: np.ndarray | None = None
+    inert_joints: tuple[int, ...] = ()
 
     @property
     def n_joints(self) -> int:
-        return int(self.links_m.shape[0])
+        return int(self.joint_limits_rad.shape[0])
+
+    @property
+    def params(self) -> np.ndarray:
+        """Indices of the joints whose compliance moves the measured point at some pose (the model's
+        parameters); a joint whose axis passes through the measured point at every pose is left out."""
+        return np.array([j for j in range(self.n_joints) if j not in self.inert_joints], int)
+
+    @property
+    def n_params(self) -> int:
+        return self.n_joints - len(self.inert_joints)
+
+    def model_jacobian(self, q: np.ndarray) -> np.ndarray:
+        """The Jacobian's columns of the model's parameters: (..., n) [rad] -> (..., d, n_params) [m/rad]."""
+        J = self.jacobian(q)
+        return J[..., self.params] if self.inert_joints else J
 
     @property
     def task_dim(self) -> int:
-        """Number of measured Cartesian coordinates per pose (2 for planar arms)."""
-        return 2
+        """Number of measured Cartesian coordinates per pose (2 for planar arms, 3 for spatial ones)."""
+        return 2 if self.kind == "planar" else 3
+
+    @property
+    def reach_m(self) -> float:
+        """An upper bound on the distance from the base to the measured point [m]."""
+        if self.kind == "planar":
+            return float(self.links_m.sum())
+        return float(np.abs(self.dh[:, 0]).sum() + np.abs(self.dh[:, 2]).sum() + np.linalg.norm(self.tool_m))
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """(..., n) [rad] -> (..., d) [m]."""
-        return planar_fk(self.links_m, np.asarray(q, float))
+        if self.kind == "planar":
+            return planar_fk(self.links_m, np.asarray(q, float))
+        return dh_tool_point(dh_frames(self.dh, q, self.convention), self.tool_m)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """(..., n) [rad] -> (..., d, n) [m/rad]."""
-        return planar_jacobian(self.links_m, np.asarray(q, float))
+        if self.kind == "planar":
+            return planar_jacobian(self.links_m, np.asarray(q, float))
+        return dh_jacobian(self.dh, self.tool_m, q, self.convention)
 
     def link_points(self, q: np.ndarray) -> np.ndarray:
-        """(..., n) [rad] -> (..., n + 1, d) [m]."""
-        return planar_link_points(self.links_m, np.asarray(q, float))
+        """Points of the drawn arm, base first, measured point last: (..., n) [rad] -> (..., n + 1, 2) for a
+        planar arm, (..., n + 2, 3) for a spatial one (base, frame origins 1..n, tool point) [m]."""
+        if self.kind == "planar":
+            return planar_link_points(self.links_m, np.asarray(q, float))
+        F = dh_frames(self.dh, q, self.convention)
+        return np.concatenate([F[..., :, :3, 3], dh_tool_point(F, self.tool_m)[..., None, :]], axis=-2)
 
     def scaled(self, factor: float) -> "Robot":
-        """The same robot with every link length multiplied by ``factor``."""
-        return Robot(self.name, self.kind, self.links_m * factor, self.joint_limits_rad,
-                     self.compliances, self.source, self.has_joint_limits)
+        """The same robot with every length multiplied by ``factor``."""
+        dh = None if self.dh is None else self.dh * np.array([factor, 1.0, factor, 1.0])
+        tool = None if self.tool_m is None else self.tool_m * factor
+        return Robot(self.name, self.kind, self.links_m * factor, self.joint_limits_rad, self.compliances,
+                     self.source, self.has_joint_limits, dh, self.convention, tool, self.inert_joints)
 
 
 def planar_robot(links_m, name: str = "planar", joint_limits_deg=None) -> Robot:
@@ -105,21 +209,70 @@ def planar_robot(links_m, name: str = "planar", joint_limits_deg=None) -> Robot:
     return Robot(name, "planar", links, lim, None, "<memory>", has)
 
 
+def spatial_robot(dh_rows, tool_m=(0.0, 0.0, 0.0), name: str = "spatial", joint_limits_deg=None,
+                  convention: str = "standard", compliances=None, source: str = "<memory>") -> Robot:
+    """Build a spatial DH robot in memory. dh_rows: (n, 4) ``[a_m, alpha_deg, d_m, offset_deg]``."""
+    rows = np.asarray(dh_rows, float)
+    dh = rows * np.array([1.0, np.pi / 180, 1.0, np.pi / 180])
+    n = len(dh)
+    has = joint_limits_deg is not None
+    lim = np.radians(np.asarray(joint_limits_deg, float)) if has else np.tile([-np.pi, np.pi], (n, 1))
+    tool = np.asarray(tool_m, float)
+    robot = Robot(name, "spatial", np.zeros(n), lim, None if compliances is None else np.asarray(compliances, float),
+                  source, has, dh, convention, tool)
+    pts = robot.link_points(np.zeros(n))
+    links = np.linalg.norm(np.diff(pts, axis=0), axis=-1)
+    robot = Robot(name, "spatial", links, lim, robot.compliances, source, has, dh, convention, tool)
+    inert = inert_joints(robot)
+    if len(inert) == n:
+        raise InputError("no joint moves the measured point: check dh and tool_m", source=source, field="tool_m")
+    return Robot(name, "spatial", links, lim, robot.compliances, source, has, dh, convention, tool, inert)
+
+
+def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, ...]:
+    """Joints whose Jacobian column vanishes at every one of ``samples`` random poses (the joint's axis
+    passes through the measured point, e.g. joint 6 of a spherical wrist with the point on the flange
+    axis): their compliance never deflects the measured point, so position measurements cannot identify it
+    and the deflection model does not need it."""
+    lo, hi = robot.joint_limits_rad.T
+    q = np.random.default_rng(seed).uniform(lo, hi, (samples, robot.n_joints))
+    col = np.abs(robot.jacobian(q)).max(axis=(0, 1))
+    return tuple(int(j) for j in np.flatnonzero(col <= 1e-12 * max(robot.reach_m, 1e-300)))
+
+
+#: fields that only one kind of robot file may have
+KIND_FIELDS = {"planar": ("links_m",), "spatial": ("dh", "dh_convention", "tool_m")}
+
+
 def load_robot(path: str | Path) -> Robot:
-    """Read and validate a robot file.
+    """Read and validate a robot file (planar or spatial; schema ``workflow/schemas/robot.schema.yaml``).
 
     Raises :class:`InputError` naming the file and the field for a missing or negative link length,
-    an unknown ``kind``, a non-numeric value, or joint limits that do not match the joints.
+    an unknown ``kind``, a non-numeric value, joint limits or compliances that do not match the joints,
+    or a tool point that no joint can move in some direction of space.
     """
     src = str(path)
     doc = read_yaml(path)
     validate(doc, "robot", src)
+    for key in KIND_FIELDS["planar" if doc["kind"] == "spatial" else "spatial"]:
+        if key in doc:
+            raise InputError(f"'{key}' belongs to a {'planar' if key == 'links_m' else 'spatial'} robot, but this "
+                             f"file says kind: {doc['kind']}; remove the field or change 'kind'", source=src, field=key)
+    if doc["kind"] == "spatial":
+        return _load_spatial(doc, src)
     links = np.asarray(doc["links_m"], float)
-    n = links.size
+    limits, comp = _per_joint(doc, links.size, src, "link")
+    robot = planar_robot(links, doc["name"], limits)
+    return Robot(robot.name, doc["kind"], robot.links_m, robot.joint_limits_rad,
+                 None if comp is None else np.asarray(comp, float), src, robot.has_joint_limits)
+
+
+def _per_joint(doc: dict, n: int, src: str, what: str):
+    """The optional per-joint fields (joint limits, compliances), checked against the n joints."""
     limits = doc.get("joint_limits_deg")
     if limits is not None:
         if len(limits) != n:
-            raise InputError(f"expected {n} [lower, upper] pairs (one per link), got {len(limits)}",
+            raise InputError(f"expected {n} [lower, upper] pairs (one per {what}), got {len(limits)}",
                              source=src, field="joint_limits_deg")
         for i, (lo, hi) in enumerate(limits):
             if not lo < hi:
@@ -127,8 +280,14 @@ def load_robot(path: str | Path) -> Robot:
                                  field=f"joint_limits_deg[{i}]")
     comp = doc.get("compliances_rad_per_Nm")
     if comp is not None and len(comp) != n:
-        raise InputError(f"expected {n} values (one per joint), got {len(comp)}", source=src,
+        raise InputError(f"expected {n} values (one per {what}), got {len(comp)}", source=src,
                          field="compliances_rad_per_Nm")
-    robot = planar_robot(links, doc["name"], limits)
-    return Robot(robot.name, doc["kind"], robot.links_m, robot.joint_limits_rad,
-                 None if comp is None else np.asarray(comp, float), src, robot.has_joint_limits)
+    return limits, comp
+
+
+def _load_spatial(doc: dict, src: str) -> Robot:
+    """A validated spatial robot document -> :class:`Robot`."""
+    rows = [[r["a_m"], r["alpha_deg"], r["d_m"], r.get("offset_deg", 0.0)] for r in doc["dh"]]
+    limits, comp = _per_joint(doc, len(rows), src, "row of dh")
+    return spatial_robot(rows, doc.get("tool_m", [0.0, 0.0, 0.0]), doc["name"], limits, doc["dh_convention"], comp,
+                         src)

@@ -132,3 +132,12 @@ def identify_batch(A: np.ndarray, dp: np.ndarray) -> np.ndarray:
     rows = A.reshape(m * d, n)
     k, *_ = np.linalg.lstsq(rows, dp.reshape(-1, m * d).T, rcond=None)
     return k.T
+
+
+def random_directions(rng: np.random.Generator, count: int, d: int) -> np.ndarray:
+    """``count`` unit vectors uniformly distributed on the circle (d = 2) or the sphere (d = 3): (count, d)."""
+    if d == 2:
+        ang = rng.uniform(-np.pi, np.pi, count)
+        return np.stack([np.cos(ang), np.sin(ang)], axis=-1)
+    v = rng.normal(size=(count, d))
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)

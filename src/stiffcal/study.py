@@ -43,20 +43,65 @@ def load_config(path: str | Path) -> dict:
 
 
 def study_from_config(config: dict, root: str | Path = ".", source: str = "config") -> Study:
-    """Build the :class:`Study` of a validated config dict; paths are relative to ``root``."""
-    s = {**DEFAULTS, **config["study"]}
+    """Build the paper's :class:`Study` (config ``study``) of a validated config dict; paths are relative
+    to ``root``."""
+    return study_from_entry(config["study"], root, source, "study")
+
+
+def study_from_entry(entry: dict, root: str | Path = ".", source: str = "config", where: str = "study") -> Study:
+    """Build a :class:`Study` from one validated config entry (``study`` or an item of ``studies``).
+
+    Checks what the schema cannot: one test-pose angle per joint, within the joint limits; one force
+    component per measured coordinate; a nonzero force. ``where`` names the entry in messages."""
+    s = {**DEFAULTS, **entry}
     robot = load_robot(Path(root) / s["robot"])
     n, d = robot.n_joints, robot.task_dim
     if len(s["test_pose_deg"]) != n:
         raise InputError(f"expected {n} joint angles (robot {robot.source} has {n} joints), "
-                         f"got {len(s['test_pose_deg'])}", source=source, field="study.test_pose_deg")
+                         f"got {len(s['test_pose_deg'])}", source=source, field=f"{where}.test_pose_deg")
     if len(s["force_N"]) != d:
         raise InputError(f"expected {d} force components for a {robot.kind} robot, got {len(s['force_N'])}",
-                         source=source, field="study.force_N")
+                         source=source, field=f"{where}.force_N")
     force = np.asarray(s["force_N"], float)
     if not np.any(force):
         raise InputError("expected a nonzero force: with F = 0 nothing deflects", source=source,
-                         field="study.force_N")
-    return Study(s["name"], robot, np.radians(np.asarray(s["test_pose_deg"], float)), force,
-                 float(s["sigma_m"]), tuple(s["criteria"]), float(s["search_step_deg"]),
+                         field=f"{where}.force_N")
+    q = np.radians(np.asarray(s["test_pose_deg"], float))
+    if robot.has_joint_limits:
+        lo, hi = robot.joint_limits_rad.T
+        out = np.flatnonzero((q < lo - 1e-9) | (q > hi + 1e-9))
+        if out.size:
+            j = int(out[0])
+            raise InputError(f"expected q{j + 1} within the joint limits [{np.degrees(lo[j]):g}, {np.degrees(hi[j]):g}] "
+                             f"deg of {robot.source}, got {s['test_pose_deg'][j]}", source=source,
+                             field=f"{where}.test_pose_deg[{j}]")
+    return Study(s["name"], robot, q, force, float(s["sigma_m"]), tuple(s["criteria"]), float(s["search_step_deg"]),
                  float(s["fig5_step_deg"]))
+
+
+#: defaults of an entry of config ``studies`` (design studies for any robot)
+DESIGN_DEFAULTS = {"sigma_m": 1.0, "m_values": [2, 3, 4, 5, 6, 7, 8], "draw_m": None}
+
+
+def design_studies(config: dict, root: str | Path = ".", source: str = "config") -> dict[str, tuple[Study, dict]]:
+    """The design studies of config ``studies``: name -> (Study, entry with defaults filled in)."""
+    out = {}
+    for i, entry in enumerate(config.get("studies", []) or []):
+        e = {**DESIGN_DEFAULTS, **entry}
+        if e["name"] in out:
+            raise InputError(f"expected unique study names, got {e['name']!r} twice", source=source,
+                             field=f"studies[{i}].name")
+        st = study_from_entry({k: e[k] for k in ("name", "robot", "test_pose_deg", "force_N", "sigma_m")},
+                              root, source, f"studies[{i}]")
+        if e["draw_m"] is None:
+            e["draw_m"] = max(e["m_values"])
+        if e["draw_m"] not in e["m_values"]:
+            raise InputError(f"expected one of m_values {e['m_values']}, got {e['draw_m']}", source=source,
+                             field=f"studies[{i}].draw_m")
+        too_few = [m for m in e["m_values"] if m * st.robot.task_dim < st.robot.n_joints]
+        if too_few:
+            raise InputError(f"expected m >= {-(-st.robot.n_joints // st.robot.task_dim)}: {too_few[0]} poses give "
+                             f"{too_few[0] * st.robot.task_dim} equations for {st.robot.n_joints} compliances",
+                             source=source, field=f"studies[{i}].m_values")
+        out[e["name"]] = (st, e)
+    return out

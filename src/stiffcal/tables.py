@@ -38,11 +38,14 @@ def plan_summary(study: Study, plan_deg: np.ndarray) -> dict:
     """
     plan = np.radians(np.asarray(plan_deg, float))
     m, n = plan.shape[-2:]
+    robot = study.robot
     prob = study.problem("ot", m)
-    M = information_matrix(observation_matrix(study.robot.jacobian(plan), study.force))
-    cov = covariance_diagonal(M, study.sigma)
-    ot = np.where(np.all(np.isfinite(cov), axis=-1), criteria.o_t(M, prob.At, study.sigma), np.inf)
-    out = {"O_t": ot, "chi": criteria.chi(ot, n, m, study.sigma)}
+    M = information_matrix(observation_matrix(robot.model_jacobian(plan), study.force))
+    cov_p = covariance_diagonal(M, study.sigma)
+    ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma), np.inf)
+    out = {"O_t": ot, "chi": criteria.chi(ot, robot.n_params, m, study.sigma)}
+    cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint that never moves the point: not identifiable
+    cov[..., robot.params] = cov_p
     for i in range(n):
         out[f"E_dk{i + 1}"] = cov[..., i]
         out[f"dk{i + 1}"] = np.sqrt(cov[..., i])
@@ -241,23 +244,37 @@ def certificate_table(design, sigma: float) -> pd.DataFrame:
                           "sigma": sigma, "multiplicative_iterations": design.iterations}])
 
 
+def best_plan_row(study: Study, m: int, seed: int, design, extra_starts=()) -> dict:
+    """The best m-pose plan for O_t (plan (iv)) with its criteria and the certified bound, as one row:
+    m, O_t (eq. 16), rms_m = sqrt(O_t) (the RMS compensation error at the test pose, in the unit of sigma),
+    chi (eq. 27), lower_bound, gap, E_dk1.. (eq. 11), within_limits, poses_deg. Any robot."""
+    from .plans import optimise_plan, round_design
+
+    plan = optimise_plan(study.problem("ot", m), starts=[round_design(design, m), *extra_starts], seed=seed)
+    summ = plan_summary(study, plan.poses_deg)
+    bound = design.lower_bound(m, study.sigma)
+    lo, hi = np.degrees(study.robot.joint_limits_rad.T)
+    row = {"m": m, "O_t": plan.loss, "rms_m": float(np.sqrt(plan.loss)), "chi": float(summ["chi"]),
+           "lower_bound": bound, "gap": plan.loss / bound - 1.0}
+    row |= {f"E_dk{i + 1}": float(summ[f"E_dk{i + 1}"]) for i in range(study.robot.n_joints)}
+    row["within_limits"] = bool(np.all((plan.poses_deg >= lo - 1e-9) & (plan.poses_deg <= hi + 1e-9)))
+    row["poses_deg"] = format_plan(plan.poses_deg)
+    return row
+
+
 def ot_versus_m(study: Study, ms, seed: int, design=None) -> pd.DataFrame:
     """Best O_t (plan (iv)) for each number of poses m, beside the certified bound and the repeated
     single optimum (plan (i), O_t(1)/m). Columns: m, O_t, lower_bound, gap, O_t_repeat, gain_vs_repeat."""
     from .certificate import approximate_design
-    from .plans import optimise_plan, round_design
 
     design = design or approximate_design(study.problem("ot", 1))
     single = single_ot_pose(study)
     ot1 = float(plan_summary(study, single[None])["O_t"])
     rows = []
     for m in ms:
-        plan = optimise_plan(study.problem("ot", m), starts=[round_design(design, m),
-                                                             np.repeat(single[None], m, 0)], seed=seed)
-        bound = design.lower_bound(m, study.sigma)
-        rows.append({"m": m, "O_t": plan.loss, "lower_bound": bound, "gap": plan.loss / bound - 1.0,
-                     "O_t_repeat": ot1 / m, "gain_vs_repeat": (ot1 / m) / plan.loss,
-                     "poses_deg": format_plan(plan.poses_deg)})
+        r = best_plan_row(study, m, seed, design, [np.repeat(single[None], m, 0)])
+        rows.append({"m": m, "O_t": r["O_t"], "lower_bound": r["lower_bound"], "gap": r["gap"],
+                     "O_t_repeat": ot1 / m, "gain_vs_repeat": (ot1 / m) / r["O_t"], "poses_deg": r["poses_deg"]})
     return pd.DataFrame(rows)
 
 

@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .robot import Robot
+from .robot import Robot, as_xyz
+from .stiffness import random_directions
 
 #: Gauss-Legendre nodes for the curvature integral along a link (exact for the quadratic integrand)
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(8)
@@ -65,26 +66,31 @@ def joint_deflections(truth: Truth, tau: np.ndarray) -> np.ndarray:
 
 
 def link_bending_displacement(robot: Robot, q: np.ndarray, force: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """End-effector displacement (N, 2) [m] of Euler-Bernoulli links bending under the end-effector force.
+    """End-effector displacement (N, d) [m] of Euler-Bernoulli links bending under the end-effector force.
 
-    A curvature kappa(s) = c m(s) at arc length s of a link (m the bending moment there, from the force
-    at the end effector) turns everything beyond s by kappa ds about that point; integrated along each
-    link by Gauss-Legendre quadrature.
+    Link i is the segment between consecutive points of ``robot.link_points`` (n segments for a planar arm;
+    n + 1 for a spatial one, the last to the tool point). A curvature vector kappa(s) = c M_perp(s) at arc
+    length s (M_perp the bending part of the moment r x F of the end-effector force about that point, i.e.
+    without the torsion about the link) turns everything beyond s by kappa ds; integrated along each link
+    by Gauss-Legendre quadrature. c: (segments,) [1/(N m^2)].
     """
-    pts = robot.link_points(q)  # (N, n + 1, 2)
+    pts = as_xyz(robot.link_points(q))  # (N, segments + 1, 3)
+    F = as_xyz(force)
     pe = pts[:, -1, :]
     out = np.zeros_like(pe)
-    for i in range(robot.n_joints):
+    for i in range(pts.shape[1] - 1):
         a, b = pts[:, i, :], pts[:, i + 1, :]
         L = np.linalg.norm(b - a, axis=-1)
+        if c[i] == 0 or not np.any(L > 0):
+            continue
+        u = (b - a) / np.where(L > 0, L, 1.0)[:, None]
         for xg, wg in zip(_GL_X, _GL_W):
-            t = 0.5 * (xg + 1.0)
-            x = a + t * (b - a)
+            x = a + 0.5 * (xg + 1.0) * (b - a)
             r = pe - x
-            moment = r[:, 0] * force[:, 1] - r[:, 1] * force[:, 0]  # z . (r x F)
-            turn = np.stack([-r[:, 1], r[:, 0]], axis=-1)  # z x r
-            out += (0.5 * wg * L * c[i] * moment)[:, None] * turn
-    return out
+            M = np.cross(r, F)
+            M_perp = M - np.einsum("nd,nd->n", M, u)[:, None] * u
+            out += (0.5 * wg * L * c[i])[:, None] * np.cross(M_perp, r)
+    return out[:, : robot.task_dim]
 
 
 def simulate(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, sigma: float,
@@ -108,12 +114,11 @@ def simulate(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, sigma
 
 def random_experiment(robot: Robot, rng: np.random.Generator, n_poses: int = 30, replicates: int = 3,
                       force_N: tuple[float, float] = (100.0, 400.0)):
-    """(q (N, n) [rad], force (N, 2) [N], pose_id (N,)): random poses within the joint limits, each with a
-    random force (magnitude in force_N, any direction), measured ``replicates`` times."""
+    """(q (N, n) [rad], force (N, d) [N], pose_id (N,)): random poses within the joint limits, each with a
+    random force (magnitude in force_N, any direction in the plane or in space), measured ``replicates`` times."""
     lims = robot.joint_limits_rad
     q = rng.uniform(lims[:, 0], lims[:, 1], (n_poses, robot.n_joints))
     mag = rng.uniform(*force_N, n_poses)
-    ang = rng.uniform(-np.pi, np.pi, n_poses)
-    f = np.stack([mag * np.cos(ang), mag * np.sin(ang)], axis=-1)
+    f = mag[:, None] * random_directions(rng, n_poses, robot.task_dim)
     idx = np.repeat(np.arange(n_poses), replicates)
     return q[idx], f[idx], idx

@@ -41,3 +41,28 @@ def discrepancy_report_inputs(wildcards):
         out[f"verdict__{name}"] = f"results/discrepancy/{name}/verdict.json"
         out[f"residuals__{name}"] = f"results/discrepancy/{name}/residuals.png"
     return out
+
+# Design studies (config `studies`), by name; validated here so that a bad entry stops the run at once.
+from stiffcal.study import design_studies as _design_studies
+
+try:
+    STUDIES = {k: e for k, (_, e) in _design_studies(config, ".", str(_cfg_files[-1])).items()}
+except _InputError as _err:
+    _sys.exit(f"stiffcal: error: {_err}")
+STUDY_DIR = "results/studies"
+
+
+wildcard_constraints:
+    name="[A-Za-z0-9_.-]+",
+    m="[0-9]+",
+
+
+def study_report_inputs(wildcards):
+    """Per design study: certificate, plans table and the two figures."""
+    out = {}
+    for name in STUDIES:
+        out[f"studycert__{name}"] = f"{STUDY_DIR}/{name}/certificate.csv"
+        out[f"studyplans__{name}"] = f"{STUDY_DIR}/{name}/plans.csv"
+        out[f"studyfigplan__{name}"] = f"{FIGURES}/studies/{name}/plan.png"
+        out[f"studyfigm__{name}"] = f"{FIGURES}/studies/{name}/versus_m.png"
+    return out

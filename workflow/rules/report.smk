@@ -5,6 +5,7 @@ rule report_html:
     input:
         unpack(map_report_inputs),
         unpack(discrepancy_report_inputs),
+        unpack(study_report_inputs),
         table2=rules.table2.output.csv,
         table3=rules.table3.output.csv,
         comparison=rules.paper_comparison.output.csv,

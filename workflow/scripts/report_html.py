@@ -19,5 +19,10 @@ rules = {"table2": "table2", "table3": "table3", "table4": "plans_table (m = 2)"
 verdicts = {k.split("__", 1)[1]: i[k] for k in i.keys() if k.startswith("verdict__")}
 figures.update({k: i[k] for k in i.keys() if k.startswith("residuals__")})
 rules["discrepancy"] = "discrepancy"
+rules |= {"study_plans": "study_design + study_plan + study_plans", "fig_study_plan": "study_plans + fig_study_plan",
+          "fig_study_versus_m": "study_plans + fig_study_versus_m", "study_design": "study_design"}
+studies = {k.split("__", 1)[1]: {part: i[f"{part}__{k.split('__', 1)[1]}"] for part in
+                                 ("studycert", "studyplans", "studyfigplan", "studyfigm")}
+           for k in i.keys() if k.startswith("studyplans__")}
 pipeline.run(snakemake, pipeline.report_html, snakemake.config, tables, figures, i.printed, rules,
-             str(Path(i.template).parent), snakemake.output.html, verdicts)
+             str(Path(i.template).parent), snakemake.output.html, verdicts, studies)

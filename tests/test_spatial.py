@@ -1,0 +1,184 @@
+"""Spatial serial arms from a Denavit-Hartenberg table: kinematics checked against an independent robotics
+library (Pinocchio) and finite differences, robot-file errors, and the design with its certificate."""
+
+import json
+
+import numpy as np
+import pytest
+
+from stiffcal import discrepancy as D
+from stiffcal import truth as T
+from stiffcal.certificate import _info, approximate_design
+from stiffcal.cli import main
+from stiffcal.design import Problem
+from stiffcal.errors import InputError
+from stiffcal.measurements import Measurements
+from stiffcal.plans import optimise_plan, round_design
+from stiffcal.robot import load_robot, spatial_robot
+from stiffcal.stiffness import observation_matrix
+
+KUKA = "config/robots/kuka_kr210_r2700.yaml"
+# Universal Robots UR5e, standard DH as published by the manufacturer (written here, not a file in config/)
+UR5E = [[0, 90, 0.1625, 0], [-0.425, 0, 0, 0], [-0.3922, 0, 0, 0], [0, 90, 0.1333, 0], [0, -90, 0.0997, 0],
+        [0, 0, 0.0996, 0]]
+
+
+def _random_robot(rng, n, convention):
+    rows = np.column_stack([rng.uniform(-0.5, 0.8, n), rng.choice([-90, 0, 90, 37], n), rng.uniform(-0.4, 0.6, n),
+                            rng.uniform(-60, 60, n)])
+    return spatial_robot(rows, rng.uniform(-0.2, 0.3, 3), convention=convention)
+
+
+def _pinocchio_model(robot):
+    """The same chain built joint by joint in Pinocchio: each joint a revolute about its local z."""
+    pin = pytest.importorskip("pinocchio")
+
+    def rz(t):
+        return pin.SE3(pin.utils.rotate("z", t), np.zeros(3))
+
+    def rx(t):
+        return pin.SE3(pin.utils.rotate("x", t), np.zeros(3))
+
+    def tr(x, y, z):
+        return pin.SE3(np.eye(3), np.array([x, y, z], float))
+
+    model = pin.Model()
+    parent, carry = 0, pin.SE3.Identity()
+    for a, alpha, d, off in robot.dh:
+        if robot.convention == "standard":  # joint about z_{i-1}; then Trans_z(d) Trans_x(a) Rot_x(alpha)
+            place, after = carry * rz(off), tr(0, 0, d) * tr(a, 0, 0) * rx(alpha)
+        else:  # Rot_x(alpha_{i-1}) Trans_x(a_{i-1}) then the joint about z_i; Trans_z(d_i) after it
+            place, after = carry * rx(alpha) * tr(a, 0, 0) * rz(off), tr(0, 0, d)
+        parent = model.addJoint(parent, pin.JointModelRZ(), place, f"j{parent + 1}")
+        carry = after
+    tool = carry * tr(*robot.tool_m)
+    fid = model.addFrame(pin.Frame("tool", parent, 0, tool, pin.FrameType.OP_FRAME))
+    return pin, model, fid
+
+
+@pytest.mark.parametrize("convention", ["standard", "modified"])
+def test_dh_kinematics_match_pinocchio(rng, root, convention):
+    robots = [load_robot(root / KUKA)] if convention == "standard" else []
+    robots += [_random_robot(rng, n, convention) for n in (3, 6, 7)]
+    for robot in robots:
+        pin, model, fid = _pinocchio_model(robot)
+        data = model.createData()
+        for q in rng.uniform(-np.pi, np.pi, (10, robot.n_joints)):
+            pin.forwardKinematics(model, data, q)
+            pin.updateFramePlacements(model, data)
+            J = pin.computeFrameJacobian(model, data, q, fid, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+            np.testing.assert_allclose(robot.fk(q), data.oMf[fid].translation, atol=1e-12)
+            np.testing.assert_allclose(robot.jacobian(q), J, atol=1e-12)
+
+
+@pytest.mark.parametrize("convention", ["standard", "modified"])
+def test_dh_jacobian_is_the_derivative_of_the_position(rng, convention):
+    robot = _random_robot(rng, 6, convention)
+    q = rng.uniform(-np.pi, np.pi, (5, 6))
+    h = 1e-6
+    fd = np.stack([(robot.fk(q + h * e) - robot.fk(q - h * e)) / (2 * h) for e in np.eye(6)], axis=-1)
+    np.testing.assert_allclose(robot.jacobian(q), fd, atol=1e-8)
+
+
+def test_a_point_on_the_last_axis_leaves_that_compliance_out(rng):
+    bare = spatial_robot(UR5E, [0, 0, 0])
+    assert bare.inert_joints == (5,) and bare.n_params == 5
+    q = rng.uniform(-np.pi, np.pi, (50, 6))
+    assert np.abs(bare.jacobian(q)[..., 5]).max() < 1e-12  # independent check: the column vanishes
+    assert spatial_robot(UR5E, [0.1, 0, 0.05]).inert_joints == ()
+
+
+@pytest.mark.parametrize("text, message", [
+    ("name: x\nkind: spatial\ndh_convention: standard\n", "missing required field(s) 'dh'"),
+    ("name: x\nkind: spatial\ndh_convention: craig\ndh: [{a_m: 1, alpha_deg: 0, d_m: 0}]\n",
+     "field 'dh_convention': expected one of 'standard', 'modified'"),
+    ("name: x\nkind: spatial\ndh_convention: standard\ndh: [{a_m: 1, alpha: 0, d_m: 0}]\n", "field 'dh[0]'"),
+    ("name: x\nkind: spatial\ndh_convention: standard\nlinks_m: [1]\ndh: [{a_m: 1, alpha_deg: 0, d_m: 0}]\n",
+     "field 'links_m': 'links_m' belongs to a planar robot"),
+    ("name: x\nkind: spatial\ndh_convention: standard\ndh: [{a_m: 1, alpha_deg: 0, d_m: 0}]\n"
+     "joint_limits_deg: [[0, 1], [0, 1]]\n", "expected 1 [lower, upper] pairs"),
+    ("name: x\nkind: planar\nlinks_m: [1]\ntool_m: [0, 0, 1]\n", "field 'tool_m': 'tool_m' belongs to a spatial robot"),
+])
+def test_bad_spatial_robot_files_get_one_clear_error(tmp_path, text, message):
+    path = tmp_path / "r.yaml"
+    path.write_text(text)
+    with pytest.raises(InputError) as err:
+        load_robot(path)
+    assert message in str(err.value) and str(path) in str(err.value)
+
+
+@pytest.fixture(scope="module")
+def kuka_design(root):
+    robot = load_robot(root / KUKA)
+    prob = Problem(robot, np.array([500.0, -300.0, -800.0]), "ot", 1, np.radians([20, -60, 110, 30, 45, -20]),
+                   None, 1e-5)
+    return prob, approximate_design(prob)
+
+
+def test_certificate_maximum_survives_an_independent_random_search(kuka_design):
+    """The bound rests on max_x phi(x, xi): no pose of a plain uniform random search may exceed it."""
+    prob, d = kuka_design
+    X = np.radians(d.support_deg)
+    M = np.einsum("k,kij->ij", d.weights, _info(prob, X))
+    assert abs(np.trace(prob.At.T @ prob.At @ np.linalg.inv(M)) / d.phi - 1) < 1e-9
+    C = np.linalg.inv(M) @ prob.At.T
+    rng = np.random.default_rng(7)
+    lo, hi = prob.robot.joint_limits_rad.T
+    best = 0.0
+    for _ in range(10):
+        q = rng.uniform(lo, hi, (50_000, 6))
+        best = max(best, float(np.max(np.sum((observation_matrix(prob.robot.jacobian(q), prob.force) @ C) ** 2,
+                                             axis=(-2, -1)))))
+    assert best <= d.max_phi * (1 + 1e-9)
+    assert d.equivalence_gap < 1e-2  # the design is near optimal: the bound is within 1 % of Phi*
+
+
+@pytest.mark.parametrize("m", [2, 6])
+def test_spatial_plans_respect_the_bound_and_the_limits(kuka_design, m):
+    prob, d = kuka_design
+    p = Problem(prob.robot, prob.force, "ot", m, prob.test_pose, None, prob.sigma)
+    plan = optimise_plan(p, starts=[round_design(d, m)], seed=0)
+    bound = d.lower_bound(m, prob.sigma)
+    lo, hi = np.degrees(prob.robot.joint_limits_rad.T)
+    assert np.all((plan.poses_deg >= lo) & (plan.poses_deg <= hi))
+    assert bound <= plan.loss < 1.5 * bound
+    rng = np.random.default_rng(3)  # no random plan beats the bound either (it holds for ANY plan)
+    q = rng.uniform(np.radians(lo), np.radians(hi), (2000, m, 6))
+    A = observation_matrix(prob.robot.model_jacobian(q), prob.force).reshape(2000, 3 * m, 6)
+    M = np.einsum("kri,krj->kij", A, A)
+    ot = prob.sigma**2 * np.trace(prob.At @ np.linalg.inv(M) @ prob.At.T, axis1=-2, axis2=-1)
+    assert ot.min() >= bound and ot.min() >= plan.loss
+
+
+def test_cli_designs_for_a_catalogue_robot_it_has_never_seen(tmp_path, capsys):
+    rows = "\n".join(f"  - {{a_m: {a}, alpha_deg: {al}, d_m: {d}}}" for a, al, d, _ in UR5E)
+    path = tmp_path / "ur5e.yaml"
+    path.write_text(f"name: ur5e\nkind: spatial\ndh_convention: standard\ndh:\n{rows}\n"
+                    "joint_limits_deg: [[-360, 360], [-360, 360], [-180, 180], [-360, 360], [-360, 360], [-360, 360]]\n")
+    code = main(["design", "--robot", str(path), "--test-pose-deg", "0,-90,90,-90,-90,0", "--force-N", "30,20,-100",
+                 "--experiments", "2"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0 and len(out["poses_deg"]) == 2
+    assert out["lower_bound"] is not None and out["O_t"] >= out["lower_bound"]
+    assert all(-360 <= a <= 360 for p in out["poses_deg"] for a in p)
+    assert out["cov_diag"][5] == "inf" and "joint 6" in out["notes"][-1]
+    code = main(["design", "--robot", str(path), "--test-pose-deg", "0,-90,90,-90,-90,0", "--force-N", "0,0,-100",
+                 "--experiments", "2"])
+    err = capsys.readouterr().err
+    assert code == 2 and "joint 1 cannot be identified with the force" in err
+
+
+@pytest.mark.parametrize("cause, truth_kw", [
+    ("backlash", {"gap": np.full(6, 2e-5)}),
+    ("measurement_offset", {"offset": np.array([2e-5, -1.5e-5, 1e-5])}),
+    ("nonlinear_joint_stiffness", {"tau_max": np.array([2e4, 2e4, 1e4, 3e3, 3e3, 1e3])}),
+])
+def test_hidden_cause_is_found_on_a_6_axis_arm(root, cause, truth_kw):
+    robot = load_robot(root / KUKA)
+    named = 0
+    for seed in range(1, 11):
+        rng = np.random.default_rng(seed)
+        q, f, g = T.random_experiment(robot, rng, 60, 3, force_N=(500, 1500))
+        dp = T.simulate(robot, T.Truth(robot.compliances, **truth_kw), q, f, 1e-5, rng)
+        named += D.analyse(robot, Measurements(q, f, dp, g, "simulated"), alpha=0.01)["cause"] == cause
+    assert named >= 9, named
