@@ -26,6 +26,10 @@ report: $(STAMP)
 	$(BIN)/snakemake --cores $(CORES) --workflow-profile workflow/profiles/default
 	@echo "report: paper/build/report.html and paper/build/report.pdf"
 
+# results/archive/stiffcal-<commit>.tar.gz for reviewers; check it with .venv/bin/stiffcal verify-archive FILE
+archive: $(STAMP)
+	$(BIN)/snakemake --cores $(CORES) --workflow-profile workflow/profiles/default archive
+
 test: $(TSTAMP)
 	$(BIN)/python -m pytest
 

@@ -19,6 +19,7 @@ include: "workflow/rules/maps.smk"
 include: "workflow/rules/discrepancy.smk"
 include: "workflow/rules/studies.smk"
 include: "workflow/rules/report.smk"
+include: "workflow/rules/archive.smk"
 
 
 rule all:

@@ -1,5 +1,6 @@
 """The Snakemake workflow end to end on a small test config, its determinism, and a bad input."""
 
+import json
 import shutil
 import subprocess
 import sys
@@ -45,7 +46,7 @@ joint_limits_deg: [[-170, 170], [-120, 60], [-150, 150]]
 
 
 def _snakemake(wd: Path, *extra):
-    return subprocess.run([str(SNAKEMAKE), "--cores", "2", "--configfile", "config/test.yaml", "--quiet", *extra],
+    return subprocess.run([str(SNAKEMAKE), *extra, "--cores", "2", "--configfile", "config/test.yaml", "--quiet"],
                           cwd=wd, capture_output=True, text=True)
 
 
@@ -119,14 +120,88 @@ def test_slurm_profile_dry_run(root, tmp_path):
     assert "map_tile" in out and "slurm" in out.lower()
 
 
-def test_rerun_gives_identical_tables(built):
-    before = {p: p.read_bytes() for p in (built / "results").rglob("*.csv")}
+def test_rerun_gives_identical_tables_html_and_pdf(built):
+    report = [built / "paper/build/report.html", built / "paper/build/report.pdf"]
+    before = {p: p.read_bytes() for p in [*(built / "results").rglob("*.csv"), *report]}
     shutil.rmtree(built / "results")
-    res = _snakemake(built, "--forcerun", "table2", "chi_map", "approximate_design", "map_tile")
+    res = _snakemake(built, "--forcerun", "table2", "chi_map", "approximate_design", "map_tile", "study_design")
     assert res.returncode == 0, res.stderr[-3000:]
-    after = {p: p.read_bytes() for p in (built / "results").rglob("*.csv")}
+    after = {p: p.read_bytes() for p in [*(built / "results").rglob("*.csv"), *report]}
     assert before.keys() == after.keys()
-    assert all(before[p] == after[p] for p in before)
+    assert [p for p in before if before[p] != after[p]] == []
+
+
+def test_every_table_and_figure_is_in_the_report_with_a_provenance_line(built):
+    import base64
+    import re
+
+    html = (built / "paper/build/report.html").read_text()
+    pngs = [*(built / "figures").rglob("*.png"), *(built / "results/discrepancy").rglob("*.png")]
+    assert len(pngs) >= 15
+    for png in pngs:
+        assert base64.b64encode(png.read_bytes()).decode() in html, png
+    figures = re.findall(r"<figure>.*?</figure>", html, flags=re.S)
+    assert len(figures) == len(pngs) and all("made by rule" in f for f in figures)
+    for end in re.finditer(r"</table>", html):  # every table: a provenance line before the next table
+        rest = html[end.end():]
+        nxt = rest.find("<table")
+        assert 'class="prov"' in (rest if nxt == -1 else rest[:nxt]), html[max(0, end.start() - 300):end.start()]
+    for heading in ("Table 2", "Table 3", "Table 4", "Table 5", "The paper's numbers beside ours", "certificate"):
+        assert heading in html
+
+
+def test_pdf_has_every_page_numbered(built):
+    pypdf = pytest.importorskip("pypdf")
+    reader = pypdf.PdfReader(built / "paper/build/report.pdf")
+    n = len(reader.pages)
+    assert n >= 15
+    texts = [page.extract_text() for page in reader.pages]
+    assert all(f"page {i + 1} of {n}" in t for i, t in enumerate(texts))
+    whole = " ".join(texts)
+    for needle in ("Table 2", "Table 5", "Figure 10", "Design study: added-rrr", "Measured data"):
+        assert needle in whole
+
+
+def test_archive_verifies_and_names_a_changed_file(built, tmp_path):
+    import io
+    import tarfile
+
+    res = _snakemake(built, "archive")
+    assert res.returncode == 0, res.stderr[-3000:]
+    (tgz,) = (built / "results/archive").glob("stiffcal-*.tar.gz")
+    cli = Path(sys.executable).with_name("stiffcal")
+    ok = subprocess.run([str(cli), "verify-archive", str(tgz)], capture_output=True, text=True)
+    assert ok.returncode == 0, ok.stderr
+    with tarfile.open(tgz) as tar:
+        names = tar.getnames()
+        prov = json.loads(tar.extractfile(next(n for n in names if n.endswith("provenance.json"))).read())
+    for part in ("/paper/build/report.html", "/paper/build/report.pdf", "/config/config.yaml", "/SHA256SUMS",
+                 "/results/tables/table2.csv", "/figures/fig3.png"):
+        assert any(n.endswith(part) for n in names), part
+    assert {"commit", "dirty", "python", "packages", "platform", "config_hash", "started", "ended"} <= set(prov)
+    bad = tmp_path / "bad.tar.gz"
+    with tarfile.open(tgz) as tin, tarfile.open(bad, "w:gz") as tout:
+        for m in tin.getmembers():
+            data = tin.extractfile(m).read()
+            if m.name.endswith("results/tables/table3.csv"):
+                data = data.replace(b"0", b"1", 1)
+            tout.addfile(m, io.BytesIO(data))
+    res = subprocess.run([str(cli), "verify-archive", str(bad)], capture_output=True, text=True)
+    assert res.returncode == 1 and "changed: results/tables/table3.csv" in res.stderr
+
+
+@pytest.mark.skipif(not any(shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome")),
+                    reason="headless Chromium is not installed")
+def test_report_renders_in_headless_chromium(built, tmp_path):
+    browser = next(shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome") if shutil.which(b))
+    url = (built / "paper/build/report.html").as_uri()
+    flags = [browser, "--headless", "--no-sandbox", "--disable-gpu"]
+    res = subprocess.run([*flags, "--dump-dom", url], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0 and "Design study: kuka-kr210-machining" in res.stdout and "Table 5" in res.stdout
+    shot = tmp_path / "report.png"
+    res = subprocess.run([*flags, f"--screenshot={shot}", "--window-size=1200,1600", url], capture_output=True,
+                         timeout=120)
+    assert res.returncode == 0 and shot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_bad_robot_file_fails_cleanly_without_outputs(root, tmp_path):

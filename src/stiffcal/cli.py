@@ -140,6 +140,16 @@ def discrepancy(args) -> dict:
         "verdict": f"{args.out}/verdict.json"}
 
 
+def verify_archive(args) -> dict:
+    """``stiffcal verify-archive FILE``: every file of the archive against its SHA256SUMS."""
+    from .archive import verify_archive as verify
+
+    ok, problems = verify(args.file)
+    for p in problems:
+        print(f"stiffcal verify-archive: {args.file}: {p}", file=sys.stderr)
+    return {"archive": args.file, "verified_files": ok, "problems": problems, "ok": not problems}
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="stiffcal", description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -160,6 +170,9 @@ def build_parser() -> argparse.ArgumentParser:
     x.add_argument("--test-pose-deg", help="test pose for the predicted compensation error (optional)")
     x.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")
     x.set_defaults(func=discrepancy)
+    v = sub.add_parser("verify-archive", help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
+    v.add_argument("file", help="results/archive/stiffcal-<commit>.tar.gz")
+    v.set_defaults(func=verify_archive)
     return p
 
 
@@ -172,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"stiffcal {args.command}: error: {err}", file=sys.stderr)
         return 2
     print(json.dumps(out, indent=2))
-    return 0
+    return 0 if out.get("ok", True) else 1
 
 
 if __name__ == "__main__":  # pragma: no cover

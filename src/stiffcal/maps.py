@@ -571,6 +571,10 @@ def rank_deficient(b: float, force_deg: float, qt_deg: np.ndarray, rtol: float =
     return (S[:, 0] * S[:, 2] - S[:, 1] ** 2) <= rtol * tr * tr
 
 
+#: Figure 6 shades 1/chi: "white" cells gain at least 10-fold (1/chi <= 0.1), "dark" ones at most 1.25-fold
+WHITE_CHI, DARK_CHI = 10.0, 1.25
+
+
 def chi_statistics(df: pd.DataFrame) -> dict[str, float]:
     """The statistics that the paper quotes for Figure 6, computed from a map table (:data:`MAP_COLUMNS`).
 
@@ -590,7 +594,7 @@ def chi_statistics(df: pd.DataFrame) -> dict[str, float]:
             "mean": float(chi[finite].mean()), "mean_regular": float(chi[regular].mean()),
             "median": float(np.median(chi[finite])), "harmonic_mean": float(1.0 / np.mean(1.0 / chi)),
             "p99": float(np.percentile(chi[finite], 99)), "max_regular": float(chi[regular].max()),
-            "min": float(chi.min()), "white": float(np.mean(chi >= 10.0)), "dark": float(np.mean(chi <= 1.25))}
+            "min": float(chi.min()), "white": float(np.mean(chi >= WHITE_CHI)), "dark": float(np.mean(chi <= DARK_CHI))}
 
 
 def statistics_table(maps_by_study: dict[str, pd.DataFrame], studies: list[MapStudy], steps_deg,

@@ -267,7 +267,23 @@ def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: s
 
 
 def report_pdf(html: str, out_pdf: str) -> None:
-    report.write_pdf(html, out_pdf)
+    pages = report.write_pdf(html, out_pdf)
+    _log(f"{out_pdf}: {pages} pages")
+
+
+def archive(config: dict, started: str, out_tgz: str) -> None:
+    """results/archive/stiffcal-<commit>.tar.gz: config, data, results, figures, logs and the report, with
+    provenance.json and SHA256SUMS (``stiffcal verify-archive`` checks it)."""
+    import datetime
+
+    from . import archive as arc
+
+    files = arc.archive_files(".")
+    ended = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
+    prov = arc.provenance(report.config_hash(config), started, ended)
+    arc.write_archive(out_tgz, files, prov)
+    _log(f"{out_tgz}: {len(files)} files + provenance.json + SHA256SUMS (commit {prov['commit'][:12]}, "
+         f"dirty: {prov['dirty']})")
 
 
 def run(snakemake, step, *args) -> None:

@@ -86,6 +86,7 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
     """
     from .reproduction import summary
 
+    from .maps import DARK_CHI, WHITE_CHI
     from .reproduction import FLAT_RTOL
 
     frames = {k: pd.read_csv(v, keep_default_na=False, na_values=[""], dtype={"printed": str, "reason": str})
@@ -104,6 +105,8 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
         "notes": printed.get("notes", {}),
         "provenance": provenance,
         "flat_rtol": FLAT_RTOL,
+        "printed": printed,
+        "map_thresholds": {"white_inv_chi": 1.0 / WHITE_CHI, "dark_inv_chi": 1.0 / DARK_CHI},
     }
 
 
@@ -133,12 +136,31 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     }
 
 
-def write_pdf(html_path: str | Path, pdf_path: str | Path) -> None:
-    """Print the HTML to PDF with WeasyPrint; a missing system library gives one clear message."""
+def write_pdf(html_path: str | Path, pdf_path: str | Path) -> int:
+    """Print the HTML to PDF with WeasyPrint; returns the number of pages.
+
+    Reproducible: the PDF's creation and modification dates, and the time stamps fontTools writes into
+    the embedded font subsets, come from ``SOURCE_DATE_EPOCH`` (default: the commit's time), so the same
+    HTML gives the same bytes. A missing system library (Pango, HarfBuzz, ...) gives one clear message
+    naming it; the HTML report does not need it.
+    """
+    import datetime
+    import os
+
+    from .archive import source_date_epoch
+
+    epoch = source_date_epoch()
+    os.environ["SOURCE_DATE_EPOCH"] = str(epoch)  # read by fontTools when it subsets the fonts
     try:
         from weasyprint import HTML
-    except OSError as err:  # cffi cannot load Pango/HarfBuzz/etc.
-        raise InputError(f"WeasyPrint cannot load a system library it needs ({err}); install Pango "
-                         "(e.g. Debian: apt-get install libpango-1.0-0 libpangoft2-1.0-0) or use the HTML "
-                         "report", source=str(pdf_path)) from None
-    HTML(filename=str(html_path)).write_pdf(str(pdf_path))
+    except OSError as err:  # cffi cannot load Pango/HarfBuzz/etc.; the message names the library
+        raise InputError(f"WeasyPrint cannot load a system library it needs ({err}); install it (Debian: "
+                         "apt-get install libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz0b) or use the HTML report",
+                         source=str(pdf_path)) from None
+    doc = HTML(filename=str(html_path)).render()
+    stamp = datetime.datetime.fromtimestamp(epoch, datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+    doc.metadata.created = doc.metadata.modified = stamp
+    tmp = Path(str(pdf_path) + ".part")
+    doc.write_pdf(str(tmp))
+    tmp.replace(pdf_path)
+    return len(doc.pages)

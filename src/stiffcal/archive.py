@@ -1,0 +1,130 @@
+"""The archive a reviewer gets: config, data, results, figures, logs and the report in one reproducible
+``.tar.gz``, with ``provenance.json`` and ``SHA256SUMS``; and its verification.
+
+The tarball is deterministic for given files: members sorted, owner 0, mode 0644, every time set to
+``SOURCE_DATE_EPOCH`` (default: the commit's time), gzip header without a time. Only ``provenance.json``
+carries the run's start and end times.
+"""
+
+from __future__ import annotations
+
+import gzip
+import hashlib
+import io
+import json
+import os
+import platform
+import subprocess
+import sys
+import tarfile
+from importlib import metadata
+from pathlib import Path
+
+from .errors import InputError
+
+#: directories (relative to the workflow root) whose files go into the archive
+ARCHIVED = ("config", "data", "results", "figures", "paper/build", "logs")
+PACKAGES = ("stiffcal", "numpy", "scipy", "pandas", "matplotlib", "Jinja2", "PyYAML", "jsonschema", "snakemake",
+            "weasyprint", "fonttools", "pydyf")
+SUMS = "SHA256SUMS"
+PROVENANCE = "provenance.json"
+
+
+def _git(args: list[str], root: Path) -> str | None:
+    try:
+        return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def source_date_epoch(root: str | Path = ".") -> int:
+    """``SOURCE_DATE_EPOCH`` if set, else the time of the current commit, else 0 (reproducible dates)."""
+    env = os.environ.get("SOURCE_DATE_EPOCH")
+    if env is not None:
+        try:
+            return int(env)
+        except ValueError:
+            raise InputError(f"expected an integer number of seconds, got {env!r}", field="SOURCE_DATE_EPOCH") from None
+    t = _git(["log", "-1", "--format=%ct"], Path(root))
+    return int(t) if t else 0
+
+
+def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".") -> dict:
+    """What made the archive: commit and whether the tree was dirty, Python and package versions, platform,
+    config hash, start and end times (ISO 8601, UTC)."""
+    root = Path(root)
+    commit = _git(["rev-parse", "HEAD"], root)
+    dirty = None if commit is None else bool(_git(["status", "--porcelain", "--untracked-files=no"], root))
+    versions = {}
+    for name in PACKAGES:
+        try:
+            versions[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            versions[name] = None
+    return {"commit": commit or "unknown", "dirty": dirty, "python": sys.version.split()[0],
+            "packages": versions, "platform": platform.platform(), "machine": platform.machine(),
+            "config_hash": config_hash, "started": started, "ended": ended,
+            "source_date_epoch": source_date_epoch(root)}
+
+
+def archive_files(root: str | Path = ".", exclude: tuple[str, ...] = ("results/archive", "logs/archive.log")) -> list[Path]:
+    """Every file under :data:`ARCHIVED` (relative to root), sorted, without earlier archives and the log
+    of the archive rule itself (still being written)."""
+    root = Path(root)
+    files = [p.relative_to(root) for d in ARCHIVED if (root / d).is_dir() for p in (root / d).rglob("*") if p.is_file()]
+    return sorted(p for p in files if not p.as_posix().startswith(exclude))
+
+
+def _sha256(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def write_archive(out: str | Path, files: list[Path], prov: dict, root: str | Path = ".") -> Path:
+    """Write ``out`` (.tar.gz) with ``files`` (relative to root), provenance.json and SHA256SUMS under one
+    top directory named like the archive. Written to a temporary name and renamed: never a partial file."""
+    out, root = Path(out), Path(root)
+    top = out.name.removesuffix(".tar.gz")
+    epoch = int(prov.get("source_date_epoch", 0))
+    members = {p.as_posix(): (root / p).read_bytes() for p in files}
+    members[PROVENANCE] = (json.dumps(prov, indent=1, sort_keys=True) + "\n").encode()
+    members[SUMS] = "".join(f"{_sha256(data)}  {name}\n" for name, data in sorted(members.items())).encode()
+    buf = io.BytesIO()
+    with tarfile.open(fileobj=buf, mode="w", format=tarfile.PAX_FORMAT) as tar:
+        for name in sorted(members):
+            info = tarfile.TarInfo(f"{top}/{name}")
+            info.size, info.mtime, info.mode = len(members[name]), epoch, 0o644
+            info.uid = info.gid = 0
+            info.uname = info.gname = ""
+            tar.addfile(info, io.BytesIO(members[name]))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = out.with_name(out.name + ".part")
+    with open(tmp, "wb") as fh, gzip.GzipFile(filename="", mode="wb", fileobj=fh, mtime=0) as gz:
+        gz.write(buf.getvalue())
+    tmp.replace(out)
+    return out
+
+
+def verify_archive(path: str | Path) -> tuple[int, list[str]]:
+    """Check every member against SHA256SUMS. Returns (files verified, problems): one line per changed,
+    missing or unlisted file. Raises :class:`InputError` when the file is not a stiffcal archive."""
+    path = Path(path)
+    try:
+        with tarfile.open(path, "r:gz") as tar:
+            data = {m.name.split("/", 1)[1]: tar.extractfile(m).read() for m in tar.getmembers()
+                    if m.isfile() and "/" in m.name}
+    except (OSError, tarfile.TarError, EOFError) as err:
+        raise InputError(f"not a readable .tar.gz archive ({err})", source=str(path)) from None
+    if SUMS not in data:
+        raise InputError(f"no {SUMS} in the archive: not a stiffcal archive", source=str(path))
+    listed = {}
+    for line in data[SUMS].decode().splitlines():
+        digest, _, name = line.partition("  ")
+        listed[name] = digest
+    problems = []
+    for name, digest in sorted(listed.items()):
+        if name not in data:
+            problems.append(f"missing: {name}")
+        elif _sha256(data[name]) != digest:
+            problems.append(f"changed: {name}")
+    problems += [f"not listed in {SUMS}: {name}" for name in sorted(set(data) - set(listed) - {SUMS})]
+    return len(listed) - sum(p.startswith(("missing", "changed")) for p in problems), problems

@@ -1,0 +1,104 @@
+"""The archive for reviewers (written, verified, a changed file named), the reproducible PDF, and the
+report without WeasyPrint's system libraries."""
+
+import builtins
+import io
+import json
+import tarfile
+
+import pytest
+
+from stiffcal import archive as A
+from stiffcal.cli import main
+from stiffcal.errors import InputError
+from stiffcal.report import write_pdf
+
+
+def _tree(tmp_path):
+    (tmp_path / "results/tables").mkdir(parents=True)
+    (tmp_path / "results/tables/t.csv").write_text("a,b\n1,2\n")
+    (tmp_path / "config").mkdir()
+    (tmp_path / "config/config.yaml").write_text("seed: 1\n")
+    (tmp_path / "results/archive").mkdir()
+    (tmp_path / "results/archive/old.tar.gz").write_bytes(b"x")
+    return tmp_path
+
+
+PROV = {"commit": "abc", "dirty": False, "started": "s", "ended": "e", "source_date_epoch": 1700000000}
+
+
+def test_archive_holds_every_file_with_checksums_and_verifies(tmp_path, capsys):
+    root = _tree(tmp_path)
+    files = A.archive_files(root)
+    assert [f.as_posix() for f in files] == ["config/config.yaml", "results/tables/t.csv"]  # no earlier archive
+    out = A.write_archive(tmp_path / "out/stiffcal-abc.tar.gz", files, PROV, root)
+    with tarfile.open(out) as tar:
+        names = tar.getnames()
+        prov = json.loads(tar.extractfile("stiffcal-abc/provenance.json").read())
+        assert all(m.mtime == 1700000000 and m.uid == 0 for m in tar.getmembers())
+    assert set(names) == {f"stiffcal-abc/{n}" for n in ("SHA256SUMS", "provenance.json", "config/config.yaml",
+                                                           "results/tables/t.csv")}
+    assert prov == PROV
+    assert A.verify_archive(out) == (3, [])
+    assert main(["verify-archive", str(out)]) == 0
+    # the same files give the same bytes
+    again = A.write_archive(tmp_path / "again/stiffcal-abc.tar.gz", files, PROV, root)
+    assert again.read_bytes() == out.read_bytes()
+
+
+def _tamper(src, dst, name, data):
+    with tarfile.open(src) as tin, tarfile.open(dst, "w:gz") as tout:
+        for m in tin.getmembers():
+            content = tin.extractfile(m).read()
+            if m.name.endswith(name):
+                content, m.size = data, len(data)
+            tout.addfile(m, io.BytesIO(content))
+
+
+def test_a_changed_file_is_named(tmp_path, capsys):
+    root = _tree(tmp_path)
+    out = A.write_archive(tmp_path / "a/stiffcal-abc.tar.gz", A.archive_files(root), PROV, root)
+    bad = tmp_path / "bad.tar.gz"
+    _tamper(out, bad, "results/tables/t.csv", b"a,b\n1,3\n")
+    assert A.verify_archive(bad)[1] == ["changed: results/tables/t.csv"]
+    assert main(["verify-archive", str(bad)]) == 1
+    assert "changed: results/tables/t.csv" in capsys.readouterr().err
+
+
+def test_not_an_archive_is_one_clear_error(tmp_path, capsys):
+    junk = tmp_path / "junk.tar.gz"
+    junk.write_text("not a tarball")
+    with pytest.raises(InputError, match="not a readable .tar.gz archive"):
+        A.verify_archive(junk)
+    assert main(["verify-archive", str(junk)]) == 2
+    assert "Traceback" not in capsys.readouterr().err
+
+
+HTML = "<html><head><title>t</title></head><body><h1>Report</h1>" + "<p>text</p>" * 200 + "</body></html>"
+
+
+def test_pdf_is_reproducible_with_dates_from_source_date_epoch(tmp_path, monkeypatch):
+    pypdf = pytest.importorskip("pypdf")
+    (tmp_path / "r.html").write_text(HTML)
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    pages = write_pdf(tmp_path / "r.html", tmp_path / "a.pdf")
+    write_pdf(tmp_path / "r.html", tmp_path / "b.pdf")
+    assert (tmp_path / "a.pdf").read_bytes() == (tmp_path / "b.pdf").read_bytes()
+    reader = pypdf.PdfReader(tmp_path / "a.pdf")
+    assert len(reader.pages) == pages >= 2
+    assert reader.metadata["/CreationDate"].startswith("D:20231114")  # 1700000000 = 2023-11-14T22:13:20Z
+
+
+def test_without_weasyprint_libraries_the_pdf_fails_naming_the_library(tmp_path, monkeypatch):
+    real = builtins.__import__
+
+    def fake(name, *args, **kw):
+        if name == "weasyprint":
+            raise OSError("cannot load library 'libpango-1.0-0': libpango-1.0-0: cannot open shared object file")
+        return real(name, *args, **kw)
+
+    monkeypatch.setattr(builtins, "__import__", fake)
+    (tmp_path / "r.html").write_text(HTML)
+    with pytest.raises(InputError) as err:
+        write_pdf(tmp_path / "r.html", tmp_path / "r.pdf")
+    assert "libpango-1.0-0" in str(err.value) and not (tmp_path / "r.pdf").exists()
