@@ -182,3 +182,14 @@ def test_hidden_cause_is_found_on_a_6_axis_arm(root, cause, truth_kw):
         dp = T.simulate(robot, T.Truth(robot.compliances, **truth_kw), q, f, 1e-5, rng)
         named += D.analyse(robot, Measurements(q, f, dp, g, "simulated"), alpha=0.01)["cause"] == cause
     assert named >= 9, named
+
+
+def test_angles_of_a_joint_with_a_full_turn_of_range_are_reported_within_its_limits(rng):
+    from stiffcal.design import into_limits
+
+    robot = spatial_robot([[0, 0, 1, 0], [1, 0, 0, 0]], joint_limits_deg=[[-200, 170], [-90, 90]])
+    q = np.column_stack([rng.uniform(-720, 720, 1000), rng.uniform(-90, 90, 1000)])
+    out = into_limits(robot, q)
+    assert np.all((out[:, 0] >= -200) & (out[:, 0] <= 170))
+    np.testing.assert_allclose(np.cos(np.radians(out)), np.cos(np.radians(q)), atol=1e-12)  # same angle mod 360
+    np.testing.assert_allclose(np.sin(np.radians(out)), np.sin(np.radians(q)), atol=1e-12)

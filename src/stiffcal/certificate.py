@@ -18,7 +18,8 @@ for any xi and any scaling t > 0, ``Phi* >= 2 Phi(t xi) - max_x phi(x, t xi)``; 
 which is tight exactly at the optimum, where ``max_x phi = Phi`` (Kiefer-Wolfowitz equivalence theorem).
 So any good design xi certifies how far any plan can be from optimal. The maximum over poses is over the
 whole joint space, found by the same exhaustive grid + polish as the single-pose search
-(:func:`stiffcal.design.grid_minimise`); the bound is as reliable as that global maximisation.
+(:func:`stiffcal.design.grid_minimise`) or, for 4+ joints, by a dense scrambled-Sobol sample + polish
+(:func:`stiffcal.design.sampled_minimise`); the bound is as reliable as that global maximisation.
 
 Algorithm
 ---------
@@ -29,6 +30,8 @@ Algorithm
    weights are polished jointly in the continuum (L-BFGS-B);
 3. vertex direction: the pose maximising phi joins the support and the design is re-polished, until the
    equivalence gap is below ``target_gap``; the bound is computed from the final design.
+
+For 4+ joints (a sampled joint space) steps 2-3 are replaced by pool augmentation (:func:`_sampled_design`).
 """
 
 from __future__ import annotations
@@ -228,10 +231,10 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     s_step = search_step_deg or min(step, 2.0)
     At = problem.At
     W = At.T @ At
-    check_identifiable(problem, candidate_pool(robot, step if not is_sampled(robot, step) else 90.0))
-    if is_sampled(robot, step):
-        return _sampled_design(problem, W, iters, target_gap)
     pool = candidate_pool(robot, step)
+    check_identifiable(problem, pool)
+    if is_sampled(robot, step):
+        return _sampled_design(problem, W, pool, iters, target_gap)
     w, it = multiplicative(_info(problem, pool), W, iters)
     sig = w >= 1e-3 * w.max()
     X, m = _cluster(pool[sig], w[sig], radius=max(4 * np.radians(step), np.radians(8.0)))
@@ -240,12 +243,7 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     for _ in range(vertex_steps + 1):
         M = np.einsum("k,kij->ij", wts, _info(problem, X))
         Phi, Minv = _phi_design(W, M)
-        C = Minv @ At.T  # (n, d)
-
-        def neg_phi(q, C=C):
-            return -np.sum((observation_matrix(robot.model_jacobian(q), problem.force) @ C) ** 2, axis=(-2, -1))
-
-        xs, fs = global_minimise(neg_phi, robot, s_step, n_refine=8)
+        xs, fs = global_minimise(_neg_phi(problem, Minv @ At.T), robot, s_step, n_refine=8)
         max_phi = max(-float(fs[0]), Phi)  # max_x phi >= Phi always (the mean of phi under xi is Phi)
         if max_phi / Phi - 1.0 <= target_gap:
             break
@@ -272,7 +270,7 @@ def _max_phi(problem: Problem, W, X: np.ndarray, w: np.ndarray, n_refine: int, x
     return Phi, max(-float(fs[0]), Phi), xs
 
 
-def _sampled_design(problem: Problem, W, iters: int, target_gap: float, rounds: int = 12,
+def _sampled_design(problem: Problem, W, pool: np.ndarray, iters: int, target_gap: float, rounds: int = 12,
                     add: int = 4) -> ApproximateDesign:
     """The approximate design for 4+ joints (sampled joint space), by pool augmentation:
 
@@ -283,7 +281,6 @@ def _sampled_design(problem: Problem, W, iters: int, target_gap: float, rounds: 
     3. the support is merged and polished jointly (poses and weights), and the bound is computed from the
        final design with a fresh maximisation of phi.
     """
-    pool = candidate_pool(problem.robot, 90.0)
     P = _info(problem, pool)
     w, it = multiplicative(P, W, iters)
     for _ in range(rounds):

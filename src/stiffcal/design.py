@@ -179,6 +179,16 @@ def wrap_deg(q_deg: np.ndarray) -> np.ndarray:
     return np.where(np.isclose(w, 180.0, atol=1e-9), -180.0, w) + 0.0  # + 0.0 turns -0.0 into 0.0
 
 
+def into_limits(robot: Robot, q_deg: np.ndarray) -> np.ndarray:
+    """Angles (..., n) [deg] wrapped to [-180, 180) and then, for a joint whose range spans a full turn or
+    more (e.g. [-200, 170]), shifted by a whole turn into its limits where the wrapped angle lies outside."""
+    q = wrap_deg(q_deg)
+    lo, hi = np.degrees(robot.joint_limits_rad.T)
+    turn = hi - lo >= 360.0 - 1e-9
+    q = np.where(turn & (q > hi + 1e-9), q - 360.0, q)
+    return np.where(turn & (q < lo - 1e-9), q + 360.0, q) + 0.0
+
+
 def representative(poses_deg: np.ndarray, tie_deg: float = 1e-3) -> np.ndarray:
     """Pick one pose from a set of equally optimal ones by the documented rule.
 

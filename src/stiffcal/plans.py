@@ -28,7 +28,7 @@ from scipy.optimize import minimize
 
 from . import criteria
 from .certificate import ApproximateDesign, candidate_pool, default_pool_step, has_planar_symmetry
-from .design import Problem, _is_full_turn, plan_loss, representative, wrap_deg
+from .design import Problem, _is_full_turn, into_limits, plan_loss, representative, wrap_deg
 from .stiffness import information_matrix, observation_matrix, pose_information
 
 
@@ -57,8 +57,8 @@ def symmetric_copies(robot, pose_deg: np.ndarray, force: np.ndarray) -> np.ndarr
 def canonical_plan(problem: Problem, plan_deg: np.ndarray) -> np.ndarray:
     """Each pose replaced by its representative symmetric copy (planar arms without limits only), poses
     sorted (by q1, then q2, ...)."""
-    plan = wrap_deg(np.atleast_2d(plan_deg))
     robot = problem.robot
+    plan = into_limits(robot, np.atleast_2d(plan_deg))
     if has_planar_symmetry(robot):
         plan = np.array([representative(symmetric_copies(robot, p, problem.force)) for p in plan])
     order = np.lexsort(plan.T[::-1])
@@ -206,7 +206,7 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
     def canon_of(plan):
         if canonical:
             return canonical_plan(problem, np.degrees(plan))
-        q = wrap_deg(np.degrees(plan))
+        q = into_limits(problem.robot, np.degrees(plan))
         return q[np.lexsort(q.T[::-1])]
 
     canon = canon_of(best_plan)
