@@ -1,5 +1,5 @@
-"""The archive a reviewer gets: config, data, results, figures, logs and the report in one reproducible
-``.tar.gz``, with ``provenance.json`` and ``SHA256SUMS``; and its verification.
+"""The archive a reviewer gets: config, data, results, figures, logs, run times per rule and the report in
+one reproducible ``.tar.gz``, with ``provenance.json`` and ``SHA256SUMS``; and its verification.
 
 The tarball is deterministic for given files: members sorted, owner 0, mode 0644, every time set to
 ``SOURCE_DATE_EPOCH`` (default: the commit's time), gzip header without a time. Only ``provenance.json``
@@ -23,7 +23,7 @@ from pathlib import Path
 from .errors import InputError
 
 #: directories (relative to the workflow root) whose files go into the archive
-ARCHIVED = ("config", "data", "results", "figures", "paper/build", "logs")
+ARCHIVED = ("config", "data", "results", "figures", "paper/build", "logs", "benchmarks/out")
 PACKAGES = ("stiffcal", "numpy", "scipy", "pandas", "matplotlib", "Jinja2", "PyYAML", "jsonschema", "snakemake",
             "weasyprint", "fonttools", "pydyf")
 SUMS = "SHA256SUMS"
@@ -67,9 +67,10 @@ def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".
             "source_date_epoch": source_date_epoch(root)}
 
 
-def archive_files(root: str | Path = ".", exclude: tuple[str, ...] = ("results/archive", "logs/archive.log")) -> list[Path]:
+def archive_files(root: str | Path = ".", exclude: tuple[str, ...] = ("results/archive", "logs/archive.log",
+                                                                      "benchmarks/out/archive.tsv")) -> list[Path]:
     """Every file under :data:`ARCHIVED` (relative to root), sorted, without earlier archives and the log
-    of the archive rule itself (still being written)."""
+    and benchmark of the archive rule itself (written while or after it runs)."""
     root = Path(root)
     files = [p.relative_to(root) for d in ARCHIVED if (root / d).is_dir() for p in (root / d).rglob("*") if p.is_file()]
     return sorted(p for p in files if not p.as_posix().startswith(exclude))

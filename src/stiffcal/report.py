@@ -71,7 +71,7 @@ def render_html(context: dict, template_dir: str | Path = TEMPLATE_DIR) -> str:
     """Render ``report.html.j2`` with ``context``; undefined names are errors, not blanks."""
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(template_dir)),
                              undefined=jinja2.StrictUndefined, autoescape=jinja2.select_autoescape(["html"]),
-                             trim_blocks=True, lstrip_blocks=True)
+                             trim_blocks=True, lstrip_blocks=True, extensions=["jinja2.ext.do"])
     env.filters["num"] = fmt
     env.filters["num_like"] = fmt_like
     return env.get_template("report.html.j2").render(**context)
@@ -106,6 +106,9 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
         "provenance": provenance,
         "flat_rtol": FLAT_RTOL,
         "printed": printed,
+        "cmp_index": {f"{r['table']}|{r['row']}|{r['quantity']}": {"printed": r["printed"], "status": r["status"],
+                                                                    "reason": r["reason"]}
+                      for r in cmp.to_dict("records")},
         "map_thresholds": {"white_inv_chi": 1.0 / WHITE_CHI, "dark_inv_chi": 1.0 / DARK_CHI},
     }
 

@@ -18,5 +18,7 @@ rule archive:
         started=RUN_STARTED,
     log:
         f"{LOGS}/archive.log",
+    benchmark:
+        f"benchmarks/out/archive.tsv",
     script:
         "../scripts/archive.py"

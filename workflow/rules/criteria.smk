@@ -23,6 +23,8 @@ rule table3:
         csv=f"{TABLES}/table3.csv",
     log:
         f"{LOGS}/table3.log",
+    benchmark:
+        f"benchmarks/out/table3.tsv",
     script:
         "../scripts/table3.py"
 
@@ -38,6 +40,8 @@ rule paper_comparison:
         csv=f"{TABLES}/paper_comparison.csv",
     log:
         f"{LOGS}/paper_comparison.log",
+    benchmark:
+        f"benchmarks/out/paper_comparison.tsv",
     script:
         "../scripts/paper_comparison.py"
 
@@ -62,6 +66,8 @@ rule chi_map:
         csv="results/maps/fig5_chi.csv",
     log:
         f"{LOGS}/chi_map.log",
+    benchmark:
+        f"benchmarks/out/chi_map.tsv",
     script:
         "../scripts/chi_map.py"
 
@@ -122,5 +128,7 @@ rule phi_map:
         csv="results/maps/design_phi.csv",
     log:
         f"{LOGS}/phi_map.log",
+    benchmark:
+        f"benchmarks/out/phi_map.tsv",
     script:
         "../scripts/phi_map.py"

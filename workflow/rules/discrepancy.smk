@@ -11,5 +11,7 @@ rule discrepancy:
         svg="results/discrepancy/{dataset}/residuals.svg",
     log:
         f"{LOGS}/discrepancy/{{dataset}}.log",
+    benchmark:
+        f"benchmarks/out/discrepancy/{{dataset}}.tsv",
     script:
         "../scripts/discrepancy.py"

@@ -9,6 +9,8 @@ rule fig3:
         svg=f"{FIGURES}/fig3.svg",
     log:
         f"{LOGS}/fig3.log",
+    benchmark:
+        f"benchmarks/out/fig3.tsv",
     script:
         "../scripts/fig3.py"
 
@@ -21,6 +23,8 @@ rule fig4:
         svg=f"{FIGURES}/fig4.svg",
     log:
         f"{LOGS}/fig4.log",
+    benchmark:
+        f"benchmarks/out/fig4.tsv",
     script:
         "../scripts/fig4.py"
 
@@ -34,6 +38,8 @@ rule fig5:
         svg=f"{FIGURES}/fig5.svg",
     log:
         f"{LOGS}/fig5.log",
+    benchmark:
+        f"benchmarks/out/fig5.tsv",
     script:
         "../scripts/fig5.py"
 
@@ -47,6 +53,8 @@ rule fig_design:
         svg=f"{FIGURES}/fig_design.svg",
     log:
         f"{LOGS}/fig_design.log",
+    benchmark:
+        f"benchmarks/out/fig_design.tsv",
     script:
         "../scripts/fig_design.py"
 
@@ -59,5 +67,7 @@ rule fig_ot_versus_m:
         svg=f"{FIGURES}/fig_ot_versus_m.svg",
     log:
         f"{LOGS}/fig_ot_versus_m.log",
+    benchmark:
+        f"benchmarks/out/fig_ot_versus_m.tsv",
     script:
         "../scripts/fig_ot_versus_m.py"

@@ -13,6 +13,8 @@ rule map_tile:
         csv=temp(f"{MAPS}/{{study}}/tiles/{{tile}}.csv"),
     log:
         f"{LOGS}/maps/{{study}}/tile{{tile}}.log",
+    benchmark:
+        f"benchmarks/out/maps/{{study}}/tile{{tile}}.tsv",
     threads: 1
     resources:
         mem_mb=2000,
@@ -28,6 +30,8 @@ rule map_merge:
         csv=f"{MAPS}/{{study}}/map.csv",
     log:
         f"{LOGS}/maps/{{study}}/merge.log",
+    benchmark:
+        f"benchmarks/out/maps/{{study}}/merge.tsv",
     resources:
         mem_mb=2000,
         runtime=10,
@@ -60,6 +64,8 @@ rule fig6:
         svg=f"{FIGURES}/fig6.svg",
     log:
         f"{LOGS}/fig6.log",
+    benchmark:
+        f"benchmarks/out/fig6.tsv",
     script:
         "../scripts/fig6.py"
 
@@ -72,5 +78,7 @@ rule fig_map_poses:
         svg=f"{FIGURES}/fig{{mapfig}}.svg",
     log:
         f"{LOGS}/fig{{mapfig}}.log",
+    benchmark:
+        f"benchmarks/out/fig{{mapfig}}.tsv",
     script:
         "../scripts/fig_map_poses.py"

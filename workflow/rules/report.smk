@@ -27,6 +27,8 @@ rule report_html:
         html="paper/build/report.html",
     log:
         f"{LOGS}/report_html.log",
+    benchmark:
+        f"benchmarks/out/report_html.tsv",
     script:
         "../scripts/report_html.py"
 

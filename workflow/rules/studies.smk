@@ -38,6 +38,8 @@ rule study_plans:
         csv=f"{STUDY_DIR}/{{name}}/plans.csv",
     log:
         f"{LOGS}/studies/{{name}}/plans.log",
+    benchmark:
+        f"benchmarks/out/studies/{{name}}/plans.tsv",
     script:
         "../scripts/study_plans.py"
 
@@ -50,6 +52,8 @@ rule fig_study_plan:
         svg=f"{FIGURES}/studies/{{name}}/plan.svg",
     log:
         f"{LOGS}/studies/{{name}}/fig_plan.log",
+    benchmark:
+        f"benchmarks/out/studies/{{name}}/fig_plan.tsv",
     script:
         "../scripts/fig_study_plan.py"
 
@@ -62,5 +66,7 @@ rule fig_study_versus_m:
         svg=f"{FIGURES}/studies/{{name}}/versus_m.svg",
     log:
         f"{LOGS}/studies/{{name}}/fig_versus_m.log",
+    benchmark:
+        f"benchmarks/out/studies/{{name}}/fig_versus_m.tsv",
     script:
         "../scripts/fig_study_versus_m.py"
