@@ -193,3 +193,16 @@ def test_angles_of_a_joint_with_a_full_turn_of_range_are_reported_within_its_lim
     assert np.all((out[:, 0] >= -200) & (out[:, 0] <= 170))
     np.testing.assert_allclose(np.cos(np.radians(out)), np.cos(np.radians(q)), atol=1e-12)  # same angle mod 360
     np.testing.assert_allclose(np.sin(np.radians(out)), np.sin(np.radians(q)), atol=1e-12)
+
+
+def test_discrepancy_on_an_arm_whose_last_axis_passes_through_the_measured_point():
+    robot = spatial_robot(UR5E, [0, 0, 0], joint_limits_deg=[[-180, 180]] * 6,
+                          compliances=[2e-6, 1.5e-6, 2e-6, 5e-6, 5e-6, 5e-6])
+    rng = np.random.default_rng(5)
+    q, f, g = T.random_experiment(robot, rng, 40, 3, force_N=(100, 300))
+    dp = T.simulate(robot, T.Truth(robot.compliances, gap=np.full(6, 3e-5)), q, f, 1e-5, rng)
+    v = D.analyse(robot, Measurements(q, f, dp, g, "simulated"), alpha=0.01)
+    assert v["nominal"]["not_identifiable_joints"] == [6] and v["nominal"]["k_joints"] == [1, 2, 3, 4, 5]
+    assert v["cause"] == "backlash"
+    ref = robot.compliances[:5]  # the fit of the identifiable compliances is close to the truth
+    assert np.all(np.abs(np.array(v["extended"]["k"]) - ref) < 4 * np.array(v["extended"]["k_ci95"]) + 0.05 * ref)

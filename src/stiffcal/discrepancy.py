@@ -304,7 +304,8 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     sigma = float(np.sqrt(s2))
     t = stats.t.isf(0.025, df_s2)
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
-    nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "sigma_m": sigma, "sigma_source": source,
+    nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in robot.params],
+               "not_identifiable_joints": [j + 1 for j in robot.inert_joints], "sigma_m": sigma, "sigma_source": source,
                "sigma_df": int(df_s2), "rss": f0.rss, "df": f0.df, "lack_of_fit_p": lof_nominal,
                "n_rows": int(m.n_rows), "n_poses": int(len(np.unique(m.group)))}
     tests = {c: {"extra_parameters": int(extra[c]), "p_value": raw[c],
