@@ -121,7 +121,7 @@ def test_slurm_profile_dry_run(root, tmp_path):
 
 
 def test_rerun_gives_identical_tables_html_and_pdf(built):
-    report = [built / "paper/build/report.html", built / "paper/build/report.pdf"]
+    report = [built / "paper/build/report.html", built / "paper/build/report.pdf", *(built / "figures").rglob("*.svg")]
     before = {p: p.read_bytes() for p in [*(built / "results").rglob("*.csv"), *report]}
     shutil.rmtree(built / "results")
     res = _snakemake(built, "--forcerun", "table2", "chi_map", "approximate_design", "map_tile", "study_design")

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .design import (Problem, global_minimise, is_sampled, joint_grids, sample_joint_space, sampled_minimise,
+from .design import (Problem, angle_diff, global_minimise, is_sampled, joint_grids, sample_joint_space, sampled_minimise,
                      wrap_deg, _is_full_turn)
 from .robot import Robot
 from .stiffness import observation_matrix, pose_information
@@ -81,15 +81,15 @@ def default_pool_step(n: int) -> float:
     return float(max(2.0, np.ceil(360.0 / 120_000 ** (1.0 / n))))
 
 
-def check_identifiable(problem: Problem, pool: np.ndarray) -> None:
+def check_identifiable(problem: Problem, P: np.ndarray) -> None:
     """Raise :class:`InputError` when no plan over the joint space can identify every compliance with this
-    force: the information summed over a pool covering the joint space is singular. Names the joints of the
+    force: the information summed over a pool covering the joint space (P: (N, n, n), its poses'
+    information matrices) is singular. Names the joints of the
     combination that no pose excites (e.g. a vertical axis 1 under a vertical force: no torque about it)."""
     from .errors import InputError
     from .stiffness import spectral
 
-    M = _info(problem, pool).mean(axis=0)
-    w, V, null = spectral(M)
+    w, V, null = spectral(P.mean(axis=0))
     if not np.any(null) and w[0] > 1e-12 * w[-1]:
         return
     v = V[:, 0]
@@ -167,7 +167,7 @@ def _cluster(points: np.ndarray, weights: np.ndarray, radius: float):
     for i in order:
         p = points[i]
         for c in range(len(centers)):
-            d = np.angle(np.exp(1j * (p - centers[c])))
+            d = angle_diff(p, centers[c])
             if np.all(np.abs(d) <= radius):
                 masses[c] += weights[i]
                 break
@@ -232,10 +232,11 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     At = problem.At
     W = At.T @ At
     pool = candidate_pool(robot, step)
-    check_identifiable(problem, pool)
+    P = _info(problem, pool)
+    check_identifiable(problem, P)
     if is_sampled(robot, step):
-        return _sampled_design(problem, W, pool, iters, target_gap)
-    w, it = multiplicative(_info(problem, pool), W, iters)
+        return _sampled_design(problem, W, pool, P, iters, target_gap)
+    w, it = multiplicative(P, W, iters)
     sig = w >= 1e-3 * w.max()
     X, m = _cluster(pool[sig], w[sig], radius=max(4 * np.radians(step), np.radians(8.0)))
     heavy = m >= min_mass * m.sum()
@@ -270,8 +271,8 @@ def _max_phi(problem: Problem, W, X: np.ndarray, w: np.ndarray, n_refine: int, x
     return Phi, max(-float(fs[0]), Phi), xs
 
 
-def _sampled_design(problem: Problem, W, pool: np.ndarray, iters: int, target_gap: float, rounds: int = 12,
-                    add: int = 4) -> ApproximateDesign:
+def _sampled_design(problem: Problem, W, pool: np.ndarray, P: np.ndarray, iters: int, target_gap: float,
+                    rounds: int = 12, add: int = 4) -> ApproximateDesign:
     """The approximate design for 4+ joints (sampled joint space), by pool augmentation:
 
     1. multiplicative algorithm on a scrambled-Sobol pool of ``2**POOL_LOG2`` poses;
@@ -281,7 +282,6 @@ def _sampled_design(problem: Problem, W, pool: np.ndarray, iters: int, target_ga
     3. the support is merged and polished jointly (poses and weights), and the bound is computed from the
        final design with a fresh maximisation of phi.
     """
-    P = _info(problem, pool)
     w, it = multiplicative(P, W, iters)
     for _ in range(rounds):
         sup = w >= 1e-3 * w.max()

@@ -22,7 +22,7 @@ from .design import Problem, optimal_single_pose
 from .plans import optimise_plan, round_design
 from .errors import InputError
 from .robot import load_robot
-from .study import Study
+from .study import Study, check_test_inputs
 from .tables import plan_summary
 
 
@@ -45,31 +45,17 @@ def _json_number(x: float):
 def design(args) -> dict:
     """Run ``stiffcal design``; returns the JSON-ready dict."""
     robot = load_robot(args.robot)
-    q_t = _floats("--test-pose-deg", args.test_pose_deg)
     force = _floats("--force-N", args.force_N)
-    if q_t.size != robot.n_joints:
-        raise InputError(f"expected {robot.n_joints} joint angles for robot {robot.name!r} "
-                         f"({args.robot}), got {q_t.size}", field="--test-pose-deg")
-    if force.size != robot.task_dim:
-        raise InputError(f"expected {robot.task_dim} force components for a {robot.kind} robot, "
-                         f"got {force.size}", field="--force-N")
-    if not np.any(force):
-        raise InputError("expected a nonzero force", field="--force-N")
+    q_t = check_test_inputs(robot, _floats("--test-pose-deg", args.test_pose_deg), force, "--test-pose-deg",
+                            "--force-N")
     if args.experiments < 1:
         raise InputError(f"expected a number of experiments >= 1, got {args.experiments}", field="--experiments")
     if not args.sigma > 0:
         raise InputError(f"expected sigma > 0, got {args.sigma}", field="--sigma")
-    if robot.has_joint_limits:
-        lo, hi = np.degrees(robot.joint_limits_rad.T)
-        out = np.flatnonzero((q_t < lo - 1e-9) | (q_t > hi + 1e-9))
-        if out.size:
-            j = int(out[0])
-            raise InputError(f"expected q{j + 1} within the joint limits [{lo[j]:g}, {hi[j]:g}] deg of {args.robot}, "
-                             f"got {q_t[j]:g}", field="--test-pose-deg")
-    if args.experiments * robot.task_dim < robot.n_params:
-        need = -(-robot.n_params // robot.task_dim)
-        raise InputError(f"expected at least {need} poses: {args.experiments} give {args.experiments * robot.task_dim} "
-                         f"equations for {robot.n_params} compliances", field="--experiments")
+    if args.experiments < robot.min_poses:
+        raise InputError(f"expected at least {robot.min_poses} poses: {args.experiments} give "
+                         f"{args.experiments * robot.task_dim} equations for {robot.n_params} compliances",
+                         field="--experiments")
     m = args.experiments
     study = Study(robot.name, robot, np.radians(q_t), force, args.sigma, (args.criterion,), 1.0, 1.0)
     notes, optimal_set, degenerate = [], [], False
@@ -126,15 +112,14 @@ def discrepancy(args) -> dict:
     from .discrepancy import run
 
     robot = load_robot(args.robot)
-    qt = None if args.test_pose_deg is None else np.radians(_floats("--test-pose-deg", args.test_pose_deg))
-    ft = None if args.force_N is None else _floats("--force-N", args.force_N)
-    if (qt is None) != (ft is None):
+    if (args.test_pose_deg is None) != (args.force_N is None):
         raise InputError("expected both --test-pose-deg and --force-N (the test pose and its force), or neither",
                          field="--test-pose-deg")
-    if qt is not None and len(qt) != robot.n_joints:
-        raise InputError(f"expected {robot.n_joints} joint angles, got {len(qt)}", field="--test-pose-deg")
-    if ft is not None and len(ft) != robot.task_dim:
-        raise InputError(f"expected {robot.task_dim} force components, got {len(ft)}", field="--force-N")
+    qt = ft = None
+    if args.test_pose_deg is not None:
+        ft = _floats("--force-N", args.force_N)
+        qt = np.radians(check_test_inputs(robot, _floats("--test-pose-deg", args.test_pose_deg), ft, "--test-pose-deg",
+                                          "--force-N"))
     v = run(robot, args.data, args.out, args.alpha, qt, ft)
     return {k: v[k] for k in ("cause", "indistinguishable_from", "p_value", "outlier_rows")} | {
         "verdict": f"{args.out}/verdict.json"}

@@ -96,8 +96,7 @@ def joint_grids(robot: Robot, step_deg: float) -> list[np.ndarray]:
     for lo, hi in robot.joint_limits_rad:
         if _is_full_turn(lo, hi):
             count = int(np.ceil(360.0 / step_deg - 1e-9))
-            start = -np.pi if hi - lo <= TWO_PI + 1e-12 else 0.5 * (lo + hi) - np.pi
-            grids.append(start + TWO_PI * np.arange(count) / count)
+            grids.append(_turn_start(lo, hi) + TWO_PI * np.arange(count) / count)
         else:
             count = int(np.ceil(np.degrees(hi - lo) / step_deg - 1e-9)) + 1
             grids.append(np.linspace(lo, hi, count))
@@ -106,6 +105,12 @@ def joint_grids(robot: Robot, step_deg: float) -> list[np.ndarray]:
 
 def _is_full_turn(lo: float, hi: float) -> bool:
     return hi - lo >= TWO_PI - 1e-12
+
+
+def _turn_start(lo, hi):
+    """Start [rad] of the one turn that represents a joint whose range spans a full turn: -pi without limits,
+    else the turn centred in the range (further angles repeat the same poses). Works elementwise."""
+    return np.where(hi - lo <= TWO_PI + 1e-12, -np.pi, 0.5 * (lo + hi) - np.pi)
 
 
 def _periodic(robot: Robot) -> list[bool]:
@@ -136,7 +141,7 @@ def sample_joint_space(robot: Robot, log2_count: int = SAMPLES_LOG2, seed: int =
 
     lo, hi = robot.joint_limits_rad.T
     span = np.minimum(hi - lo, TWO_PI)
-    start = np.where(hi - lo > TWO_PI, 0.5 * (lo + hi) - np.pi, lo)
+    start = np.where(hi - lo > TWO_PI + 1e-12, _turn_start(lo, hi), lo)
     u = qmc.Sobol(robot.n_joints, scramble=True, seed=seed).random_base2(log2_count)
     return start + u * span
 
@@ -218,11 +223,16 @@ def representative(poses_deg: np.ndarray, tie_deg: float = 1e-3) -> np.ndarray:
     return cand[0]
 
 
+def angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a - b wrapped to (-pi, pi] [rad], elementwise."""
+    return np.angle(np.exp(1j * (np.asarray(a) - b)))
+
+
 def dedupe(poses_rad: np.ndarray, tol_rad: float = 1e-4) -> np.ndarray:
     """Drop poses (rows) that repeat an earlier one within ``tol_rad`` on every joint, modulo 2 pi."""
     kept: list[np.ndarray] = []
     for p in poses_rad:
-        if not any(np.all(np.abs(np.angle(np.exp(1j * (p - k)))) < tol_rad) for k in kept):
+        if not any(np.all(np.abs(angle_diff(p, k)) < tol_rad) for k in kept):
             kept.append(p)
     return np.array(kept)
 
@@ -302,7 +312,7 @@ def sampled_minimise(fun, robot: Robot, n_refine: int = 16, log2_count: int = SA
     for i in np.argsort(v, kind="stable"):
         if not np.isfinite(v[i]) or len(starts) == n_refine:
             break
-        if all(np.any(np.abs(np.angle(np.exp(1j * (q[i] - s)))) > sep) for s in starts):
+        if all(np.any(np.abs(angle_diff(q[i], s)) > sep) for s in starts):
             starts.append(q[i])
     if not starts:
         return q[:0], v[:0]
@@ -315,12 +325,12 @@ def is_sampled(robot: Robot, step_deg: float) -> bool:
     return robot.n_joints >= 4 or grid_size(robot, step_deg) > MAX_GRID_NODES
 
 
-def global_minimise(fun, robot: Robot, step_deg: float, n_refine: int = 8, extra_starts=None, xatol=1e-10):
+def global_minimise(fun, robot: Robot, step_deg: float, n_refine: int = 8):
     """:func:`grid_minimise` at ``step_deg`` or, when :func:`is_sampled`, :func:`sampled_minimise`.
     Returns ``(xs (k, n) [rad], fs (k,))``, best first."""
     if not is_sampled(robot, step_deg):
-        return grid_minimise(fun, robot, step_deg, n_refine, xatol)[2:]
-    return sampled_minimise(fun, robot, n_refine, extra_starts=extra_starts, xatol=xatol)
+        return grid_minimise(fun, robot, step_deg, n_refine)[2:]
+    return sampled_minimise(fun, robot, n_refine)
 
 
 def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int = 24,

@@ -30,7 +30,7 @@ from scipy import stats
 from .errors import InputError
 from .measurements import Measurements
 from .robot import Robot, as_xyz
-from .design import sample_joint_space
+from .design import is_sampled, sample_joint_space
 from .stiffness import observation_matrix, random_directions
 
 CAUSES = ("link_compliance", "joint_coupling", "nonlinear_joint_stiffness", "backlash", "measurement_offset")
@@ -363,8 +363,7 @@ def _extended(des: Design, f: Fit, cause: str, sigma: float, t: float, robot: Ro
 
 def parameter_names(cause: str, robot: Robot) -> list[str]:
     n = robot.n_joints
-    segments = robot.link_points(np.zeros(n)).shape[-2] - 1  # n links; a spatial arm adds the tool segment
-    return {"link_compliance": [f"c{i + 1}_1/(N m^2)" for i in range(segments)],
+    return {"link_compliance": [f"c{i + 1}_1/(N m^2)" for i in range(robot.n_segments)],
             "joint_coupling": [f"k{i + 1}{j + 1}_rad/(N m)" for i in range(n) for j in range(i + 1, n)],
             "nonlinear_joint_stiffness": [f"g{i + 1}_rad/(N m)^3" for i in range(n)],
             "backlash": [f"b{i + 1}_rad" for i in range(n)],
@@ -506,7 +505,7 @@ def optimal_plan(robot: Robot, cause: str | None, test_pose: np.ndarray, test_fo
     """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
     model nominal + ``cause``, the test force used in every measurement (as in the paper): Fedorov exchange
     over a step_deg grid of poses within the joint limits. Returns (poses [deg] (m, n), O_t / sigma^2)."""
-    if robot.n_joints >= 4:
+    if is_sampled(robot, step_deg):
         pool = sample_joint_space(robot, 12, seed=0)  # a grid would be too large: 4096 quasi-random poses
     else:
         lims = np.degrees(robot.joint_limits_rad)

@@ -247,6 +247,44 @@ def fig5(table2_csv: str, chi_csv: str, out_png: str) -> None:
     plots.save(plots.fig5_chi_map(_read(chi_csv), _optimal_set(t2, "ot"), pose), Path(out_png).with_suffix(""))
 
 
+#: the rules behind each table and figure of the report (its provenance lines)
+REPORT_RULES = {
+    "table2": "table2", "table3": "table3", "table4": "plans_table (m = 2)", "table5": "plans_table (m = 3)",
+    "design": "approximate_design", "ot_versus_m": "ot_versus_m", "comparison": "paper_comparison",
+    "validation": "validation", "fig3": "fig3", "fig4": "fig4", "fig5": "chi_map + fig5",
+    "fig_design": "approximate_design + phi_map + fig_design", "fig_ot_versus_m": "ot_versus_m + fig_ot_versus_m",
+    "map_statistics": "map_tile + map_merge + map_statistics", "fig6": "map_tile + map_merge + fig6",
+    "fig_map": "map_tile + map_merge + fig_map_poses", "discrepancy": "discrepancy",
+    "study_design": "study_design", "study_plans": "study_design + study_plan + study_plans",
+    "fig_study_plan": "study_plans + fig_study_plan", "fig_study_versus_m": "study_plans + fig_study_versus_m"}
+REPORT_TABLES = ("table2", "table3", "table4", "table5", "design", "certificate", "ot_versus_m", "comparison",
+                 "validation", "map_statistics")
+REPORT_FIGURES = ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m", "fig6", "fig7", "fig8", "fig9", "fig10")
+STUDY_PARTS = ("studycert", "studyplans", "studyfigplan", "studyfigm")
+
+
+def report_inputs(named: dict[str, str]) -> tuple[dict, dict, dict, dict]:
+    """Sort the report rule's named inputs (``common.smk`` names them) into tables, figures (with the residual
+    figures ``residuals__<data set>``), verdicts (``verdict__<data set>``) and design studies
+    (``<part>__<study>`` for the parts of :data:`STUDY_PARTS`): name -> path each."""
+    def prefixed(prefix):
+        return {k.split("__", 1)[1]: v for k, v in named.items() if k.startswith(prefix + "__")}
+
+    tables = {k: named[k] for k in REPORT_TABLES if k in named}
+    figures = {k: named[k] for k in REPORT_FIGURES if k in named}
+    figures |= {k: v for k, v in named.items() if k.startswith("residuals__")}
+    parts = {part: prefixed(part) for part in STUDY_PARTS}
+    studies = {name: {part: parts[part][name] for part in STUDY_PARTS} for name in parts["studyplans"]}
+    return tables, figures, prefixed("verdict"), studies
+
+
+def report_html_from_inputs(config: dict, named: dict[str, str], out_html: str) -> None:
+    """The report rule: :func:`report_html` from the rule's named inputs (see :func:`report_inputs`)."""
+    tables, figures, verdicts, studies = report_inputs(named)
+    report_html(config, tables, figures, named["printed"], REPORT_RULES, str(Path(named["template"]).parent),
+                out_html, verdicts, studies)
+
+
 def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: str, rules: dict,
                 template_dir: str, out_html: str, verdicts: dict | None = None, studies: dict | None = None) -> None:
     """Render the HTML report from the generated tables, figures, discrepancy verdicts and design studies

@@ -15,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
+from .robot import as_xyz  # noqa: E402
 from .study import Study  # noqa: E402
 
 STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.fontsize": 8,
@@ -27,7 +28,8 @@ def save(fig, stem: str | Path) -> list[Path]:
     stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
     fig.savefig(paths[0], metadata={"Software": None}, bbox_inches="tight")
-    fig.savefig(paths[1], metadata={"Date": None, "Creator": None}, bbox_inches="tight")
+    with plt.rc_context({"svg.hashsalt": STYLE["svg.hashsalt"]}):  # read when saving: fixed ids in the SVG
+        fig.savefig(paths[1], metadata={"Date": None, "Creator": None}, bbox_inches="tight")
     plt.close(fig)
     return paths
 
@@ -233,17 +235,14 @@ def fig_study_plan(study: Study, plan_deg: np.ndarray, m: int):
         fig = plt.figure(figsize=(6.4, 5.2))
         ax = fig.add_subplot(projection="3d")
 
-        def xyz(points):
-            return points if points.shape[-1] == 3 else np.concatenate([points, np.zeros(points.shape[:-1] + (1,))], -1)
-
-        test = xyz(robot.link_points(study.test_pose))
+        test = as_xyz(robot.link_points(study.test_pose))
         ax.plot(*test.T, "o-", color="k", lw=2.5, ms=3, label="test pose q*")
-        f = xyz(study.force[None])[0]
+        f = as_xyz(study.force)
         f = f / np.linalg.norm(f) * 0.25 * reach
         ax.quiver(*test[-1], *f, color="C2", lw=2, label="force F")
         every = [test, test[-1:] + f]
         for i, pose in enumerate(np.atleast_2d(plan_deg)):
-            pts = xyz(robot.link_points(np.radians(pose)))
+            pts = as_xyz(robot.link_points(np.radians(pose)))
             every.append(pts)
             ax.plot(*pts.T, "o-", color=f"C{i % 10}", lw=1.2, ms=2, alpha=0.85,
                     label="measurement poses" if i == 0 else None)

@@ -126,8 +126,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     plans = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
     return {
         "entry": entry, "robot": {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "d": robot.task_dim,
-                                  "source": (yaml.safe_load(Path(robot.source).read_text(encoding="utf-8")) or {}).get(
-                                      "source", ""), "dh": dh, "convention": robot.convention,
+                                  "source": robot.reference, "dh": dh, "convention": robot.convention,
                                   "tool_m": None if robot.tool_m is None else robot.tool_m.tolist(),
                                   "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
                                   "has_limits": robot.has_joint_limits,
@@ -153,18 +152,25 @@ def write_pdf(html_path: str | Path, pdf_path: str | Path) -> int:
 
     from .archive import source_date_epoch
 
-    epoch = source_date_epoch()
-    os.environ["SOURCE_DATE_EPOCH"] = str(epoch)  # read by fontTools when it subsets the fonts
     try:
         from weasyprint import HTML
     except OSError as err:  # cffi cannot load Pango/HarfBuzz/etc.; the message names the library
         raise InputError(f"WeasyPrint cannot load a system library it needs ({err}); install it (Debian: "
                          "apt-get install libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz0b) or use the HTML report",
                          source=str(pdf_path)) from None
-    doc = HTML(filename=str(html_path)).render()
-    stamp = datetime.datetime.fromtimestamp(epoch, datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
-    doc.metadata.created = doc.metadata.modified = stamp
-    tmp = Path(str(pdf_path) + ".part")
-    doc.write_pdf(str(tmp))
+    epoch = source_date_epoch()
+    before = os.environ.get("SOURCE_DATE_EPOCH")
+    os.environ["SOURCE_DATE_EPOCH"] = str(epoch)  # read by fontTools when it subsets the fonts
+    try:
+        doc = HTML(filename=str(html_path)).render()
+        doc.metadata.created = doc.metadata.modified = datetime.datetime.fromtimestamp(
+            epoch, datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
+        tmp = Path(str(pdf_path) + ".part")
+        doc.write_pdf(str(tmp))
+    finally:
+        if before is None:
+            os.environ.pop("SOURCE_DATE_EPOCH")
+        else:
+            os.environ["SOURCE_DATE_EPOCH"] = before
     tmp.replace(pdf_path)
     return len(doc.pages)

@@ -19,7 +19,7 @@ Conventions
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -127,7 +127,9 @@ class Robot:
     arm (for a spatial arm: the distances between consecutive joint axes' origins, for drawing and scale);
     ``joint_limits_rad`` (n, 2) [rad]; ``compliances`` (n,) [rad/(N m)] or None; ``source`` (the file it
     came from, for messages); for spatial arms ``dh`` (n, 4) ``[a, alpha, d, offset]`` [m, rad],
-    ``convention`` ('standard' or 'modified') and ``tool_m`` (3,) [m] the measured point in the last frame.
+    ``convention`` ('standard' or 'modified') and ``tool_m`` (3,) [m] the measured point in the last frame;
+    ``inert_joints`` (joints that never move the measured point, :func:`inert_joints`); ``reference`` (the
+    file's ``source`` field: where the dimensions come from).
     """
 
     name: str
@@ -141,6 +143,7 @@ class Robot:
     convention: str = "standard"
     tool_m: np.ndarray | None = None
     inert_joints: tuple[int, ...] = ()
+    reference: str = ""
 
     @property
     def n_joints(self) -> int:
@@ -160,6 +163,22 @@ class Robot:
         """The Jacobian's columns of the model's parameters: (..., n) [rad] -> (..., d, n_params) [m/rad]."""
         J = self.jacobian(q)
         return J[..., self.params] if self.inert_joints else J
+
+    @property
+    def min_poses(self) -> int:
+        """Fewest measurement poses that give as many equations as compliances: ceil(n_params / d)."""
+        return -(-self.n_params // self.task_dim)
+
+    @property
+    def n_segments(self) -> int:
+        """Straight segments of the drawn arm (:meth:`link_points`): n links, plus the tool for a spatial arm."""
+        return self.n_joints + (self.kind == "spatial")
+
+    def outside_limits(self, q: np.ndarray) -> np.ndarray:
+        """(..., n) [rad] -> (..., n) bool: angles outside the joint limits (all False without limits)."""
+        lo, hi = self.joint_limits_rad.T
+        q = np.asarray(q, float)
+        return ((q < lo - 1e-9) | (q > hi + 1e-9)) & self.has_joint_limits
 
     @property
     def task_dim(self) -> int:
@@ -197,8 +216,7 @@ class Robot:
         """The same robot with every length multiplied by ``factor``."""
         dh = None if self.dh is None else self.dh * np.array([factor, 1.0, factor, 1.0])
         tool = None if self.tool_m is None else self.tool_m * factor
-        return Robot(self.name, self.kind, self.links_m * factor, self.joint_limits_rad, self.compliances,
-                     self.source, self.has_joint_limits, dh, self.convention, tool, self.inert_joints)
+        return replace(self, links_m=self.links_m * factor, dh=dh, tool_m=tool)
 
 
 def planar_robot(links_m, name: str = "planar", joint_limits_deg=None) -> Robot:
@@ -210,23 +228,20 @@ def planar_robot(links_m, name: str = "planar", joint_limits_deg=None) -> Robot:
 
 
 def spatial_robot(dh_rows, tool_m=(0.0, 0.0, 0.0), name: str = "spatial", joint_limits_deg=None,
-                  convention: str = "standard", compliances=None, source: str = "<memory>") -> Robot:
+                  convention: str = "standard", compliances=None, source: str = "<memory>",
+                  reference: str = "") -> Robot:
     """Build a spatial DH robot in memory. dh_rows: (n, 4) ``[a_m, alpha_deg, d_m, offset_deg]``."""
-    rows = np.asarray(dh_rows, float)
-    dh = rows * np.array([1.0, np.pi / 180, 1.0, np.pi / 180])
+    dh = np.asarray(dh_rows, float) * np.array([1.0, np.pi / 180, 1.0, np.pi / 180])
     n = len(dh)
     has = joint_limits_deg is not None
     lim = np.radians(np.asarray(joint_limits_deg, float)) if has else np.tile([-np.pi, np.pi], (n, 1))
-    tool = np.asarray(tool_m, float)
     robot = Robot(name, "spatial", np.zeros(n), lim, None if compliances is None else np.asarray(compliances, float),
-                  source, has, dh, convention, tool)
-    pts = robot.link_points(np.zeros(n))
-    links = np.linalg.norm(np.diff(pts, axis=0), axis=-1)
-    robot = Robot(name, "spatial", links, lim, robot.compliances, source, has, dh, convention, tool)
+                  source, has, dh, convention, np.asarray(tool_m, float), reference=reference)
+    links = np.linalg.norm(np.diff(robot.link_points(np.zeros(n)), axis=0), axis=-1)
     inert = inert_joints(robot)
     if len(inert) == n:
         raise InputError("no joint moves the measured point: check dh and tool_m", source=source, field="tool_m")
-    return Robot(name, "spatial", links, lim, robot.compliances, source, has, dh, convention, tool, inert)
+    return replace(robot, links_m=links, inert_joints=inert)
 
 
 def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, ...]:
@@ -262,9 +277,8 @@ def load_robot(path: str | Path) -> Robot:
         return _load_spatial(doc, src)
     links = np.asarray(doc["links_m"], float)
     limits, comp = _per_joint(doc, links.size, src, "link")
-    robot = planar_robot(links, doc["name"], limits)
-    return Robot(robot.name, doc["kind"], robot.links_m, robot.joint_limits_rad,
-                 None if comp is None else np.asarray(comp, float), src, robot.has_joint_limits)
+    return replace(planar_robot(links, doc["name"], limits), compliances=None if comp is None else np.asarray(comp, float),
+                   source=src, reference=doc.get("source", ""))
 
 
 def _per_joint(doc: dict, n: int, src: str, what: str):
@@ -290,4 +304,4 @@ def _load_spatial(doc: dict, src: str) -> Robot:
     rows = [[r["a_m"], r["alpha_deg"], r["d_m"], r.get("offset_deg", 0.0)] for r in doc["dh"]]
     limits, comp = _per_joint(doc, len(rows), src, "row of dh")
     return spatial_robot(rows, doc.get("tool_m", [0.0, 0.0, 0.0]), doc["name"], limits, doc["dh_convention"], comp,
-                         src)
+                         src, doc.get("source", ""))

@@ -55,28 +55,35 @@ def study_from_entry(entry: dict, root: str | Path = ".", source: str = "config"
     component per measured coordinate; a nonzero force. ``where`` names the entry in messages."""
     s = {**DEFAULTS, **entry}
     robot = load_robot(Path(root) / s["robot"])
-    n, d = robot.n_joints, robot.task_dim
-    if len(s["test_pose_deg"]) != n:
-        raise InputError(f"expected {n} joint angles (robot {robot.source} has {n} joints), "
-                         f"got {len(s['test_pose_deg'])}", source=source, field=f"{where}.test_pose_deg")
-    if len(s["force_N"]) != d:
-        raise InputError(f"expected {d} force components for a {robot.kind} robot, got {len(s['force_N'])}",
-                         source=source, field=f"{where}.force_N")
     force = np.asarray(s["force_N"], float)
-    if not np.any(force):
-        raise InputError("expected a nonzero force: with F = 0 nothing deflects", source=source,
-                         field=f"{where}.force_N")
-    q = np.radians(np.asarray(s["test_pose_deg"], float))
-    if robot.has_joint_limits:
-        lo, hi = robot.joint_limits_rad.T
-        out = np.flatnonzero((q < lo - 1e-9) | (q > hi + 1e-9))
-        if out.size:
-            j = int(out[0])
-            raise InputError(f"expected q{j + 1} within the joint limits [{np.degrees(lo[j]):g}, {np.degrees(hi[j]):g}] "
-                             f"deg of {robot.source}, got {s['test_pose_deg'][j]}", source=source,
-                             field=f"{where}.test_pose_deg[{j}]")
+    q = np.radians(check_test_inputs(robot, s["test_pose_deg"], force, f"{where}.test_pose_deg", f"{where}.force_N",
+                                     source))
     return Study(s["name"], robot, q, force, float(s["sigma_m"]), tuple(s["criteria"]), float(s["search_step_deg"]),
                  float(s["fig5_step_deg"]))
+
+
+def check_test_inputs(robot: Robot, q_deg, force: np.ndarray, pose_field: str, force_field: str,
+                      source: str | None = None) -> np.ndarray:
+    """The test pose (one angle per joint, within the joint limits) and force (one component per measured
+    coordinate, nonzero) of a study or a CLI call; raises :class:`InputError` naming ``source`` and the
+    field. Returns the test pose (n,) [deg]."""
+    q_deg = np.asarray(q_deg, float)
+    n, d = robot.n_joints, robot.task_dim
+    if q_deg.size != n:
+        raise InputError(f"expected {n} joint angles (robot {robot.source} has {n} joints), got {q_deg.size}",
+                         source=source, field=pose_field)
+    if np.size(force) != d:
+        raise InputError(f"expected {d} force components for a {robot.kind} robot, got {np.size(force)}",
+                         source=source, field=force_field)
+    if not np.any(force):
+        raise InputError("expected a nonzero force: with F = 0 nothing deflects", source=source, field=force_field)
+    out = np.flatnonzero(robot.outside_limits(np.radians(q_deg)))
+    if out.size:
+        j = int(out[0])
+        lo, hi = np.degrees(robot.joint_limits_rad[j])
+        raise InputError(f"expected q{j + 1} within the joint limits [{lo:g}, {hi:g}] deg of {robot.source}, "
+                         f"got {q_deg[j]:g}", source=source, field=f"{pose_field}[{j}]")
+    return q_deg
 
 
 #: defaults of an entry of config ``studies`` (design studies for any robot)
@@ -98,10 +105,10 @@ def design_studies(config: dict, root: str | Path = ".", source: str = "config")
         if e["draw_m"] not in e["m_values"]:
             raise InputError(f"expected one of m_values {e['m_values']}, got {e['draw_m']}", source=source,
                              field=f"studies[{i}].draw_m")
-        too_few = [m for m in e["m_values"] if m * st.robot.task_dim < st.robot.n_joints]
+        too_few = [m for m in e["m_values"] if m < st.robot.min_poses]
         if too_few:
-            raise InputError(f"expected m >= {-(-st.robot.n_joints // st.robot.task_dim)}: {too_few[0]} poses give "
-                             f"{too_few[0] * st.robot.task_dim} equations for {st.robot.n_joints} compliances",
+            raise InputError(f"expected m >= {st.robot.min_poses}: {too_few[0]} poses give "
+                             f"{too_few[0] * st.robot.task_dim} equations for {st.robot.n_params} compliances",
                              source=source, field=f"studies[{i}].m_values")
         out[e["name"]] = (st, e)
     return out

@@ -253,11 +253,10 @@ def best_plan_row(study: Study, m: int, seed: int, design, extra_starts=()) -> d
     plan = optimise_plan(study.problem("ot", m), starts=[round_design(design, m), *extra_starts], seed=seed)
     summ = plan_summary(study, plan.poses_deg)
     bound = design.lower_bound(m, study.sigma)
-    lo, hi = np.degrees(study.robot.joint_limits_rad.T)
     row = {"m": m, "O_t": plan.loss, "rms_m": float(np.sqrt(plan.loss)), "chi": float(summ["chi"]),
            "lower_bound": bound, "gap": plan.loss / bound - 1.0}
     row |= {f"E_dk{i + 1}": float(summ[f"E_dk{i + 1}"]) for i in range(study.robot.n_joints)}
-    row["within_limits"] = bool(np.all((plan.poses_deg >= lo - 1e-9) & (plan.poses_deg <= hi + 1e-9)))
+    row["within_limits"] = not study.robot.outside_limits(np.radians(plan.poses_deg)).any()
     row["poses_deg"] = format_plan(plan.poses_deg)
     return row
 

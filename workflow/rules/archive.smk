@@ -20,5 +20,7 @@ rule archive:
         f"{LOGS}/archive.log",
     benchmark:
         f"benchmarks/out/archive.tsv",
+    conda:
+        ENV
     script:
         "../scripts/archive.py"

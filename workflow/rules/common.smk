@@ -4,6 +4,8 @@ TABLES = "results/tables"
 FIGURES = "figures"
 LOGS = "logs"
 PRINTED = config["paper_values"]
+# the software of every rule, for --software-deployment-method conda (`make report` uses .venv instead)
+ENV = "../envs/stiffcal.yaml"
 ROBOT = config["study"]["robot"]
 
 # Maps over test poses (Figures 6-10): the studies of config `maps`, each split into tiles (one job each).

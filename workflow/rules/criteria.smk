@@ -11,6 +11,8 @@ rule table2:
         f"{LOGS}/table2.log",
     benchmark:
         "benchmarks/out/table2.tsv"
+    conda:
+        ENV
     script:
         "../scripts/table2.py"
 
@@ -25,6 +27,8 @@ rule table3:
         f"{LOGS}/table3.log",
     benchmark:
         f"benchmarks/out/table3.tsv",
+    conda:
+        ENV
     script:
         "../scripts/table3.py"
 
@@ -42,6 +46,8 @@ rule paper_comparison:
         f"{LOGS}/paper_comparison.log",
     benchmark:
         f"benchmarks/out/paper_comparison.tsv",
+    conda:
+        ENV
     script:
         "../scripts/paper_comparison.py"
 
@@ -55,6 +61,8 @@ rule validation:
         f"{LOGS}/validation.log",
     benchmark:
         "benchmarks/out/validation.tsv"
+    conda:
+        ENV
     script:
         "../scripts/validation.py"
 
@@ -68,6 +76,8 @@ rule chi_map:
         f"{LOGS}/chi_map.log",
     benchmark:
         f"benchmarks/out/chi_map.tsv",
+    conda:
+        ENV
     script:
         "../scripts/chi_map.py"
 
@@ -86,6 +96,8 @@ rule approximate_design:
         f"{LOGS}/approximate_design.log",
     benchmark:
         "benchmarks/out/approximate_design.tsv"
+    conda:
+        ENV
     script:
         "../scripts/approximate_design.py"
 
@@ -104,6 +116,8 @@ rule plans_table:
         f"{LOGS}/table{{number}}.log",
     benchmark:
         "benchmarks/out/table{number}.tsv"
+    conda:
+        ENV
     script:
         "../scripts/plans_table.py"
 
@@ -117,6 +131,8 @@ rule ot_versus_m:
         f"{LOGS}/ot_versus_m.log",
     benchmark:
         "benchmarks/out/ot_versus_m.tsv"
+    conda:
+        ENV
     script:
         "../scripts/ot_versus_m.py"
 
@@ -130,5 +146,7 @@ rule phi_map:
         f"{LOGS}/phi_map.log",
     benchmark:
         f"benchmarks/out/phi_map.tsv",
+    conda:
+        ENV
     script:
         "../scripts/phi_map.py"

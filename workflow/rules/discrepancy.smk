@@ -13,5 +13,7 @@ rule discrepancy:
         f"{LOGS}/discrepancy/{{dataset}}.log",
     benchmark:
         f"benchmarks/out/discrepancy/{{dataset}}.tsv",
+    conda:
+        ENV
     script:
         "../scripts/discrepancy.py"

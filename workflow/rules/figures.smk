@@ -11,6 +11,8 @@ rule fig3:
         f"{LOGS}/fig3.log",
     benchmark:
         f"benchmarks/out/fig3.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig3.py"
 
@@ -25,6 +27,8 @@ rule fig4:
         f"{LOGS}/fig4.log",
     benchmark:
         f"benchmarks/out/fig4.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig4.py"
 
@@ -40,6 +44,8 @@ rule fig5:
         f"{LOGS}/fig5.log",
     benchmark:
         f"benchmarks/out/fig5.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig5.py"
 
@@ -55,6 +61,8 @@ rule fig_design:
         f"{LOGS}/fig_design.log",
     benchmark:
         f"benchmarks/out/fig_design.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig_design.py"
 
@@ -69,5 +77,7 @@ rule fig_ot_versus_m:
         f"{LOGS}/fig_ot_versus_m.log",
     benchmark:
         f"benchmarks/out/fig_ot_versus_m.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig_ot_versus_m.py"

@@ -19,6 +19,8 @@ rule map_tile:
     resources:
         mem_mb=2000,
         runtime=30,
+    conda:
+        ENV
     script:
         "../scripts/map_tile.py"
 
@@ -35,6 +37,8 @@ rule map_merge:
     resources:
         mem_mb=2000,
         runtime=10,
+    conda:
+        ENV
     script:
         "../scripts/map_merge.py"
 
@@ -52,6 +56,8 @@ rule map_statistics:
     resources:
         mem_mb=2000,
         runtime=10,
+    conda:
+        ENV
     script:
         "../scripts/map_statistics.py"
 
@@ -66,6 +72,8 @@ rule fig6:
         f"{LOGS}/fig6.log",
     benchmark:
         f"benchmarks/out/fig6.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig6.py"
 
@@ -80,5 +88,7 @@ rule fig_map_poses:
         f"{LOGS}/fig{{mapfig}}.log",
     benchmark:
         f"benchmarks/out/fig{{mapfig}}.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig_map_poses.py"

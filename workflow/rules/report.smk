@@ -29,6 +29,8 @@ rule report_html:
         f"{LOGS}/report_html.log",
     benchmark:
         f"benchmarks/out/report_html.tsv",
+    conda:
+        ENV
     script:
         "../scripts/report_html.py"
 
@@ -42,5 +44,7 @@ rule report_pdf:
         f"{LOGS}/report_pdf.log",
     benchmark:
         "benchmarks/out/report_pdf.tsv"
+    conda:
+        ENV
     script:
         "../scripts/report_pdf.py"

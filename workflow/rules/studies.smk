@@ -14,6 +14,8 @@ rule study_design:
         f"{LOGS}/studies/{{name}}/design.log",
     benchmark:
         "benchmarks/out/studies/{name}/design.tsv"
+    conda:
+        ENV
     script:
         "../scripts/study_design.py"
 
@@ -27,6 +29,8 @@ rule study_plan:
         f"{LOGS}/studies/{{name}}/plan_m{{m}}.log",
     benchmark:
         "benchmarks/out/studies/{name}/plan_m{m}.tsv"
+    conda:
+        ENV
     script:
         "../scripts/study_plan.py"
 
@@ -40,6 +44,8 @@ rule study_plans:
         f"{LOGS}/studies/{{name}}/plans.log",
     benchmark:
         f"benchmarks/out/studies/{{name}}/plans.tsv",
+    conda:
+        ENV
     script:
         "../scripts/study_plans.py"
 
@@ -54,6 +60,8 @@ rule fig_study_plan:
         f"{LOGS}/studies/{{name}}/fig_plan.log",
     benchmark:
         f"benchmarks/out/studies/{{name}}/fig_plan.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig_study_plan.py"
 
@@ -68,5 +76,7 @@ rule fig_study_versus_m:
         f"{LOGS}/studies/{{name}}/fig_versus_m.log",
     benchmark:
         f"benchmarks/out/studies/{{name}}/fig_versus_m.tsv",
+    conda:
+        ENV
     script:
         "../scripts/fig_study_versus_m.py"
