@@ -1,36 +1,39 @@
-"""Make data/synthetic_paper_2r.csv: SYNTHETIC measured deflections of the paper's arm with one hidden effect.
+"""Make data/synthetic_paper_2r.csv: SYNTHETIC measured deflections of the paper's arm with one hidden effect,
+logged the way calibration labs log them.
 
 The data are simulated, not measured: stiffcal.truth (written from the physics, independent of the
 analysis) gives the deflections of the paper's arm (l1 = 0.6 m, l2 = 0.4 m) with joint compliances
 k = (1.5, 3.0) 1e-6 rad/(N m), plus a hidden backlash of 5e-5 rad in each joint (a smoothed gap whose sign
-follows the torque), 30 random poses within the joint limits, a random force of 100-400 N in any direction
-per pose, 3 replicates each, laser-tracker noise of 10 micrometres per coordinate, and one gross blunder
-(+1 mm in x on data row 17). The analysis should name backlash and list row 17 as an outlier.
+follows the torque). Protocol: 30 random configurations within the joint limits, at each a push of 300 N
+in four directions 90 deg apart (from a random start), the sequence measured twice on the spot, an
+unloaded reference row (zero force, zero displacement) logged before every loaded one, pose_id numbering
+the configurations; laser-tracker noise of 10 micrometres per coordinate, and one gross blunder (+1 mm in x
+on the loaded row that is data row 17 of the file). The analysis should name backlash and list row 17.
 
-Run: .venv/bin/python data/make_synthetic.py   (deterministic: seed 20261123)
+Run: .venv/bin/python data/make_synthetic.py   (deterministic: seed 20261130)
 """
 
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from stiffcal.robot import load_robot
-from stiffcal.truth import Truth, random_experiment, simulate
+from stiffcal.truth import Protocol, Truth, lab_csv, lab_log, measure
 
 ROOT = Path(__file__).resolve().parents[1]
-SEED = 20261123
+SEED = 20261130
+PROTOCOL = Protocol("4 pushes of 300 N, twice, unloaded rows", loads="directions", magnitudes_N=(300.0,),
+                    repeats=2, unloaded_rows=True, sigma_m=1e-5)
 
 
 def main() -> None:
     robot = load_robot(ROOT / "config/robots/paper_2r.yaml")
     rng = np.random.default_rng(SEED)
-    q, force, pose = random_experiment(robot, rng, n_poses=30, replicates=3)
+    log = lab_log(robot, PROTOCOL, rng, n_configs=30)
+    assert log.loaded[17]  # the blunder falls on a loaded row
     truth = Truth(k=np.array([1.5e-6, 3.0e-6]), gap=np.array([5e-5, 5e-5]))
-    dp = simulate(robot, truth, q, force, sigma=1e-5, rng=rng, blunders={17: np.array([1e-3, 0.0])})
-    df = pd.DataFrame({"pose_id": pose, "q1_deg": np.degrees(q[:, 0]), "q2_deg": np.degrees(q[:, 1]),
-                       "fx_N": force[:, 0], "fy_N": force[:, 1], "dx_m": dp[:, 0], "dy_m": dp[:, 1]})
-    df.to_csv(ROOT / "data/synthetic_paper_2r.csv", index=False, float_format="%.9g", lineterminator="\n")
+    dp = measure(robot, truth, log, rng, blunders={17: np.array([1e-3, 0.0])})
+    (ROOT / "data/synthetic_paper_2r.csv").write_text(lab_csv(robot, log, dp), encoding="utf-8")
 
 
 if __name__ == "__main__":

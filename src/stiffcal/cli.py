@@ -120,8 +120,11 @@ def discrepancy(args) -> dict:
         ft = _floats("--force-N", args.force_N)
         qt = np.radians(check_test_inputs(robot, _floats("--test-pose-deg", args.test_pose_deg), ft, "--test-pose-deg",
                                           "--force-N"))
-    v = run(robot, args.data, args.out, args.alpha, qt, ft)
-    return {k: v[k] for k in ("cause", "indistinguishable_from", "p_value", "outlier_rows")} | {
+    v = run(robot, args.data, args.out, args.alpha, qt, ft, angle_resolution_deg=args.angle_resolution_deg,
+            force_resolution_N=args.force_resolution_N)
+    for note in v["notes"]:
+        print(f"stiffcal discrepancy: note: {note}", file=sys.stderr)
+    return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
         "verdict": f"{args.out}/verdict.json"}
 
 
@@ -154,6 +157,11 @@ def build_parser() -> argparse.ArgumentParser:
     x.add_argument("--alpha", type=float, default=0.01, help="family-wise false-alarm rate (default 0.01)")
     x.add_argument("--test-pose-deg", help="test pose for the predicted compensation error (optional)")
     x.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")
+    x.add_argument("--angle-resolution-deg", type=float, default=None,
+                   help="joint angles within this are one configuration (encoder resolution; default 0.01)")
+    x.add_argument("--force-resolution-N", type=float, default=None,
+                   help="forces within this (per component) are one load; below it a row is unloaded (load-cell "
+                        "resolution; default 0.5)")
     x.set_defaults(func=discrepancy)
     v = sub.add_parser("verify-archive", help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
     v.add_argument("file", help="results/archive/stiffcal-<commit>.tar.gz")

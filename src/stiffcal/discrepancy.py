@@ -11,18 +11,39 @@ so every question is a comparison of nested linear models:
 - ``nonlinear_joint_stiffness``: a compliance that changes with the torque, dq_i = k_i tau_i + g_i tau_i^3
   (the first odd term of any symmetric law): columns J_i tau_i^3.
 - ``backlash``: a deflection of fixed size whose sign follows the torque: columns J_i sign(tau_i).
-- ``measurement_offset``: a constant bias of the measuring system: one column per axis.
+- ``measurement_offset``: a constant bias of the measuring system: one column per axis (a property of the
+  tracker, not of the robot: it does not enter predictions at a test pose).
 
-Statistics. The noise variance comes from replicates (pure error) when there are any, else from the
-residuals of the union of all extensions (said in ``sigma_source``). Each extension is an F-test against
-the nominal model; the family-wise false-alarm rate over the catalogue is held at ``alpha`` by Holm's
-procedure. Gross blunders are found first, one at a time, by their residual from the union model against
-a robust scale (Bonferroni threshold), and are left out of everything else.
+Statistics (Draper & Smith, *Applied Regression Analysis*, 3rd ed., ch. 2.1 and 6 for pure error and
+lack of fit):
+
+- The noise variance s^2 comes from the replicates (pure error: rows whose joint angles and force agree
+  within the resolutions of :mod:`stiffcal.measurements`), or, without replicates, from the residuals of the
+  union of all extensions. Unloaded reference rows are the zero point and never enter it.
+- Which causes the data need is decided by **closed testing** (Marcus, Peritz & Gabriel 1976, Biometrika
+  63(3), 655-660; Bretz, Hothorn & Westfall, *Multiple Comparisons Using R*, 2011, sec. 2.2.3) over the
+  elementary hypotheses H_c "cause c is absent" (c in the catalogue) and H_L "nothing outside the catalogue
+  is present". The local test of an intersection H_U (and H_L) is a Bonferroni test of its members, each
+  tested against the largest model the intersection allows, M_{C minus U}: the F-test of adding c for each
+  c in U, and the lack-of-fit test of M_{C minus U} against pure error (without replicates: rank correlations
+  of its residuals with row order, force, pose and torque) for H_L. A hypothesis is rejected when every
+  intersection containing it is rejected, so the family-wise false-alarm rate is at most alpha whatever
+  causes are present (strong control), and the adjusted p-value of H is the largest local p-value over
+  the intersections containing it.
+- A combination S of causes is *compatible* with the data when the intersection "every cause outside S is
+  absent" is not rejected. The verdict's ``causes`` is the smallest compatible combination (fewest causes,
+  then fewest parameters, then best fit); other minimal compatible combinations of the same size are
+  ``equivalent_combinations``: they explain the data equally well at this alpha. ``unexplained`` is H_L
+  rejected: something outside the catalogue (a drift, an effect of another shape) is left.
+- Gross blunders are found first, one at a time, by their residual from the union model against a robust
+  scale (Bonferroni threshold), and are left out of everything else.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
+from itertools import combinations
 
 import numpy as np
 from scipy import stats
@@ -34,8 +55,15 @@ from .design import is_sampled, sample_joint_space
 from .stiffness import observation_matrix, random_directions
 
 CAUSES = ("link_compliance", "joint_coupling", "nonlinear_joint_stiffness", "backlash", "measurement_offset")
+#: causes that belong to the measuring system, not to the robot: they do not enter test-pose predictions
+MEASUREMENT_CAUSES = ("measurement_offset",)
 #: relative singular value below which a direction of a design matrix counts as absent
 RANK_RTOL = 1e-9
+#: plausible end-effector compliance of a serial robot [m/N]: industrial arms are of order 1e-6 m/N (about
+#: 1 N/um), collaborative and light arms up to about 1e-5; see the review of Appl. Sci. 2022, 12(17), 8719
+PLAUSIBLE_COMPLIANCE_M_PER_N = (1e-9, 1e-4)
+#: largest displacement, as a fraction of the reach, that an elasto-static (small-deflection) model describes
+MAX_DEFLECTION_OF_REACH = 0.02
 
 
 # --- regressors ----------------------------------------------------------------------------------------
@@ -93,6 +121,17 @@ def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray) ->
     raise ValueError(f"unknown cause {cause!r}")
 
 
+def model_columns(robot: Robot, q: np.ndarray, force: np.ndarray, causes=(), predict: bool = False) -> np.ndarray:
+    """(N, d, n + sum p_c): the nominal columns followed by those of every cause in ``causes`` (catalogue
+    order). ``predict=True`` gives the regressors of a prediction of the robot's deflection: the columns of
+    the measuring system's causes (:data:`MEASUREMENT_CAUSES`) are zero."""
+    X = [nominal_columns(robot, q, force)]
+    for c in sorted(causes, key=CAUSES.index):
+        block = cause_columns(c, robot, q, force)
+        X.append(np.zeros_like(block) if predict and c in MEASUREMENT_CAUSES else block)
+    return np.concatenate(X, axis=-1)
+
+
 def _stack(X: np.ndarray) -> np.ndarray:
     """(N, d, p) -> (N d, p), rows ordered measurement by measurement."""
     return X.reshape(-1, X.shape[-1])
@@ -125,8 +164,48 @@ def fit(X: np.ndarray, y: np.ndarray) -> Fit:
     return Fit(beta_s / scale, float(resid @ resid), rank, len(y) - rank, cov_s / np.outer(scale, scale))
 
 
+@dataclass(frozen=True)
+class Reduced:
+    """Least squares on column subsets of one matrix X (N, P), reduced once by a QR decomposition of X with
+    its columns scaled to unit norm: X_s = Q R, z = Q^T y. A subset fit then needs only R[:, cols] (P x p):
+    its singular values, and so its rank decision, equal those of X_s[:, cols], and its residual sum of
+    squares is rss_out + |z - R[:, cols] b|^2 with rss_out = |y - Q z|^2 (Golub & Van Loan, *Matrix
+    Computations*, 4th ed., sec. 5.3). n_rows: N."""
+    R: np.ndarray
+    z: np.ndarray
+    rss_out: float
+    scale: np.ndarray
+    n_rows: int
+
+    @classmethod
+    def of(cls, X: np.ndarray, y: np.ndarray) -> "Reduced":
+        scale = np.linalg.norm(X, axis=0)
+        scale[scale == 0] = 1.0
+        Q, R = np.linalg.qr(X / scale)
+        z = Q.T @ y
+        r = y - Q @ z
+        return cls(R, z, float(r @ r), scale, len(y))
+
+    def fit(self, cols) -> Fit:
+        """The :class:`Fit` of the columns ``cols`` (indices into X), as :func:`fit` would give it."""
+        cols = np.asarray(cols, int)
+        Rs = self.R[:, cols]
+        if cols.size == 0:
+            return Fit(np.zeros(0), self.rss_out + float(self.z @ self.z), 0, self.n_rows, np.zeros((0, 0)))
+        U, sv, Vt = np.linalg.svd(Rs, full_matrices=False)
+        keep = sv > RANK_RTOL * sv[0]
+        inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0), 0.0)
+        beta_s = Vt.T @ (inv * (U.T @ self.z))
+        r = self.z - Rs @ beta_s
+        sc = self.scale[cols]
+        cov = (Vt.T * inv**2) @ Vt / np.outer(sc, sc)
+        rank = int(keep.sum())
+        return Fit(beta_s / sc, self.rss_out + float(r @ r), rank, self.n_rows - rank, cov)
+
+
 def pure_error(y: np.ndarray, groups: np.ndarray) -> tuple[float, int]:
-    """(SS, df) of the replicates: the spread of each coordinate about its group mean."""
+    """(SS, df) of the replicates: the spread of each coordinate about its group mean (Draper & Smith 2.1).
+    y: (N, d) [m]; groups: (N,) int."""
     ss, df = 0.0, 0
     for g in np.unique(groups):
         rows = y[groups == g]
@@ -140,27 +219,17 @@ def f_test(rss0: float, df0: int, rss1: float, df1: int, s2: float, df_s2: int) 
     """p-value of the F-test of a nested extension (df0 - df1 extra parameters) against the error
     variance estimate s2 on df_s2 degrees of freedom."""
     extra = df0 - df1
-    if extra <= 0 or s2 <= 0:
+    if extra <= 0 or not s2 > 0 or df_s2 <= 0:
         return 1.0
     F = max(rss0 - rss1, 0.0) / extra / s2
     return float(stats.f.sf(F, extra, df_s2))
 
 
-def holm(pvalues: dict[str, float]) -> dict[str, float]:
-    """Holm-adjusted p-values (family-wise error control)."""
-    keys = sorted(pvalues, key=lambda k: pvalues[k])
-    m, out, running = len(keys), {}, 0.0
-    for i, k in enumerate(keys):
-        running = max(running, min(1.0, (m - i) * pvalues[k]))
-        out[k] = running
-    return out
-
-
-# --- the analysis --------------------------------------------------------------------------------------
+# --- the stacked regressors of a data set ----------------------------------------------------------------
 
 @dataclass
 class Design:
-    """The stacked regressors of one data set: X0 (N d, n), per-cause blocks, y (N d,), groups (N d... per row)."""
+    """The stacked regressors of one data set: X0 (N d, n), per-cause blocks (N d, p_c), y (N d,)."""
     X0: np.ndarray
     blocks: dict[str, np.ndarray]
     y: np.ndarray
@@ -170,8 +239,27 @@ class Design:
         r = np.repeat(keep, self.d)
         return Design(self.X0[r], {k: v[r] for k, v in self.blocks.items()}, self.y[r], self.d)
 
+    def weighted(self, w: np.ndarray) -> "Design":
+        """The design with measurement i's rows multiplied by w_i (w: (N,)): weighted least squares."""
+        r = np.repeat(w, self.d)
+        return Design(self.X0 * r[:, None], {k: v * r[:, None] for k, v in self.blocks.items()}, self.y * r, self.d)
+
+    def model(self, causes=()) -> np.ndarray:
+        """(N d, n + sum p_c): the nominal columns and those of ``causes`` in catalogue order."""
+        return np.hstack([self.X0, *[self.blocks[c] for c in sorted(causes, key=CAUSES.index)]])
+
     def union(self) -> np.ndarray:
-        return np.hstack([self.X0, *self.blocks.values()])
+        return self.model(CAUSES)
+
+    def columns(self, causes=()) -> np.ndarray:
+        """Indices of the columns of :meth:`model` (causes) within :meth:`union`."""
+        starts, at = {}, self.X0.shape[1]
+        for c in CAUSES:
+            starts[c] = at
+            at += self.blocks[c].shape[1]
+        idx = [np.arange(self.X0.shape[1])]
+        idx += [starts[c] + np.arange(self.blocks[c].shape[1]) for c in sorted(causes, key=CAUSES.index)]
+        return np.concatenate(idx)
 
 
 def build_design(robot: Robot, meas: Measurements) -> Design:
@@ -182,7 +270,7 @@ def build_design(robot: Robot, meas: Measurements) -> Design:
 
 def find_blunders(des: Design, n_rows: int, alpha: float, max_fraction: float = 0.1) -> list[int]:
     """Rows whose residual from the union model exceeds a Bonferroni threshold on a robust scale, removed
-    one at a time (largest first) and refitted."""
+    one at a time (largest first) and refitted. Returns row indices (into the measurements)."""
     keep = np.ones(n_rows, bool)
     out = []
     X = des.union()
@@ -191,9 +279,11 @@ def find_blunders(des: Design, n_rows: int, alpha: float, max_fraction: float = 
     for _ in range(int(max_fraction * n_rows)):
         r = np.repeat(keep, des.d)
         f = fit(X[r], des.y[r])
+        if f.df <= 0:
+            break
         resid = des.y[r] - X[r] @ f.beta
-        scale = 1.4826 * np.median(np.abs(resid)) * np.sqrt(len(resid) / max(f.df, 1))
-        if scale <= 0:
+        scale = 1.4826 * np.median(np.abs(resid)) * np.sqrt(len(resid) / f.df)
+        if not scale > 0:
             break
         per_row = np.abs(resid).reshape(-1, des.d).max(axis=1) / scale
         threshold = stats.norm.isf(alpha / (2 * len(resid))) + 2.0
@@ -216,110 +306,513 @@ def check_identifiable(robot: Robot, meas: Measurements) -> None:
     n, d, N = robot.n_params, robot.task_dim, meas.n_rows
     if N * d < n:
         raise InputError(f"expected at least {n} equations for the {n} joint compliances, got {N * d} "
-                         f"({N} measurements of {d} coordinates)", source=meas.source)
-    f = fit(_stack(nominal_columns(robot, meas.q, meas.force)), meas.dp.ravel())
+                         f"({N} loaded measurements of {d} coordinates)", source=meas.source)
+    X = _stack(nominal_columns(robot, meas.q, meas.force))
+    f = fit(X, meas.dp.ravel())
     if f.rank < n:
+        scale = np.linalg.norm(X, axis=0)
+        unloaded = [int(robot.params[j]) + 1 for j in np.flatnonzero(scale <= RANK_RTOL * scale.max())]
+        if unloaded:
+            which = (f"joint{'s' if len(unloaded) > 1 else ''} {', '.join(map(str, unloaded))} never "
+                     "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
+        else:
+            v = np.linalg.svd(X / np.where(scale > 0, scale, 1.0))[2][-1]
+            joints = [int(robot.params[j]) + 1 for j in np.flatnonzero(np.abs(v) > 0.1)]
+            which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
         raise InputError(f"the measurement plan cannot identify the {n} joint compliances: its information "
-                         f"matrix has rank {f.rank} (the poses and forces load too few joints; measure other "
-                         f"poses or force directions)", source=meas.source)
+                         f"matrix has rank {f.rank}; {which}; measure other poses or load directions",
+                         source=meas.source)
 
 
-def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=None, test_force=None) -> dict:
-    """The verdict of DESIGN.md for one data set (module docstring). test_pose [rad] and test_force [N]
-    (optional) give the compensation error at the study's test pose under both models."""
+# --- the noise ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Noise:
+    """The error variance the tests use: s2 [m^2] on df degrees of freedom, from ``source``; ss_pe, df_pe: the
+    pure error (df_pe = 0 without replicates)."""
+    s2: float
+    df: int
+    source: str
+    ss_pe: float
+    df_pe: int
+
+
+def noise_variance(des: Design, meas: Measurements) -> Noise:
+    """Pure error when the data have replicates, else the residual variance of the union model; raises
+    :class:`InputError` when neither has a degree of freedom (nothing could be tested)."""
+    ss_pe, df_pe = pure_error(meas.dp, meas.group)
+    if df_pe > 0:
+        return Noise(ss_pe / df_pe, df_pe, "replicates (pure error)", ss_pe, df_pe)
+    fu = fit(des.union(), des.y)
+    if fu.df > 0 and fu.rss > 0:
+        return Noise(fu.rss / fu.df, fu.df, "residuals of the union of all extensions", 0.0, 0)
+    p = fu.rank
+    raise InputError(
+        f"these data cannot support the analysis: no replicates (rows repeating a joint configuration and a "
+        f"load) and {meas.n_rows} loaded measurements x {des.d} coordinates = {len(des.y)} equations for the "
+        f"{p} parameters of the union of all extensions, so no degree of freedom is left to estimate the "
+        f"noise; repeat some measurements or measure more configurations", source=meas.source)
+
+
+@dataclass(frozen=True)
+class VarianceModel:
+    """Noise that changes from row to row, as a laser tracker's does (its error grows with the distance to
+    the target): sigma_i^2 = exp(z_i . gamma), z = [1, x, y (, z), |p|^2] of the measured point p (lengths
+    over the reach), fitted to the replicate groups' sample variances by a Gamma GLM with log link and the
+    dispersion 2 that chi-square variances have (McCullagh & Nelder, *Generalized Linear Models*, 2nd ed.,
+    1989, ch. 8; Carroll & Ruppert, *Transformation and Weighting in Regression*, 1988, ch. 3).
+
+    weights: (N,) 1 / sigma_i relative to the median row; p_value: of the likelihood-ratio test against a
+    constant variance; sigma_ratio: largest over smallest sigma_i of the rows."""
+    weights: np.ndarray
+    p_value: float
+    sigma_ratio: float
+
+
+#: level of the test that decides to weight the fit (a constant variance is kept unless it is rejected)
+HETEROSCEDASTICITY_ALPHA = 0.01
+
+
+def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = None) -> VarianceModel | None:
+    """The :class:`VarianceModel` of the replicate groups (their spread about their means, or about
+    ``resid``'s group means when given), or None when the data have too few replicates to tell (fewer than
+    8 groups with replicates) or a constant variance is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`."""
+    import statsmodels.api as sm
+
+    y = meas.dp if resid is None else resid
+    groups = [np.flatnonzero(meas.group == g) for g in np.unique(meas.group)]
+    groups = [r for r in groups if len(r) > 1]
+    if len(groups) < 8:
+        return None
+    s2 = np.array([((y[r] - y[r].mean(0)) ** 2).sum() for r in groups])
+    df = np.array([(len(r) - 1) * y.shape[1] for r in groups], float)
+    if np.any(s2 <= 0):
+        return None
+    s2 = s2 / df
+    s2 = s2 / np.median(s2)  # metres squared are tiny; the log link's intercept absorbs the scale
+    reach = max(robot.reach_m, 1e-9)
+
+    def covariates(q):
+        p = as_xyz(robot.fk(q))[:, : robot.task_dim] / reach
+        return np.column_stack([np.ones(len(p)), p, (p**2).sum(1)])
+
+    Z = covariates(meas.q[[r[0] for r in groups]])
+    family = sm.families.Gamma(sm.families.links.Log())
+    use = np.ones(len(s2), bool)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a fit that does not converge cleanly is no reason to weight
+            for _ in range(4):  # a group with a blunder has a wild variance: leave such groups out and refit
+                full = sm.GLM(s2[use], Z[use], family=family, var_weights=df[use]).fit(scale=2.0)
+                ratio = s2 / np.exp(Z @ full.params)
+                wild = use & (stats.chi2.sf(ratio * df, df) < 1e-3 / len(s2))
+                if not wild.any():
+                    break
+                use &= ~wild
+            null = sm.GLM(s2[use], Z[use, :1], family=family, var_weights=df[use]).fit(scale=2.0)
+    except (ValueError, np.linalg.LinAlgError, Warning):
+        return None
+    lr = max(null.deviance - full.deviance, 0.0) / 2.0
+    p = float(stats.chi2.sf(lr, Z.shape[1] - 1))
+    if not np.isfinite(p) or p >= HETEROSCEDASTICITY_ALPHA:
+        return None
+    log_s2 = covariates(meas.q) @ full.params
+    sigma = np.exp(0.5 * (log_s2 - np.median(log_s2)))
+    return VarianceModel(1.0 / sigma, p, float(sigma.max() / sigma.min()))
+
+
+# --- closed testing over the catalogue ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Selection:
+    """The outcome of closed testing (module docstring).
+
+    causes: the catalogue causes tested (extra rank > 0 on these data); fits: the fit of every combination
+    (frozenset of causes -> :class:`Fit`); local: local p-value of every intersection (frozenset U, with_L);
+    adjusted: closed-testing adjusted p-value of every elementary hypothesis (cause name, and
+    ``"lack_of_fit"`` when tested); declared: causes whose H_c is rejected; unexplained: H_L rejected;
+    explanations: the minimal compatible combinations, best first."""
+    causes: tuple[str, ...]
+    fits: dict
+    local: dict
+    adjusted: dict
+    declared: tuple[str, ...]
+    unexplained: bool
+    explanations: tuple[frozenset, ...]
+    alpha: float
+
+    def adjusted_p(self, U, with_lof: bool = False) -> float:
+        """Closed-testing adjusted p-value of the intersection H_U (and H_L): the largest local p-value over
+        the intersections that contain it."""
+        U = frozenset(U)
+        return max(p for (V, m), p in self.local.items() if V >= U and (m or not with_lof))
+
+
+def _subsets(causes):
+    return [frozenset(s) for k in range(len(causes) + 1) for s in combinations(causes, k)]
+
+
+def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float) -> Selection:
+    """Closed testing of the catalogue (module docstring) over ``causes`` (those that add no direction to
+    the nominal model on these data are left out). ``lack_of_fit(S, fit)`` gives the p-value of the
+    lack-of-fit of the model nominal + S, or None when it cannot be tested."""
+    red = Reduced.of(des.union(), des.y)
+    r0 = red.fit(des.columns()).rank
+    causes = tuple(c for c in causes if red.fit(des.columns([c])).rank > r0)  # the others are absorbed
+    everything = frozenset(causes)
+    fits = {S: red.fit(des.columns(S)) for S in _subsets(causes)}
+    lof = {S: lack_of_fit(S, fits[S]) for S in fits}
+
+    def p_add(c, S):
+        f0, f1 = fits[S], fits[S | {c}]
+        return f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df) if f1.rank > f0.rank else 1.0
+
+    local = {}
+    for U in fits:
+        rest = everything - U
+        parts = [p_add(c, rest) for c in sorted(U, key=CAUSES.index)]
+        for with_lof in (False, True):
+            members = parts + ([lof[rest]] if with_lof and lof[rest] is not None else [])
+            if with_lof and lof[rest] is None or not members:
+                continue
+            local[(U, with_lof)] = min(1.0, len(members) * min(members))
+    if not local:  # no cause to test and no lack of fit: nothing can be rejected
+        local[(frozenset(), False)] = 1.0
+
+    def adjusted(U, with_lof=False):
+        return max(p for (V, m), p in local.items() if V >= U and (m or not with_lof))
+
+    adj = {c: adjusted(frozenset([c])) for c in causes}
+    if any(m for (_, m) in local):
+        adj["lack_of_fit"] = adjusted(frozenset(), True)
+    compatible = [S for S in fits if S == everything or adjusted(everything - S) > alpha]
+    minimal = [S for S in compatible if not any(T < S for T in compatible)]
+    minimal.sort(key=lambda S: (len(S), fits[S].rank, round(fits[S].rss / max(fits[everything].rss, 1e-300), 9),
+                                sorted(CAUSES.index(c) for c in S)))
+    return Selection(causes, fits, local, adj, tuple(c for c in causes if adj[c] <= alpha),
+                     adj.get("lack_of_fit", 1.0) <= alpha, tuple(minimal), alpha)
+
+
+# --- lack of fit -----------------------------------------------------------------------------------------
+
+def _features(robot: Robot, meas: Measurements) -> dict[str, np.ndarray]:
+    """Quantities residuals are correlated with: row order, force magnitude and direction, joint angles,
+    joint torques."""
+    tau = torques(robot, meas.q, meas.force)
+    fmag = np.linalg.norm(meas.force, axis=1)
+    out = {"row order (drift?)": meas.rows.astype(float), "force magnitude": fmag}
+    if meas.force.shape[1] == 2:
+        out["force direction"] = np.arctan2(meas.force[:, 1], meas.force[:, 0])
+    else:
+        out |= {f"force direction {a}": meas.force[:, i] / np.where(fmag > 0, fmag, 1.0) for i, a in enumerate("xyz")}
+    out |= {f"q{i + 1}": meas.q[:, i] for i in range(robot.n_joints)}
+    out |= {f"tau{i + 1}": tau[:, i] for i in range(robot.n_joints)}
+    return out
+
+
+def _varying(features: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The features that vary (a rank correlation with a constant is undefined)."""
+    return {k: v for k, v in features.items() if np.ptp(v) > 1e-12 * max(1.0, np.abs(v).max())}
+
+
+def _rank_standardised(A: np.ndarray) -> np.ndarray:
+    """Columns of A (N, k) replaced by their ranks (ties averaged), centred and scaled to unit norm."""
+    R = stats.rankdata(A, axis=0)
+    R = R - R.mean(axis=0)
+    norm = np.linalg.norm(R, axis=0)
+    return R / np.where(norm > 0, norm, 1.0)
+
+
+@dataclass(frozen=True)
+class Structure:
+    """The features residuals are correlated with (:func:`_features` that vary), ranked once: names, and
+    their standardised ranks (N, k)."""
+    names: tuple[str, ...]
+    ranks: np.ndarray
+
+    @classmethod
+    def of(cls, robot: Robot, meas: Measurements) -> "Structure":
+        feats = _varying(_features(robot, meas))
+        if not feats:
+            return cls((), np.zeros((meas.n_rows, 0)))
+        return cls(tuple(feats), _rank_standardised(np.stack(list(feats.values()), -1)))
+
+    def correlations(self, resid: np.ndarray) -> dict:
+        """Spearman's rho and its p-value (the t approximation scipy.stats.spearmanr uses) of every residual
+        component (N, d) with every feature; components or features that do not vary are left out."""
+        n = len(resid)
+        out = {}
+        if n < 4 or not self.names:
+            return out
+        for axis in range(resid.shape[1]):
+            if np.ptp(resid[:, axis]) == 0:
+                continue
+            r = self.ranks.T @ _rank_standardised(resid[:, [axis]])[:, 0]
+            r = np.clip(r, -1.0, 1.0)
+            t = r * np.sqrt((n - 2) / np.maximum(1.0 - r**2, 1e-300))
+            p = 2 * stats.t.sf(np.abs(t), n - 2)
+            for name, rho, pv in zip(self.names, r, p):
+                out[f"{'xyz'[axis]} vs {name}"] = {"spearman": float(rho), "p_value": float(pv)}
+        return out
+
+
+def residual_structure(robot: Robot, meas: Measurements, resid: np.ndarray, keep: int | None = 5,
+                       structure: Structure | None = None) -> dict:
+    """Rank correlations (Spearman) of the residual components resid (N, d) [m] with row order, force, pose
+    and torque, strongest first (the ``keep`` strongest; all with keep=None). Features that do not vary in
+    these data are left out."""
+    found = (structure or Structure.of(robot, meas)).correlations(resid)
+    ranked = sorted(found.items(), key=lambda kv: kv[1]["p_value"])
+    return dict(ranked if keep is None else ranked[:keep])
+
+
+def structure_p_value(robot: Robot, meas: Measurements, resid: np.ndarray,
+                      structure: Structure | None = None) -> float | None:
+    """Bonferroni-adjusted smallest p-value of :func:`residual_structure`: a lack-of-fit test that needs no
+    replicates (None when no correlation can be computed)."""
+    found = (structure or Structure.of(robot, meas)).correlations(resid)
+    return min(1.0, min(r["p_value"] for r in found.values()) * len(found)) if found else None
+
+
+@dataclass(frozen=True)
+class ConfigurationModel:
+    """The configuration-wise elastic model G: at every robot configuration c its own linear response to the
+    load and its own offset, dp = C_c F + o_c (C_c any d x d matrix). Every catalogue cause that is linear
+    in the load (joint and link compliances, coupling) and any pose-dependent compliance lies in it, and so
+    does a zero point that moves from one configuration to the next (a drift). It is the reference of a
+    lack-of-fit test that needs several loads per configuration, not replicates.
+
+    basis: per configuration (rows (L_c,), orthonormal basis (L_c, r_c) of the span of [F, 1] over its rows);
+    rank: d sum_c r_c, the number of parameters of G."""
+    basis: tuple
+    rank: int
+    d: int
+
+    @classmethod
+    def of(cls, meas: Measurements, weights: np.ndarray | None = None) -> "ConfigurationModel":
+        """G for the measurements, its rows multiplied by ``weights`` (N,) when the fit is weighted."""
+        blocks, rank = [], 0
+        w = np.ones(meas.n_rows) if weights is None else weights
+        for c in range(meas.n_configurations):
+            rows = np.flatnonzero(meas.config == c)
+            Z = np.hstack([meas.force[rows], np.ones((len(rows), 1))]) * w[rows, None]
+            U, sv, _ = np.linalg.svd(Z, full_matrices=False)
+            r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size else 0
+            blocks.append((rows, U[:, :r]))
+            rank += r * meas.dp.shape[1]
+        return cls(tuple(blocks), rank, meas.dp.shape[1])
+
+    def residualise(self, A: np.ndarray) -> np.ndarray:
+        """(N d, ...) stacked rows -> the same with G's fit removed, configuration by configuration."""
+        B = A.reshape(-1, self.d, *A.shape[1:]).copy()
+        for rows, Q in self.basis:
+            block = B[rows]
+            B[rows] = block - np.einsum("ir,jr,j...->i...", Q, Q, block)
+        return B.reshape(A.shape)
+
+
+def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise, weights: np.ndarray | None = None):
+    """The test of H_L ("nothing outside the catalogue") for a model nominal + S, for :func:`closed_testing`:
+    a Bonferroni combination of the tests the data allow (Draper & Smith 2.1 for the first):
+
+    - against pure error, when the data have replicates: F = ((RSS - SS_pe) / (df - df_pe)) / s_pe^2;
+    - against the configuration-wise elastic model G (:class:`ConfigurationModel`), when the configurations
+      have loads to spare: the F-test of adding G;
+    - residual structure: rank correlations of the residuals with row order, force, pose and torque
+      (:func:`structure_p_value`), which sees a drift even where replicates repeat it.
+    ``des`` and ``noise`` are weighted by ``weights`` (N,) when the noise varies from row to row. Returns
+    None when no test is possible."""
+    G = ConfigurationModel.of(meas, weights)
+    redG = Reduced.of(G.residualise(des.union()), G.residualise(des.y))
+    Xu = des.union()
+    feats = Structure.of(robot, meas)
+    if noise.df_pe > 0:
+        s2G, dfG = noise.s2, noise.df
+    else:
+        fu = redG.fit(np.arange(Xu.shape[1]))
+        dfG = len(des.y) - G.rank - fu.rank
+        s2G = fu.rss / dfG if dfG > 0 else 0.0
+
+    def test(S, f: Fit):
+        ps = []
+        if noise.df_pe > 0 and f.df > noise.df_pe:
+            ps.append(f_test(f.rss, f.df, noise.ss_pe, noise.df_pe, noise.s2, noise.df_pe))
+        cols = des.columns(S)
+        if dfG > 0 and s2G > 0:
+            fg = redG.fit(cols)
+            df_sg = len(des.y) - G.rank - fg.rank
+            if df_sg < f.df:
+                ps.append(f_test(f.rss, f.df, fg.rss, df_sg, s2G, dfG))
+        p = structure_p_value(robot, meas, (des.y - Xu[:, cols] @ f.beta).reshape(-1, des.d), feats)
+        if p is not None:
+            ps.append(p)
+        return min(1.0, len(ps) * min(ps)) if ps else None
+    return test
+
+
+# --- checks of the data against physics ----------------------------------------------------------------
+
+def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarray) -> list[str]:
+    """Remarks on identified compliances that are not physical (negative, or far outside what serial robots
+    have) and on displacements too large for an elasto-static model, each with its likely cause."""
+    notes = []
+    neg = [i for i in range(len(k)) if k[i] + k_ci[i] < 0]
+    if neg:
+        names = ", ".join(f"k{int(robot.params[i]) + 1} = {k[i]:.3g}" for i in neg)
+        notes.append(f"negative compliance ({names} rad/(N m), below zero beyond its 95 % interval): a joint "
+                     "cannot push back against the load; likely causes: absolute positions instead of "
+                     "displacements in the d*_m columns, unloaded minus loaded instead of loaded minus "
+                     "unloaded, or a tracker frame that does not match the robot's base frame")
+    reach = robot.reach_m
+    size = np.median(np.linalg.norm(meas.dp, axis=1))
+    if reach > 0 and size > MAX_DEFLECTION_OF_REACH * reach:
+        notes.append(f"the displacements are {100 * size / reach:.3g} % of the reach ({reach:.3g} m) in the median: "
+                     "far more than an elastic deflection; likely causes: absolute positions instead of "
+                     "displacements, or millimetres in columns labelled metres")
+    pred = np.einsum("ndp,p->nd", nominal_columns(robot, meas.q, meas.force), k)
+    fmag = np.linalg.norm(meas.force, axis=1)
+    ok = fmag > 0
+    if ok.any() and np.all(k >= 0):
+        c = float(np.median(np.linalg.norm(pred[ok], axis=1) / fmag[ok]))
+        lo, hi = PLAUSIBLE_COMPLIANCE_M_PER_N
+        if c > hi:
+            notes.append(f"the end-effector compliance is {c:.3g} m/N in the median, far above serial robots "
+                         f"({lo:g}-{hi:g} m/N; industrial arms about 1e-6): millimetres in columns labelled "
+                         "metres, or forces in kN labelled N?")
+        elif 0 < c < lo:
+            notes.append(f"the end-effector compliance is {c:.3g} m/N in the median, far below serial robots "
+                         f"({lo:g}-{hi:g} m/N): micrometres in columns labelled metres, or forces in mN "
+                         "labelled N?")
+    return notes
+
+
+def zero_point(meas: Measurements, s2: float) -> dict | None:
+    """The unloaded reference rows: how many, the RMS of their displacement, and (when they are not all
+    exactly zero) the p-value of the chi-square test that they scatter about zero with the noise variance
+    s2 [m^2]; a moved zero point is a drift or a disturbed target."""
+    n0 = len(meas.zero_rows)
+    if n0 == 0:
+        return None
+    z = meas.zero_dp
+    rms = float(np.sqrt(np.mean(z**2)))
+    out = {"n_rows": int(n0), "rms_m": rms, "p_value": None}
+    if rms == 0:
+        out["note"] = "the unloaded rows hold zero displacement: they are the reference the loaded rows are measured from"
+        return out
+    p = float(stats.chi2.sf(float((z**2).sum()) / s2, z.size)) if s2 > 0 else None
+    out["p_value"] = p
+    moved = p is not None and p < 0.01
+    out["note"] = (f"the unloaded rows scatter by {rms * 1e6:.3g} um RMS about zero"
+                   + (", more than the noise (p = %.2g): the zero point moved (a drift, or a disturbed target)" % p
+                      if moved else ", as the noise does"))
+    return out
+
+
+# --- the analysis --------------------------------------------------------------------------------------
+
+def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=None, test_force=None,
+            gain: bool = True) -> dict:
+    """The verdict for one data set (module docstring; fields in docs/measured-data.md).
+
+    robot: the robot; meas: its measurements; alpha: family-wise false-alarm rate; test_pose (n,) [rad] and
+    test_force (d,) [N] (optional): the compensation error at the study's test pose under both models;
+    gain=False skips the prediction-error and plan comparison (faster, for simulation studies).
+    Raises :class:`InputError` when the data cannot identify the compliances or estimate the noise.
+    """
+    if not 0 < alpha < 1:
+        raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
     check_identifiable(robot, meas)
     des_all = build_design(robot, meas)
-    blunders = find_blunders(des_all, meas.n_rows, alpha)
+    vm = variance_model(robot, meas)  # a first look, before the blunders are known
+    w_all = np.ones(meas.n_rows) if vm is None else vm.weights
+    blunders = find_blunders(des_all.weighted(w_all), meas.n_rows, alpha)
     keep = np.ones(meas.n_rows, bool)
     keep[blunders] = False
     m = meas.subset(keep)
     check_identifiable(robot, m)
-    des = des_all.rows(keep)
-    ss_pe, df_pe = pure_error(m.dp, m.group)
+    vm = variance_model(robot, m)
+    w = np.ones(m.n_rows) if vm is None else vm.weights
+    des = des_all.rows(keep).weighted(w)
+    mw = Measurements(m.q, m.force, m.dp * w[:, None], m.group, m.source, m.config, m.config_labels, m.rows)
+    noise = noise_variance(des, mw)
+    notes = list(meas.notes)
+    if noise.df < 10:
+        notes.append(f"the noise estimate has only {noise.df} degrees of freedom: the tests have little power")
+    if vm is not None:
+        notes.append(f"the noise varies with the position of the measured point (a tracker's error grows with "
+                     f"the distance; p = {vm.p_value:.2g}), by a factor {vm.sigma_ratio:.3g} between rows: the fits "
+                     "are weighted by it")
 
     f0 = fit(des.X0, des.y)
-    fu = fit(des.union(), des.y)
-    if df_pe > 0:
-        s2, df_s2, source = ss_pe / df_pe, df_pe, "replicates (pure error)"
-    elif fu.df > 0:
-        s2, df_s2, source = fu.rss / fu.df, fu.df, "residuals of the union of all extensions"
+    lof = lack_of_fit_test(robot, m, des, noise, w)
+    sel = closed_testing(des, CAUSES, noise, lof, alpha)
+    testable = sel.causes
+    chosen = sel.explanations[0] if sel.explanations else frozenset(testable)
+    alternatives = [S for S in sel.explanations[1:] if len(S) == len(chosen)]
+
+    def drop_p(c):  # how much the chosen model needs c
+        a, b = sel.fits[chosen - {c}], sel.fits[chosen]
+        return f_test(a.rss, a.df, b.rss, b.df, noise.s2, noise.df)
+
+    ranked = sorted(chosen, key=lambda c: (drop_p(c), CAUSES.index(c)))
+    indistinct = sorted({c for S in alternatives for c in S} - set(chosen), key=CAUSES.index)
+    if sel.unexplained:
+        cause, p_value = "unexplained", sel.adjusted["lack_of_fit"]
+    elif ranked:
+        cause = ranked[0]
+        p_value = sel.adjusted_p({cause, *[c for c in indistinct]}) if indistinct else sel.adjusted[cause]
     else:
-        s2, df_s2, source = f0.rss / max(f0.df, 1), max(f0.df, 1), "residuals of the nominal model"
+        cause, p_value = "none", (sel.adjusted_p(testable) if testable else 1.0)
 
-    def lack_of_fit(f: Fit, used: list[str]) -> float | None:
-        if df_pe > 0:
-            return None if f.df <= df_pe else f_test(f.rss, f.df, ss_pe, df_pe, s2, df_pe)
-        # no replicates: structure left in the residuals (rank correlations, Bonferroni) stands in
-        return structure_p_value(robot, m, des, f, used)
-
-    fits, raw, extra = {}, {}, {}
-    for c in CAUSES:
-        fc = fit(np.hstack([des.X0, des.blocks[c]]), des.y)
-        fits[c] = fc
-        extra[c] = fc.rank - f0.rank
-        raw[c] = f_test(f0.rss, f0.df, fc.rss, fc.df, s2, df_s2) if extra[c] > 0 else 1.0
-    testable = {c: p for c, p in raw.items() if extra[c] > 0}
-    lof_nominal = lack_of_fit(f0, [])
-    family = {**testable, **({"lack_of_fit": lof_nominal} if lof_nominal is not None else {})}
-    adjusted = holm(family)  # one family: the false-alarm rate of any verdict but 'none' is <= alpha
-    significant = [c for c in testable if adjusted[c] < alpha]
-
-    if not significant:
-        unexplained = adjusted.get("lack_of_fit", 1.0) < alpha
-        cause = "unexplained" if unexplained else "none"
-        best, p_value = None, (adjusted["lack_of_fit"] if unexplained else min(adjusted.values(), default=1.0))
-    else:
-        rss_min = min(fits[c].rss for c in significant)
-        # equal fits (coinciding spans) go to the first cause of the catalogue; both are named
-        best = min(significant, key=lambda c: (round(fits[c].rss / rss_min, 9), CAUSES.index(c)))
-        # parsimony: a significant cause whose span lies inside the best one's, and which the best one does
-        # not significantly improve on, explains the data as well with fewer parameters
-        smaller = [c for c in significant if c != best and extra[c] < extra[best]
-                   and _spans_within(des.blocks[c], np.hstack([des.X0, des.blocks[best]]))
-                   and f_test(fits[c].rss, fits[c].df, fits[best].rss, fits[best].df, s2, df_s2) >= alpha]
-        if smaller:
-            best = min(smaller, key=lambda c: (extra[c], fits[c].rss))
-        p_value = adjusted[best]
-        left = lack_of_fit(fits[best], [best])
-        if df_pe <= 0:  # no replicates: also, does the union explain significantly more than the best cause?
-            left = min(1.0, 2 * min(left, f_test(fits[best].rss, fits[best].df, fu.rss, fu.df, s2, df_s2)))
-        cause = "unexplained" if left < alpha else best
-    indistinct = []
-    if best is not None:
-        Xb = np.hstack([des.X0, des.blocks[best]])
-        for c in CAUSES:
-            if c == best or extra[c] == 0:
-                continue
-            Xc = np.hstack([des.X0, des.blocks[c]])
-            nested = _spans_within(des.blocks[c], Xb) or _spans_within(des.blocks[best], Xc)
-            both = fit(np.hstack([Xb, des.blocks[c]]), des.y)
-            equal = (c in significant
-                     and f_test(fits[best].rss, fits[best].df, both.rss, both.df, s2, df_s2) >= alpha
-                     and f_test(fits[c].rss, fits[c].df, both.rss, both.df, s2, df_s2) >= alpha)
-            if nested or equal:
-                indistinct.append(c)
-    absorbed = [c for c in CAUSES if extra[c] == 0]
-    advice = {c: separation_advice(robot, best, c, meas) for c in indistinct}
-
-    sigma = float(np.sqrt(s2))
-    t = stats.t.isf(0.025, df_s2)
+    sigma = float(np.sqrt(noise.s2))
+    t = stats.t.isf(0.025, noise.df)
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
+    lof_nominal = lof(frozenset(), sel.fits[frozenset()])
+    notes += plausibility(robot, m, f0.beta, k_ci)
+    zp = zero_point(meas, noise.s2)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in robot.params],
-               "not_identifiable_joints": [j + 1 for j in robot.inert_joints], "sigma_m": sigma, "sigma_source": source,
-               "sigma_df": int(df_s2), "rss": f0.rss, "df": f0.df, "lack_of_fit_p": lof_nominal,
-               "n_rows": int(m.n_rows), "n_poses": int(len(np.unique(m.group)))}
-    tests = {c: {"extra_parameters": int(extra[c]), "p_value": raw[c],
-                 "holm_p_value": adjusted.get(c), "significant": c in significant} for c in CAUSES}
-    out = {"cause": cause, "indistinguishable_from": indistinct, "p_value": p_value, "alpha": alpha,
-           "nominal": nominal, "tests": tests, "absorbed_by_nominal": absorbed,
-           "outlier_rows": [int(r) for r in blunders], "separation": advice}
-    ext_cause = best
-    out["extended"] = None if ext_cause is None else _extended(des, fits[ext_cause], ext_cause, sigma, t, robot)
-    out["gain"] = None if ext_cause is None else _gain(robot, m, des, ext_cause, s2, test_pose, test_force)
-    if cause == "unexplained":
-        out["residual_structure"] = residual_structure(robot, m, des, fits[best] if best else f0,
-                                                       [best] if best else [])
+               "not_identifiable_joints": [j + 1 for j in robot.inert_joints], "sigma_m": sigma,
+               "sigma_source": noise.source, "sigma_df": int(noise.df),
+               "noise_varies": None if vm is None else {"p_value": vm.p_value, "sigma_ratio": vm.sigma_ratio},
+               "rss": f0.rss, "df": f0.df,
+               "lack_of_fit_p": lof_nominal, "n_rows": int(m.n_rows), "n_poses": int(m.n_configurations)}
+    tests = {c: {"extra_parameters": int(sel.fits[frozenset([c])].rank - f0.rank) if c in testable else 0,
+                 "p_value": (f_test(f0.rss, f0.df, sel.fits[frozenset([c])].rss, sel.fits[frozenset([c])].df,
+                                    noise.s2, noise.df) if c in testable else 1.0),
+                 "adjusted_p_value": sel.adjusted.get(c), "significant": c in sel.declared} for c in CAUSES}
+    out = {"cause": cause, "causes": ranked, "indistinguishable_from": indistinct,
+           "equivalent_combinations": [sorted(S, key=CAUSES.index) for S in alternatives],
+           "p_value": p_value, "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
+           "nominal": nominal, "tests": tests,
+           "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
+           "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
+           "outlier_rows": [int(meas.rows[r]) for r in blunders],
+           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas) for c in indistinct},
+           "zero_point": zp, "notes": notes}
+    ext = sorted(chosen, key=CAUSES.index) if ranked else []
+    out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot) if ext else None
+    out["gain"] = _gain(robot, m, des, ext, noise.s2, test_pose, test_force) if ext and gain else None
+    if out["gain"] is not None and out["gain"]["loco_ratio"] is None:
+        notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
+                     "configurations (and a nonzero error of the extended model); it is left out")
+    out = _finite(out, out["notes"])
+    if sel.unexplained:
+        f = sel.fits[chosen]
+        out["residual_structure"] = residual_structure(robot, m, (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d))
     return out
+
+
+def _finite(obj, notes: list[str], path: str = ""):
+    """obj with every float that is not finite replaced by None and named in ``notes`` (a statistic that cannot
+    be computed on these data is left out with a note, never written as NaN or inf)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v, notes, f"{path}.{k}" if path else k) if k != "notes" else v for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v, notes, f"{path}[{i}]") for i, v in enumerate(obj)]
+    if isinstance(obj, (float, np.floating)) and not np.isfinite(obj):
+        notes.append(f"{path} cannot be computed on these data (it is not finite) and is left out")
+        return None
+    return obj
 
 
 def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe: int = 400) -> str:
@@ -353,12 +846,13 @@ def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe:
             f"would (it is where their predictions differ most)")
 
 
-def _extended(des: Design, f: Fit, cause: str, sigma: float, t: float, robot: Robot) -> dict:
+def _extended(des: Design, f: Fit, causes: list[str], sigma: float, t: float, robot: Robot) -> dict:
     n = des.X0.shape[1]
     ci = t * sigma * np.sqrt(np.diag(f.cov_unscaled))
-    return {"cause": cause, "k": f.beta[:n].tolist(), "k_ci95": ci[:n].tolist(),
+    names = [name for c in causes for name in parameter_names(c, robot)]
+    return {"cause": "+".join(causes), "causes": causes, "k": f.beta[:n].tolist(), "k_ci95": ci[:n].tolist(),
             "parameters": f.beta[n:].tolist(), "parameters_ci95": ci[n:].tolist(),
-            "parameter_names": parameter_names(cause, robot), "rss": f.rss, "df": f.df}
+            "parameter_names": names, "rss": f.rss, "df": f.df}
 
 
 def parameter_names(cause: str, robot: Robot) -> list[str]:
@@ -370,79 +864,50 @@ def parameter_names(cause: str, robot: Robot) -> list[str]:
             "measurement_offset": [f"o{a}_m" for a in "xyz"[: robot.task_dim]]}[cause]
 
 
-def _design_of(robot: Robot, q, force, cause: str | None) -> np.ndarray:
-    X = nominal_columns(robot, q, force)
-    if cause:
-        X = np.concatenate([X, cause_columns(cause, robot, q, force)], axis=-1)
-    return X
-
-
-def lopo_rms(robot: Robot, meas: Measurements, cause: str | None) -> float:
-    """RMS prediction error [m] of held-out poses: each group of replicates left out in turn."""
-    X = _design_of(robot, meas.q, meas.force, cause)
+def loco_rms(robot: Robot, meas: Measurements, causes=()) -> float | None:
+    """RMS prediction error [m] of held-out configurations: each robot configuration (all its loads and
+    replicates) left out in turn and predicted from the others. None when fewer than two configurations."""
+    if meas.n_configurations < 2:
+        return None
+    X = model_columns(robot, meas.q, meas.force, causes)
     err = []
-    for g in np.unique(meas.group):
-        test = meas.group == g
+    for g in range(meas.n_configurations):
+        test = meas.config == g
         f = fit(_stack(X[~test]), meas.dp[~test].ravel())
         err.append((meas.dp[test] - np.einsum("ndp,p->nd", X[test], f.beta)).ravel())
     e = np.concatenate(err)
     return float(np.sqrt(np.mean(e**2)))
 
 
-def _gain(robot, meas, des, cause, s2, test_pose, test_force) -> dict:
-    nom, ext = lopo_rms(robot, meas, None), lopo_rms(robot, meas, cause)
-    out = {"lopo_rms_nominal_m": nom, "lopo_rms_extended_m": ext, "lopo_ratio": nom / ext if ext > 0 else None}
+def _gain(robot, meas, des, causes, s2, test_pose, test_force) -> dict:
+    nom, ext = loco_rms(robot, meas), loco_rms(robot, meas, causes)
+    out = {"loco_rms_nominal_m": nom, "loco_rms_extended_m": ext,
+           "loco_ratio": nom / ext if nom is not None and ext else None}
     if test_pose is not None and test_force is not None:
         qt = np.atleast_2d(test_pose)
         ft = np.atleast_2d(test_force)
         Xt0 = nominal_columns(robot, qt, ft)[0]
-        Xt1 = _design_of(robot, qt, ft, cause)[0]
-        X1 = np.hstack([des.X0, des.blocks[cause]])
-        f0, f1 = fit(des.X0, des.y), fit(X1, des.y)
+        Xt1 = model_columns(robot, qt, ft, causes, predict=True)[0]
+        f0, f1 = fit(des.X0, des.y), fit(des.model(causes), des.y)
         bias = Xt1 @ f1.beta - Xt0 @ f0.beta  # the extended model taken as the truth
         var0 = s2 * np.trace(Xt0 @ f0.cov_unscaled @ Xt0.T)
         var1 = s2 * np.trace(Xt1 @ f1.cov_unscaled @ Xt1.T)
         out.update({"test_pose_rms_nominal_m": float(np.sqrt(bias @ bias + var0)),
                     "test_pose_rms_extended_m": float(np.sqrt(var1)),
                     "test_pose_model_error_m": float(np.linalg.norm(bias))})
-        plan, ot_ext = optimal_plan(robot, cause, qt[0], ft[0])
-        plan_nom, _ = optimal_plan(robot, None, qt[0], ft[0], m=len(plan))
-        Xt = _design_of(robot, qt, ft, cause)[0]
+        plan, ot_ext = optimal_plan(robot, causes, qt[0], ft[0])
+        plan_nom, _ = optimal_plan(robot, (), qt[0], ft[0], m=len(plan))
         F = np.broadcast_to(ft[0], (len(plan), ft.shape[1]))
-        ot_nom_plan = _ot_of(_design_of(robot, np.radians(plan_nom), F, cause), Xt)
+        Xn = model_columns(robot, np.radians(plan_nom), F, causes)
+        scale = np.sqrt(np.mean(Xn**2, axis=(0, 1)))
+        scale[scale == 0] = 1.0
+        ot_nom_plan = _ot_of(Xn / scale, Xt1 / scale)
         out.update({"optimal_plan_extended_deg": plan.round(3).tolist(),
                     "optimal_plan_extended_rms_m": float(np.sqrt(s2 * ot_ext)),
                     "nominal_plan_deg": plan_nom.round(3).tolist(),
                     "nominal_plan_under_extended_rms_m": float(np.sqrt(s2 * ot_nom_plan))
                     if np.isfinite(ot_nom_plan) else None})
     return out
-
-
-def structure_p_value(robot: Robot, meas: Measurements, des: Design, f: Fit, used: list[str]) -> float:
-    """Bonferroni-adjusted smallest p-value of the rank correlations of the residuals with row order,
-    force, pose and torque (:func:`residual_structure`): a lack-of-fit test that needs no replicates."""
-    found = residual_structure(robot, meas, des, f, used, keep=None)
-    return min(1.0, min(r["p_value"] for r in found.values()) * len(found)) if found else 1.0
-
-
-def residual_structure(robot: Robot, meas: Measurements, des: Design, f: Fit, used: list[str],
-                       keep: int | None = 5) -> dict:
-    """What is left: the rank correlations of the residual components with row order, force, pose and
-    torque, strongest first (the ``keep`` strongest; all with keep=None)."""
-    X = np.hstack([des.X0, *[des.blocks[c] for c in used]])
-    resid = (des.y - X @ f.beta).reshape(-1, des.d)
-    tau = torques(robot, meas.q, meas.force)
-    features = {"row order (drift?)": np.arange(meas.n_rows), "force magnitude": np.linalg.norm(meas.force, axis=1),
-                "force direction": np.arctan2(meas.force[:, 1], meas.force[:, 0]),
-                **{f"q{i + 1}": meas.q[:, i] for i in range(robot.n_joints)},
-                **{f"tau{i + 1}": tau[:, i] for i in range(robot.n_joints)}}
-    out = {}
-    for axis in range(des.d):
-        for name, v in features.items():
-            rho, p = stats.spearmanr(v, resid[:, axis])
-            out[f"{'xyz'[axis]} vs {name}"] = {"spearman": float(rho), "p_value": float(p)}
-    ranked = sorted(out.items(), key=lambda kv: kv[1]["p_value"])
-    return dict(ranked if keep is None else ranked[:keep])
 
 
 def residual_features(robot: Robot, meas: Measurements) -> dict[str, np.ndarray]:
@@ -462,29 +927,33 @@ def nominal_residuals(robot: Robot, meas: Measurements, keep: np.ndarray) -> np.
 
 
 def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_pose=None, test_force=None,
-        label: str | None = None) -> dict:
+        label: str | None = None, angle_resolution_deg: float | None = None,
+        force_resolution_N: float | None = None) -> dict:
     """Read, analyse, and write ``out_dir/verdict.json`` and ``out_dir/residuals.{png,svg}``; everything is
-    computed before anything is written, so bad data leave no partial output."""
+    computed before anything is written, so bad data leave no partial output. Resolutions default to
+    :data:`stiffcal.measurements.ANGLE_RESOLUTION_DEG` and :data:`~stiffcal.measurements.FORCE_RESOLUTION_N`."""
     import json
     from pathlib import Path
 
+    from . import measurements as M
     from . import plots
-    from .measurements import read_measurements
 
     if not 0 < alpha < 1:
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="--alpha")
-    meas = read_measurements(data_path, robot)
+    meas = M.read_measurements(data_path, robot,
+                               M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None else angle_resolution_deg,
+                               M.FORCE_RESOLUTION_N if force_resolution_N is None else force_resolution_N)
     verdict = analyse(robot, meas, alpha, test_pose, test_force)
     verdict = {"data": str(data_path), "robot": robot.source, **verdict}
+    text = json.dumps(verdict, indent=2, allow_nan=False)
     keep = np.ones(meas.n_rows, bool)
-    keep[verdict["outlier_rows"]] = False
+    keep[np.isin(meas.rows, verdict["outlier_rows"])] = False
     resid = nominal_residuals(robot, meas, keep)
-    fig = plots.fig_residuals(residual_features(robot, meas.subset(keep)), resid[keep],
+    fig = plots.fig_residuals(meas.subset(keep), residual_features(robot, meas.subset(keep)), resid[keep],
                               verdict["nominal"]["sigma_m"], f"Nominal-model residuals: {label or Path(data_path).name}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plots.save(fig, out / "residuals")
-    text = json.dumps(verdict, indent=2, default=float, allow_nan=False)
     (out / "verdict.json").write_text(text + "\n", encoding="utf-8")
     return verdict
 
@@ -500,10 +969,10 @@ def _ot_of(Xs: np.ndarray, Xt: np.ndarray) -> float:
         return np.inf
 
 
-def optimal_plan(robot: Robot, cause: str | None, test_pose: np.ndarray, test_force: np.ndarray,
+def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
                  m: int | None = None, step_deg: float = 10.0, passes: int = 10):
     """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
-    model nominal + ``cause``, the test force used in every measurement (as in the paper): Fedorov exchange
+    model nominal + ``causes``, the test force used in every measurement (as in the paper): Fedorov exchange
     over a step_deg grid of poses within the joint limits. Returns (poses [deg] (m, n), O_t / sigma^2)."""
     if is_sampled(robot, step_deg):
         pool = sample_joint_space(robot, 12, seed=0)  # a grid would be too large: 4096 quasi-random poses
@@ -512,17 +981,19 @@ def optimal_plan(robot: Robot, cause: str | None, test_pose: np.ndarray, test_fo
         axes = [np.arange(lo, hi + 1e-9, step_deg) for lo, hi in lims]
         pool = np.radians(np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, robot.n_joints))
     F = np.broadcast_to(test_force, (len(pool), len(test_force)))
-    Xp = _design_of(robot, pool, F, cause)
-    Xt = _design_of(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), cause)[0]
+    Xp = model_columns(robot, pool, F, causes)
+    Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True)[0]
+    scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))  # O_t does not depend on the parameters' units: balance them
+    scale[scale == 0] = 1.0
+    Xp, Xt = Xp / scale, Xt / scale
     p, d = Xp.shape[2], Xp.shape[1]
     m = m or int(np.ceil(p / d)) + 1
     info = np.einsum("kdi,kdj->kij", Xp, Xp)
     ridge = 1e-9 * np.trace(info.mean(axis=0)) * np.eye(p)
     chosen: list[int] = []
-    for _ in range(m):  # greedy start on a slightly regularised information matrix
+    for _ in range(m):  # greedy D-optimal start (spread poses: a nonsingular plan), then exchange on O_t
         base = sum((info[i] for i in chosen), ridge)
-        vals = np.einsum("ij,kji->k", Xt.T @ Xt, np.linalg.inv(base + info))
-        chosen.append(int(np.argmin(vals)))
+        chosen.append(int(np.argmax(np.linalg.slogdet(base + info)[1])))
     best = _ot_of(Xp[chosen], Xt)
     for _ in range(passes):
         improved = False

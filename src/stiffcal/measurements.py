@@ -1,51 +1,198 @@
-"""Measured deflections in the CSV contract of DESIGN.md, read and validated.
+"""Measured deflections: the CSV contract (docs), read, validated and sorted into configurations, loads,
+replicates and the unloaded zero point.
 
-One row per measurement: ``pose_id`` (optional), ``q1_deg`` ... ``qn_deg``, ``fx_N``, ``fy_N``, ``dx_m``,
-``dy_m``: the end-effector displacement between the unloaded and the loaded state. Every problem is one
-:class:`InputError` naming the file, the row (1-based line of the file) and the column; nothing is fitted
-on bad data.
+One row per measurement, units in the column names: ``pose_id`` (optional: a label of the robot
+configuration), ``q1_deg`` ... ``qn_deg``, ``fx_N``, ``fy_N`` (``fz_N``), ``dx_m``, ``dy_m`` (``dz_m``): the
+displacement of the measured point between the unloaded and the loaded state.
+
+How rows are grouped (calibration labs measure every configuration under several loads, often repeating
+the load sequence):
+
+- **replicates** are rows whose joint angles agree within ``angle_resolution_deg`` and whose force agrees
+  within ``force_resolution_N`` (component by component; rows linked through a chain of such pairs form one
+  group), whatever their ``pose_id``. Their spread is the pure error.
+- **configurations** are rows whose joint angles agree within ``angle_resolution_deg``; with a ``pose_id``
+  column, the label names the configuration, and rows sharing a label must share their joint angles.
+  Configurations are what leave-one-configuration-out prediction and the residual plots use.
+- **unloaded rows** (every force component within ``force_resolution_N`` of zero) are the zero point of the
+  displacement, not a measurement of compliance: they are set aside (``zero_rows``) and used only to check
+  that the zero point did not move.
+
+Every problem is one :class:`InputError` naming the file, the row (1-based line of the file and 0-based
+data row) and the column; nothing is fitted on bad data.
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from .errors import InputError
 from .robot import Robot
 
+#: default resolutions that decide which rows repeat a configuration or a load (documented in docs/)
+ANGLE_RESOLUTION_DEG = 0.01
+FORCE_RESOLUTION_N = 0.5
+
 _UNITS = {"q": "deg", "f": "N", "d": "m"}
 _PATTERN = re.compile(r"^(q\d+|f[xyz]|d[xyz])(?:_(.*))?$")
 _NAMES = {"q": "joint angles", "f": "force components", "d": "displacements"}
+_UNSUPPORTED = re.compile(r"^(m[xyz]|r[xyz])(_.*)?$|^target$")
+_MAX_LISTED = 5
+
+
+def cluster(values: np.ndarray, resolution: np.ndarray, period: np.ndarray | None = None) -> np.ndarray:
+    """Labels (N,) int of the connected groups of rows that agree within ``resolution`` on every column.
+
+    values: (N, k); resolution: (k,) > 0; period: (k,) the period of each column (360 for an angle in
+    degrees, inf for none). Two rows are linked when ``|v_i - v_j| <= resolution`` in every column (modulo
+    the period); groups are the connected components of that graph (single linkage). Labels count from 0 in
+    the order of each group's first row, so they do not depend on anything but the row order.
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    values = np.asarray(values, float)
+    n = len(values)
+    if n == 0:
+        return np.zeros(0, int)
+    scaled = values / resolution
+    box = None
+    if period is not None:
+        box = np.where(np.isfinite(period), np.asarray(period, float) / resolution, np.inf)
+        periodic = np.isfinite(box)
+        # the tree wants every coordinate in [0, box): wrap the periodic ones, shift the others
+        scaled = np.where(periodic, np.mod(scaled, np.where(periodic, box, 1.0)), scaled - scaled.min(axis=0))
+    pairs = cKDTree(scaled, boxsize=box).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    _, raw = connected_components(graph, directed=False)
+    _, first = np.unique(raw, return_index=True)
+    order = np.empty(len(first), int)
+    order[np.argsort(np.argsort(first))] = np.arange(len(first))  # relabel by first occurrence
+    return order[raw]
 
 
 @dataclass(frozen=True)
 class Measurements:
-    """q (N, n) [rad]; force (N, d) [N]; dp (N, d) [m]; group (N,) int: rows with equal group are
-    replicates (same pose and force); source: the file."""
+    """Loaded measurements of one data set (unloaded reference rows are kept apart, see the module docstring).
+
+    q (N, n) [rad]; force (N, d) [N]; dp (N, d) [m]; group (N,) int: replicate groups (rows with equal
+    group repeat one configuration under one load); source: the file (for messages);
+    config (N,) int: configurations (None: from the joint angles at the default resolution);
+    config_labels: one label per configuration (the ``pose_id`` or the joint angles);
+    rows (N,) int: 0-based data-row index of each measurement in the file (None: 0..N-1);
+    zero_rows (N0,) int, zero_dp (N0, d) [m], zero_config (N0,) int: the unloaded reference rows, their
+    displacement and configuration (-1 when no loaded row shares their joint angles);
+    notes: what the reader noticed (unused columns, ignored blank labels);
+    resolutions: (angle [deg], force [N]) used to group the rows.
+    """
 
     q: np.ndarray
     force: np.ndarray
     dp: np.ndarray
     group: np.ndarray
     source: str
+    config: np.ndarray | None = None
+    config_labels: tuple[str, ...] = ()
+    rows: np.ndarray | None = None
+    zero_rows: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    zero_dp: np.ndarray | None = None
+    zero_config: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    notes: tuple[str, ...] = ()
+    resolutions: tuple[float, float] = (ANGLE_RESOLUTION_DEG, FORCE_RESOLUTION_N)
+
+    def __post_init__(self):
+        n_rows = len(self.q)
+        if self.config is None:
+            config = cluster(np.degrees(self.q), np.full(self.q.shape[1], self.resolutions[0]),
+                             np.full(self.q.shape[1], 360.0))
+            object.__setattr__(self, "config", config)
+        if not self.config_labels:
+            object.__setattr__(self, "config_labels", tuple(_angle_label(np.degrees(self.q[np.flatnonzero(
+                self.config == c)[0]])) for c in range(int(self.config.max(initial=-1)) + 1)))
+        if self.rows is None:
+            object.__setattr__(self, "rows", np.arange(n_rows))
+        if self.zero_dp is None:
+            object.__setattr__(self, "zero_dp", np.zeros((0, self.dp.shape[1])))
+
+    @classmethod
+    def from_arrays(cls, q, force, dp, source: str = "<memory>", config=None,
+                    angle_resolution_deg: float = ANGLE_RESOLUTION_DEG,
+                    force_resolution_N: float = FORCE_RESOLUTION_N) -> "Measurements":
+        """Measurements from arrays of loaded rows, grouped into replicates and configurations by the
+        resolutions (module docstring). q (N, n) [rad]; force (N, d) [N]; dp (N, d) [m]; config (N,) optional
+        configuration labels."""
+        q, force, dp = (np.asarray(a, float) for a in (q, force, dp))
+        res = (float(angle_resolution_deg), float(force_resolution_N))
+        group = replicate_groups(np.degrees(q), force, *res)
+        cfg = None if config is None else np.unique(np.asarray(config), return_inverse=True)[1].ravel()
+        return cls(q, force, dp, group, source, config=cfg, resolutions=res)
 
     @property
     def n_rows(self) -> int:
         return len(self.q)
 
-    def subset(self, rows: np.ndarray) -> "Measurements":
-        return Measurements(self.q[rows], self.force[rows], self.dp[rows], self.group[rows], self.source)
+    @property
+    def n_configurations(self) -> int:
+        return int(self.config.max(initial=-1)) + 1
+
+    def subset(self, keep: np.ndarray) -> "Measurements":
+        """The measurements of the rows ``keep`` (bool mask or indices); configurations keep their labels."""
+        keep = np.flatnonzero(keep) if np.asarray(keep).dtype == bool else np.asarray(keep, int)
+        used, config = np.unique(self.config[keep], return_inverse=True)
+        return Measurements(self.q[keep], self.force[keep], self.dp[keep], self.group[keep], self.source,
+                            config.ravel(), tuple(self.config_labels[c] for c in used), self.rows[keep],
+                            self.zero_rows, self.zero_dp, self.zero_config, self.notes, self.resolutions)
+
+    def structure(self) -> dict:
+        """Counts that say how the data were taken: configurations, loads per configuration, replicate
+        groups and their sizes, unloaded rows (all plain ints, JSON-ready)."""
+        loads = [len(np.unique(self.group[self.config == c])) for c in range(self.n_configurations)]
+        sizes = np.bincount(self.group)
+        return {"n_rows": int(self.n_rows), "n_configurations": self.n_configurations,
+                "loads_per_configuration": _span(loads), "n_replicate_groups": int(len(sizes)),
+                "replicates_per_group": _span(sizes[sizes > 0]),
+                "n_groups_with_replicates": int(np.sum(sizes > 1)), "n_unloaded_rows": int(len(self.zero_rows)),
+                "angle_resolution_deg": self.resolutions[0], "force_resolution_N": self.resolutions[1]}
+
+
+def _span(counts) -> dict:
+    counts = np.asarray(counts, int)
+    if counts.size == 0:
+        return {"min": 0, "median": 0, "max": 0}
+    return {"min": int(counts.min()), "median": float(np.median(counts)), "max": int(counts.max())}
+
+
+def _angle_label(q_deg: np.ndarray) -> str:
+    return "q = (" + ", ".join(f"{v:.2f}" for v in q_deg) + ") deg"
+
+
+def replicate_groups(q_deg: np.ndarray, force: np.ndarray, angle_resolution_deg: float = ANGLE_RESOLUTION_DEG,
+                     force_resolution_N: float = FORCE_RESOLUTION_N) -> np.ndarray:
+    """(N,) replicate-group labels: rows whose joint angles [deg] (N, n) and forces [N] (N, d) agree within
+    the resolutions (:func:`cluster`, angles modulo 360 deg)."""
+    n, d = q_deg.shape[1], force.shape[1]
+    res = np.r_[np.full(n, angle_resolution_deg), np.full(d, force_resolution_N)]
+    period = np.r_[np.full(n, 360.0), np.full(d, np.inf)]
+    return cluster(np.hstack([q_deg, force]), res, period)
 
 
 def expected_columns(robot: Robot) -> list[str]:
     axes = "xyz"[: robot.task_dim]
     return ([f"q{i + 1}_deg" for i in range(robot.n_joints)] + [f"f{a}_N" for a in axes]
             + [f"d{a}_m" for a in axes])
+
+
+def _rows_text(rows: np.ndarray) -> str:
+    """'rows 2, 5 and 9 (data rows 0, 3, 7)': file lines (header = line 1) and 0-based data rows."""
+    rows = np.asarray(rows, int)[:_MAX_LISTED]
+    more = "" if len(rows) < _MAX_LISTED else ", ..."
+    return (f"row{'s' if len(rows) > 1 else ''} {', '.join(str(r + 2) for r in rows)}{more} "
+            f"(data row{'s' if len(rows) > 1 else ''} {', '.join(str(r) for r in rows)}{more})")
 
 
 def _check_units(columns, source: str) -> None:
@@ -61,9 +208,63 @@ def _check_units(columns, source: str) -> None:
                              f"got {got}", source=source, field=f"column {col}")
 
 
-def read_measurements(path: str | Path, robot: Robot) -> Measurements:
-    """Read and validate a measured-data CSV for ``robot``."""
+def _numbers(df, cols: list[str], source: str) -> np.ndarray:
+    import pandas as pd
+
+    values = np.empty((len(df), len(cols)))
+    for j, c in enumerate(cols):
+        num = pd.to_numeric(df[c].str.strip(), errors="coerce").to_numpy(float)
+        bad = np.flatnonzero(~np.isfinite(num))
+        if bad.size:
+            r = bad[0]
+            raise InputError(f"expected a finite number, got {df[c].iloc[r]!r}", source=source,
+                             field=f"row {r + 2} (data row {r}), column {c}")
+        values[:, j] = num
+    return values
+
+
+def _configurations(labels, q_deg: np.ndarray, angle_res: float, source: str) -> tuple[np.ndarray, tuple]:
+    """Configuration index per row and the label of each, from ``pose_id`` labels (checked against the joint
+    angles) or, without labels, from the joint angles."""
+    n = q_deg.shape[1]
+    by_angle = cluster(q_deg, np.full(n, angle_res), np.full(n, 360.0))
+    if labels is None:
+        first = [int(np.flatnonzero(by_angle == c)[0]) for c in range(by_angle.max(initial=-1) + 1)]
+        return by_angle, tuple(_angle_label(q_deg[i]) for i in first)
+    names, config = np.unique(labels, return_inverse=True)
+    config = config.ravel()
+    for c in range(len(names)):
+        rows = np.flatnonzero(config == c)
+        if len(np.unique(by_angle[rows])) > 1:
+            other = rows[by_angle[rows] != by_angle[rows[0]]]
+            diff = np.abs((q_deg[other[0]] - q_deg[rows[0]] + 180.0) % 360.0 - 180.0)
+            j = int(np.argmax(diff))
+            raise InputError(
+                f"pose_id {names[c]!r} labels one robot configuration, but {_rows_text([rows[0], other[0]])} "
+                f"differ by {diff[j]:.4g} deg in q{j + 1} (more than the angle resolution of {angle_res:g} deg); "
+                "give each configuration its own pose_id, or raise the angle resolution", source=source,
+                field="column pose_id")
+    # relabel by first occurrence, so that configuration numbers follow the file
+    _, first = np.unique(config, return_index=True)
+    rank = np.argsort(np.argsort(first))
+    return rank[config], tuple(str(names[i]) for i in np.argsort(rank))
+
+
+def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: float = ANGLE_RESOLUTION_DEG,
+                      force_resolution_N: float = FORCE_RESOLUTION_N) -> Measurements:
+    """Read and validate a measured-data CSV for ``robot`` (module docstring).
+
+    Raises :class:`InputError` (naming the file, row and column) for: an unreadable file; a column with a
+    wrong or missing unit; missing or surplus joint, force or displacement columns; a value that is not a
+    finite number; blank ``pose_id`` cells beside filled ones; rows that share a ``pose_id`` but not their
+    joint angles; no loaded row. Columns the analysis does not use are named in ``notes``.
+    """
+    import pandas as pd
+
     source = str(path)
+    for name, v in (("angle resolution", angle_resolution_deg), ("force resolution", force_resolution_N)):
+        if not (np.isfinite(v) and v > 0):
+            raise InputError(f"expected a {name} > 0, got {v}", field=name.replace(" ", "_"))
     try:
         df = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
@@ -80,24 +281,52 @@ def read_measurements(path: str | Path, robot: Robot) -> Measurements:
     if missing:
         raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(cols)} (and optionally pose_id)",
                          source=source)
+    unsupported = [c for c in df.columns if _UNSUPPORTED.match(c)]
+    if unsupported:
+        raise InputError(f"column {unsupported[0]}: moments, orientation deflections and several targets are not "
+                         "supported by this version; dropping them would bias the compliances, so remove the "
+                         "column only if its values are zero", source=source, field=f"column {unsupported[0]}")
     if len(df) == 0:
         raise InputError("no measurements (the file has a header only)", source=source)
-    values = np.empty((len(df), len(cols)))
-    for j, c in enumerate(cols):
-        num = pd.to_numeric(df[c].str.strip(), errors="coerce").to_numpy(float)
-        bad = np.flatnonzero(~np.isfinite(num))
-        if bad.size:
-            r = bad[0]
-            raise InputError(f"expected a finite number, got {df[c].iloc[r]!r}", source=source,
-                             field=f"row {r + 2} (data row {r}), column {c}")
-        values[:, j] = num
+    notes = []
+    surplus = [c for c in df.columns if _PATTERN.match(c) and c not in cols]
+    if surplus:
+        notes.append(f"column(s) {', '.join(surplus)} do not belong to a {robot.kind} robot with {robot.task_dim} "
+                     f"measured coordinates and are ignored")
+    unused = [c for c in df.columns if c not in cols and c != "pose_id" and c not in surplus]
+    if unused:
+        notes.append(f"column(s) {', '.join(unused)} not used by the analysis")
+    values = _numbers(df, cols, source)
     n, d = robot.n_joints, robot.task_dim
-    q = np.radians(values[:, :n])
-    force = values[:, n:n + d]
-    dp = values[:, n + d:]
+    q_deg, force, dp = values[:, :n], values[:, n:n + d], values[:, n + d:]
+
+    labels = None
     if "pose_id" in df.columns:
-        _, group = np.unique(df["pose_id"].str.strip().to_numpy(), return_inverse=True)
-    else:
-        key = np.round(np.hstack([values[:, :n], force]), 9)
-        _, group = np.unique(key, axis=0, return_inverse=True)
-    return Measurements(q, force, dp, group.ravel(), source)
+        raw = df["pose_id"].str.strip().to_numpy()
+        blank = np.flatnonzero(raw == "")
+        if blank.size == len(raw):
+            notes.append("column pose_id is blank in every row: configurations come from the joint angles")
+        elif blank.size:
+            raise InputError(f"pose_id is blank in {_rows_text(blank)} but filled in the other rows; give every "
+                             "row the label of its robot configuration, or drop the column (configurations are "
+                             "then found from the joint angles)", source=source, field="column pose_id")
+        else:
+            labels = raw
+    config, names = _configurations(labels, q_deg, angle_resolution_deg, source)
+
+    unloaded = np.all(np.abs(force) <= force_resolution_N, axis=1)
+    if unloaded.all():
+        raise InputError(f"every row is unloaded (all force components within {force_resolution_N:g} N of zero); "
+                         "expected measurements under load", source=source)
+    loaded = np.flatnonzero(~unloaded)
+    zero = np.flatnonzero(unloaded)
+    if zero.size:
+        notes.append(f"{zero.size} unloaded row(s) ({_rows_text(zero)}) taken as the zero point, not as "
+                     "measurements")
+    cfg_loaded, cfg_index = np.unique(config[loaded], return_inverse=True)
+    lookup = {int(c): i for i, c in enumerate(cfg_loaded)}
+    zero_config = np.array([lookup.get(int(c), -1) for c in config[zero]], int)
+    res = (float(angle_resolution_deg), float(force_resolution_N))
+    group = replicate_groups(q_deg[loaded], force[loaded], *res)
+    return Measurements(np.radians(q_deg[loaded]), force[loaded], dp[loaded], group, source, cfg_index.ravel(),
+                        tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config, tuple(notes), res)

@@ -221,9 +221,11 @@ def discrepancy(config: dict, name: str, out_verdict: str) -> None:
     qt = study.test_pose if robot.n_joints == study.robot.n_joints else None
     label = f"{name} ({'SYNTHETIC data' if entry.get('synthetic') else entry['data']})"
     v = run(robot, entry["data"], str(Path(out_verdict).parent), float(entry.get("alpha", 0.01)), qt,
-            force if qt is not None else None, label)
-    _log(f"{name}: cause {v['cause']} (p = {v['p_value']:.3g}), indistinguishable from "
+            force if qt is not None else None, label, entry.get("angle_resolution_deg"), entry.get("force_resolution_N"))
+    _log(f"{name}: cause {v['cause']} (causes {v['causes']}, p = {v['p_value']:.3g}), indistinguishable from "
          f"{v['indistinguishable_from'] or 'none'}, outlier rows {v['outlier_rows']}")
+    for note in v["notes"]:
+        _log(f"{name}: note: {note}")
 
 
 def _optimal_set(t2: pd.DataFrame, key: str) -> np.ndarray:

@@ -204,24 +204,49 @@ def fig_optimal_poses(df: pd.DataFrame, figure: int):
         return fig
 
 
-def fig_residuals(features: dict[str, np.ndarray], resid: np.ndarray, sigma: float, title: str):
-    """Residuals of the nominal fit [m] against pose, force magnitude, force direction and joint torque
-    (one panel per feature; x and y components; the +-2 sigma band of the noise)."""
+def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigma: float, title: str):
+    """Residuals of the nominal fit [m]: first per robot configuration (every load of a configuration side by
+    side, coloured by the force magnitude, so that a response that grows with the load, or a step that
+    follows the load's sign, shows), then against pose, force magnitude, force direction and joint torque
+    (one panel per feature; x, y (z) components; the +-2 sigma band of the noise).
+
+    meas: :class:`stiffcal.measurements.Measurements` of the rows plotted (N rows); features: name -> (N,);
+    resid: (N, d) [m]; sigma [m]."""
     with plt.rc_context(STYLE):
-        k = len(features)
+        k = len(features) + 1
         cols = min(3, k)
-        rows = int(np.ceil(k / cols))
-        fig, axes = plt.subplots(rows, cols, figsize=(3.2 * cols, 2.5 * rows), layout="constrained", squeeze=False)
-        for ax, (name, v) in zip(axes.ravel(), features.items()):
+        rows = int(np.ceil((k + cols - 1) / cols))
+        fig = plt.figure(figsize=(3.2 * cols, 2.5 * rows), layout="constrained")
+        grid = fig.add_gridspec(rows, cols)
+        ax0 = fig.add_subplot(grid[0, :])
+        fmag = np.linalg.norm(meas.force, axis=1)
+        order = np.argsort(meas.config, kind="stable")
+        n_cfg = max(meas.n_configurations, 1)
+        # within a configuration, spread its rows by load (sorted by force magnitude) across 0.7 of a slot
+        slot = np.zeros(len(fmag))
+        for c in range(n_cfg):
+            r = np.flatnonzero(meas.config == c)
+            rank = np.argsort(np.argsort(fmag[r], kind="stable"), kind="stable")
+            slot[r] = c - 0.35 + 0.7 * (rank + 0.5) / max(len(r), 1)
+        norm = plt.Normalize(fmag.min(), fmag.max() if fmag.max() > fmag.min() else fmag.min() + 1.0)
+        for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
+            if j < resid.shape[1]:
+                sc = ax0.scatter(slot[order], resid[order, j] * 1e6, c=fmag[order], cmap="viridis", norm=norm,
+                                 marker=mk, s=9, alpha=0.85, label=f"d{lab}")
+        ax0.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
+        ax0.set_xlim(-0.6, n_cfg - 0.4)
+        ax0.set_xlabel(f"robot configuration ({n_cfg}; the loads of each side by side)")
+        ax0.set_ylabel("residual [µm]")
+        fig.colorbar(sc, ax=ax0, label="|F| [N]", pad=0.01)
+        ax0.legend(fontsize=7, loc="upper right")
+        for i, (name, v) in enumerate(features.items()):
+            ax = fig.add_subplot(grid[1 + i // cols, i % cols])
             for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
                 if j < resid.shape[1]:
                     ax.plot(v, resid[:, j] * 1e6, mk, ms=3, alpha=0.7, label=f"d{lab}")
             ax.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
             ax.set_xlabel(name)
             ax.set_ylabel("residual [µm]")
-        for ax in axes.ravel()[k:]:
-            ax.axis("off")
-        axes[0, 0].legend(fontsize=7)
         fig.suptitle(title)
         return fig
 

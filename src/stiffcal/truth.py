@@ -32,6 +32,8 @@ class Truth:
     link_bending: (n,) 1/(E I) of each link [1/(N m^2)];
     offset: (d,) constant bias of the measuring system [m];
     drift: (d,) drift of the measuring system per measurement (row order) [m];
+    modulation: (n,) relative change of each joint's compliance with its own angle,
+    k_i (1 + modulation_i cos q_i) (a gear whose stiffness varies over its turn; outside the catalogue);
     """
 
     k: np.ndarray
@@ -42,6 +44,7 @@ class Truth:
     link_bending: np.ndarray | None = None
     offset: np.ndarray | None = None
     drift: np.ndarray | None = None
+    modulation: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
 
 
@@ -50,9 +53,11 @@ def joint_torques(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
     return np.einsum("ndj,nd->nj", robot.jacobian(q), force)
 
 
-def joint_deflections(truth: Truth, tau: np.ndarray) -> np.ndarray:
-    """dq (N, n) [rad] from the joint torque-deflection laws."""
+def joint_deflections(truth: Truth, tau: np.ndarray, q: np.ndarray | None = None) -> np.ndarray:
+    """dq (N, n) [rad] from the joint torque-deflection laws (q (N, n) [rad] for ``modulation``)."""
     k = np.asarray(truth.k, float)
+    if truth.modulation is not None:
+        k = k * (1.0 + np.asarray(truth.modulation, float) * np.cos(q))
     dq = k * tau
     if truth.tau_max is not None:
         dq = k * tau / np.sqrt(1.0 - (tau / np.asarray(truth.tau_max, float)) ** 2)
@@ -93,20 +98,29 @@ def link_bending_displacement(robot: Robot, q: np.ndarray, force: np.ndarray, c:
     return out[:, : robot.task_dim]
 
 
-def simulate(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, sigma: float,
-             rng: np.random.Generator, blunders: dict[int, np.ndarray] | None = None) -> np.ndarray:
-    """Measured displacements dp (N, d) [m]: the physics of ``truth`` plus N(0, sigma^2) noise per
-    coordinate; blunders {row: (d,) extra error [m]} adds gross errors."""
+def physics(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
+    """Noise-free measured displacements (N, d) [m] of ``truth``: joint laws, link bending, and the measuring
+    system's offset and drift (``order`` (N,): the time order of each row, default the row index)."""
     tau = joint_torques(robot, q, force)
-    dq = joint_deflections(truth, tau)
+    dq = joint_deflections(truth, tau, q)
     dp = np.einsum("ndj,nj->nd", robot.jacobian(q), dq)
     if truth.link_bending is not None:
         dp = dp + link_bending_displacement(robot, q, force, np.asarray(truth.link_bending, float))
     if truth.offset is not None:
         dp = dp + np.asarray(truth.offset, float)
     if truth.drift is not None:
-        dp = dp + np.arange(len(q))[:, None] * np.asarray(truth.drift, float)
-    dp = dp + rng.normal(0.0, sigma, dp.shape)
+        t = np.arange(len(q)) if order is None else np.asarray(order, float)
+        dp = dp + t[:, None] * np.asarray(truth.drift, float)
+    return dp
+
+
+def simulate(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, sigma,
+             rng: np.random.Generator, blunders: dict[int, np.ndarray] | None = None,
+             order: np.ndarray | None = None) -> np.ndarray:
+    """Measured displacements dp (N, d) [m]: :func:`physics` plus N(0, sigma^2) noise per coordinate (sigma
+    [m] a scalar or one per row, (N,)); blunders {row: (d,) extra error [m]} adds gross errors."""
+    dp = physics(robot, truth, q, force, order)
+    dp = dp + rng.normal(0.0, 1.0, dp.shape) * np.reshape(np.broadcast_to(sigma, (len(q),)), (-1, 1))
     for row, err in (blunders or {}).items():
         dp[row] += err
     return dp
@@ -122,3 +136,122 @@ def random_experiment(robot: Robot, rng: np.random.Generator, n_poses: int = 30,
     f = mag[:, None] * random_directions(rng, n_poses, robot.task_dim)
     idx = np.repeat(np.arange(n_poses), replicates)
     return q[idx], f[idx], idx
+
+
+# --- measurement protocols of calibration labs ---------------------------------------------------------
+
+@dataclass(frozen=True)
+class Protocol:
+    """How a lab loads and measures the robot.
+
+    loads: ``"hanging"`` (weights hanging on the tool: the force along gravity, -y for a planar arm in a
+    vertical plane, -z for a spatial one, one magnitude per mass), ``"directions"`` (pushes in ``n_directions``
+    directions equally spaced in the plane, from a random start per configuration, at every magnitude),
+    ``"pushes3d"`` (``n_directions`` random 3-D directions per configuration at every magnitude) or
+    ``"random"`` (one random direction and magnitude per configuration); magnitudes_N [N]; repeats: how
+    often the load sequence is measured at each configuration (1: no replicates); interleaved: the whole
+    plan is measured once, then repeated (replicates far apart in time) instead of repeating the load
+    sequence on the spot; unloaded_rows: an unloaded reference row (zero force, zero displacement) logged
+    before every loaded one; tracker_m: the tracker's position [m] in the robot's frame, the noise growing
+    with the distance to it as sigma_m + sigma_per_m * distance [m] (a laser tracker's MPE has that form);
+    pose_id: whether the log numbers the configurations.
+    """
+
+    name: str
+    loads: str = "hanging"
+    magnitudes_N: tuple[float, ...] = (147.1, 294.2, 490.3, 784.5)
+    n_directions: int = 4
+    repeats: int = 2
+    interleaved: bool = False
+    unloaded_rows: bool = False
+    sigma_m: float = 1e-5
+    sigma_per_m: float = 0.0
+    tracker_m: tuple[float, ...] = (2.5, 0.5, 0.0)
+
+
+@dataclass(frozen=True)
+class LabLog:
+    """A simulated measurement log: one row per reading, in time order. q (N, n) [rad]; force (N, d) [N];
+    config (N,) int (the configuration each row belongs to); loaded (N,) bool (False: an unloaded reference
+    row); sigma (N,) [m] the noise of each row."""
+
+    q: np.ndarray
+    force: np.ndarray
+    config: np.ndarray
+    loaded: np.ndarray
+    sigma: np.ndarray
+
+
+def _gravity(d: int) -> np.ndarray:
+    return np.array([0.0, -1.0]) if d == 2 else np.array([0.0, 0.0, -1.0])
+
+
+def configuration_loads(protocol: Protocol, d: int, rng: np.random.Generator) -> np.ndarray:
+    """(L, d) [N]: the load sequence of one configuration (:class:`Protocol`)."""
+    mags = np.asarray(protocol.magnitudes_N, float)
+    if protocol.loads == "hanging":
+        return mags[:, None] * _gravity(d)
+    if protocol.loads == "random":
+        return rng.uniform(mags.min(), mags.max()) * random_directions(rng, 1, d)
+    if protocol.loads == "directions":
+        start = rng.uniform(-np.pi, np.pi)
+        ang = start + 2 * np.pi * np.arange(protocol.n_directions) / protocol.n_directions
+        u = np.stack([np.cos(ang), np.sin(ang)], -1)
+        if d == 3:  # pushes in the horizontal plane
+            u = np.concatenate([u, np.zeros((len(u), 1))], -1)
+    elif protocol.loads == "pushes3d":
+        u = random_directions(rng, protocol.n_directions, d)
+    else:
+        raise ValueError(f"unknown load protocol {protocol.loads!r}")
+    return (u[:, None, :] * mags[None, :, None]).reshape(-1, d)
+
+
+def lab_log(robot: Robot, protocol: Protocol, rng: np.random.Generator, n_configs: int = 40) -> LabLog:
+    """The rows a lab following ``protocol`` logs at ``n_configs`` random configurations within the joint
+    limits (time order; see :class:`Protocol`)."""
+    lims = robot.joint_limits_rad
+    d = robot.task_dim
+    configs = rng.uniform(lims[:, 0], lims[:, 1], (n_configs, robot.n_joints))
+    per = [configuration_loads(protocol, d, rng) for _ in range(n_configs)]
+    once = [(c, f) for c in range(n_configs) for f in per[c]]
+    if protocol.interleaved:
+        seq = once * protocol.repeats
+    else:
+        seq = [(c, f) for c in range(n_configs) for _ in range(protocol.repeats) for f in per[c]]
+    rows = []
+    for c, f in seq:
+        if protocol.unloaded_rows:
+            rows.append((c, np.zeros(d), False))
+        rows.append((c, f, True))
+    config = np.array([r[0] for r in rows])
+    force = np.array([r[1] for r in rows])
+    loaded = np.array([r[2] for r in rows])
+    q = configs[config]
+    tracker = as_xyz(np.asarray(protocol.tracker_m, float)[:d])
+    dist = np.linalg.norm(as_xyz(robot.fk(q)) - tracker, axis=-1)
+    return LabLog(q, force, config, loaded, protocol.sigma_m + protocol.sigma_per_m * dist)
+
+
+def measure(robot: Robot, truth: Truth, log: LabLog, rng: np.random.Generator,
+            blunders: dict[int, np.ndarray] | None = None) -> np.ndarray:
+    """Displacements (N, d) [m] of every row of ``log``: loaded rows from :func:`simulate` (the drift runs
+    in time order over all rows), unloaded reference rows exactly zero (the log's reference)."""
+    dp = simulate(robot, truth, log.q, log.force, log.sigma, rng, blunders, order=np.arange(len(log.q)))
+    dp[~log.loaded] = 0.0
+    return dp
+
+
+def lab_csv(robot: Robot, log: LabLog, dp: np.ndarray, pose_id: bool = True) -> str:
+    """The log as the measured-data CSV a lab would write (``pose_id`` numbering the configurations from 1,
+    when asked), angles to 1e-4 deg, forces to 0.01 N and displacements to 1e-9 m as trackers print them."""
+    n, d = robot.n_joints, robot.task_dim
+    axes = "xyz"[:d]
+    head = (["pose_id"] if pose_id else []) + [f"q{i + 1}_deg" for i in range(n)] + [f"f{a}_N" for a in axes] \
+        + [f"d{a}_m" for a in axes]
+    lines = [",".join(head)]
+    qd = np.degrees(log.q)
+    for r in range(len(qd)):
+        cells = ([str(int(log.config[r]) + 1)] if pose_id else []) + [f"{v:.4f}" for v in qd[r]] \
+            + [f"{v:.2f}" for v in log.force[r]] + [f"{v:.9e}" for v in dp[r]]
+        lines.append(",".join(cells))
+    return "\n".join(lines) + "\n"
