@@ -212,6 +212,7 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
 
     meas: :class:`stiffcal.measurements.Measurements` of the rows plotted (N rows); features: name -> (N,);
     resid: (N, d) [m]; sigma [m]."""
+    features = {k: v for k, v in features.items() if np.ptp(v) > 1e-3 * max(np.abs(v).max(), 1e-12)}  # not constant
     with plt.rc_context(STYLE):
         k = len(features) + 1
         cols = min(3, k)
@@ -220,6 +221,9 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
         grid = fig.add_gridspec(rows, cols)
         ax0 = fig.add_subplot(grid[0, :])
         fmag = np.linalg.norm(meas.force, axis=1)
+        # colour by what varies between the loads: the magnitude (hanging weights), else the direction
+        by_magnitude = np.ptp(fmag) > 0.05 * fmag.mean()
+        colour = fmag if by_magnitude else np.degrees(np.arctan2(meas.force[:, 1], meas.force[:, 0]))
         order = np.argsort(meas.config, kind="stable")
         n_cfg = max(meas.n_configurations, 1)
         # within a configuration, spread its rows by load (sorted by force magnitude) across 0.7 of a slot
@@ -228,16 +232,17 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
             r = np.flatnonzero(meas.config == c)
             rank = np.argsort(np.argsort(fmag[r], kind="stable"), kind="stable")
             slot[r] = c - 0.35 + 0.7 * (rank + 0.5) / max(len(r), 1)
-        norm = plt.Normalize(fmag.min(), fmag.max() if fmag.max() > fmag.min() else fmag.min() + 1.0)
+        norm = (plt.Normalize(fmag.min(), fmag.max()) if by_magnitude else plt.Normalize(-180.0, 180.0))
         for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
             if j < resid.shape[1]:
-                sc = ax0.scatter(slot[order], resid[order, j] * 1e6, c=fmag[order], cmap="viridis", norm=norm,
+                sc = ax0.scatter(slot[order], resid[order, j] * 1e6, c=colour[order],
+                                 cmap="viridis" if by_magnitude else "twilight", norm=norm,
                                  marker=mk, s=9, alpha=0.85, label=f"d{lab}")
         ax0.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
         ax0.set_xlim(-0.6, n_cfg - 0.4)
         ax0.set_xlabel(f"robot configuration ({n_cfg}; the loads of each side by side)")
         ax0.set_ylabel("residual [µm]")
-        fig.colorbar(sc, ax=ax0, label="|F| [N]", pad=0.01)
+        fig.colorbar(sc, ax=ax0, label="|F| [N]" if by_magnitude else "force direction [deg]", pad=0.01)
         ax0.legend(fontsize=7, loc="upper right")
         for i, (name, v) in enumerate(features.items()):
             ax = fig.add_subplot(grid[1 + i // cols, i % cols])
