@@ -222,24 +222,28 @@ def test_link_regressors_equal_the_integrated_beam_of_the_truth(rng):
     assert np.allclose(ours, T.link_bending_displacement(robot, q, f, c), rtol=1e-10, atol=1e-18)
 
 
-def test_oracle_power_equals_a_monte_carlo_of_the_oracle_test(rng):
-    """The noncentral-F power of the oracle against the rejection rate of that 1-df test on simulated noise."""
+@pytest.mark.parametrize("block", [None, "backlash"])
+def test_oracle_power_equals_a_monte_carlo_of_the_oracle_test(rng, block):
+    """The noncentral-F power of the oracle (exact shape: 1 df; cause block: the backlash regressors) against
+    the rejection rate of that F-test on simulated noise."""
     robot = planar_robot([0.6, 0.4])
     log = T.lab_log(robot, R.PROTOCOLS["4 directions x 2, repeated"], rng, 10)
     rows = log.loaded
     X = D._stack(D.nominal_columns(robot, log.q[rows], log.force[rows]))
-    e = D._stack(D.cause_columns("backlash", robot, log.q[rows], log.force[rows])) @ np.array([1.0, -0.5]) * 6.5e-6
+    B = D._stack(D.cause_columns("backlash", robot, log.q[rows], log.force[rows]))
+    e = B @ np.array([1.0, -0.5]) * 6.5e-6
     df = 60
-    power = R.oracle_power(robot, log, e.reshape(-1, 2), [], 0.01, df)
-    Xe = np.hstack([X, e[:, None]])
-    crit = stats.f.isf(0.01, 1, df)
+    power = R.oracle_power(robot, log, e.reshape(-1, 2), [], 0.01, df, block=block)
+    Xe = np.hstack([X, e[:, None] if block is None else B])
+    r = Xe.shape[1] - X.shape[1]
+    crit = stats.f.isf(0.01, r, df)
     hits, n = 0, 2000
     for _ in range(n):
         y = e + rng.normal(0, SIGMA, len(e))
         r0 = y - X @ np.linalg.lstsq(X, y, rcond=None)[0]
         r1 = y - Xe @ np.linalg.lstsq(Xe, y, rcond=None)[0]
         s2 = SIGMA**2 * rng.chisquare(df) / df  # an independent pure-error estimate on df degrees of freedom
-        hits += (r0 @ r0 - r1 @ r1) / s2 > crit
+        hits += (r0 @ r0 - r1 @ r1) / r / s2 > crit
     assert 0.2 < power < 0.95
     assert abs(hits / n - power) < 4 * np.sqrt(power * (1 - power) / n)
 
