@@ -41,15 +41,13 @@ def table3(config: dict, table2_csv: str, out_csv: str) -> None:
 
 
 def comparison(config: dict, table2_csv: str, table3_csv: str, table4_csv: str, table5_csv: str,
-               printed_yaml: str, out_csv: str) -> None:
-    """Every printed number of Tables 2-5 beside ours, with a status and a reason."""
+               printed_yaml: str, out_csv: str, statistics_csv: str | None = None) -> None:
+    """Every result number the paper prints (Tables 2-5 and its text) beside ours, with a status and a
+    reason; the Figure 6 numbers of the text need the map statistics (``statistics_csv``)."""
     study = _study(config)
-    printed = reproduction.load_printed(printed_yaml)
-    parts = [reproduction.compare_tables(study, _read(table2_csv), _read(table3_csv), printed)]
-    for name, path in (("table4", table4_csv), ("table5", table5_csv)):
-        parts.append(reproduction.compare_plans(study, _read(path), printed[name], name,
-                                                printed.get("explain", {}), seed=int(config["seed"])))
-    cmp = pd.concat(parts, ignore_index=True)
+    stats = _read(statistics_csv) if statistics_csv else None
+    cmp = reproduction.comparison_table(study, *(_read(p) for p in (table2_csv, table3_csv, table4_csv, table5_csv)),
+                                        reproduction.load_printed(printed_yaml), stats, seed=int(config["seed"]))
     s = reproduction.summary(cmp)
     _log(f"paper comparison: {s['reproduced']} of {s['total']} printed numbers reproduced; reasons {s['reasons']}")
     tables.write_csv(cmp, out_csv)

@@ -84,10 +84,8 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
     tables: name -> CSV path (table2, table3, comparison, validation); figures: name -> PNG path;
     provenance: rule name per table/figure plus 'commit' and 'config_hash'.
     """
-    from .reproduction import summary
-
     from .maps import DARK_CHI, WHITE_CHI
-    from .reproduction import FLAT_RTOL
+    from .reproduction import FLAT_RTOL, summary
 
     frames = {k: pd.read_csv(v, keep_default_na=False, na_values=[""], dtype={"printed": str, "reason": str})
               for k, v in tables.items()}
@@ -95,10 +93,13 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
     cmp = frames["comparison"]
     cmp["reason"] = cmp["reason"].fillna("")
     cmp["ours"] = pd.to_numeric(cmp["ours"], errors="coerce").where(lambda v: v.notna(), cmp["ours"])
+    records = cmp.to_dict("records")
     return {
         "config": config,
         "study": config["study"],
         "tables": {k: df.to_dict("records") for k, df in frames.items()},
+        "comparison_tables": [r for r in records if r["table"] != "text"],
+        "comparison_text": [{**r, **printed.get("text", {}).get(r["row"], {})} for r in records if r["table"] == "text"],
         "n_joints": len(config["study"]["test_pose_deg"]),
         "figures": {k: image_data_uri(v) for k, v in figures.items()},
         "summary": summary(cmp),
@@ -106,11 +107,26 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
         "provenance": provenance,
         "flat_rtol": FLAT_RTOL,
         "printed": printed,
-        "cmp_index": {f"{r['table']}|{r['row']}|{r['quantity']}": {"printed": r["printed"], "status": r["status"],
-                                                                    "reason": r["reason"]}
-                      for r in cmp.to_dict("records")},
+        "cmp_index": comparison_index(records, printed),
         "map_thresholds": {"white_inv_chi": 1.0 / WHITE_CHI, "dark_inv_chi": 1.0 / DARK_CHI},
     }
+
+
+def comparison_index(records: list[dict], printed: dict) -> dict:
+    """'table|criterion|quantity' -> the paper's printed number beside ours in Tables 2-5 (printed, status,
+    reason, alias). A printed row that stands for several of our rows (Table 2's "O2, O4", Table 3's
+    "D-optimality (O1)", listed under ``criteria`` in the printed values) is indexed under the first, and
+    under the others with ``alias`` set to the first (so that each printed number is shown once)."""
+    out = {}
+    for r in records:
+        if r["table"] == "text":
+            continue
+        keys = printed.get(r["table"], {}).get(r["row"], {}).get("criteria", [r["row"]])
+        entry = {"printed": r["printed"], "status": r["status"], "reason": r["reason"], "alias": None}
+        out[f"{r['table']}|{keys[0]}|{r['quantity']}"] = entry
+        for k in keys[1:]:
+            out[f"{r['table']}|{k}|{r['quantity']}"] = {**entry, "alias": keys[0]}
+    return out
 
 
 def study_context(study, entry: dict, paths: dict) -> dict:

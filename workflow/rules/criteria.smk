@@ -40,6 +40,7 @@ rule paper_comparison:
         table4=f"{TABLES}/table4.csv",
         table5=f"{TABLES}/table5.csv",
         printed=PRINTED,
+        statistics=lambda wc: [p for k, p in map_report_inputs(wc).items() if k == "map_statistics"],
     output:
         csv=f"{TABLES}/paper_comparison.csv",
     log:
