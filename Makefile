@@ -33,13 +33,17 @@ archive: $(STAMP)
 test: $(TSTAMP)
 	$(BIN)/python -m pytest
 
-lint: $(STAMP)
+# Snakemake's own lint of the workflow, and ruff (pinned in requirements-test.lock; rules and the documented
+# exceptions in pyproject.toml) on the Python sources
+lint: $(TSTAMP)
 	$(BIN)/snakemake --lint
+	$(BIN)/ruff check src tests benchmarks tools workflow/scripts
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plans.py
 	$(BIN)/python benchmarks/bench_maps.py
 	$(BIN)/python benchmarks/bench_spatial.py
+	$(BIN)/python benchmarks/bench_pipeline.py
 
 # Regenerate src/stiffcal/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.
 derive: $(STAMP)

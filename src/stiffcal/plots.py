@@ -77,8 +77,10 @@ def fig4_poses(study: Study, measure_pose_deg: np.ndarray):
         reach = float(study.robot.links_m.sum())
         test = study.robot.link_points(study.test_pose)
         meas = study.robot.link_points(np.radians(measure_pose_deg))
-        _draw_arm(ax, test, "o-C0", "test pose q* = (" + ", ".join(f"{a:.0f}" for a in np.degrees(study.test_pose)) + ")°")
-        _draw_arm(ax, meas, "o-C3", "optimal measurement pose (" + ", ".join(f"{a:.2f}" for a in measure_pose_deg) + ")°")
+        test_label = ", ".join(f"{a:.0f}" for a in np.degrees(study.test_pose))
+        _draw_arm(ax, test, "o-C0", f"test pose q* = ({test_label})°")
+        meas_label = ", ".join(f"{a:.2f}" for a in measure_pose_deg)
+        _draw_arm(ax, meas, "o-C3", f"optimal measurement pose ({meas_label})°")
         f = study.force / np.linalg.norm(study.force) * 0.25 * reach
         for pts in (test, meas):
             ax.annotate("", xy=pts[-1] + f, xytext=pts[-1],

@@ -171,6 +171,14 @@ def parse_plan(text: str) -> np.ndarray:
     return np.array([[float(v) for v in p.split()] for p in str(text).split(";")])
 
 
+def plans_long(plans: dict) -> pd.DataFrame:
+    """Plans in long form, one row per pose: columns plan, m, pose (1-based), q1_deg..qn_deg.
+    plans: (plan label, m) -> (m, n) poses [deg]."""
+    rows = [{"plan": label, "m": m, "pose": i + 1, **dict(zip(_pose_cols(len(q)), np.round(q, 4) + 0.0))}
+            for (label, m), poses in plans.items() for i, q in enumerate(np.atleast_2d(poses))]
+    return pd.DataFrame(rows)
+
+
 def single_ot_pose(study: Study) -> np.ndarray:
     """The O_t-optimal single measurement pose [deg] (the representative of Table 2)."""
     return optimal_single_pose(study.problem("ot"), step_deg=study.search_step_deg).pose_deg

@@ -1,16 +1,13 @@
 """Schema validation of YAML inputs (robot files and the config) with one clear message per error.
 
-The JSON schemas live in ``workflow/schemas/`` (Snakemake validates the config with the same file);
-the package reaches them through the ``schemas`` link beside this module.
+The JSON schemas are package data in ``src/stiffcal/schemas/`` (so an installed wheel has them);
+``workflow/schemas`` is a link to that directory for the workflow's conventional layout.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
-
-import jsonschema
-import yaml
 
 from .errors import InputError
 
@@ -19,12 +16,16 @@ SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
 
 def load_schema(name: str) -> dict:
     """Return the parsed schema ``workflow/schemas/<name>.schema.yaml``."""
+    import yaml
+
     with open(SCHEMA_DIR / f"{name}.schema.yaml", encoding="utf-8") as fh:
         return yaml.safe_load(fh)
 
 
 def read_yaml(path: str | Path) -> Any:
     """Parse a YAML file; a missing file or a syntax error becomes an :class:`InputError`."""
+    import yaml
+
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -52,6 +53,8 @@ def validate(document: Any, schema_name: str, source: str) -> None:
     The error is the deepest, most specific one (jsonschema's ``best_match``), e.g.
     ``robot.yaml: field 'links_m[1]': expected a number > 0, got -0.4``.
     """
+    import jsonschema
+
     schema = load_schema(schema_name)
     validator = jsonschema.Draft202012Validator(schema)
     error = jsonschema.exceptions.best_match(validator.iter_errors(document))
@@ -60,7 +63,7 @@ def validate(document: Any, schema_name: str, source: str) -> None:
     raise InputError(_explain(error), source=source, field=json_path(error.absolute_path))
 
 
-def _explain(error: jsonschema.ValidationError) -> str:
+def _explain(error) -> str:
     """Turn a jsonschema error into 'expected ..., got ...' wording."""
     v = error.validator_value
     got = f"got {error.instance!r}"

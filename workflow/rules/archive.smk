@@ -16,10 +16,9 @@ rule archive:
         tgz=ARCHIVE,
     params:
         started=RUN_STARTED,
+        config=config,
     log:
         f"{LOGS}/archive.log",
-    benchmark:
-        f"benchmarks/out/archive.tsv",
     conda:
         ENV
     script:

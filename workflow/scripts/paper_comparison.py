@@ -2,5 +2,5 @@
 from stiffcal import pipeline
 
 i = snakemake.input
-pipeline.run(snakemake, pipeline.comparison, snakemake.config, i.table2, i.table3, i.table4, i.table5, i.printed,
-             snakemake.output.csv)
+pipeline.run(snakemake, pipeline.comparison, snakemake.params.study, i.robot, i.table2, i.table3, i.table4, i.table5,
+             i.printed, snakemake.output.csv)
