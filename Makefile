@@ -22,12 +22,16 @@ $(TSTAMP): $(STAMP) requirements-test.lock
 
 install: $(STAMP)
 
+# A run that was killed leaves a lock: removed first when no Snakemake process runs here (tools/unlock_if_idle.py);
+# jobs it left half done rerun (the profile's rerun-incomplete).
 report: $(STAMP)
+	$(BIN)/python tools/unlock_if_idle.py
 	$(BIN)/snakemake --cores $(CORES) --workflow-profile workflow/profiles/default
 	@echo "report: paper/build/report.html and paper/build/report.pdf"
 
 # results/archive/stiffcal-<commit>.tar.gz for reviewers; check it with .venv/bin/stiffcal verify-archive FILE
 archive: $(STAMP)
+	$(BIN)/python tools/unlock_if_idle.py
 	$(BIN)/snakemake --cores $(CORES) --workflow-profile workflow/profiles/default archive
 
 test: $(TSTAMP)
@@ -51,4 +55,4 @@ derive: $(STAMP)
 	$(BIN)/python tools/derive_map_polynomials.py src/stiffcal/_map_polynomials.py
 
 clean:
-	rm -rf results figures paper/build .snakemake
+	rm -rf results figures paper/build logs .snakemake .stiffcal

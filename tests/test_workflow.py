@@ -200,7 +200,8 @@ def test_slurm_profile_dry_run(root, tmp_path):
 
 
 def test_rerun_gives_identical_tables_html_and_pdf(built):
-    report = [built / "paper/build/report.html", built / "paper/build/report.pdf", *(built / "figures").rglob("*.svg")]
+    report = [built / "paper/build/report.html", built / "paper/build/report.pdf", *(built / "figures").rglob("*.svg"),
+              *(built / "figures").rglob("*.png")]
     before = {p: p.read_bytes() for p in [*(built / "results").rglob("*.csv"), *report]}
     shutil.rmtree(built / "results")
     res = _snakemake(built, "--forcerun", "table2", "chi_map", "approximate_design", "map_tile", "study_design")
@@ -308,6 +309,62 @@ def test_archive_verifies_and_names_a_changed_file(built, tmp_path):
             tout.addfile(m, io.BytesIO(data))
     res = subprocess.run([str(cli), "verify-archive", str(bad)], capture_output=True, text=True)
     assert res.returncode == 1 and "changed: results/tables/table3.csv" in res.stderr
+
+
+def test_a_changed_intermediate_stops_the_run_and_a_deleted_one_is_rebuilt(built):
+    """shared/cases/bad-input/17: a table changed by hand flowed into the report with exit 0, and a deleted one
+    was not rebuilt. Now the job that reads it stops with a message naming it; deleted, it is rebuilt, and the
+    report comes out as before."""
+    csv, html = built / "results/tables/validation.csv", built / "paper/build/report.html"
+    good, good_html = csv.read_bytes(), html.read_bytes()
+    csv.write_bytes(good.replace(b"eq. 11", b"eq. 12", 1))
+    res = _snakemake(built)
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    assert "results/tables/validation.csv: changed after rule validation wrote it" in res.stderr
+    assert not html.exists() or html.read_bytes() == good_html  # never a report made from the changed table
+    csv.unlink()
+    res = _snakemake(built)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert csv.read_bytes() == good and html.read_bytes() == good_html
+
+
+def test_a_truncated_map_is_refused(built):
+    """A map cut in half gave statistics from half the cells without a word."""
+    m = built / "results/maps/b0.2/map.csv"
+    good = m.read_bytes()
+    m.write_bytes(good[: len(good) // 2])
+    res = _snakemake(built)
+    assert res.returncode != 0 and "results/maps/b0.2/map.csv: changed after rule map_merge wrote it" in res.stderr
+    m.unlink()
+    res = _snakemake(built)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert m.read_bytes() == good
+
+
+def test_make_removes_the_lock_of_an_interrupted_run_only_when_idle(built, root):
+    """A killed run leaves .snakemake/locks/; tools/unlock_if_idle.py (run by `make report`) removes it when no
+    Snakemake process works in the directory, and the next run goes through."""
+    locks = built / ".snakemake/locks"
+    locks.mkdir(parents=True, exist_ok=True)
+    (locks / "0.output.lock").write_text("results/tables/table2.csv\n")  # as a killed run leaves it
+    res = _snakemake(built)
+    assert res.returncode != 0 and "cannot be locked" in res.stdout + res.stderr
+    res = subprocess.run([sys.executable, str(root / "tools/unlock_if_idle.py"), "--configfile", "config/test.yaml"],
+                         cwd=built, capture_output=True, text=True)
+    assert res.returncode == 0 and "removed the lock" in res.stderr, res.stderr
+    assert not locks.exists() or not any(locks.iterdir())
+    res = _snakemake(built)
+    assert res.returncode == 0, res.stderr[-3000:]
+
+
+def test_configfile_replaces_the_default_and_errors_name_it(built, tmp_path):
+    cfg = yaml.safe_load((built / "config/test.yaml").read_text())
+    cfg["maps"]["step_deg"] = 0.001  # was a MemoryError traceback (966 GiB)
+    (built / "config/bad.yaml").write_text(yaml.safe_dump(cfg))
+    res = subprocess.run([str(SNAKEMAKE), "-n", "--cores", "2", "--configfile", "config/bad.yaml"], cwd=built,
+                         capture_output=True, text=True)
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    assert "config/bad.yaml: field 'maps.step_deg': expected a number >= 0.25, got 0.001" in res.stderr
 
 
 @pytest.mark.skipif(not any(shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome")),

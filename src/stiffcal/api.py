@@ -34,8 +34,9 @@ MAX_MAGNITUDE = 1e100
 MIN_SIGMA = 1e-100
 
 
-def float_list(value, field: str, size: int | None = None) -> np.ndarray:
-    """A finite float vector from a list, an array or a comma-separated string; InputError naming ``field``."""
+def float_list(value, field: str, size: int | None = None, limit: float = MAX_MAGNITUDE) -> np.ndarray:
+    """A finite float vector from a list, an array or a comma-separated string, every |value| <= ``limit``;
+    InputError naming ``field``."""
     if isinstance(value, str):
         parts = value.split(",")
         try:
@@ -50,10 +51,10 @@ def float_list(value, field: str, size: int | None = None) -> np.ndarray:
     arr = np.array(vals, float)
     if arr.size == 0:
         raise InputError("expected at least one number, got none", field=field)
-    bad = np.flatnonzero(~np.isfinite(arr) | (np.abs(arr) > MAX_MAGNITUDE))
+    bad = np.flatnonzero(~np.isfinite(arr) | (np.abs(arr) > limit))
     if bad.size:
-        raise InputError(f"expected finite numbers of magnitude at most {MAX_MAGNITUDE:g}, got "
-                         f"{arr[bad[0]]!r}", field=f"{field}[{int(bad[0])}]")
+        raise InputError(f"expected finite numbers of magnitude at most {limit:g}, got "
+                         f"{float(arr[bad[0]]):g}", field=f"{field}[{int(bad[0])}]")
     if size is not None and arr.size != size:
         raise InputError(f"expected {size} numbers, got {arr.size}", field=field)
     return arr
@@ -198,7 +199,8 @@ def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: st
     if criterion not in criteria.CRITERIA_KEYS:
         raise InputError(f"expected one of {', '.join(criteria.CRITERIA_KEYS)}, got {criterion!r}", field="criterion")
     force = float_list(force_N, "force_N")
-    q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg"), force, "test_pose_deg", "force_N")
+    q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=360.0), force, "test_pose_deg",
+                            "force_N")
     m = whole_number(experiments, "experiments", 1, 1000)
     sigma = positive_number(sigma, "sigma")
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
@@ -278,8 +280,8 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     qt = ft = None
     if test_pose_deg is not None:
         ft = float_list(force_N, "force_N")
-        qt = np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg"), ft, "test_pose_deg",
-                                          "force_N"))
+        qt = np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=360.0), ft,
+                                          "test_pose_deg", "force_N"))
     if out is None:
         return discrepancy.analyse(robot, read_measurements(data, robot), alpha, qt, ft)
     out = check_out_dir(out)

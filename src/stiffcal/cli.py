@@ -5,18 +5,20 @@ docs/contracts.md.
 [--criterion ot|a|t|d|g|mdc|o1|o2|o3|o4] [--sigma S] [--seed N] [--quiet]`` prints one JSON object.
 
 Bad input gives one line on stderr naming the file or option and what was expected, and exit code 2;
-never a traceback. List options take negative numbers with or without ``=`` (``--test-pose-deg -35,120``).
+never a traceback. An internal error (a bug) is one line too, with exit code 1 (``STIFFCAL_TRACEBACK=1``
+shows the traceback). List options take negative numbers with or without ``=`` (``--test-pose-deg -35,120``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import re
 import sys
 
 from . import __version__
-from .errors import InputError
+from .errors import MAX_MESSAGE, InputError
 
 #: a value that starts with '-' but is a number or a comma-separated list of numbers
 _NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
@@ -121,8 +123,17 @@ def main(argv: list[str] | None = None) -> int:
     try:
         out = args.func(args)
     except InputError as err:
-        print(f"stiffcal {args.command}: error: {err.renamed(_option_name(err.field))}", file=sys.stderr)
+        if err.source is None:  # an argument of the API: name it as the option it came from
+            err = err.renamed(_option_name(err.field))
+        print(f"stiffcal {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except Exception as err:  # noqa: BLE001 - a bug, not the user's input: one line (a traceback on request)
+        if os.environ.get("STIFFCAL_TRACEBACK"):
+            raise
+        msg = " ".join(f"{type(err).__name__}: {err}".split())[:MAX_MESSAGE]
+        print(f"stiffcal {args.command}: internal error (please report; STIFFCAL_TRACEBACK=1 shows where): {msg}",
+              file=sys.stderr)
+        return 1
     print(json.dumps(out, indent=2))
     return 0 if out.get("ok", True) else 1
 

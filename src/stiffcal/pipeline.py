@@ -107,6 +107,7 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
 
     from . import tables
     from .certificate import approximate_design as compute
+    from .integrity import atomic_write
 
     study = _study({k: v for k, v in p.items() if k in ("name", "test_pose_deg", "force_N", "sigma_m")}, robot)
     _log(f"approximate design for {name or 'the paper study'} ({study.robot.n_joints} joints): multiplicative "
@@ -119,9 +120,9 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
     _write(tables.certificate_table(d, study.sigma), out_certificate_csv)
     if phi is not None:
         _write(phi, out_phi_csv)
-    Path(out_json).write_text(json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
-                                          "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
-                                          "iterations": d.iterations}, indent=1) + "\n", encoding="utf-8")
+    atomic_write(out_json, json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
+                                       "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
+                                       "iterations": d.iterations}, indent=1) + "\n")
 
 
 def _design(path: str):
@@ -341,8 +342,9 @@ def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: s
     loaded = design_studies(config, ".", "config/config.yaml") if studies else {}
     ctx["studies"] = {name: report.study_context(*loaded[name], paths) for name, paths in (studies or {}).items()}
     html = report.render_html(ctx, template_dir)
-    Path(out_html).parent.mkdir(parents=True, exist_ok=True)
-    Path(out_html).write_text(html, encoding="utf-8")
+    from .integrity import atomic_write
+
+    atomic_write(out_html, html)
 
 
 def report_pdf(html: str, out_pdf: str) -> None:
@@ -389,16 +391,20 @@ def run(snakemake, step, *args) -> None:
     import sys
     import traceback
 
+    from . import integrity
     from .errors import InputError
 
     before_step = time.process_time()
+    integrity.watch_parent()
     log = Path(snakemake.log[0]) if snakemake.log else None
     if log:
         log.parent.mkdir(parents=True, exist_ok=True)
     with open(log, "w", encoding="utf-8") if log else contextlib.nullcontext(sys.stdout) as fh:
         with contextlib.redirect_stdout(fh):
             try:
+                integrity.verify([str(p) for p in snakemake.input])
                 step(*args)
+                integrity.record([str(p) for p in snakemake.output], snakemake.rule)
             except InputError as err:
                 print(f"stiffcal: error: {err}", file=fh)
                 print(f"stiffcal: error: {err}", file=sys.stderr)

@@ -23,13 +23,16 @@ STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.font
 
 
 def save(fig, stem: str | Path) -> list[Path]:
-    """Write ``<stem>.png`` and ``<stem>.svg`` without timestamps (reproducible bytes)."""
+    """Write ``<stem>.png`` and ``<stem>.svg`` without timestamps (reproducible bytes), each atomically (a
+    temporary file moved into place when complete)."""
+    from .integrity import atomic_path
+
     stem = Path(stem)
-    stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
-    fig.savefig(paths[0], metadata={"Software": None}, bbox_inches="tight")
-    with plt.rc_context({"svg.hashsalt": STYLE["svg.hashsalt"]}):  # read when saving: fixed ids in the SVG
-        fig.savefig(paths[1], metadata={"Date": None, "Creator": None}, bbox_inches="tight")
+    with atomic_path(paths[0]) as tmp:
+        fig.savefig(tmp, format="png", metadata={"Software": None}, bbox_inches="tight")
+    with plt.rc_context({"svg.hashsalt": STYLE["svg.hashsalt"]}), atomic_path(paths[1]) as tmp:
+        fig.savefig(tmp, format="svg", metadata={"Date": None, "Creator": None}, bbox_inches="tight")
     plt.close(fig)
     return paths
 

@@ -15,10 +15,6 @@ import math
 import subprocess
 from pathlib import Path
 
-import jinja2
-import pandas as pd
-import yaml
-
 from .errors import InputError
 
 TEMPLATE_DIR = Path(__file__).resolve().parents[2] / "paper" / "templates"
@@ -116,6 +112,8 @@ def git_commit(root: str | Path = ".") -> str:
 
 def render_html(context: dict, template_dir: str | Path = TEMPLATE_DIR) -> str:
     """Render ``report.html.j2`` with ``context``; undefined names are errors, not blanks."""
+    import jinja2
+
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(template_dir)),
                              undefined=jinja2.StrictUndefined, autoescape=jinja2.select_autoescape(["html"]),
                              trim_blocks=True, lstrip_blocks=True, extensions=["jinja2.ext.do"])
@@ -137,6 +135,8 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
     tables: name -> CSV path (table2, table3, comparison, validation); figures: name -> PNG path;
     provenance: rule name per table/figure plus 'commit' and 'config_hash'.
     """
+    import pandas as pd
+
     from .reproduction import summary
 
     from .maps import DARK_CHI, WHITE_CHI
@@ -144,7 +144,9 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
 
     frames = {k: pd.read_csv(v, keep_default_na=False, na_values=[""], dtype={"printed": str, "reason": str})
               for k, v in tables.items()}
-    printed = yaml.safe_load(Path(printed_path).read_text(encoding="utf-8"))
+    from .validation import read_yaml
+
+    printed = read_yaml(printed_path)
     cmp = frames["comparison"]
     cmp["reason"] = cmp["reason"].fillna("")
     cmp["ours"] = pd.to_numeric(cmp["ours"], errors="coerce").where(lambda v: v.notna(), cmp["ours"])
@@ -170,6 +172,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     """What the report shows of one design study: the robot (kind, joints, source, DH table), test pose,
     force, sigma, the certificate, the plans against M and the two figures (embedded)."""
     import numpy as np
+    import pandas as pd
 
     robot = study.robot
     dh = None

@@ -268,6 +268,8 @@ def load_robot(path: str | Path) -> Robot:
     """
     src = str(path)
     doc = read_yaml(path)
+    if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
+        raise InputError("missing required field 'kind' (planar or spatial)", source=src, field="kind")
     validate(doc, "robot", src)
     for key in KIND_FIELDS["planar" if doc["kind"] == "spatial" else "spatial"]:
         if key in doc:

@@ -21,9 +21,12 @@ FLOAT_FORMAT = "%.10g"
 
 
 def write_csv(df: pd.DataFrame, path: str | Path) -> None:
-    """Write a table deterministically (fixed float format, no index, '\\n' line ends)."""
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    df.to_csv(path, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    """Write a table deterministically (fixed float format, no index, '\\n' line ends) and atomically (a
+    temporary file moved into place when complete)."""
+    from .integrity import atomic_path
+
+    with atomic_path(path) as tmp:
+        df.to_csv(tmp, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
 
 
 def _pose_cols(n: int) -> list[str]:

@@ -10,8 +10,9 @@ ARCHIVE = f"results/archive/stiffcal-{_git_commit()}.tar.gz"
 
 rule archive:
     input:
-        rules.report_html.output.html,
-        rules.report_pdf.output.pdf,
+        unpack(report_inputs),
+        html=rules.report_html.output.html,
+        pdf=rules.report_pdf.output.pdf,
     output:
         tgz=ARCHIVE,
     params:

@@ -17,7 +17,6 @@ LOGS = "logs"
 PRINTED = config["paper_values"]
 # the software of every rule, for --software-deployment-method conda (`make report` uses .venv instead)
 ENV = "../envs/stiffcal.yaml"
-CONFIG_SOURCE = str((getattr(workflow, "configfiles", None) or ["config/config.yaml"])[-1])
 
 # The paper's study (config `study`), defaults filled in.
 STUDY = {**_STUDY_DEFAULTS, **config["study"]}
@@ -93,6 +92,38 @@ def study_entry(wildcards):
     """The values of a design study's entry that its design and plans depend on."""
     e = STUDIES[wildcards.name]
     return {k: e[k] for k in ("name", "test_pose_deg", "force_N", "sigma_m")}
+
+
+def report_inputs(wildcards):
+    """Every file the report shows or reads, by name (the report rule's inputs; the archive verifies them)."""
+    return {
+        **map_report_inputs(wildcards), **discrepancy_report_inputs(wildcards), **study_report_inputs(wildcards),
+        "table2": f"{TABLES}/table2.csv", "table3": f"{TABLES}/table3.csv",
+        "comparison": f"{TABLES}/paper_comparison.csv", "validation": f"{TABLES}/validation.csv",
+        "table4": f"{TABLES}/table4.csv", "table5": f"{TABLES}/table5.csv",
+        "design": f"{TABLES}/approximate_design.csv", "certificate": f"{TABLES}/certificate.csv",
+        "ot_versus_m": f"{TABLES}/ot_versus_m.csv",
+        **{name: f"{FIGURES}/{name}.svg" for name in ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m")},
+        "printed": PRINTED, "template": "paper/templates/report.html.j2", "css": "paper/templates/report.css",
+    }
+
+
+def all_outputs(wildcards):
+    """Every file the workflow makes (except the temporary map tiles), as inputs of the target all. Snakemake
+    rebuilds a deleted intermediate only when something asks for it, so everything is asked for."""
+    out = [v for k, v in report_inputs(wildcards).items() if k not in ("printed", "template", "css")]
+    out += [f"{FIGURES}/{name}.{ext}" for name in ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m")
+            for ext in ("png", "svg")]
+    out += list(map_figure_outputs().values())
+    out += ["results/maps/fig5_chi.csv", "results/design/approximate_design.json", "results/maps/design_phi.csv"]
+    out += [f"{MAPS}/{name}/map.csv" for name in MAP_STUDIES]
+    for name in MEASURED:
+        out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg")]
+    for name, entry in STUDIES.items():
+        out += [f"{STUDY_DIR}/{name}/{f}" for f in ("approximate_design.json", "approximate_design.csv")]
+        out += [f"{STUDY_DIR}/{name}/plans/m{m}.csv" for m in entry["m_values"]]
+        out += [f"{FIGURES}/studies/{name}/{f}.png" for f in ("plan", "versus_m")]
+    return sorted(set(out))
 
 
 def study_report_inputs(wildcards):
