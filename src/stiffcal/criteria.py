@@ -13,7 +13,6 @@ the SVD-based observability indices O1-O4 are computed from the same eigen-decom
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

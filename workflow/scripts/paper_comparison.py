@@ -3,5 +3,5 @@ from stiffcal import pipeline
 
 i = snakemake.input
 stats = list(i.statistics)  # [] when the config has no map of the paper's arm
-pipeline.run(snakemake, pipeline.comparison, snakemake.config, i.table2, i.table3, i.table4, i.table5, i.printed,
-             snakemake.output.csv, stats[0] if stats else None)
+pipeline.run(snakemake, pipeline.comparison, snakemake.params.study, i.robot, i.table2, i.table3, i.table4, i.table5,
+             i.printed, snakemake.output.csv, stats[0] if stats else None)
