@@ -42,7 +42,8 @@ if __name__ == "__main__":
     while time.perf_counter() - tn0 < t:
         best, starts = min(best, polish(prob, rng.uniform(lo, hi, (m, 6)))[1]), starts + 1
     within = np.all((plan.poses_deg >= np.degrees(lo)) & (plan.poses_deg <= np.degrees(hi)))
-    print(f"{robot.name}, M = {m}: {t:.1f} s on one core (design + certificate {t_design:.1f} s; target {TARGET_S:.0f} s: "
+    print(f"{robot.name}, M = {m}: {t:.1f} s on one core (design + certificate {t_design:.1f} s; "
+          f"target {TARGET_S:.0f} s: "
           f"{'meets' if t <= TARGET_S else 'MISSES'})")
     print(f"  O_t = {plan.loss:.6g} m^2 (RMS {1e6 * np.sqrt(plan.loss):.3f} um), certified bound {bound:.6g}, "
           f"gap {plan.loss / bound - 1:.2%}, equivalence gap {design.equivalence_gap:.2e}, within limits: {within}")

@@ -102,3 +102,34 @@ def test_without_weasyprint_libraries_the_pdf_fails_naming_the_library(tmp_path,
     with pytest.raises(InputError) as err:
         write_pdf(tmp_path / "r.html", tmp_path / "r.pdf")
     assert "libpango-1.0-0" in str(err.value) and not (tmp_path / "r.pdf").exists()
+
+
+@pytest.mark.parametrize("where,needle", [(0.5, "CRC check failed"), (-6, "CRC check failed"),
+                                          (-2, "Incorrect length")])
+def test_a_damaged_archive_is_reported_as_damaged(tmp_path, capsys, where, needle):
+    """A flipped byte in the compressed data, or a damaged gzip trailer (CRC-32, length), is reported as a
+    damaged archive with exit 1 (not as missing files, and never as verified)."""
+    root = _tree(tmp_path)
+    out = A.write_archive(tmp_path / "out/stiffcal-abc.tar.gz", A.archive_files(root), PROV, root)
+    raw = bytearray(out.read_bytes())
+    i = int(len(raw) * where) if isinstance(where, float) else len(raw) + where
+    raw[i] ^= 0x01
+    bad = tmp_path / "bad.tar.gz"
+    bad.write_bytes(bytes(raw))
+    ok, problems = A.verify_archive(bad)
+    assert ok == 0 and len(problems) == 1 and problems[0].startswith("damaged:") and needle in problems[0]
+    assert main(["verify-archive", str(bad)]) == 1
+    assert "damaged" in capsys.readouterr().err
+
+
+def test_integrity_records_refuse_a_changed_or_truncated_file(tmp_path):
+    from stiffcal import integrity
+
+    f = tmp_path / "results/maps/m/map.csv"
+    integrity.atomic_write(f, "a,b\n" + "1,2\n" * 100)
+    integrity.record([f], "map_merge", root=tmp_path)
+    integrity.verify([f], root=tmp_path)  # unchanged: fine
+    f.write_text("a,b\n" + "1,2\n" * 50)  # cut in half
+    with pytest.raises(InputError, match="changed after rule map_merge wrote it"):
+        integrity.verify([f], root=tmp_path)
+    assert [p.name for p in f.parent.iterdir()] == ["map.csv"]  # no temporary file left beside it

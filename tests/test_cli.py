@@ -1,4 +1,4 @@
-"""`stiffcal design` as DESIGN.md specifies, with the numbers the issue checks (paper, 4 digits)."""
+"""`stiffcal design` as docs/contracts.md specifies, with the numbers the issue checks (paper, 4 digits)."""
 
 import json
 import subprocess
@@ -61,7 +61,7 @@ def test_design_t_optimality_reports_inf_as_string(root, capsys, monkeypatch):
     (["--robot", "config/robots/paper_2r.yaml", "--test-pose-deg", "60,nan", "--force-N", "0,-1"],
      "expected finite numbers"),
     (["--robot", "config/robots/paper_2r.yaml", "--test-pose-deg", "60,30", "--force-N", "0,-1", "--sigma", "0"],
-     "expected sigma > 0"),
+     "'--sigma': expected a number in [1e-100"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, needle, root, capsys, monkeypatch):
     monkeypatch.chdir(root)
@@ -75,3 +75,64 @@ def test_installed_console_script(root):
     res = subprocess.run([*exe, "design", *PAPER, "--criterion", "d"], cwd=root, capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     assert sig4(json.loads(res.stdout)["cov_diag"][0]) == 5.321
+
+
+def test_negative_angles_without_equals_sign(root, capsys, monkeypatch):
+    """``--test-pose-deg -35,120`` (a negative first angle, no '=') is a value, not an option."""
+    monkeypatch.chdir(root)
+    code, out, err = run(["--robot", "config/robots/paper_2r.yaml", "--test-pose-deg", "-35,120", "--force-N",
+                          "-1,-1"], capsys)
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["test_pose_deg"] == [-35.0, 120.0] and d["force_N"] == [-1.0, -1.0]
+    assert err == ""  # no progress bar when stderr is not a terminal
+
+
+@pytest.mark.parametrize("option,value,needle", [("--seed", "-1", "'--seed': expected a whole number"),
+                                                 ("--sigma", "-1e-3", "'--sigma': expected a number in"),
+                                                 ("--experiments", "-2", "'--experiments': expected a whole number")])
+def test_negative_scalars_are_values_with_a_clear_message(root, capsys, monkeypatch, option, value, needle):
+    monkeypatch.chdir(root)
+    code, out, err = run([*PAPER[:6], option, value], capsys)
+    assert code == 2 and out == "" and needle in err and err.count("\n") == 1
+
+
+def test_version(capsys):
+    import stiffcal
+
+    with pytest.raises(SystemExit) as exit_:
+        main(["--version"])
+    assert exit_.value.code == 0 and capsys.readouterr().out.strip() == f"stiffcal {stiffcal.__version__}"
+
+
+def test_progress_bar_on_a_terminal_and_quiet(root):
+    """A progress bar goes to stderr when it is a terminal (a pseudo-terminal here), never with --quiet."""
+    import fcntl
+    import os
+    import pty
+    import struct
+    import termios
+
+    def stderr_on_tty(extra):
+        master, slave = pty.openpty()
+        fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))  # a terminal of 100 columns
+        proc = subprocess.Popen([sys.executable, "-m", "stiffcal.cli", "design", *PAPER, *extra], cwd=root,
+                                stdout=subprocess.PIPE, stderr=slave)
+        os.close(slave)
+        chunks = []
+        while True:
+            try:
+                data = os.read(master, 4096)
+            except OSError:
+                break
+            if not data:
+                break
+            chunks.append(data)
+        proc.wait()
+        os.close(master)
+        return proc.returncode, b"".join(chunks).decode(errors="replace")
+
+    code, err = stderr_on_tty([])
+    assert code == 0 and "stages" in err
+    code, err = stderr_on_tty(["--quiet"])
+    assert code == 0 and err == ""

@@ -480,7 +480,8 @@ def test_resolutions_decide_the_replicate_groups_in_the_reader_and_the_cli(tmp_p
     robot = str(root / "config/robots/paper_2r.yaml")
     for res in ("0.5", "1e-9"):
         out = tmp_path / f"out{res}"
-        assert main(["discrepancy", "--robot", robot, "--data", data, "--out", str(out), "--force-resolution-N", res]) == 0
+        args = ["discrepancy", "--robot", robot, "--data", data, "--out", str(out), "--force-resolution-N", res]
+        assert main(args) == 0
         v = json.loads((out / "verdict.json").read_text())
         assert v["structure"]["force_resolution_N"] == float(res)
     assert main(["discrepancy", "--robot", robot, "--data", data, "--out", str(tmp_path / "x"),

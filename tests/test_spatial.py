@@ -154,7 +154,8 @@ def test_cli_designs_for_a_catalogue_robot_it_has_never_seen(tmp_path, capsys):
     rows = "\n".join(f"  - {{a_m: {a}, alpha_deg: {al}, d_m: {d}}}" for a, al, d, _ in UR5E)
     path = tmp_path / "ur5e.yaml"
     path.write_text(f"name: ur5e\nkind: spatial\ndh_convention: standard\ndh:\n{rows}\n"
-                    "joint_limits_deg: [[-360, 360], [-360, 360], [-180, 180], [-360, 360], [-360, 360], [-360, 360]]\n")
+                    "joint_limits_deg: [[-360, 360], [-360, 360], [-180, 180], [-360, 360], [-360, 360], "
+                    "[-360, 360]]\n")
     code = main(["design", "--robot", str(path), "--test-pose-deg", "0,-90,90,-90,-90,0", "--force-N", "30,20,-100",
                  "--experiments", "2"])
     out = json.loads(capsys.readouterr().out)

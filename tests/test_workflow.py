@@ -103,12 +103,91 @@ def test_every_design_study_gets_plans_figures_and_a_report_section(built):
 
     html = (built / "paper/build/report.html").read_text()
     for name, ms in (("kuka-kr210-machining", [2, 3]), ("added-rrr", [1, 2])):
-        df = pd.read_csv(built / f"results/studies/{name}/plans.csv")
+        df = pd.read_csv(built / f"results/studies/{name}/versus_m.csv")
         assert list(df.m) == ms and df.within_limits.all() and (df.O_t >= df.lower_bound * (1 - 1e-12)).all()
+        long = pd.read_csv(built / f"results/studies/{name}/plans.csv")  # one row per pose
+        n = sum(c.startswith("q") and c.endswith("_deg") for c in long.columns)
+        assert list(long.columns) == ["plan", "m", "pose", *[f"q{i + 1}_deg" for i in range(n)]]
+        assert [len(g) for _, g in long.groupby("m")] == ms and (long.groupby("m").pose.max() == ms).all()
         for fig in ("plan", "versus_m"):
             assert (built / f"figures/studies/{name}/{fig}.png").stat().st_size > 0
         assert f"Design study: {name}" in html
     assert "modified convention" in html and "standard convention" in html
+
+
+def _dry_run_jobs(wd: Path, env: dict | None = None) -> dict[str, int]:
+    """rule -> number of jobs that ``snakemake -n`` would run (its 'Job stats' table), without 'all'."""
+    import os
+    import re
+
+    res = subprocess.run([str(SNAKEMAKE), "-n", "--cores", "2", "--configfile", "config/test.yaml"], cwd=wd,
+                         capture_output=True, text=True, env={**os.environ, **(env or {})})
+    assert res.returncode == 0, res.stderr[-3000:]
+    out = res.stdout + res.stderr
+    if "Nothing to be done" in out:
+        return {}
+    stats = out[out.index("Job stats:"):]
+    stats = stats[:stats.index("total")]
+    return {r: int(n) for r, n in re.findall(r"^(\w+)\s+(\d+)$", stats, flags=re.M) if r not in ("all", "job")}
+
+
+def _edit_config(wd: Path, edit) -> str:
+    path = wd / "config/test.yaml"
+    before = path.read_text()
+    cfg = yaml.safe_load(before)
+    edit(cfg)
+    path.write_text(yaml.safe_dump(cfg))
+    return before
+
+
+REPORT = {"report_html": 1, "report_pdf": 1}
+
+
+@pytest.mark.parametrize("what,edit,expected", [
+    ("one design study's force", lambda c: c["studies"][1].update(force_N=[100, 50, -150]),
+     {"study_design": 1, "study_plan": 2, "study_summary": 1, **REPORT}),
+    ("one map's ratio", lambda c: c["maps"]["studies"][1].update(link_ratio=0.25),
+     {"map_tile": 2, "map_merge": 1, "map_statistics": 1, "map_figures": 1, **REPORT}),
+    ("the test pose", lambda c: c["study"].update(test_pose_deg=[50, 40]),
+     {"table2": 1, "table3": 1, "validation": 1, "chi_map": 1, "approximate_design": 1, "plans_table": 2,
+      "ot_versus_m": 1, "paper_comparison": 1, "paper_figures": 1, "discrepancy": 1, **REPORT}),
+    ("the Monte Carlo samples", lambda c: c["monte_carlo"].update(samples=600), {"validation": 1, **REPORT}),
+])
+def test_dry_run_after_a_config_edit_lists_exactly_the_affected_jobs(built, what, edit, expected):
+    assert _dry_run_jobs(built) == {}
+    before = _edit_config(built, edit)
+    try:
+        assert _dry_run_jobs(built) == expected, what
+    finally:
+        (built / "config/test.yaml").write_text(before)
+    assert _dry_run_jobs(built) == {}
+
+
+def test_dry_run_after_a_measured_data_edit(built):
+    import os
+
+    data = built / "data/synthetic_paper_2r.csv"
+    before, stat = data.read_bytes(), data.stat()
+    lines = before.decode().splitlines(keepends=True)
+    lines[1] = lines[1].replace(",", ", ", 1)  # same numbers, another file
+    data.write_text("".join(lines))
+    try:
+        assert _dry_run_jobs(built) == {"discrepancy": 1, **REPORT}
+    finally:
+        data.write_bytes(before)
+        os.utime(data, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+    assert _dry_run_jobs(built) == {}
+
+
+def test_dry_run_after_a_library_edit_reruns_the_jobs_that_use_it(built, root, tmp_path):
+    """A copy of the package with one comment added to plots.py, first on PYTHONPATH: the figure jobs, the
+    discrepancy job (it draws the residuals) and the report rerun; no table or map job."""
+    pkg = tmp_path / "pkg"
+    shutil.copytree(root / "src/stiffcal", pkg / "stiffcal")
+    plots = pkg / "stiffcal/plots.py"
+    plots.write_text(plots.read_text() + "\n# an edit\n")
+    jobs = _dry_run_jobs(built, {"PYTHONPATH": str(pkg)})
+    assert jobs == {"paper_figures": 1, "map_figures": 1, "study_summary": 2, "discrepancy": 1, **REPORT}
 
 
 def test_slurm_profile_dry_run(root, tmp_path):
@@ -121,7 +200,8 @@ def test_slurm_profile_dry_run(root, tmp_path):
 
 
 def test_rerun_gives_identical_tables_html_and_pdf(built):
-    report = [built / "paper/build/report.html", built / "paper/build/report.pdf", *(built / "figures").rglob("*.svg")]
+    report = [built / "paper/build/report.html", built / "paper/build/report.pdf", *(built / "figures").rglob("*.svg"),
+              *(built / "figures").rglob("*.png")]
     before = {p: p.read_bytes() for p in [*(built / "results").rglob("*.csv"), *report]}
     shutil.rmtree(built / "results")
     res = _snakemake(built, "--forcerun", "table2", "chi_map", "approximate_design", "map_tile", "study_design")
@@ -138,23 +218,57 @@ def test_every_table_and_figure_is_in_the_report_with_a_provenance_line(built):
     import pandas as pd
 
     html = (built / "paper/build/report.html").read_text()
-    pngs = [*(built / "figures").rglob("*.png"), *(built / "results/discrepancy").rglob("*.png")]
-    assert len(pngs) >= 15
-    for png in pngs:
-        assert base64.b64encode(png.read_bytes()).decode() in html, png
+    svgs = [*(built / "figures").rglob("*.svg"), *(built / "results/discrepancy").rglob("*.svg")]
+    assert len(svgs) >= 15
+    for svg in svgs:  # vector figures, embedded
+        assert base64.b64encode(svg.read_bytes()).decode() in html, svg
     figures = re.findall(r"<figure>.*?</figure>", html, flags=re.S)
-    assert len(figures) == len(pngs) and all("made by rule" in f for f in figures)
+    assert len(figures) == len(svgs) and all("made by rule" in f for f in figures)
+    assert "data:image/png" not in html
+    html = html[html.index("</nav>"):]  # after the table of contents
+    html = re.sub(r'<table class="poses">.*?</table>', "", html, flags=re.S)  # pose tables sit inside tables
     for end in re.finditer(r"</table>", html):  # every table: a provenance line before the next table
         rest = html[end.end():]
         nxt = rest.find("<table")
         assert 'class="prov"' in (rest if nxt == -1 else rest[:nxt]), html[max(0, end.start() - 300):end.start()]
     for heading in ("Table 2", "Table 3", "Table 4", "Table 5", "The paper's numbers beside ours", "certificate"):
         assert heading in html
-    # the paper's printed values sit under ours in Tables 2-5: one per compared number (poses of a plan joined)
+    # the paper's printed values sit under ours in Tables 2-5: one per printed number of those tables
     cmp = pd.read_csv(built / "results/tables/paper_comparison.csv", dtype=str)
-    expected = len(cmp) - cmp.quantity.str.match(r"pose[2-9]").sum()
+    expected = (cmp.table != "text").sum()
     start, end = html.index("<table", html.index("Table 2 ·")), html.index("How good can a plan be")
     assert html[start:end].count('<span class="paper ') == expected
+
+
+def test_report_has_a_linked_table_of_contents_and_pose_tables(built):
+    import re
+
+    html = (built / "paper/build/report.html").read_text()
+    toc = html[html.index('<nav class="toc">'):html.index("</nav>")]
+    links = re.findall(r'href="#([^"]+)"', toc)
+    headings = re.findall(r'<h[23] id="([^"]+)"', html)
+    assert len(links) >= 10 and set(links) == set(headings) - {"contents"}
+    assert "Design study: added-rrr" in toc and "Table 5" in toc
+    # plans as tables, one row per pose and one column per joint: Table 5 has 4 plans of 3 poses
+    body = html[html.index("</nav>"):]
+    t5 = body[body.index("Table 5 ·"):body.index("How good can a plan be")]
+    assert t5.count('<table class="poses">') == 4 and t5.count("<th>q2 [deg]</th>") == 4
+
+
+def test_pdf_has_bookmarks(built):
+    pypdf = pytest.importorskip("pypdf")
+    reader = pypdf.PdfReader(built / "paper/build/report.pdf")
+
+    def titles(outline):
+        for item in outline:
+            if isinstance(item, list):
+                yield from titles(item)
+            else:
+                yield item.title
+
+    found = list(titles(reader.outline))
+    for needle in ("Table 2", "Table 5", "Design study: added-rrr", "Maps over test poses"):
+        assert any(needle in t for t in found), (needle, found)
 
 
 def test_pdf_has_every_page_numbered(built):
@@ -195,6 +309,62 @@ def test_archive_verifies_and_names_a_changed_file(built, tmp_path):
             tout.addfile(m, io.BytesIO(data))
     res = subprocess.run([str(cli), "verify-archive", str(bad)], capture_output=True, text=True)
     assert res.returncode == 1 and "changed: results/tables/table3.csv" in res.stderr
+
+
+def test_a_changed_intermediate_stops_the_run_and_a_deleted_one_is_rebuilt(built):
+    """shared/cases/bad-input/17: a table changed by hand flowed into the report with exit 0, and a deleted one
+    was not rebuilt. Now the job that reads it stops with a message naming it; deleted, it is rebuilt, and the
+    report comes out as before."""
+    csv, html = built / "results/tables/validation.csv", built / "paper/build/report.html"
+    good, good_html = csv.read_bytes(), html.read_bytes()
+    csv.write_bytes(good.replace(b"eq. 11", b"eq. 12", 1))
+    res = _snakemake(built)
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    assert "results/tables/validation.csv: changed after rule validation wrote it" in res.stderr
+    assert not html.exists() or html.read_bytes() == good_html  # never a report made from the changed table
+    csv.unlink()
+    res = _snakemake(built)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert csv.read_bytes() == good and html.read_bytes() == good_html
+
+
+def test_a_truncated_map_is_refused(built):
+    """A map cut in half gave statistics from half the cells without a word."""
+    m = built / "results/maps/b0.2/map.csv"
+    good = m.read_bytes()
+    m.write_bytes(good[: len(good) // 2])
+    res = _snakemake(built)
+    assert res.returncode != 0 and "results/maps/b0.2/map.csv: changed after rule map_merge wrote it" in res.stderr
+    m.unlink()
+    res = _snakemake(built)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert m.read_bytes() == good
+
+
+def test_make_removes_the_lock_of_an_interrupted_run_only_when_idle(built, root):
+    """A killed run leaves .snakemake/locks/; tools/unlock_if_idle.py (run by `make report`) removes it when no
+    Snakemake process works in the directory, and the next run goes through."""
+    locks = built / ".snakemake/locks"
+    locks.mkdir(parents=True, exist_ok=True)
+    (locks / "0.output.lock").write_text("results/tables/table2.csv\n")  # as a killed run leaves it
+    res = _snakemake(built)
+    assert res.returncode != 0 and "cannot be locked" in res.stdout + res.stderr
+    res = subprocess.run([sys.executable, str(root / "tools/unlock_if_idle.py"), "--configfile", "config/test.yaml"],
+                         cwd=built, capture_output=True, text=True)
+    assert res.returncode == 0 and "removed the lock" in res.stderr, res.stderr
+    assert not locks.exists() or not any(locks.iterdir())
+    res = _snakemake(built)
+    assert res.returncode == 0, res.stderr[-3000:]
+
+
+def test_configfile_replaces_the_default_and_errors_name_it(built, tmp_path):
+    cfg = yaml.safe_load((built / "config/test.yaml").read_text())
+    cfg["maps"]["step_deg"] = 0.001  # was a MemoryError traceback (966 GiB)
+    (built / "config/bad.yaml").write_text(yaml.safe_dump(cfg))
+    res = subprocess.run([str(SNAKEMAKE), "-n", "--cores", "2", "--configfile", "config/bad.yaml"], cwd=built,
+                         capture_output=True, text=True)
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    assert "config/bad.yaml: field 'maps.step_deg': expected a number >= 0.25, got 0.001" in res.stderr
 
 
 @pytest.mark.skipif(not any(shutil.which(b) for b in ("chromium", "chromium-browser", "google-chrome")),

@@ -107,14 +107,28 @@ def write_archive(out: str | Path, files: list[Path], prov: dict, root: str | Pa
 
 def verify_archive(path: str | Path) -> tuple[int, list[str]]:
     """Check every member against SHA256SUMS. Returns (files verified, problems): one line per changed,
-    missing or unlisted file. Raises :class:`InputError` when the file is not a stiffcal archive."""
+    missing or unlisted file, or one line saying that the compressed stream itself is damaged (gzip's own
+    CRC-32 and length, checked over the whole stream first: a flipped byte or a damaged trailer). Raises
+    :class:`InputError` when the file cannot be read or is not a stiffcal archive."""
+    import zlib
+
     path = Path(path)
     try:
-        with tarfile.open(path, "r:gz") as tar:
+        raw = path.read_bytes()
+    except OSError as err:
+        raise InputError(f"cannot read file ({err.strerror})", source=str(path)) from None
+    if raw[:2] != b"\x1f\x8b":
+        raise InputError("not a readable .tar.gz archive (no gzip header)", source=str(path))
+    try:
+        tar_bytes = gzip.decompress(raw)
+    except (OSError, EOFError, zlib.error) as err:
+        return 0, [f"damaged: the compressed stream fails gzip's own check ({err}); no file in it can be trusted"]
+    try:
+        with tarfile.open(fileobj=io.BytesIO(tar_bytes), mode="r:") as tar:
             data = {m.name.split("/", 1)[1]: tar.extractfile(m).read() for m in tar.getmembers()
                     if m.isfile() and "/" in m.name}
     except (OSError, tarfile.TarError, EOFError) as err:
-        raise InputError(f"not a readable .tar.gz archive ({err})", source=str(path)) from None
+        return 0, [f"damaged: the tar stream inside cannot be read ({err}); no file in it can be trusted"]
     if SUMS not in data:
         raise InputError(f"no {SUMS} in the archive: not a stiffcal archive", source=str(path))
     listed = {}

@@ -1,127 +1,71 @@
-"""The ``stiffcal`` command (contract in DESIGN.md).
+"""The ``stiffcal`` command: a thin layer over the Python API (:mod:`stiffcal.api`); contract in
+docs/contracts.md.
 
-``stiffcal design --robot FILE --test-pose-deg Q1,Q2,... --force-N FX,FY[,FZ] --experiments M
-[--criterion ot|a|t|d|g|mdc|o1|o2|o3|o4] [--sigma S]`` prints one JSON object.
+``stiffcal design --robot FILE --test-pose-deg Q1,Q2,... --force-N FX,FY[,FZ] [--experiments M]
+[--criterion ot|a|t|d|g|mdc|o1|o2|o3|o4] [--sigma S] [--seed N] [--quiet]`` prints one JSON object.
 
 Bad input gives one line on stderr naming the file or option and what was expected, and exit code 2;
-never a traceback.
+never a traceback. An internal error (a bug) is one line too, with exit code 1 (``STIFFCAL_TRACEBACK=1``
+shows the traceback). List options take negative numbers with or without ``=`` (``--test-pose-deg -35,120``).
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
+import os
+import re
 import sys
 
-import numpy as np
+from . import __version__
+from .errors import MAX_MESSAGE, InputError
 
-from . import criteria
-from .certificate import approximate_design
-from .design import Problem, optimal_single_pose
-from .plans import optimise_plan, round_design
-from .errors import InputError
-from .robot import load_robot
-from .study import Study, check_test_inputs
-from .tables import plan_summary
+#: a value that starts with '-' but is a number or a comma-separated list of numbers
+_NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
 
 
-def _floats(option: str, text: str) -> np.ndarray:
-    try:
-        vals = np.array([float(v) for v in text.split(",")], float)
-    except ValueError:
-        raise InputError(f"expected comma-separated numbers, got {text!r}", field=option) from None
-    if not np.all(np.isfinite(vals)):
-        raise InputError(f"expected finite numbers, got {text!r}", field=option)
-    return vals
+def _option_name(field: str | None) -> str | None:
+    """API argument -> CLI option in messages: 'test_pose_deg[0]' -> '--test-pose-deg[0]'."""
+    if not field or field.startswith("--"):
+        return field
+    head, sep, rest = field.partition("[")
+    return "--" + head.replace("_", "-") + sep + rest
 
 
-def _json_number(x: float):
-    """JSON has no inf: an infinite value (unidentifiable) is written as the string 'inf'."""
-    x = float(x)
-    return x if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+def join_negative_values(argv: list[str], parser: argparse.ArgumentParser) -> list[str]:
+    """``--opt -35,120`` -> ``--opt=-35,120`` for every option that takes a value (argparse would read
+    ``-35,120`` as an option and fail with 'expected one argument')."""
+    parsers = [parser, *(parser._subparsers._group_actions[0].choices.values() if parser._subparsers else ())]
+    takes_value = {s for p in parsers for a in p._actions if a.option_strings and a.nargs is None
+                   for s in a.option_strings}
+    out, i = [], 0
+    while i < len(argv):
+        a = argv[i]
+        if a in takes_value and i + 1 < len(argv) and _NEGATIVE_VALUE.match(argv[i + 1]):
+            out.append(f"{a}={argv[i + 1]}")
+            i += 2
+        else:
+            out.append(a)
+            i += 1
+    return out
 
 
 def design(args) -> dict:
     """Run ``stiffcal design``; returns the JSON-ready dict."""
-    robot = load_robot(args.robot)
-    force = _floats("--force-N", args.force_N)
-    q_t = check_test_inputs(robot, _floats("--test-pose-deg", args.test_pose_deg), force, "--test-pose-deg",
-                            "--force-N")
-    if args.experiments < 1:
-        raise InputError(f"expected a number of experiments >= 1, got {args.experiments}", field="--experiments")
-    if not args.sigma > 0:
-        raise InputError(f"expected sigma > 0, got {args.sigma}", field="--sigma")
-    if args.experiments < robot.min_poses:
-        raise InputError(f"expected at least {robot.min_poses} poses: {args.experiments} give "
-                         f"{args.experiments * robot.task_dim} equations for {robot.n_params} compliances",
-                         field="--experiments")
-    m = args.experiments
-    study = Study(robot.name, robot, np.radians(q_t), force, args.sigma, (args.criterion,), 1.0, 1.0)
-    notes, optimal_set, degenerate = [], [], False
-    single = None
-    try:
-        res1 = optimal_single_pose(Problem(robot, force, args.criterion, 1, np.radians(q_t), None, args.sigma))
-        single, notes, degenerate = res1.pose_deg, res1.notes, res1.degenerate
-        optimal_set = res1.optimal_set_deg
-    except InputError:
-        if m == 1:
-            raise
-    design = approximate_design(Problem(robot, force, "ot", 1, np.radians(q_t), None, args.sigma))
-    if m == 1:
-        poses = single[None, :]
-    else:
-        prob = Problem(robot, force, args.criterion, m, np.radians(q_t), None, args.sigma)
-        starts = [round_design(design, m)] + ([np.repeat(single[None], m, 0)] if single is not None else [])
-        plan = optimise_plan(prob, starts=starts, seed=args.seed)
-        poses, optimal_set, degenerate = plan.poses_deg, [], False
-    summ = plan_summary(study, poses)
-    bound = design.lower_bound(m, args.sigma) if args.criterion == "ot" else None
-    n = robot.n_joints
-    notes = list(notes) + [f"joint {j + 1}'s axis passes through the measured point at every pose: its compliance never "
-                           "deflects that point, cannot be identified from its position and is left out of the model "
-                           "(cov_diag 'inf'); measure a point off that axis (tool_m) to identify it"
-                           for j in robot.inert_joints]
-    return {
-        "criterion": args.criterion,
-        "criterion_label": criteria.label(args.criterion),
-        "robot": robot.name,
-        "experiments": m,
-        "poses_deg": [[round(float(a), 6) + 0.0 for a in p] for p in poses],
-        "O_t": _json_number(summ["O_t"]),
-        "O_t_star": criteria.o_t_star(robot.n_params, m, args.sigma),
-        "chi": _json_number(summ["chi"]),
-        "cov_diag": [_json_number(summ[f"E_dk{i + 1}"]) for i in range(n)],
-        "lower_bound": bound,
-        "gap": None if bound is None else _json_number(float(summ["O_t"]) / bound - 1.0),
-        "optimal_set_deg": [[round(float(a), 6) for a in p] for p in optimal_set],
-        "degenerate": degenerate,
-        "approximate_design": {"support_deg": design.support_deg.round(6).tolist(),
-                               "weights": design.weights.round(9).tolist(),
-                               "equivalence_gap": design.equivalence_gap},
-        "notes": notes,
-        "sigma": args.sigma,
-        "seed": args.seed,
-        "test_pose_deg": q_t.tolist(),
-        "force_N": force.tolist(),
-    }
+    from .api import design as run
+
+    return run(args.robot, args.test_pose_deg, args.force_N, experiments=args.experiments, criterion=args.criterion,
+               sigma=args.sigma, seed=args.seed, progress=False if args.quiet else None).to_dict()
 
 
 def discrepancy(args) -> dict:
     """``stiffcal discrepancy``: what the model gets wrong in measured data (writes DIR/verdict.json)."""
-    from .discrepancy import run
+    from .api import analyse_measurements, check_out_dir
 
-    robot = load_robot(args.robot)
-    if (args.test_pose_deg is None) != (args.force_N is None):
-        raise InputError("expected both --test-pose-deg and --force-N (the test pose and its force), or neither",
-                         field="--test-pose-deg")
-    qt = ft = None
-    if args.test_pose_deg is not None:
-        ft = _floats("--force-N", args.force_N)
-        qt = np.radians(check_test_inputs(robot, _floats("--test-pose-deg", args.test_pose_deg), ft, "--test-pose-deg",
-                                          "--force-N"))
-    v = run(robot, args.data, args.out, args.alpha, qt, ft, angle_resolution_deg=args.angle_resolution_deg,
-            force_resolution_N=args.force_resolution_N)
+    check_out_dir(args.out)  # before any work
+    v = analyse_measurements(args.robot, args.data, alpha=args.alpha, test_pose_deg=args.test_pose_deg,
+                             force_N=args.force_N, out=args.out, angle_resolution_deg=args.angle_resolution_deg,
+                             force_resolution_N=args.force_resolution_N)
     for note in v["notes"]:
         print(f"stiffcal discrepancy: note: {note}", file=sys.stderr)
     return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
@@ -138,32 +82,43 @@ def verify_archive(args) -> dict:
     return {"archive": args.file, "verified_files": ok, "problems": problems, "ok": not problems}
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with usage errors as one line and exit status 2 (like every other bad input)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="stiffcal", description=__doc__.split("\n")[0])
-    sub = p.add_subparsers(dest="command", required=True)
+    p = _Parser(prog="stiffcal", description=__doc__.split("\n")[0])
+    p.add_argument("--version", action="version", version=f"stiffcal {__version__}")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
     d = sub.add_parser("design", help="optimal measurement poses for a test pose (prints JSON)")
-    d.add_argument("--robot", required=True, help="robot YAML file")
+    d.add_argument("--robot", required=True, help="robot YAML file (docs/contracts.md)")
     d.add_argument("--test-pose-deg", required=True, help="test pose q*, comma-separated degrees")
     d.add_argument("--force-N", required=True, help="force F in newtons, comma-separated")
     d.add_argument("--experiments", type=int, default=1, help="number of measurement poses M (default 1)")
-    d.add_argument("--criterion", default="ot", choices=criteria.CRITERIA_KEYS, help="criterion (default ot)")
-    d.add_argument("--sigma", type=float, default=1.0, help="measurement noise s.t.d. (default 1)")
+    d.add_argument("--criterion", default="ot", help="ot a t d g mdc o1 o2 o3 o4 (default ot)")
+    d.add_argument("--sigma", default=1.0, help="measurement noise s.t.d. (default 1)")
     d.add_argument("--seed", type=int, default=0, help="seed of the random starts of M-pose plans (default 0)")
+    d.add_argument("--quiet", action="store_true", help="no progress bar on stderr (none is shown off a terminal)")
     d.set_defaults(func=design)
-    x = sub.add_parser("discrepancy", help="what the stiffness model gets wrong in measured data (writes DIR/verdict.json)")
+    x = sub.add_parser("discrepancy",
+                       help="what the stiffness model gets wrong in measured data (writes DIR/verdict.json)")
     x.add_argument("--robot", required=True, help="robot YAML file")
-    x.add_argument("--data", required=True, help="measured-data CSV (DESIGN.md contract)")
+    x.add_argument("--data", required=True, help="measured-data CSV (docs/measured-data.md)")
     x.add_argument("--out", required=True, help="output directory (verdict.json, residuals.png/svg)")
-    x.add_argument("--alpha", type=float, default=0.01, help="family-wise false-alarm rate (default 0.01)")
+    x.add_argument("--alpha", default=0.01, help="family-wise false-alarm rate (default 0.01)")
     x.add_argument("--test-pose-deg", help="test pose for the predicted compensation error (optional)")
     x.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")
-    x.add_argument("--angle-resolution-deg", type=float, default=None,
+    x.add_argument("--angle-resolution-deg", default=None,
                    help="joint angles within this are one configuration (encoder resolution; default 0.01)")
-    x.add_argument("--force-resolution-N", type=float, default=None,
+    x.add_argument("--force-resolution-N", default=None,
                    help="forces within this (per component) are one load; below it a row is unloaded (load-cell "
                         "resolution; default 0.5)")
     x.set_defaults(func=discrepancy)
-    v = sub.add_parser("verify-archive", help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
+    v = sub.add_parser("verify-archive",
+                       help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
     v.add_argument("file", help="results/archive/stiffcal-<commit>.tar.gz")
     v.set_defaults(func=verify_archive)
     return p
@@ -171,12 +126,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = parser.parse_args(join_negative_values(argv, parser))
     try:
         out = args.func(args)
     except InputError as err:
+        if err.source is None:  # an argument of the API: name it as the option it came from
+            err = err.renamed(_option_name(err.field))
         print(f"stiffcal {args.command}: error: {err}", file=sys.stderr)
         return 2
+    except Exception as err:  # noqa: BLE001 - a bug, not the user's input: one line (a traceback on request)
+        if os.environ.get("STIFFCAL_TRACEBACK"):
+            raise
+        msg = " ".join(f"{type(err).__name__}: {err}".split())[:MAX_MESSAGE]
+        print(f"stiffcal {args.command}: internal error (please report; STIFFCAL_TRACEBACK=1 shows where): {msg}",
+              file=sys.stderr)
+        return 1
     print(json.dumps(out, indent=2))
     return 0 if out.get("ok", True) else 1
 

@@ -13,7 +13,6 @@ the SVD-based observability indices O1-O4 are computed from the same eigen-decom
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -33,8 +32,10 @@ class Criterion:
 
 #: Table 1, in the paper's order. O1 is the geometric mean of the singular values over sqrt(m) (the
 #: paper's sqrt(sigma_1 sigma_2)/sqrt(m) for two parameters). O2 is the inverse condition number
-#: sigma_s / sigma_1: the formula printed in Table 1 (sigma_s^2 / sigma_1^3) is not scale invariant and is
-#: taken as a typesetting slip; only sigma_s / sigma_1 gives the pose and accuracies printed in Table 2.
+#: sigma_s / sigma_1, as Table 1 names it; the formula Table 1 prints, sigma_s^2 / sigma_1^3, is not scale
+#: invariant (it changes with the units of A), so we keep the name's form. For the paper's arm both forms
+#: have the same global maximisers, the isotropic poses (sigma_s = sigma_1) of Table 2, so either gives
+#: the pose and accuracies printed there (tests/test_paper.py compares both with a brute force).
 TABLE1: dict[str, Criterion] = {
     c.key: c
     for c in [

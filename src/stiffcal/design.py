@@ -31,7 +31,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import minimize
 
 from . import criteria
 from .errors import InputError
@@ -299,7 +298,8 @@ def sampled_minimise(fun, robot: Robot, n_refine: int = 16, log2_count: int = SA
 
     ``fun`` is evaluated at ``2**log2_count`` scrambled-Sobol poses (plus ``extra_starts`` (k, n) [rad]);
     the ``n_refine`` best that are at least ``min_separation_deg`` apart on some joint are polished
-    (L-BFGS-B within the limits: ``fun`` must be smooth). Unlike the grid search this finds the global optimum only with high
+    (L-BFGS-B within the limits: ``fun`` must be smooth). Unlike the grid search this finds the global optimum
+    only with high
     probability; the tests compare it with an independent brute-force random search.
     Returns ``(xs (k, n) [rad], fs (k,))``, best first.
     """
@@ -386,6 +386,8 @@ def polish_smooth(fun, x0: np.ndarray, bounds, xatol: float = 1e-10, h: float = 
 
     f0 = fg(x0)[0]
     bnds = [b if b is not None else (None, None) for b in bounds]
+    from scipy.optimize import minimize
+
     res = minimize(fg, x0, jac=True, method="L-BFGS-B", bounds=bnds,
                    options=dict(maxiter=500, ftol=1e-15, gtol=max(xatol, 1e-12)))
     if np.isfinite(res.fun) and res.fun <= f0:
@@ -406,6 +408,8 @@ def _polish(fun, x0: np.ndarray, bounds, xatol: float):
         lo = np.array([b[0] if b else -np.inf for b in bounds])
         hi = np.array([b[1] if b else np.inf for b in bounds])
         simplex = np.clip(simplex, lo, hi)
+    from scipy.optimize import minimize
+
     res = minimize(f, x0, method="Nelder-Mead", bounds=bnds,
                    options=dict(xatol=xatol, fatol=1e-15 * max(1.0, abs(f0)), maxiter=4000 * len(x0),
                                 maxfev=8000 * len(x0), initial_simplex=simplex))

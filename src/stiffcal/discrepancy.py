@@ -697,7 +697,8 @@ def zero_point(meas: Measurements, s2: float) -> dict | None:
     rms = float(np.sqrt(np.mean(z**2)))
     out = {"n_rows": int(n0), "rms_m": rms, "p_value": None}
     if rms == 0:
-        out["note"] = "the unloaded rows hold zero displacement: they are the reference the loaded rows are measured from"
+        out["note"] = ("the unloaded rows hold zero displacement: they are the reference the loaded rows are "
+                       "measured from")
         return out
     p = float(stats.chi2.sf(float((z**2).sum()) / s2, z.size)) if s2 > 0 else None
     out["p_value"] = p
@@ -798,7 +799,8 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     out = _finite(out, out["notes"])
     if sel.unexplained:
         f = sel.fits[chosen]
-        out["residual_structure"] = residual_structure(robot, m, (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d))
+        resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
+        out["residual_structure"] = residual_structure(robot, m, resid)
     return out
 
 
@@ -950,7 +952,8 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
     keep[np.isin(meas.rows, verdict["outlier_rows"])] = False
     resid = nominal_residuals(robot, meas, keep)
     fig = plots.fig_residuals(meas.subset(keep), residual_features(robot, meas.subset(keep)), resid[keep],
-                              verdict["nominal"]["sigma_m"], f"Nominal-model residuals: {label or Path(data_path).name}")
+                              verdict["nominal"]["sigma_m"],
+                              f"Nominal-model residuals: {label or Path(data_path).name}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plots.save(fig, out / "residuals")

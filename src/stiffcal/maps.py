@@ -60,7 +60,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.spatial import ConvexHull
 
 from ._map_polynomials import Q4, Q12
 from .criteria import chi as chi_of
@@ -236,6 +235,8 @@ def point_set(b: float, n_theta: int = 180, n_c: int = 120) -> PointSet:
     mid, rad = (p[:, 0] + p[:, 2]) / 2, np.hypot((p[:, 0] - p[:, 2]) / 2, p[:, 1] / 2)
     useful = mid - rad <= np.min(mid + rad)
     x, c, p = x[useful], c[useful], p[useful]
+    from scipy.spatial import ConvexHull  # imported here: jobs that only read maps do not load it
+
     v = np.unique(ConvexHull(p).vertices)
     return PointSet(x[v], c[v], p[v])
 

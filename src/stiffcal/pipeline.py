@@ -1,6 +1,10 @@
-"""One function per workflow step: paths in, files out. The Snakemake scripts only unpack
-``snakemake.input/output/config`` and call these, so every step is testable without Snakemake and also
-runs standalone (``python -m stiffcal.pipeline STEP ...`` is not needed: import and call).
+"""One function per workflow step: parameters and paths in, files out. The Snakemake scripts only unpack
+``snakemake.params/input/output`` and call these, so every step is testable without Snakemake.
+
+Every step takes exactly the config values its rule declares in ``params:`` (never the whole config), so
+that Snakemake reruns a job when, and only when, something it uses changed (docs/workflow.md). Modules
+are imported inside the steps: a job loads only what it uses (a figure job never imports SciPy's
+optimisers, a table job never imports matplotlib).
 
 Each step writes its outputs only after everything is computed, so a failure leaves no partial file.
 """
@@ -10,126 +14,117 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import numpy as np
-import pandas as pd
 
-from . import maps, plots, report, reproduction, tables
-from .study import Study, study_from_config
+def _study(p: dict, robot: str, where: str = "study"):
+    """The :class:`~stiffcal.study.Study` of a rule's study parameters (a subset of config ``study`` or an
+    entry of ``studies``, defaults filled in) and its robot file."""
+    from .study import study_from_entry
 
-
-def _study(config: dict) -> Study:
-    return study_from_config(config, ".", "config/config.yaml")
+    return study_from_entry({"name": "study", **p, "robot": robot}, ".", "config", where)
 
 
-def _read(path) -> pd.DataFrame:
+def _read(path):
+    import pandas as pd
+
     return pd.read_csv(path, keep_default_na=False, na_values=[""])
+
+
+def _write(df, path) -> None:
+    from .tables import write_csv
+
+    write_csv(df, path)
 
 
 def _log(msg: str) -> None:
     print(f"[stiffcal {time.strftime('%H:%M:%S')}] {msg}", flush=True)
 
 
-def table2(config: dict, out_csv: str) -> None:
-    """Table 2 for the study of ``config``."""
-    study = _study(config)
+def table2(p: dict, robot: str, out_csv: str) -> None:
+    """Table 2 for the paper's study: p = test_pose_deg, force_N, sigma_m, criteria, search_step_deg."""
+    from . import tables
+
+    study = _study(p, robot)
     _log(f"Table 2: optimising {len(study.criteria)} criteria for {study.robot.name}")
-    tables.write_csv(tables.table2(study), out_csv)
+    _write(tables.table2(study), out_csv)
 
 
-def table3(config: dict, table2_csv: str, out_csv: str) -> None:
-    tables.write_csv(tables.table3(_study(config), _read(table2_csv)), out_csv)
+def table3(p: dict, robot: str, table2_csv: str, out_csv: str) -> None:
+    """Table 3: p = test_pose_deg, force_N, sigma_m."""
+    from . import tables
+
+    _write(tables.table3(_study(p, robot), _read(table2_csv)), out_csv)
 
 
-def comparison(config: dict, table2_csv: str, table3_csv: str, table4_csv: str, table5_csv: str,
-               printed_yaml: str, out_csv: str) -> None:
-    """Every printed number of Tables 2-5 beside ours, with a status and a reason."""
-    study = _study(config)
-    printed = reproduction.load_printed(printed_yaml)
-    parts = [reproduction.compare_tables(study, _read(table2_csv), _read(table3_csv), printed)]
-    for name, path in (("table4", table4_csv), ("table5", table5_csv)):
-        parts.append(reproduction.compare_plans(study, _read(path), printed[name], name,
-                                                printed.get("explain", {}), seed=int(config["seed"])))
-    cmp = pd.concat(parts, ignore_index=True)
+def comparison(p: dict, robot: str, table2_csv: str, table3_csv: str, table4_csv: str, table5_csv: str,
+               printed_yaml: str, out_csv: str, statistics_csv: str | None = None) -> None:
+    """Every result number the paper prints (Tables 2-5 and its text) beside ours, with a status and a
+    reason; the Figure 6 numbers of the text need the map statistics (``statistics_csv``). p = the study's
+    test_pose_deg, force_N, sigma_m and seed."""
+    from . import reproduction
+
+    study = _study({k: v for k, v in p.items() if k != "seed"}, robot)
+    stats = _read(statistics_csv) if statistics_csv else None
+    cmp = reproduction.comparison_table(study, *(_read(f) for f in (table2_csv, table3_csv, table4_csv, table5_csv)),
+                                        reproduction.load_printed(printed_yaml), stats, seed=int(p["seed"]))
     s = reproduction.summary(cmp)
     _log(f"paper comparison: {s['reproduced']} of {s['total']} printed numbers reproduced; reasons {s['reasons']}")
-    tables.write_csv(cmp, out_csv)
+    _write(cmp, out_csv)
 
 
-def _optimal_poses(t2: pd.DataFrame, n: int) -> dict[str, np.ndarray]:
+def _optimal_poses(t2, n: int) -> dict:
     cols = [f"q{i + 1}_deg" for i in range(n)]
     return {r["criterion"]: r[cols].to_numpy(float) for _, r in t2.iterrows() if not r["degenerate"]}
 
 
-def validation(config: dict, table2_csv: str, out_csv: str) -> None:
-    """Monte Carlo check of eqs. 11 and 16 on the O_t- and A-optimal single poses."""
-    study = _study(config)
+def validation(p: dict, robot: str, table2_csv: str, out_csv: str) -> None:
+    """Monte Carlo check of eqs. 11 and 16 on the O_t- and A-optimal single poses; p = test_pose_deg,
+    force_N, sigma_m, samples, seed."""
+    from . import tables
+
+    study = _study({k: p[k] for k in ("test_pose_deg", "force_N", "sigma_m")}, robot)
     poses = _optimal_poses(_read(table2_csv), study.robot.n_joints)
     plans = {f"{k}-optimal pose": poses[k][None, :] for k in ("ot", "a") if k in poses}
-    df = tables.monte_carlo_check(study, plans, int(config["monte_carlo"]["samples"]), int(config["seed"]))
-    tables.write_csv(df, out_csv)
+    _write(tables.monte_carlo_check(study, plans, int(p["samples"]), int(p["seed"])), out_csv)
 
 
-def chi_map(config: dict, out_csv: str) -> None:
-    tables.write_csv(tables.chi_map(_study(config)), out_csv)
+def chi_map(p: dict, robot: str, out_csv: str) -> None:
+    """chi over the measurement-pose plane (Figure 5); p = test_pose_deg, force_N, sigma_m, fig5_step_deg."""
+    from . import tables
+
+    _write(tables.chi_map(_study(p, robot)), out_csv)
 
 
-def approximate_design(config: dict, out_json: str, out_support_csv: str, out_certificate_csv: str,
-                       name: str | None = None) -> None:
+def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str, out_certificate_csv: str,
+                       out_phi_csv: str | None = None, name: str | None = None) -> None:
     """The optimal approximate design for O_t and its certificate (one run serves every m), for the paper's
-    study or, with ``name``, for the design study of that name."""
+    study (p = test_pose_deg, force_N, sigma_m, pool_step_deg; also the phi map of the design figure) or,
+    with ``name``, for the design study of that name (p = its entry)."""
     import json
 
+    from . import tables
     from .certificate import approximate_design as compute
+    from .integrity import atomic_write
 
-    study = _study(config) if name is None else _design_study(config, name)[0]
-    _log(f"approximate design for {study.name} ({study.robot.n_joints} joints): multiplicative algorithm, "
-         "polish, equivalence-theorem bound")
-    step = config.get("plans", {}).get("pool_step_deg") if name is None else None
-    d = compute(study.problem("ot"), pool_step_deg=step)
+    study = _study({k: v for k, v in p.items() if k in ("name", "test_pose_deg", "force_N", "sigma_m")}, robot)
+    _log(f"approximate design for {name or 'the paper study'} ({study.robot.n_joints} joints): multiplicative "
+         "algorithm, polish, equivalence-theorem bound")
+    d = compute(study.problem("ot"), pool_step_deg=p.get("pool_step_deg"))
     _log(f"Phi = {d.phi:.9g}, bound Phi* >= {d.phi_lower:.9g}, equivalence gap {d.equivalence_gap:.2e}, "
          f"{len(d.weights)} support poses")
-    tables.write_csv(tables.design_table(d), out_support_csv)
-    tables.write_csv(tables.certificate_table(d, study.sigma), out_certificate_csv)
-    Path(out_json).write_text(json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
-                                          "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
-                                          "iterations": d.iterations}, indent=1) + "\n", encoding="utf-8")
-
-
-def _design_study(config: dict, name: str):
-    from .study import design_studies
-
-    return design_studies(config, ".", "config/config.yaml")[name]
-
-
-def study_plan(config: dict, name: str, m: int, design_json: str, out_csv: str) -> None:
-    """One row of a design study: the best m-pose plan, its O_t, chi, bound and gap."""
-    study, _ = _design_study(config, name)
-    _log(f"{name}: best plan of {m} poses")
-    row = tables.best_plan_row(study, m, int(config["seed"]), _design(design_json))
-    _log(f"{name}: m = {m}, O_t = {row['O_t']:.6g} (RMS {row['rms_m']:.4g}), bound {row['lower_bound']:.6g}, "
-         f"gap {100 * row['gap']:.2f} %, within limits: {row['within_limits']}")
-    tables.write_csv(pd.DataFrame([row]), out_csv)
-
-
-def study_plans(plan_csvs: list[str], out_csv: str) -> None:
-    """The rows of every m, sorted by m."""
-    tables.write_csv(pd.concat([_read(p) for p in plan_csvs]).sort_values("m", kind="stable"), out_csv)
-
-
-def fig_study_plan(config: dict, name: str, plans_csv: str, out_png: str) -> None:
-    study, entry = _design_study(config, name)
-    df = _read(plans_csv).set_index("m")
-    m = int(entry["draw_m"])
-    plots.save(plots.fig_study_plan(study, tables.parse_plan(df.loc[m, "poses_deg"]), m), Path(out_png).with_suffix(""))
-
-
-def fig_study_versus_m(config: dict, name: str, plans_csv: str, out_png: str) -> None:
-    study, _ = _design_study(config, name)
-    plots.save(plots.fig_study_versus_m(_read(plans_csv), study.sigma), Path(out_png).with_suffix(""))
+    phi = tables.phi_map(study, d) if out_phi_csv else None
+    _write(tables.design_table(d), out_support_csv)
+    _write(tables.certificate_table(d, study.sigma), out_certificate_csv)
+    if phi is not None:
+        _write(phi, out_phi_csv)
+    atomic_write(out_json, json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
+                                       "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
+                                       "iterations": d.iterations}, indent=1) + "\n")
 
 
 def _design(path: str):
     import json
+
+    import numpy as np
 
     from .certificate import ApproximateDesign
 
@@ -138,131 +133,175 @@ def _design(path: str):
                              d["phi_lower"], d["iterations"])
 
 
-def plans_table(config: dict, m: int, design_json: str, table2_csv: str, out_csv: str) -> None:
-    """Table 4 (m = 2) or 5 (m = 3): the paper's plans (i)-(iv) with the certified bound."""
-    study = _study(config)
+def study_plan(p: dict, robot: str, m: int, seed: int, design_json: str, out_csv: str) -> None:
+    """One row of a design study: the best m-pose plan, its O_t, chi, bound and gap; p = the study's entry."""
+    import pandas as pd
+
+    from . import tables
+
+    study = _study({k: p[k] for k in ("name", "test_pose_deg", "force_N", "sigma_m")}, robot)
+    _log(f"{p['name']}: best plan of {m} poses")
+    row = tables.best_plan_row(study, m, seed, _design(design_json))
+    _log(f"{p['name']}: m = {m}, O_t = {row['O_t']:.6g} (RMS {row['rms_m']:.4g}), bound {row['lower_bound']:.6g}, "
+         f"gap {100 * row['gap']:.2f} %, within limits: {row['within_limits']}")
+    _write(pd.DataFrame([row]), out_csv)
+
+
+def study_summary(p: dict, robot: str, plan_csvs: list[str], out_versus_m_csv: str, out_plans_csv: str,
+                  out_plan_png: str, out_versus_m_png: str) -> None:
+    """A design study's best plans of every M: versus_m.csv (one row per M: O_t, RMS, chi, bound, gap,
+    E[dk_i^2], within limits), plans.csv (long form: plan, m, pose, q1_deg..qn_deg), the plan of ``draw_m``
+    drawn in 3-D and O_t and chi against M. p = the study's entry with draw_m."""
+    import pandas as pd
+
+    from . import plots, tables
+
+    study = _study({k: p[k] for k in ("name", "test_pose_deg", "force_N", "sigma_m")}, robot)
+    df = pd.concat([_read(c) for c in plan_csvs]).sort_values("m", kind="stable").reset_index(drop=True)
+    plans = {("best", int(r.m)): tables.parse_plan(r.poses_deg) for r in df.itertuples()}
+    m = int(p["draw_m"])
+    fig_plan = plots.fig_study_plan(study, plans[("best", m)], m)
+    fig_m = plots.fig_study_versus_m(df, study.sigma)
+    _write(df.drop(columns="poses_deg"), out_versus_m_csv)
+    _write(tables.plans_long(plans), out_plans_csv)
+    plots.save(fig_plan, Path(out_plan_png).with_suffix(""))
+    plots.save(fig_m, Path(out_versus_m_png).with_suffix(""))
+
+
+def plans_table(p: dict, robot: str, m: int, design_json: str, table2_csv: str, out_csv: str) -> None:
+    """Table 4 (m = 2) or 5 (m = 3): the paper's plans (i)-(iv) with the certified bound; p = test_pose_deg,
+    force_N, sigma_m, seed."""
+    from . import tables
+
+    study = _study({k: p[k] for k in ("test_pose_deg", "force_N", "sigma_m")}, robot)
     single = _optimal_poses(_read(table2_csv), study.robot.n_joints)["ot"]
     _log(f"plans (i)-(iv) of {m} poses")
-    df = tables.plans_table(study, m, int(config["seed"]), _design(design_json), single)
-    tables.write_csv(df, out_csv)
+    _write(tables.plans_table(study, m, int(p["seed"]), _design(design_json), single), out_csv)
 
 
-def ot_versus_m(config: dict, design_json: str, out_csv: str) -> None:
-    """Best O_t against the number of poses, beside the bound."""
-    study = _study(config)
-    m_max = int(config.get("plans", {}).get("m_max", 10))
+def ot_versus_m(p: dict, robot: str, design_json: str, out_csv: str) -> None:
+    """Best O_t against the number of poses, beside the bound; p = test_pose_deg, force_N, sigma_m,
+    search_step_deg, m_max, seed."""
+    from . import tables
+
+    study = _study({k: p[k] for k in ("test_pose_deg", "force_N", "sigma_m", "search_step_deg")}, robot)
+    m_max = int(p["m_max"])
     _log(f"best plans for m = 1..{m_max}")
-    tables.write_csv(tables.ot_versus_m(study, range(1, m_max + 1), int(config["seed"]), _design(design_json)),
-                     out_csv)
+    _write(tables.ot_versus_m(study, range(1, m_max + 1), int(p["seed"]), _design(design_json)), out_csv)
 
 
-def phi_map(config: dict, design_json: str, out_csv: str) -> None:
-    tables.write_csv(tables.phi_map(_study(config), _design(design_json)), out_csv)
+def paper_figures(p: dict, robot: str, table2_csv: str, chi_csv: str, support_csv: str, phi_csv: str,
+                  ot_m_csv: str, out_pngs: dict) -> None:
+    """Figures 3-5, the approximate design over the equivalence-theorem map and O_t against m, in one job
+    (each is a fraction of a second: one start-up for five); p = test_pose_deg, force_N.
+    out_pngs: figure name (fig3, fig4, fig5, fig_design, fig_ot_versus_m) -> PNG path (the SVG beside it)."""
+    import numpy as np
+
+    from . import plots
+
+    study = _study(p, robot)
+    t2 = _read(table2_csv)
+    pose = _optimal_poses(t2, study.robot.n_joints)["ot"]
+    opt_set = t2.set_index("criterion").loc["ot", "optimal_set_deg"]
+    opt_set = np.array([[float(v) for v in q.split()] for q in str(opt_set).split(";")])
+    figs = {"fig3": lambda: plots.fig3_accuracy(t2), "fig4": lambda: plots.fig4_poses(study, pose),
+            "fig5": lambda: plots.fig5_chi_map(_read(chi_csv), opt_set, pose),
+            "fig_design": lambda: plots.fig_design(_read(support_csv), _read(phi_csv)),
+            "fig_ot_versus_m": lambda: plots.fig_ot_versus_m(_read(ot_m_csv))}
+    for name, make in figs.items():
+        plots.save(make(), Path(out_pngs[name]).with_suffix(""))
 
 
-def fig_design(support_csv: str, phi_csv: str, out_png: str) -> None:
-    plots.save(plots.fig_design(_read(support_csv), _read(phi_csv)), Path(out_png).with_suffix(""))
+def _map_study(p: dict):
+    from .maps import MapStudy
+
+    return MapStudy(**p)
 
 
-def fig_ot_versus_m(ot_m_csv: str, out_png: str) -> None:
-    plots.save(plots.fig_ot_versus_m(_read(ot_m_csv)), Path(out_png).with_suffix(""))
+def map_tile(p: dict, tile: int, out_csv: str) -> None:
+    """One job of a map (Figures 6-10): the symmetry classes of tile ``tile``, every member cell written;
+    p = name, link_ratio, figure, step_deg, force_deg, tile_cells."""
+    from . import maps
 
-
-def _map_study(config: dict, name: str) -> maps.MapStudy:
-    by_name = {m.name: m for m in maps.map_studies(config, ".", "config/config.yaml")}
-    return by_name[name]
-
-
-def map_tile(config: dict, name: str, tile: int, out_csv: str) -> None:
-    """One job of a map (Figures 6-10): the symmetry classes of tile ``tile``, every member cell written."""
-    st = _map_study(config, name)
-    _log(f"map {name} (b = {st.link_ratio:.4g}, step {st.step_deg:g} deg): tile {tile + 1} of {st.n_tiles}")
+    st = _map_study(p)
+    _log(f"map {st.name} (b = {st.link_ratio:.4g}, step {st.step_deg:g} deg): tile {tile + 1} of {st.n_tiles}")
     df = maps.map_tile(st.link_ratio, st.force_deg, st.step_deg, st.tile_cells, tile,
-                       progress=maps.log_progress(f"map {name} tile {tile + 1}"))
-    tables.write_csv(df, out_csv)
+                       progress=maps.log_progress(f"map {st.name} tile {tile + 1}"))
+    _write(df, out_csv)
 
 
-def map_merge(config: dict, name: str, tile_csvs: list[str], out_csv: str) -> None:
-    """results/maps/<study>/map.csv from its tiles (checked complete)."""
-    st = _map_study(config, name)
-    df = maps.merge_tiles([_read(p) for p in tile_csvs], st.step_deg)
-    _log(f"map {name}: {len(df)} cells, O_t in [{df.O_t.min():.4g}, {df.O_t.max():.4g}]")
-    tables.write_csv(df, out_csv)
+def map_merge(p: dict, tile_csvs: list[str], out_csv: str) -> None:
+    """results/maps/<study>/map.csv from its tiles (checked complete); p = the map study."""
+    from . import maps
+
+    st = _map_study(p)
+    df = maps.merge_tiles([_read(c) for c in tile_csvs], st.step_deg)
+    _log(f"map {st.name}: {len(df)} cells, O_t in [{df.O_t.min():.4g}, {df.O_t.max():.4g}]")
+    _write(df, out_csv)
 
 
-def map_statistics(config: dict, map_csvs: dict, printed_yaml: str, out_csv: str) -> None:
-    """The statistics the paper quotes for Figure 6, ours beside theirs, and their grid dependence."""
-    studies = maps.map_studies(config, ".", "config/config.yaml")
-    steps = [float(s) for s in {**maps.MAP_DEFAULTS, **config["maps"]}["statistics_steps_deg"]]
+def map_statistics(p: dict, map_csvs: dict, printed_yaml: str, out_csv: str) -> None:
+    """The statistics the paper quotes for Figure 6, ours beside theirs, and their grid dependence;
+    p = studies (the map studies), statistics_steps_deg."""
+    from . import maps, reproduction
+
+    studies = [_map_study(s) for s in p["studies"]]
+    steps = [float(s) for s in p["statistics_steps_deg"]]
     printed = {k: float(v) for k, v in reproduction.load_printed(printed_yaml).get("figure6", {}).items()}
-    df = maps.statistics_table({n: _read(p) for n, p in map_csvs.items()}, studies, steps, printed)
+    df = maps.statistics_table({n: _read(c) for n, c in map_csvs.items()}, studies, steps, printed)
     for _, r in df[df.statistic == "mean"].iterrows():
         _log(f"map {r.study}: mean chi {r.ours:.4g} on the {r.grid_deg:g} deg grid (paper: {r.paper})")
-    tables.write_csv(df, out_csv)
+    _write(df, out_csv)
 
 
-def fig6(map_csv: str, out_png: str) -> None:
-    plots.save(plots.fig6_inverse_chi(_read(map_csv)), Path(out_png).with_suffix(""))
+def map_figures(maps_by_figure: dict, out_pngs: dict) -> None:
+    """Figure 6 (1/chi, from the map of Figure 7) and Figures 7-10 (optimal poses) in one job.
+    maps_by_figure: figure number -> map CSV; out_pngs: 'fig<k>' -> PNG path (the SVG beside it)."""
+    from . import plots
+
+    frames = {int(k): _read(v) for k, v in maps_by_figure.items()}
+    for name, png in out_pngs.items():
+        k = int(name.removeprefix("fig"))
+        fig = plots.fig6_inverse_chi(frames[7]) if k == 6 else plots.fig_optimal_poses(frames[k], k)
+        plots.save(fig, Path(png).with_suffix(""))
 
 
-def fig_map_poses(map_csv: str, figure: int, out_png: str) -> None:
-    plots.save(plots.fig_optimal_poses(_read(map_csv), figure), Path(out_png).with_suffix(""))
+def discrepancy(p: dict, out_verdict: str) -> None:
+    """One measured data set: verdict.json and residuals.png/svg beside it (stiffcal discrepancy).
+    p = the data set's entry (name, data, robot, synthetic, force_N, alpha, angle_resolution_deg,
+    force_resolution_N) and the study's test_pose_deg."""
+    import numpy as np
 
-
-def discrepancy(config: dict, name: str, out_verdict: str) -> None:
-    """One measured data set: verdict.json and residuals.png/svg beside it (stiffcal discrepancy)."""
     from .discrepancy import run
     from .robot import load_robot
 
-    entry = next(m for m in config["measured_data"] if m["name"] == name)
-    study = _study(config)
-    robot = load_robot(entry["robot"])
-    force = np.asarray(entry.get("force_N", config["study"]["force_N"]), float)
-    qt = study.test_pose if robot.n_joints == study.robot.n_joints else None
-    label = f"{name} ({'SYNTHETIC data' if entry.get('synthetic') else entry['data']})"
-    v = run(robot, entry["data"], str(Path(out_verdict).parent), float(entry.get("alpha", 0.01)), qt,
-            force if qt is not None else None, label, entry.get("angle_resolution_deg"), entry.get("force_resolution_N"))
-    _log(f"{name}: cause {v['cause']} (causes {v['causes']}, p = {v['p_value']:.3g}), indistinguishable from "
+    robot = load_robot(p["robot"])
+    qt_deg = np.asarray(p["test_pose_deg"], float)
+    qt = np.radians(qt_deg) if robot.n_joints == qt_deg.size else None
+    force = np.asarray(p["force_N"], float) if qt is not None else None
+    label = f"{p['name']} ({'SYNTHETIC data' if p.get('synthetic') else p['data']})"
+    v = run(robot, p["data"], str(Path(out_verdict).parent), float(p["alpha"]), qt, force, label,
+            p.get("angle_resolution_deg"), p.get("force_resolution_N"))
+    _log(f"{p['name']}: cause {v['cause']} (causes {v['causes']}, p = {v['p_value']:.3g}), indistinguishable from "
          f"{v['indistinguishable_from'] or 'none'}, outlier rows {v['outlier_rows']}")
     for note in v["notes"]:
-        _log(f"{name}: note: {note}")
-
-
-def _optimal_set(t2: pd.DataFrame, key: str) -> np.ndarray:
-    text = t2.set_index("criterion").loc[key, "optimal_set_deg"]
-    return np.array([[float(v) for v in p.split()] for p in str(text).split(";")])
-
-
-def fig3(table2_csv: str, out_png: str) -> None:
-    plots.save(plots.fig3_accuracy(_read(table2_csv)), Path(out_png).with_suffix(""))
-
-
-def fig4(config: dict, table2_csv: str, out_png: str) -> None:
-    study = _study(config)
-    pose = _optimal_poses(_read(table2_csv), study.robot.n_joints)["ot"]
-    plots.save(plots.fig4_poses(study, pose), Path(out_png).with_suffix(""))
-
-
-def fig5(table2_csv: str, chi_csv: str, out_png: str) -> None:
-    t2 = _read(table2_csv)
-    pose = _optimal_poses(t2, 2)["ot"]
-    plots.save(plots.fig5_chi_map(_read(chi_csv), _optimal_set(t2, "ot"), pose), Path(out_png).with_suffix(""))
+        _log(f"{p['name']}: note: {note}")
 
 
 #: the rules behind each table and figure of the report (its provenance lines)
 REPORT_RULES = {
     "table2": "table2", "table3": "table3", "table4": "plans_table (m = 2)", "table5": "plans_table (m = 3)",
     "design": "approximate_design", "ot_versus_m": "ot_versus_m", "comparison": "paper_comparison",
-    "validation": "validation", "fig3": "fig3", "fig4": "fig4", "fig5": "chi_map + fig5",
-    "fig_design": "approximate_design + phi_map + fig_design", "fig_ot_versus_m": "ot_versus_m + fig_ot_versus_m",
-    "map_statistics": "map_tile + map_merge + map_statistics", "fig6": "map_tile + map_merge + fig6",
-    "fig_map": "map_tile + map_merge + fig_map_poses", "discrepancy": "discrepancy",
-    "study_design": "study_design", "study_plans": "study_design + study_plan + study_plans",
-    "fig_study_plan": "study_plans + fig_study_plan", "fig_study_versus_m": "study_plans + fig_study_versus_m"}
+    "validation": "validation", "fig3": "paper_figures", "fig4": "paper_figures", "fig5": "chi_map + paper_figures",
+    "fig_design": "approximate_design + paper_figures", "fig_ot_versus_m": "ot_versus_m + paper_figures",
+    "map_statistics": "map_tile + map_merge + map_statistics", "fig6": "map_tile + map_merge + map_figures",
+    "fig_map": "map_tile + map_merge + map_figures", "discrepancy": "discrepancy",
+    "study_design": "study_design", "study_plans": "study_design + study_plan + study_summary",
+    "fig_study_plan": "study_plan + study_summary", "fig_study_versus_m": "study_plan + study_summary"}
 REPORT_TABLES = ("table2", "table3", "table4", "table5", "design", "certificate", "ot_versus_m", "comparison",
                  "validation", "map_statistics")
 REPORT_FIGURES = ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m", "fig6", "fig7", "fig8", "fig9", "fig10")
-STUDY_PARTS = ("studycert", "studyplans", "studyfigplan", "studyfigm")
+STUDY_PARTS = ("studycert", "studyplans", "studym", "studyfigplan", "studyfigm")
 
 
 def report_inputs(named: dict[str, str]) -> tuple[dict, dict, dict, dict]:
@@ -293,6 +332,7 @@ def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: s
     (name -> paths of 'studycert', 'studyplans', 'studyfigplan', 'studyfigm')."""
     import json
 
+    from . import report
     from .study import design_studies
 
     prov = {"commit": report.git_commit(), "config_hash": report.config_hash(config), **rules}
@@ -302,11 +342,14 @@ def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: s
     loaded = design_studies(config, ".", "config/config.yaml") if studies else {}
     ctx["studies"] = {name: report.study_context(*loaded[name], paths) for name, paths in (studies or {}).items()}
     html = report.render_html(ctx, template_dir)
-    Path(out_html).parent.mkdir(parents=True, exist_ok=True)
-    Path(out_html).write_text(html, encoding="utf-8")
+    from .integrity import atomic_write
+
+    atomic_write(out_html, html)
 
 
 def report_pdf(html: str, out_pdf: str) -> None:
+    from . import report
+
     pages = report.write_pdf(html, out_pdf)
     _log(f"{out_pdf}: {pages} pages")
 
@@ -317,6 +360,7 @@ def archive(config: dict, started: str, out_tgz: str) -> None:
     import datetime
 
     from . import archive as arc
+    from . import report
 
     files = arc.archive_files(".")
     ended = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
@@ -326,26 +370,41 @@ def archive(config: dict, started: str, out_tgz: str) -> None:
          f"dirty: {prov['dirty']})")
 
 
+def cpu_line(rule: str, wildcards: dict, before_step: float) -> str:
+    """The line every job ends its log with: its own CPU time (user + system, ``time.process_time``, from the
+    start of the process: interpreter, Snakemake's script preamble, imports and the step), and the CPU
+    spent before the step began. ``benchmarks/bench_pipeline.py`` adds these up per rule."""
+    wc = ",".join(f"{k}={v}" for k, v in wildcards.items())
+    return (f"[stiffcal] cpu rule={rule} wildcards={wc or '-'} total={time.process_time():.3f} "
+            f"before_step={before_step:.3f}")
+
+
 def run(snakemake, step, *args) -> None:
     """Run one step from a Snakemake script, with its output in the rule's log.
 
     A bad input (:class:`InputError`) is one clear line on stderr and in the log, exit status 1. Any
     other failure is a bug: its traceback goes to the log and stderr names the log. Never a silent
-    failure, never a traceback in place of a message for the user's own mistakes.
+    failure, never a traceback in place of a message for the user's own mistakes. The log ends with the
+    job's CPU time (:func:`cpu_line`).
     """
     import contextlib
     import sys
     import traceback
 
+    from . import integrity
     from .errors import InputError
 
+    before_step = time.process_time()
+    integrity.watch_parent()
     log = Path(snakemake.log[0]) if snakemake.log else None
     if log:
         log.parent.mkdir(parents=True, exist_ok=True)
     with open(log, "w", encoding="utf-8") if log else contextlib.nullcontext(sys.stdout) as fh:
         with contextlib.redirect_stdout(fh):
             try:
+                integrity.verify([str(p) for p in snakemake.input])
                 step(*args)
+                integrity.record([str(p) for p in snakemake.output], snakemake.rule)
             except InputError as err:
                 print(f"stiffcal: error: {err}", file=fh)
                 print(f"stiffcal: error: {err}", file=sys.stderr)
@@ -355,3 +414,4 @@ def run(snakemake, step, *args) -> None:
                 print(f"stiffcal: internal error in {step.__name__}: {type(err).__name__}: {err} "
                       f"(traceback in {log})", file=sys.stderr)
                 sys.exit(1)
+            print(cpu_line(snakemake.rule, dict(snakemake.wildcards.items()), before_step), flush=True)

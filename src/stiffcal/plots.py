@@ -23,13 +23,16 @@ STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.font
 
 
 def save(fig, stem: str | Path) -> list[Path]:
-    """Write ``<stem>.png`` and ``<stem>.svg`` without timestamps (reproducible bytes)."""
+    """Write ``<stem>.png`` and ``<stem>.svg`` without timestamps (reproducible bytes), each atomically (a
+    temporary file moved into place when complete)."""
+    from .integrity import atomic_path
+
     stem = Path(stem)
-    stem.parent.mkdir(parents=True, exist_ok=True)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
-    fig.savefig(paths[0], metadata={"Software": None}, bbox_inches="tight")
-    with plt.rc_context({"svg.hashsalt": STYLE["svg.hashsalt"]}):  # read when saving: fixed ids in the SVG
-        fig.savefig(paths[1], metadata={"Date": None, "Creator": None}, bbox_inches="tight")
+    with atomic_path(paths[0]) as tmp:
+        fig.savefig(tmp, format="png", metadata={"Software": None}, bbox_inches="tight")
+    with plt.rc_context({"svg.hashsalt": STYLE["svg.hashsalt"]}), atomic_path(paths[1]) as tmp:
+        fig.savefig(tmp, format="svg", metadata={"Date": None, "Creator": None}, bbox_inches="tight")
     plt.close(fig)
     return paths
 
@@ -77,8 +80,10 @@ def fig4_poses(study: Study, measure_pose_deg: np.ndarray):
         reach = float(study.robot.links_m.sum())
         test = study.robot.link_points(study.test_pose)
         meas = study.robot.link_points(np.radians(measure_pose_deg))
-        _draw_arm(ax, test, "o-C0", "test pose q* = (" + ", ".join(f"{a:.0f}" for a in np.degrees(study.test_pose)) + ")°")
-        _draw_arm(ax, meas, "o-C3", "optimal measurement pose (" + ", ".join(f"{a:.2f}" for a in measure_pose_deg) + ")°")
+        test_label = ", ".join(f"{a:.0f}" for a in np.degrees(study.test_pose))
+        _draw_arm(ax, test, "o-C0", f"test pose q* = ({test_label})°")
+        meas_label = ", ".join(f"{a:.2f}" for a in measure_pose_deg)
+        _draw_arm(ax, meas, "o-C3", f"optimal measurement pose ({meas_label})°")
         f = study.force / np.linalg.norm(study.force) * 0.25 * reach
         for pts in (test, meas):
             ax.annotate("", xy=pts[-1] + f, xytext=pts[-1],

@@ -8,9 +8,9 @@ a seed. Its log is written as the CSV a lab would write, with and without ``pose
 :func:`stiffcal.measurements.read_measurements` and analysed; both variants must give the same verdict.
 
 Each effect is scaled so that the RMS of its displacement, less what the nominal model absorbs, is a random
-multiple (log-uniform) of the noise, so cases range from invisible to obvious. Whether a case *should* be found is decided by an **oracle**: the
-most powerful test of that one effect, which knows its exact shape (its noise-free displacement vector e):
-the one-degree-of-freedom F-test of e against the nominal model (and the other hidden effects), with the
+multiple (log-uniform) of the noise, so cases range from invisible to obvious. Whether a case *should* be
+found is decided by an **oracle**: the most powerful test of that one effect, which knows its exact shape
+(its noise-free displacement vector e): the one-degree-of-freedom F-test of e against the nominal model (and the other hidden effects), with the
 noise known row by row. Its power at level alpha is 1 - F'(F_crit; 1, df, lambda), lambda = |(I - P) W e|^2
 with W the whitening by the noise and P the projection on the whitened nominal columns (Scheffe, *The
 Analysis of Variance*, 1959, sec. 2.8). The analysis is required to name an effect in at least 95 % of
@@ -76,7 +76,8 @@ def protocols_for(robot: Robot) -> list[str]:
     (on a spatial arm with a vertical first axis they never load joint 1, which the analysis refuses with
     that reason), 3-D pushes for a spatial arm."""
     spatial = robot.task_dim == 3
-    return [p for p, pr in PROTOCOLS.items() if (pr.loads == "pushes3d") == spatial or pr.loads in ("directions", "random")]
+    return [p for p, pr in PROTOCOLS.items()
+            if (pr.loads == "pushes3d") == spatial or pr.loads in ("directions", "random")]
 
 
 def _unit_truth(effect: str, robot: Robot, k: np.ndarray, rng: np.random.Generator, log: T.LabLog) -> T.Truth:

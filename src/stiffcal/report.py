@@ -1,7 +1,9 @@
 """The HTML report (Jinja2) and its PDF (WeasyPrint), built only from generated files.
 
 Every number in the report comes from a CSV under ``results/`` or from the config; the template holds
-words only. Figures are embedded as PNG data URIs, so the HTML opens offline as one file.
+words only. Figures are embedded as SVG (vector) data URIs, so the HTML opens offline as one file and the
+figures stay crisp at any zoom and in the PDF. A table of contents links every section (the PDF gets the
+same headings as bookmarks).
 """
 
 from __future__ import annotations
@@ -12,10 +14,6 @@ import json
 import math
 import subprocess
 from pathlib import Path
-
-import jinja2
-import pandas as pd
-import yaml
 
 from .errors import InputError
 
@@ -46,8 +44,53 @@ def fmt_like(x, printed: str, extra: int = 2) -> str:
 
 
 def image_data_uri(path: str | Path) -> str:
-    """PNG file -> ``data:image/png;base64,...`` (embedded so the HTML is self-contained)."""
-    return "data:image/png;base64," + base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    """SVG or PNG file -> ``data:image/...;base64,...`` (embedded so the HTML is self-contained)."""
+    path = Path(path)
+    kind = "svg+xml" if path.suffix == ".svg" else "png"
+    return f"data:image/{kind};base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+
+
+def _slug(text: str, used: set) -> str:
+    import re
+
+    base = re.sub(r"[^a-z0-9]+", "-", re.sub(r"<[^>]+>", "", text).lower()).strip("-") or "section"
+    slug, k = base, 2
+    while slug in used:
+        slug, k = f"{base}-{k}", k + 1
+    used.add(slug)
+    return slug
+
+
+def add_toc(html: str, marker: str = "<!-- toc -->") -> str:
+    """Give every ``<h2>``/``<h3>`` an id (keeping one it has) and put a linked table of contents at
+    ``marker``: one entry per h2, its h3s nested beneath."""
+    import re
+
+    used: set = set(re.findall(r'<h[23][^>]*\bid="([^"]+)"', html))
+    entries = []
+
+    def name(m):
+        level, attrs, text = m.group(1), m.group(2), m.group(3)
+        idm = re.search(r'\bid="([^"]+)"', attrs)
+        ident = idm.group(1) if idm else _slug(text, used)
+        entries.append((int(level), ident, re.sub(r"<(?!/?(sub|sup|i|b)\b)[^>]+>", "", text).strip()))
+        return f'<h{level}{attrs}>{text}</h{level}>' if idm else f'<h{level} id="{ident}"{attrs}>{text}</h{level}>'
+
+    body = re.sub(r"<h([23])([^>]*)>(.*?)</h\1>", name, html, flags=re.S)
+    items, open_sub = [], False
+    for level, ident, text in entries:
+        if level == 2:
+            items.append(("</ul></li>" if open_sub else "</li>") if items else "")
+            items.append(f'<li><a href="#{ident}">{text}</a>')
+            open_sub = False
+        else:
+            items.append("" if open_sub else "<ul>")
+            items.append(f'<li><a href="#{ident}">{text}</a></li>')
+            open_sub = True
+    if items:
+        items.append("</ul></li>" if open_sub else "</li>")
+    toc = '<nav class="toc"><h2 class="toc-title">Contents</h2><ul>' + "".join(items) + "</ul></nav>"
+    return body.replace(marker, toc, 1)
 
 
 def config_hash(config: dict) -> str:
@@ -69,12 +112,20 @@ def git_commit(root: str | Path = ".") -> str:
 
 def render_html(context: dict, template_dir: str | Path = TEMPLATE_DIR) -> str:
     """Render ``report.html.j2`` with ``context``; undefined names are errors, not blanks."""
+    import jinja2
+
     env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(template_dir)),
                              undefined=jinja2.StrictUndefined, autoescape=jinja2.select_autoescape(["html"]),
                              trim_blocks=True, lstrip_blocks=True, extensions=["jinja2.ext.do"])
     env.filters["num"] = fmt
     env.filters["num_like"] = fmt_like
-    return env.get_template("report.html.j2").render(**context)
+    env.filters["poses"] = parse_poses
+    return add_toc(env.get_template("report.html.j2").render(**context))
+
+
+def parse_poses(text: str) -> list[list[float]]:
+    """'q1 q2; q1 q2' (a plan in a CSV cell) -> [[q1, q2], [q1, q2]] [deg], for pose tables."""
+    return [[float(v) for v in p.split()] for p in str(text).split(";") if p.strip()]
 
 
 def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str, str | Path],
@@ -84,21 +135,27 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
     tables: name -> CSV path (table2, table3, comparison, validation); figures: name -> PNG path;
     provenance: rule name per table/figure plus 'commit' and 'config_hash'.
     """
-    from .reproduction import summary
+    import pandas as pd
 
     from .maps import DARK_CHI, WHITE_CHI
-    from .reproduction import FLAT_RTOL
+    from .reproduction import FLAT_RTOL, summary
 
     frames = {k: pd.read_csv(v, keep_default_na=False, na_values=[""], dtype={"printed": str, "reason": str})
               for k, v in tables.items()}
-    printed = yaml.safe_load(Path(printed_path).read_text(encoding="utf-8"))
+    from .validation import read_yaml
+
+    printed = read_yaml(printed_path)
     cmp = frames["comparison"]
     cmp["reason"] = cmp["reason"].fillna("")
     cmp["ours"] = pd.to_numeric(cmp["ours"], errors="coerce").where(lambda v: v.notna(), cmp["ours"])
+    records = cmp.to_dict("records")
     return {
         "config": config,
         "study": config["study"],
         "tables": {k: df.to_dict("records") for k, df in frames.items()},
+        "comparison_tables": [r for r in records if r["table"] != "text"],
+        "comparison_text": [{**r, **printed.get("text", {}).get(r["row"], {})}
+                            for r in records if r["table"] == "text"],
         "n_joints": len(config["study"]["test_pose_deg"]),
         "figures": {k: image_data_uri(v) for k, v in figures.items()},
         "summary": summary(cmp),
@@ -106,24 +163,43 @@ def build_context(config: dict, tables: dict[str, str | Path], figures: dict[str
         "provenance": provenance,
         "flat_rtol": FLAT_RTOL,
         "printed": printed,
-        "cmp_index": {f"{r['table']}|{r['row']}|{r['quantity']}": {"printed": r["printed"], "status": r["status"],
-                                                                    "reason": r["reason"]}
-                      for r in cmp.to_dict("records")},
+        "cmp_index": comparison_index(records, printed),
         "map_thresholds": {"white_inv_chi": 1.0 / WHITE_CHI, "dark_inv_chi": 1.0 / DARK_CHI},
     }
+
+
+def comparison_index(records: list[dict], printed: dict) -> dict:
+    """'table|criterion|quantity' -> the paper's printed number beside ours in Tables 2-5 (printed, status,
+    reason, alias). A printed row that stands for several of our rows (Table 2's "O2, O4", Table 3's
+    "D-optimality (O1)", listed under ``criteria`` in the printed values) is indexed under the first, and
+    under the others with ``alias`` set to the first (so that each printed number is shown once)."""
+    out = {}
+    for r in records:
+        if r["table"] == "text":
+            continue
+        keys = printed.get(r["table"], {}).get(r["row"], {}).get("criteria", [r["row"]])
+        entry = {"printed": r["printed"], "status": r["status"], "reason": r["reason"], "alias": None}
+        out[f"{r['table']}|{keys[0]}|{r['quantity']}"] = entry
+        for k in keys[1:]:
+            out[f"{r['table']}|{k}|{r['quantity']}"] = {**entry, "alias": keys[0]}
+    return out
 
 
 def study_context(study, entry: dict, paths: dict) -> dict:
     """What the report shows of one design study: the robot (kind, joints, source, DH table), test pose,
     force, sigma, the certificate, the plans against M and the two figures (embedded)."""
     import numpy as np
+    import pandas as pd
 
     robot = study.robot
     dh = None
     if robot.dh is not None:
         dh = [{"a_m": r[0], "alpha_deg": float(np.degrees(r[1])), "d_m": r[2], "offset_deg": float(np.degrees(r[3]))}
               for r in robot.dh]
-    plans = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
+    versus_m = pd.read_csv(paths["studym"], keep_default_na=False, na_values=[""])
+    long = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
+    cols = [f"q{i + 1}_deg" for i in range(robot.n_joints)]
+    poses = {int(m): g[cols].to_numpy(float).tolist() for m, g in long.groupby("m", sort=True)}
     return {
         "entry": entry, "robot": {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "d": robot.task_dim,
                                   "source": robot.reference, "dh": dh, "convention": robot.convention,
@@ -134,7 +210,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
         "test_pose_deg": np.degrees(study.test_pose).round(6).tolist(), "force_N": study.force.tolist(),
         "sigma": study.sigma, "micro": study.sigma < 1e-2,
         "certificate": pd.read_csv(paths["studycert"]).to_dict("records")[0],
-        "plans": plans.to_dict("records"),
+        "plans": versus_m.to_dict("records"), "poses": poses,
         "fig_plan": image_data_uri(paths["studyfigplan"]), "fig_m": image_data_uri(paths["studyfigm"]),
     }
 

@@ -4,7 +4,7 @@ Conventions
 -----------
 * Joint angles are radians inside the library, degrees only at the edges (files, CLI, tables).
 * A batch of poses is an array ``q`` of shape ``(..., n)``; every function broadcasts over ``...``.
-* Planar arm (``kind: planar``, the DESIGN.md contract): revolute joints about z, joint i at the base of
+* Planar arm (``kind: planar``, docs/contracts.md): revolute joints about z, joint i at the base of
   link i, ``q_i`` relative to link i-1 (``q_1`` from the base x axis), so link k points along the
   absolute angle ``c_k = q_1 + ... + q_k``. Measured coordinates: x, y (d = 2).
 * Spatial serial arm (``kind: spatial``): revolute joints given by a Denavit-Hartenberg table, in the
@@ -121,7 +121,7 @@ def dh_jacobian(dh: np.ndarray, tool: np.ndarray, q: np.ndarray, convention: str
 
 @dataclass(frozen=True)
 class Robot:
-    """A serial robot read from a robot file (DESIGN.md contract).
+    """A serial robot read from a robot file (docs/contracts.md).
 
     Attributes: ``name``; ``kind`` ('planar' or 'spatial'); ``links_m`` (n,) [m] link lengths of a planar
     arm (for a spatial arm: the distances between consecutive joint axes' origins, for drawing and scale);
@@ -268,6 +268,8 @@ def load_robot(path: str | Path) -> Robot:
     """
     src = str(path)
     doc = read_yaml(path)
+    if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
+        raise InputError("missing required field 'kind' (planar or spatial)", source=src, field="kind")
     validate(doc, "robot", src)
     for key in KIND_FIELDS["planar" if doc["kind"] == "spatial" else "spatial"]:
         if key in doc:
@@ -277,7 +279,8 @@ def load_robot(path: str | Path) -> Robot:
         return _load_spatial(doc, src)
     links = np.asarray(doc["links_m"], float)
     limits, comp = _per_joint(doc, links.size, src, "link")
-    return replace(planar_robot(links, doc["name"], limits), compliances=None if comp is None else np.asarray(comp, float),
+    return replace(planar_robot(links, doc["name"], limits),
+                   compliances=None if comp is None else np.asarray(comp, float),
                    source=src, reference=doc.get("source", ""))
 
 

@@ -21,9 +21,12 @@ FLOAT_FORMAT = "%.10g"
 
 
 def write_csv(df: pd.DataFrame, path: str | Path) -> None:
-    """Write a table deterministically (fixed float format, no index, '\\n' line ends)."""
-    Path(path).parent.mkdir(parents=True, exist_ok=True)
-    df.to_csv(path, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    """Write a table deterministically (fixed float format, no index, '\\n' line ends) and atomically (a
+    temporary file moved into place when complete)."""
+    from .integrity import atomic_path
+
+    with atomic_path(path) as tmp:
+        df.to_csv(tmp, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
 
 
 def _pose_cols(n: int) -> list[str]:
@@ -169,6 +172,14 @@ def format_plan(poses_deg: np.ndarray) -> str:
 def parse_plan(text: str) -> np.ndarray:
     """Inverse of :func:`format_plan`."""
     return np.array([[float(v) for v in p.split()] for p in str(text).split(";")])
+
+
+def plans_long(plans: dict) -> pd.DataFrame:
+    """Plans in long form, one row per pose: columns plan, m, pose (1-based), q1_deg..qn_deg.
+    plans: (plan label, m) -> (m, n) poses [deg]."""
+    rows = [{"plan": label, "m": m, "pose": i + 1, **dict(zip(_pose_cols(len(q)), np.round(q, 4) + 0.0))}
+            for (label, m), poses in plans.items() for i, q in enumerate(np.atleast_2d(poses))]
+    return pd.DataFrame(rows)
 
 
 def single_ot_pose(study: Study) -> np.ndarray:

@@ -98,7 +98,8 @@ def link_bending_displacement(robot: Robot, q: np.ndarray, force: np.ndarray, c:
     return out[:, : robot.task_dim]
 
 
-def physics(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, order: np.ndarray | None = None) -> np.ndarray:
+def physics(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray,
+            order: np.ndarray | None = None) -> np.ndarray:
     """Noise-free measured displacements (N, d) [m] of ``truth``: joint laws, link bending, and the measuring
     system's offset and drift (``order`` (N,): the time order of each row, default the row index)."""
     tau = joint_torques(robot, q, force)

@@ -1,41 +1,145 @@
-"""Schema validation of YAML inputs (robot files and the config) with one clear message per error.
+"""The input layer for YAML files (robot files and the config): a safe loader and schema validation, with
+one clear, bounded message per error naming the file and the field.
 
-The JSON schemas live in ``workflow/schemas/`` (Snakemake validates the config with the same file);
-the package reaches them through the ``schemas`` link beside this module.
+:func:`read_yaml` reads text that people write by hand, and possibly hostile text, safely:
+
+* the file must be UTF-8 and at most :data:`MAX_BYTES` long;
+* the YAML is parsed with PyYAML's safe loader, changed to read scalars as YAML 1.2 (core schema) does:
+  ``1e-6`` and ``.5`` are numbers (YAML 1.1 reads ``1e-6`` as a string), ``010`` is ten, ``yes``/``no``
+  are strings, ``1:30`` is a string;
+* a repeated key in a mapping, an anchor or alias (``&a``/``*a``: a kilobyte of aliases can expand to
+  gigabytes), and nesting deeper than :data:`MAX_DEPTH` are refused;
+* every number must be finite (``.nan`` and ``.inf`` are refused with the field named).
+
+The JSON schemas are package data in ``src/stiffcal/schemas/`` (so an installed wheel has them);
+``workflow/schemas`` is a link to that directory for the workflow's conventional layout.
 """
 
 from __future__ import annotations
 
+import math
+import re
 from pathlib import Path
 from typing import Any
 
-import jsonschema
-import yaml
-
-from .errors import InputError
+from .errors import InputError, short_repr
 
 SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
+#: largest YAML file accepted [bytes]
+MAX_BYTES = 1_000_000
+#: deepest nesting of lists and mappings accepted
+MAX_DEPTH = 20
 
 
 def load_schema(name: str) -> dict:
-    """Return the parsed schema ``workflow/schemas/<name>.schema.yaml``."""
-    with open(SCHEMA_DIR / f"{name}.schema.yaml", encoding="utf-8") as fh:
-        return yaml.safe_load(fh)
+    """Return the parsed schema ``src/stiffcal/schemas/<name>.schema.yaml``."""
+    return _parse((SCHEMA_DIR / f"{name}.schema.yaml").read_text(encoding="utf-8"), str(SCHEMA_DIR / name))
 
 
-def read_yaml(path: str | Path) -> Any:
-    """Parse a YAML file; a missing file or a syntax error becomes an :class:`InputError`."""
-    path = Path(path)
+_INT = re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$")
+_FLOAT = re.compile(r"^(?:[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?"
+                    r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$")
+_BOOL = re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$")
+_NULL = re.compile(r"^(?:~|null|Null|NULL|)$")
+
+
+def _loader(source: str):
+    """A PyYAML safe loader class reading the YAML 1.2 core schema, refusing aliases, anchors, repeated keys
+    and deep nesting (module docstring). Errors are :class:`InputError` naming ``source``."""
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        yaml_implicit_resolvers: dict = {}
+        depth = 0
+
+        def compose_node(self, parent, index):
+            event = self.peek_event()
+            if isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None):
+                raise InputError("YAML anchors and aliases (&name, *name) are not allowed (line "
+                                 f"{event.start_mark.line + 1})", source=source)
+            self.depth += 1
+            if self.depth > MAX_DEPTH:
+                raise InputError(f"nested deeper than {MAX_DEPTH} levels (line {event.start_mark.line + 1})",
+                                 source=source)
+            try:
+                return super().compose_node(parent, index)
+            finally:
+                self.depth -= 1
+
+        def construct_mapping(self, node, deep=False):
+            seen = {}
+            for key_node, _ in node.value:
+                key = self.construct_object(key_node, deep=True)
+                line = key_node.start_mark.line + 1
+                try:
+                    if key in seen:
+                        raise InputError(f"key {short_repr(key)} appears twice (lines {seen[key]} and {line}); keep "
+                                         "one", source=source)
+                    seen[key] = line
+                except TypeError:
+                    raise InputError(f"a key that is a list or a mapping (line {line})", source=source) from None
+            return super().construct_mapping(node, deep)
+
+    def construct_int(loader, node):
+        v = loader.construct_scalar(node).replace("_", "")
+        return int(v[2:], 8) if v.startswith("0o") else int(v, 16) if v.startswith("0x") else int(v, 10)
+
+    def construct_float(loader, node):
+        v = loader.construct_scalar(node).lower()
+        return float(v.replace(".inf", "inf").replace(".nan", "nan")) if "inf" in v or "nan" in v else float(v)
+
+    for tag, pattern, first in (("bool", _BOOL, "tTfF"), ("int", _INT, "-+0123456789"),
+                                ("float", _FLOAT, "-+0123456789."), ("null", _NULL, ["~", "n", "N", ""])):
+        Loader.add_implicit_resolver(f"tag:yaml.org,2002:{tag}", pattern, list(first))
+    # not resolved implicitly (YAML 1.2 core schema): '<<' merge keys, dates and '=' stay strings
+    Loader.add_constructor("tag:yaml.org,2002:int", construct_int)
+    Loader.add_constructor("tag:yaml.org,2002:float", construct_float)
+    return Loader
+
+
+def _parse(text: str, source: str) -> Any:
+    import yaml
+
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError(f"cannot read file ({err.strerror})", source=str(path)) from None
-    try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_loader(source))  # noqa: S506 - a SafeLoader subclass
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-        raise InputError(f"not valid YAML{where}: {getattr(err, 'problem', err)}", source=str(path)) from None
+        raise InputError(f"not valid YAML{where}: {getattr(err, 'problem', None) or err}", source=source) from None
+    except RecursionError:
+        raise InputError(f"nested deeper than {MAX_DEPTH} levels", source=source) from None
+
+
+def check_finite(document: Any, source: str, path: tuple = ()) -> None:
+    """Refuse NaN and infinite numbers anywhere in a parsed document, naming the field."""
+    if isinstance(document, float) and not math.isfinite(document):
+        raise InputError(f"expected a finite number, got {document}", source=source, field=json_path(path))
+    if isinstance(document, dict):
+        for k, v in document.items():
+            check_finite(v, source, (*path, k))
+    elif isinstance(document, list):
+        for i, v in enumerate(document):
+            check_finite(v, source, (*path, i))
+
+
+def read_yaml(path: str | Path) -> Any:
+    """Parse a YAML file safely (module docstring); every problem is an :class:`InputError` naming the file."""
+    path = Path(path)
+    try:
+        size = path.stat().st_size
+        if size > MAX_BYTES:
+            raise InputError(f"expected a YAML file of at most {MAX_BYTES:,} bytes, got {size:,}", source=str(path))
+        raw = path.read_bytes()
+    except OSError as err:
+        raise InputError(f"cannot read file ({err.strerror})", source=str(path)) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise InputError(f"not UTF-8 text (byte 0x{raw[err.start]:02x} at offset {err.start}); save the file as "
+                         "UTF-8", source=str(path)) from None
+    doc = _parse(text, str(path))
+    check_finite(doc, str(path))
+    return doc
 
 
 def json_path(parts) -> str:
@@ -52,6 +156,9 @@ def validate(document: Any, schema_name: str, source: str) -> None:
     The error is the deepest, most specific one (jsonschema's ``best_match``), e.g.
     ``robot.yaml: field 'links_m[1]': expected a number > 0, got -0.4``.
     """
+    import jsonschema
+
+    check_finite(document, source)
     schema = load_schema(schema_name)
     validator = jsonschema.Draft202012Validator(schema)
     error = jsonschema.exceptions.best_match(validator.iter_errors(document))
@@ -60,27 +167,32 @@ def validate(document: Any, schema_name: str, source: str) -> None:
     raise InputError(_explain(error), source=source, field=json_path(error.absolute_path))
 
 
-def _explain(error: jsonschema.ValidationError) -> str:
-    """Turn a jsonschema error into 'expected ..., got ...' wording."""
+def _explain(error) -> str:
+    """Turn a jsonschema error into 'expected ..., got ...' wording (the value shown is cut to a few dozen
+    characters)."""
     v = error.validator_value
-    got = f"got {error.instance!r}"
+    got = f"got {short_repr(error.instance)}"
     if error.validator == "required":
         missing = [k for k in v if k not in error.instance]
         return f"missing required field(s) {', '.join(repr(k) for k in missing)}"
     if error.validator == "additionalProperties":
-        extra = sorted(set(error.instance) - set(error.schema.get("properties", {})))
+        extra = sorted(map(str, set(error.instance) - set(error.schema.get("properties", {}))))
         allowed = ", ".join(sorted(error.schema.get("properties", {})))
-        return f"unknown field(s) {', '.join(repr(k) for k in extra)}; allowed: {allowed}"
+        return f"unknown field(s) {short_repr(', '.join(repr(k) for k in extra))}; allowed: {allowed}"
     if error.validator == "enum":
         return f"expected one of {', '.join(repr(x) for x in v)}, {got}"
     if error.validator == "type":
         return f"expected {v if isinstance(v, str) else ' or '.join(v)}, {got}"
     if error.validator == "exclusiveMinimum":
         return f"expected a number > {v}, {got}"
+    if error.validator == "exclusiveMaximum":
+        return f"expected a number < {v}, {got}"
     if error.validator == "minimum":
         return f"expected a number >= {v}, {got}"
     if error.validator == "maximum":
         return f"expected a number <= {v}, {got}"
     if error.validator in ("minItems", "maxItems"):
         return f"expected {'at least' if error.validator == 'minItems' else 'at most'} {v} item(s), {got}"
-    return error.message
+    if error.validator == "uniqueItems":
+        return f"expected no repeated items, {got}"
+    return short_repr(error.message, 200)

@@ -10,16 +10,16 @@ ARCHIVE = f"results/archive/stiffcal-{_git_commit()}.tar.gz"
 
 rule archive:
     input:
-        rules.report_html.output.html,
-        rules.report_pdf.output.pdf,
+        unpack(report_inputs),
+        html=rules.report_html.output.html,
+        pdf=rules.report_pdf.output.pdf,
     output:
         tgz=ARCHIVE,
     params:
         started=RUN_STARTED,
+        config=config,
     log:
         f"{LOGS}/archive.log",
-    benchmark:
-        f"benchmarks/out/archive.tsv",
     conda:
         ENV
     script:

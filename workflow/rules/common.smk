@@ -1,4 +1,17 @@
-# Shared names for the rule files. Logic lives in src/stiffcal; this file only names paths.
+# Shared names and parameter helpers for the rule files. Logic lives in src/stiffcal; this file only names
+# paths and picks, for every rule, exactly the config values it uses (its `params:`), so that Snakemake
+# reruns a job when, and only when, one of them changed (docs/workflow.md, "When a job reruns").
+import dataclasses as _dc
+import sys as _sys
+
+from stiffcal.codeversion import code_version
+from stiffcal.errors import InputError as _InputError
+from stiffcal.maps import MAP_DEFAULTS as _MAP_DEFAULTS
+from stiffcal.maps import map_studies as _map_studies
+from stiffcal.measurements import ANGLE_RESOLUTION_DEG as _ANGLE_RESOLUTION_DEG
+from stiffcal.measurements import FORCE_RESOLUTION_N as _FORCE_RESOLUTION_N
+from stiffcal.study import DEFAULTS as _STUDY_DEFAULTS
+from stiffcal.study import design_studies as _design_studies
 
 TABLES = "results/tables"
 FIGURES = "figures"
@@ -6,34 +19,59 @@ LOGS = "logs"
 PRINTED = config["paper_values"]
 # the software of every rule, for --software-deployment-method conda (`make report` uses .venv instead)
 ENV = "../envs/stiffcal.yaml"
-ROBOT = config["study"]["robot"]
+
+# The paper's study (config `study`), defaults filled in.
+STUDY = {**_STUDY_DEFAULTS, **config["study"]}
+ROBOT = STUDY["robot"]
+PLANS = {"m_max": 10, "pool_step_deg": None, **(config.get("plans") or {})}
+SEED = config["seed"]
+
+
+def study_params(*keys):
+    """The values of config `study` that a rule uses (defaults filled in)."""
+    return {k: STUDY[k] for k in keys}
+
+
+POSE_FORCE = ("test_pose_deg", "force_N", "sigma_m")
 
 # Maps over test poses (Figures 6-10): the studies of config `maps`, each split into tiles (one job each).
-import sys as _sys
-
-from stiffcal.errors import InputError as _InputError
-from stiffcal.maps import map_studies as _map_studies
-
 try:
-    _cfg_files = getattr(workflow, "configfiles", None) or ["config/config.yaml"]
-    MAP_STUDIES = {m.name: m for m in _map_studies(config, ".", str(_cfg_files[-1]))}
+    MAP_STUDIES = {m.name: m for m in _map_studies(config, ".", CONFIG_SOURCE)}
+    # Design studies (config `studies`), by name, defaults filled in; checked here so that a bad entry
+    # stops the run before any job.
+    STUDIES = {k: e for k, (_, e) in _design_studies(config, ".", CONFIG_SOURCE).items()}
 except _InputError as _err:
     _sys.exit(f"stiffcal: error: {_err}")
 MAPS = "results/maps"
 MAP_FIGURES = {m.figure: m.name for m in MAP_STUDIES.values()}
+MAP_SETTINGS = {**_MAP_DEFAULTS, **(config.get("maps") or {})}
+
+
+def map_params(name):
+    """One map study as the rule's parameters (name, link_ratio, figure, step_deg, force_deg, tile_cells)."""
+    return _dc.asdict(MAP_STUDIES[name])
 
 
 def map_report_inputs(wildcards):
     """The map statistics and Figures 6-10, when the config has map studies."""
     if not MAP_STUDIES:
         return {}
+    return {"map_statistics": f"{TABLES}/map_statistics.csv",
+            **{k: v.removesuffix(".png") + ".svg" for k, v in map_figure_outputs().items()}}
+
+
+def map_figure_outputs():
+    """fig<k> -> PNG of every map figure: Figures 7-10 of the config's map studies, Figure 6 with Figure 7."""
     figs = {f"fig{n}": f"{FIGURES}/fig{n}.png" for n in sorted(MAP_FIGURES)}
     if 7 in MAP_FIGURES:
         figs["fig6"] = f"{FIGURES}/fig6.png"
-    return {"map_statistics": f"{TABLES}/map_statistics.csv", **figs}
+    return figs
 
-# Measured data sets (config `measured_data`), by name.
-MEASURED = {m["name"]: m for m in config.get("measured_data", [])}
+
+# Measured data sets (config `measured_data`), by name, defaults filled in.
+MEASURED = {m["name"]: {"synthetic": False, "alpha": 0.01, "force_N": STUDY["force_N"],
+                        "angle_resolution_deg": _ANGLE_RESOLUTION_DEG, "force_resolution_N": _FORCE_RESOLUTION_N, **m}
+            for m in config.get("measured_data") or []}
 
 
 def discrepancy_report_inputs(wildcards):
@@ -41,16 +79,10 @@ def discrepancy_report_inputs(wildcards):
     out = {}
     for name in MEASURED:
         out[f"verdict__{name}"] = f"results/discrepancy/{name}/verdict.json"
-        out[f"residuals__{name}"] = f"results/discrepancy/{name}/residuals.png"
+        out[f"residuals__{name}"] = f"results/discrepancy/{name}/residuals.svg"
     return out
 
-# Design studies (config `studies`), by name; validated here so that a bad entry stops the run at once.
-from stiffcal.study import design_studies as _design_studies
 
-try:
-    STUDIES = {k: e for k, (_, e) in _design_studies(config, ".", str(_cfg_files[-1])).items()}
-except _InputError as _err:
-    _sys.exit(f"stiffcal: error: {_err}")
 STUDY_DIR = "results/studies"
 
 
@@ -59,12 +91,51 @@ wildcard_constraints:
     m="[0-9]+",
 
 
+def study_entry(wildcards):
+    """The values of a design study's entry that its design and plans depend on."""
+    e = STUDIES[wildcards.name]
+    return {k: e[k] for k in ("name", "test_pose_deg", "force_N", "sigma_m")}
+
+
+def report_inputs(wildcards):
+    """Every file the report shows or reads, by name (the report rule's inputs; the archive verifies them)."""
+    return {
+        **map_report_inputs(wildcards), **discrepancy_report_inputs(wildcards), **study_report_inputs(wildcards),
+        "table2": f"{TABLES}/table2.csv", "table3": f"{TABLES}/table3.csv",
+        "comparison": f"{TABLES}/paper_comparison.csv", "validation": f"{TABLES}/validation.csv",
+        "table4": f"{TABLES}/table4.csv", "table5": f"{TABLES}/table5.csv",
+        "design": f"{TABLES}/approximate_design.csv", "certificate": f"{TABLES}/certificate.csv",
+        "ot_versus_m": f"{TABLES}/ot_versus_m.csv",
+        **{name: f"{FIGURES}/{name}.svg" for name in ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m")},
+        "printed": PRINTED, "template": "paper/templates/report.html.j2", "css": "paper/templates/report.css",
+    }
+
+
+def all_outputs(wildcards):
+    """Every file the workflow makes (except the temporary map tiles), as inputs of the target all. Snakemake
+    rebuilds a deleted intermediate only when something asks for it, so everything is asked for."""
+    out = [v for k, v in report_inputs(wildcards).items() if k not in ("printed", "template", "css")]
+    out += [f"{FIGURES}/{name}.{ext}" for name in ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m")
+            for ext in ("png", "svg")]
+    out += list(map_figure_outputs().values())
+    out += ["results/maps/fig5_chi.csv", "results/design/approximate_design.json", "results/maps/design_phi.csv"]
+    out += [f"{MAPS}/{name}/map.csv" for name in MAP_STUDIES]
+    for name in MEASURED:
+        out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg")]
+    for name, entry in STUDIES.items():
+        out += [f"{STUDY_DIR}/{name}/{f}" for f in ("approximate_design.json", "approximate_design.csv")]
+        out += [f"{STUDY_DIR}/{name}/plans/m{m}.csv" for m in entry["m_values"]]
+        out += [f"{FIGURES}/studies/{name}/{f}.png" for f in ("plan", "versus_m")]
+    return sorted(set(out))
+
+
 def study_report_inputs(wildcards):
-    """Per design study: certificate, plans table and the two figures."""
+    """Per design study: certificate, plans (long form), O_t against M and the two figures."""
     out = {}
     for name in STUDIES:
         out[f"studycert__{name}"] = f"{STUDY_DIR}/{name}/certificate.csv"
         out[f"studyplans__{name}"] = f"{STUDY_DIR}/{name}/plans.csv"
-        out[f"studyfigplan__{name}"] = f"{FIGURES}/studies/{name}/plan.png"
-        out[f"studyfigm__{name}"] = f"{FIGURES}/studies/{name}/versus_m.png"
+        out[f"studym__{name}"] = f"{STUDY_DIR}/{name}/versus_m.csv"
+        out[f"studyfigplan__{name}"] = f"{FIGURES}/studies/{name}/plan.svg"
+        out[f"studyfigm__{name}"] = f"{FIGURES}/studies/{name}/versus_m.svg"
     return out

@@ -1,5 +1,6 @@
 # Single-experiment results: Table 2 (optimal pose per criterion), Table 3 (judged at the test pose),
 # the comparison with the paper's printed numbers, the Monte Carlo checks and the chi map of Figure 5.
+# Every rule's `params:` hold exactly the config values it uses and the version of the code it runs.
 
 
 rule table2:
@@ -7,10 +8,11 @@ rule table2:
         robot=ROBOT,
     output:
         csv=f"{TABLES}/table2.csv",
+    params:
+        study=study_params(*POSE_FORCE, "criteria", "search_step_deg"),
+        code=code_version("table2"),
     log:
         f"{LOGS}/table2.log",
-    benchmark:
-        "benchmarks/out/table2.tsv"
     conda:
         ENV
     script:
@@ -23,10 +25,11 @@ rule table3:
         table2=rules.table2.output.csv,
     output:
         csv=f"{TABLES}/table3.csv",
+    params:
+        study=study_params(*POSE_FORCE),
+        code=code_version("table3"),
     log:
         f"{LOGS}/table3.log",
-    benchmark:
-        f"benchmarks/out/table3.tsv",
     conda:
         ENV
     script:
@@ -35,17 +38,20 @@ rule table3:
 
 rule paper_comparison:
     input:
+        robot=ROBOT,
         table2=f"{TABLES}/table2.csv",
         table3=f"{TABLES}/table3.csv",
         table4=f"{TABLES}/table4.csv",
         table5=f"{TABLES}/table5.csv",
         printed=PRINTED,
+        statistics=lambda wc: [p for k, p in map_report_inputs(wc).items() if k == "map_statistics"],
     output:
         csv=f"{TABLES}/paper_comparison.csv",
+    params:
+        study={**study_params(*POSE_FORCE), "seed": SEED},
+        code=code_version("comparison"),
     log:
         f"{LOGS}/paper_comparison.log",
-    benchmark:
-        f"benchmarks/out/paper_comparison.tsv",
     conda:
         ENV
     script:
@@ -54,13 +60,15 @@ rule paper_comparison:
 
 rule validation:
     input:
+        robot=ROBOT,
         table2=rules.table2.output.csv,
     output:
         csv=f"{TABLES}/validation.csv",
+    params:
+        study={**study_params(*POSE_FORCE), "samples": config["monte_carlo"]["samples"], "seed": SEED},
+        code=code_version("validation"),
     log:
         f"{LOGS}/validation.log",
-    benchmark:
-        "benchmarks/out/validation.tsv"
     conda:
         ENV
     script:
@@ -72,10 +80,11 @@ rule chi_map:
         robot=ROBOT,
     output:
         csv="results/maps/fig5_chi.csv",
+    params:
+        study=study_params(*POSE_FORCE, "fig5_step_deg"),
+        code=code_version("chi_map"),
     log:
         f"{LOGS}/chi_map.log",
-    benchmark:
-        f"benchmarks/out/chi_map.tsv",
     conda:
         ENV
     script:
@@ -92,10 +101,12 @@ rule approximate_design:
         json="results/design/approximate_design.json",
         support=f"{TABLES}/approximate_design.csv",
         certificate=f"{TABLES}/certificate.csv",
+        phi="results/maps/design_phi.csv",
+    params:
+        study={**study_params(*POSE_FORCE), "pool_step_deg": PLANS["pool_step_deg"]},
+        code=code_version("approximate_design"),
     log:
         f"{LOGS}/approximate_design.log",
-    benchmark:
-        "benchmarks/out/approximate_design.tsv"
     conda:
         ENV
     script:
@@ -104,6 +115,7 @@ rule approximate_design:
 
 rule plans_table:
     input:
+        robot=ROBOT,
         design=rules.approximate_design.output.json,
         table2=rules.table2.output.csv,
     output:
@@ -112,10 +124,10 @@ rule plans_table:
         number="4|5",
     params:
         m=lambda wc: {"4": 2, "5": 3}[wc.number],
+        study={**study_params(*POSE_FORCE), "seed": SEED},
+        code=code_version("plans_table"),
     log:
         f"{LOGS}/table{{number}}.log",
-    benchmark:
-        "benchmarks/out/table{number}.tsv"
     conda:
         ENV
     script:
@@ -124,29 +136,16 @@ rule plans_table:
 
 rule ot_versus_m:
     input:
+        robot=ROBOT,
         design=rules.approximate_design.output.json,
     output:
         csv=f"{TABLES}/ot_versus_m.csv",
+    params:
+        study={**study_params(*POSE_FORCE, "search_step_deg"), "m_max": PLANS["m_max"], "seed": SEED},
+        code=code_version("ot_versus_m"),
     log:
         f"{LOGS}/ot_versus_m.log",
-    benchmark:
-        "benchmarks/out/ot_versus_m.tsv"
     conda:
         ENV
     script:
         "../scripts/ot_versus_m.py"
-
-
-rule phi_map:
-    input:
-        design=rules.approximate_design.output.json,
-    output:
-        csv="results/maps/design_phi.csv",
-    log:
-        f"{LOGS}/phi_map.log",
-    benchmark:
-        f"benchmarks/out/phi_map.tsv",
-    conda:
-        ENV
-    script:
-        "../scripts/phi_map.py"

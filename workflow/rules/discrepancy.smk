@@ -9,10 +9,11 @@ rule discrepancy:
         verdict="results/discrepancy/{dataset}/verdict.json",
         png="results/discrepancy/{dataset}/residuals.png",
         svg="results/discrepancy/{dataset}/residuals.svg",
+    params:
+        entry=lambda wc: {**MEASURED[wc.dataset], "test_pose_deg": STUDY["test_pose_deg"]},
+        code=code_version("discrepancy"),
     log:
         f"{LOGS}/discrepancy/{{dataset}}.log",
-    benchmark:
-        f"benchmarks/out/discrepancy/{{dataset}}.tsv",
     conda:
         ENV
     script:

@@ -5,16 +5,16 @@
 wildcard_constraints:
     study="[A-Za-z0-9_.-]+",
     tile="[0-9]+",
-    mapfig="7|8|9|10",
 
 
 rule map_tile:
     output:
         csv=temp(f"{MAPS}/{{study}}/tiles/{{tile}}.csv"),
+    params:
+        map=lambda wc: map_params(wc.study),
+        code=code_version("map_tile"),
     log:
         f"{LOGS}/maps/{{study}}/tile{{tile}}.log",
-    benchmark:
-        f"benchmarks/out/maps/{{study}}/tile{{tile}}.tsv",
     threads: 1
     resources:
         mem_mb=2000,
@@ -30,10 +30,11 @@ rule map_merge:
         tiles=lambda wc: expand(f"{MAPS}/{wc.study}/tiles/{{tile}}.csv", tile=range(MAP_STUDIES[wc.study].n_tiles)),
     output:
         csv=f"{MAPS}/{{study}}/map.csv",
+    params:
+        map=lambda wc: map_params(wc.study),
+        code=code_version("map_merge"),
     log:
         f"{LOGS}/maps/{{study}}/merge.log",
-    benchmark:
-        f"benchmarks/out/maps/{{study}}/merge.tsv",
     resources:
         mem_mb=2000,
         runtime=10,
@@ -49,10 +50,12 @@ rule map_statistics:
         printed=PRINTED,
     output:
         csv=f"{TABLES}/map_statistics.csv",
+    params:
+        maps={"studies": [map_params(n) for n in MAP_STUDIES],
+              "statistics_steps_deg": MAP_SETTINGS["statistics_steps_deg"]},
+        code=code_version("map_statistics"),
     log:
         f"{LOGS}/map_statistics.log",
-    benchmark:
-        "benchmarks/out/map_statistics.tsv"
     resources:
         mem_mb=2000,
         runtime=10,
@@ -62,33 +65,17 @@ rule map_statistics:
         "../scripts/map_statistics.py"
 
 
-rule fig6:
+rule map_figures:
     input:
-        map=lambda wc: f"{MAPS}/{MAP_FIGURES[7]}/map.csv",
+        **{f"fig{k}": f"{MAPS}/{name}/map.csv" for k, name in MAP_FIGURES.items()},
     output:
-        png=f"{FIGURES}/fig6.png",
-        svg=f"{FIGURES}/fig6.svg",
+        **{f"{name}_{ext}": f"{FIGURES}/{name}.{ext}" for name in map_figure_outputs() for ext in ("png", "svg")},
+    params:
+        figures={k: map_params(name) for k, name in sorted(MAP_FIGURES.items())},
+        code=code_version("map_figures"),
     log:
-        f"{LOGS}/fig6.log",
-    benchmark:
-        f"benchmarks/out/fig6.tsv",
+        f"{LOGS}/map_figures.log",
     conda:
         ENV
     script:
-        "../scripts/fig6.py"
-
-
-rule fig_map_poses:
-    input:
-        map=lambda wc: f"{MAPS}/{MAP_FIGURES[int(wc.mapfig)]}/map.csv",
-    output:
-        png=f"{FIGURES}/fig{{mapfig}}.png",
-        svg=f"{FIGURES}/fig{{mapfig}}.svg",
-    log:
-        f"{LOGS}/fig{{mapfig}}.log",
-    benchmark:
-        f"benchmarks/out/fig{{mapfig}}.tsv",
-    conda:
-        ENV
-    script:
-        "../scripts/fig_map_poses.py"
+        "../scripts/map_figures.py"

@@ -1,34 +1,17 @@
 # The report: HTML from the generated tables and figures, then the PDF printed from that HTML.
+# report_html shows config values and the config's hash, so it depends on the whole config.
 
 
 rule report_html:
     input:
-        unpack(map_report_inputs),
-        unpack(discrepancy_report_inputs),
-        unpack(study_report_inputs),
-        table2=rules.table2.output.csv,
-        table3=rules.table3.output.csv,
-        comparison=rules.paper_comparison.output.csv,
-        validation=rules.validation.output.csv,
-        table4=f"{TABLES}/table4.csv",
-        table5=f"{TABLES}/table5.csv",
-        design=rules.approximate_design.output.support,
-        certificate=rules.approximate_design.output.certificate,
-        ot_versus_m=rules.ot_versus_m.output.csv,
-        fig3=rules.fig3.output.png,
-        fig4=rules.fig4.output.png,
-        fig5=rules.fig5.output.png,
-        fig_design=rules.fig_design.output.png,
-        fig_ot_versus_m=rules.fig_ot_versus_m.output.png,
-        printed=PRINTED,
-        template="paper/templates/report.html.j2",
-        css="paper/templates/report.css",
+        unpack(report_inputs),
     output:
         html="paper/build/report.html",
+    params:
+        config=config,
+        code=code_version("report_html_from_inputs"),
     log:
         f"{LOGS}/report_html.log",
-    benchmark:
-        f"benchmarks/out/report_html.tsv",
     conda:
         ENV
     script:
@@ -40,10 +23,10 @@ rule report_pdf:
         html=rules.report_html.output.html,
     output:
         pdf="paper/build/report.pdf",
+    params:
+        code=code_version("report_pdf"),
     log:
         f"{LOGS}/report_pdf.log",
-    benchmark:
-        "benchmarks/out/report_pdf.tsv"
     conda:
         ENV
     script:

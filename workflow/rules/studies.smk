@@ -1,6 +1,7 @@
 # Design studies (config `studies`): any robot file, planar n-link or spatial. Per study: the optimal
-# approximate design with its certificate, the best plan for every M of `m_values` (one job each), the
-# plan drawn in 3-D and O_t and chi against M. Adding a robot is adding its YAML file and an entry.
+# approximate design with its certificate, the best plan for every M of `m_values` (one job each), and one
+# job that collects the plans (versus_m.csv: O_t, chi, bound per M; plans.csv: the poses, one row each) and draws the plan in 3-D and O_t and chi
+# against M. Adding a robot is adding its YAML file and an entry.
 
 
 rule study_design:
@@ -10,10 +11,11 @@ rule study_design:
         json=f"{STUDY_DIR}/{{name}}/approximate_design.json",
         support=f"{STUDY_DIR}/{{name}}/approximate_design.csv",
         certificate=f"{STUDY_DIR}/{{name}}/certificate.csv",
+    params:
+        study=study_entry,
+        code=code_version("approximate_design"),
     log:
         f"{LOGS}/studies/{{name}}/design.log",
-    benchmark:
-        "benchmarks/out/studies/{name}/design.tsv"
     conda:
         ENV
     script:
@@ -22,61 +24,39 @@ rule study_design:
 
 rule study_plan:
     input:
+        robot=lambda wc: STUDIES[wc.name]["robot"],
         design=rules.study_design.output.json,
     output:
-        csv=temp(f"{STUDY_DIR}/{{name}}/plans/m{{m}}.csv"),
+        csv=f"{STUDY_DIR}/{{name}}/plans/m{{m}}.csv",
+    params:
+        study=study_entry,
+        seed=SEED,
+        code=code_version("study_plan"),
     log:
         f"{LOGS}/studies/{{name}}/plan_m{{m}}.log",
-    benchmark:
-        "benchmarks/out/studies/{name}/plan_m{m}.tsv"
     conda:
         ENV
     script:
         "../scripts/study_plan.py"
 
 
-rule study_plans:
+rule study_summary:
     input:
+        robot=lambda wc: STUDIES[wc.name]["robot"],
         csvs=lambda wc: expand(f"{STUDY_DIR}/{wc.name}/plans/m{{m}}.csv", m=STUDIES[wc.name]["m_values"]),
     output:
-        csv=f"{STUDY_DIR}/{{name}}/plans.csv",
+        versus_m=f"{STUDY_DIR}/{{name}}/versus_m.csv",
+        plans=f"{STUDY_DIR}/{{name}}/plans.csv",
+        plan_png=f"{FIGURES}/studies/{{name}}/plan.png",
+        plan_svg=f"{FIGURES}/studies/{{name}}/plan.svg",
+        versus_m_png=f"{FIGURES}/studies/{{name}}/versus_m.png",
+        versus_m_svg=f"{FIGURES}/studies/{{name}}/versus_m.svg",
+    params:
+        study=lambda wc: {**study_entry(wc), "draw_m": STUDIES[wc.name]["draw_m"]},
+        code=code_version("study_summary"),
     log:
-        f"{LOGS}/studies/{{name}}/plans.log",
-    benchmark:
-        f"benchmarks/out/studies/{{name}}/plans.tsv",
+        f"{LOGS}/studies/{{name}}/summary.log",
     conda:
         ENV
     script:
-        "../scripts/study_plans.py"
-
-
-rule fig_study_plan:
-    input:
-        plans=rules.study_plans.output.csv,
-    output:
-        png=f"{FIGURES}/studies/{{name}}/plan.png",
-        svg=f"{FIGURES}/studies/{{name}}/plan.svg",
-    log:
-        f"{LOGS}/studies/{{name}}/fig_plan.log",
-    benchmark:
-        f"benchmarks/out/studies/{{name}}/fig_plan.tsv",
-    conda:
-        ENV
-    script:
-        "../scripts/fig_study_plan.py"
-
-
-rule fig_study_versus_m:
-    input:
-        plans=rules.study_plans.output.csv,
-    output:
-        png=f"{FIGURES}/studies/{{name}}/versus_m.png",
-        svg=f"{FIGURES}/studies/{{name}}/versus_m.svg",
-    log:
-        f"{LOGS}/studies/{{name}}/fig_versus_m.log",
-    benchmark:
-        f"benchmarks/out/studies/{{name}}/fig_versus_m.tsv",
-    conda:
-        ENV
-    script:
-        "../scripts/fig_study_versus_m.py"
+        "../scripts/study_summary.py"

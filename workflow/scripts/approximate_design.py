@@ -1,5 +1,6 @@
-"""Rule approximate_design: the optimal approximate design for O_t and its certificate."""
+"""Rule approximate_design: the optimal approximate design for O_t, its certificate and the phi map."""
 from stiffcal import pipeline
 
 o = snakemake.output
-pipeline.run(snakemake, pipeline.approximate_design, snakemake.config, o.json, o.support, o.certificate)
+pipeline.run(snakemake, pipeline.approximate_design, snakemake.params.study, snakemake.input.robot, o.json, o.support,
+             o.certificate, o.phi)

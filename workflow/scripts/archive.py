@@ -1,4 +1,4 @@
 """Rule archive: results/archive/stiffcal-<commit>.tar.gz with provenance.json and SHA256SUMS."""
 from stiffcal import pipeline
 
-pipeline.run(snakemake, pipeline.archive, snakemake.config, snakemake.params.started, snakemake.output.tgz)
+pipeline.run(snakemake, pipeline.archive, snakemake.params.config, snakemake.params.started, snakemake.output.tgz)

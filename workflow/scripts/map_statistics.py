@@ -4,5 +4,5 @@ from pathlib import Path
 from stiffcal import pipeline
 
 maps = {Path(p).parent.name: p for p in snakemake.input.maps}
-pipeline.run(snakemake, pipeline.map_statistics, snakemake.config, maps, snakemake.input.printed,
+pipeline.run(snakemake, pipeline.map_statistics, snakemake.params.maps, maps, snakemake.input.printed,
              snakemake.output.csv)

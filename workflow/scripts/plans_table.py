@@ -2,5 +2,5 @@
 from stiffcal import pipeline
 
 i = snakemake.input
-pipeline.run(snakemake, pipeline.plans_table, snakemake.config, snakemake.params.m, i.design, i.table2,
+pipeline.run(snakemake, pipeline.plans_table, snakemake.params.study, i.robot, snakemake.params.m, i.design, i.table2,
              snakemake.output.csv)

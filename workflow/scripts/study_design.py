@@ -2,5 +2,5 @@
 from stiffcal import pipeline
 
 o = snakemake.output
-pipeline.run(snakemake, pipeline.approximate_design, snakemake.config, o.json, o.support, o.certificate,
-             snakemake.wildcards.name)
+pipeline.run(snakemake, pipeline.approximate_design, snakemake.params.study, snakemake.input.robot, o.json, o.support,
+             o.certificate, None, snakemake.wildcards.name)

@@ -1,4 +1,5 @@
 """Rule validation: Monte Carlo checks of eqs. 11 and 16."""
 from stiffcal import pipeline
 
-pipeline.run(snakemake, pipeline.validation, snakemake.config, snakemake.input.table2, snakemake.output.csv)
+i = snakemake.input
+pipeline.run(snakemake, pipeline.validation, snakemake.params.study, i.robot, i.table2, snakemake.output.csv)

@@ -1,0 +1,304 @@
+"""The public Python API, for notebooks and scripts (``import stiffcal``), in the style of
+``scipy.optimize.minimize``: one entry point per task, one result object, validation at the edge.
+
+>>> import stiffcal
+>>> robot = stiffcal.load_robot("config/robots/paper_2r.yaml")
+>>> res = stiffcal.design(robot, test_pose_deg=[60, 30], force_N=[0, -1], experiments=3)
+>>> res.O_t, res.chi, res.lower_bound, res.poses_deg          # doctest: +SKIP
+
+Units at this edge, as in every file, table and command-line option: **angles in degrees** (every angle
+argument and field ends in ``_deg``), lengths in metres, forces in newtons, ``sigma`` in the unit of the
+measured displacement (1 reproduces the paper's numbers; 1e-5 for 10 micrometres). Inside the library
+angles are radians. Bad input raises :class:`stiffcal.errors.InputError` naming the argument and what was
+expected; the ``stiffcal`` command is a thin layer over these functions and prints the same message.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import tempfile
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .robot import Robot, load_robot
+
+__all__ = ["DesignResult", "design", "analyse_measurements", "load_robot", "float_list"]
+
+#: the largest |value| accepted for a force [N] or sigma: beyond it squares overflow
+MAX_MAGNITUDE = 1e100
+#: the smallest sigma accepted: below it O_t underflows to zero
+MIN_SIGMA = 1e-100
+
+
+def float_list(value, field: str, size: int | None = None, limit: float = MAX_MAGNITUDE) -> np.ndarray:
+    """A finite float vector from a list, an array or a comma-separated string, every |value| <= ``limit``;
+    InputError naming ``field``."""
+    if isinstance(value, str):
+        parts = value.split(",")
+        try:
+            vals = [float(v) for v in parts]
+        except ValueError:
+            raise InputError(f"expected comma-separated numbers, got {value!r}", field=field) from None
+    else:
+        try:
+            vals = [float(v) for v in np.atleast_1d(np.asarray(value, dtype=object)).ravel()]
+        except (TypeError, ValueError):
+            raise InputError(f"expected a list of numbers, got {value!r}", field=field) from None
+    arr = np.array(vals, float)
+    if arr.size == 0:
+        raise InputError("expected at least one number, got none", field=field)
+    bad = np.flatnonzero(~np.isfinite(arr) | (np.abs(arr) > limit))
+    if bad.size:
+        raise InputError(f"expected finite numbers of magnitude at most {limit:g}, got "
+                         f"{float(arr[bad[0]]):g}", field=f"{field}[{int(bad[0])}]")
+    if size is not None and arr.size != size:
+        raise InputError(f"expected {size} numbers, got {arr.size}", field=field)
+    return arr
+
+
+def positive_number(value, field: str, low: float = MIN_SIGMA, high: float = MAX_MAGNITUDE) -> float:
+    """A finite number in [low, high]; InputError naming ``field``."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"expected a number, got {value!r}", field=field) from None
+    if not (math.isfinite(x) and low <= x <= high):
+        raise InputError(f"expected a number in [{low:g}, {high:g}], got {value!r}", field=field)
+    return x
+
+
+def whole_number(value, field: str, low: int, high: int) -> int:
+    """An integer in [low, high] (a bool or a float with a fraction is refused); InputError naming ``field``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) and not (
+            isinstance(value, float) and value.is_integer()):
+        raise InputError(f"expected a whole number, got {value!r}", field=field)
+    if not low <= int(value) <= high:
+        raise InputError(f"expected a whole number in [{low}, {high}], got {int(value)}", field=field)
+    return int(value)
+
+
+def _json_number(x: float):
+    """JSON has no inf: an infinite value (unidentifiable) is written as the string 'inf'."""
+    x = float(x)
+    return x if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+
+
+@dataclass(frozen=True)
+class DesignResult:
+    """What :func:`design` returns; :meth:`to_dict` is the JSON that ``stiffcal design`` prints.
+
+    criterion, criterion_label; robot (its name); experiments M; poses_deg (M, n) [deg], each pose the
+    representative of its symmetric copies; O_t (eq. 16) [unit of sigma squared]; O_t_star (eq. 17);
+    chi = O_t*/O_t (eq. 27); cov_diag (n,) E[dk_i^2] (eq. 11) [(rad/(N m))^2 per sigma^2 unit], inf for
+    a compliance the plan cannot identify; lower_bound: the certified lower bound on O_t of any M-pose plan
+    (equivalence theorem; criterion 'ot' only, else None); gap = O_t / lower_bound - 1; optimal_set_deg
+    (k, n): every equally optimal single pose (M = 1); degenerate: the criterion does not prefer any pose;
+    approximate_design: support_deg (k, n), weights (k,), equivalence_gap; notes; sigma, seed, test_pose_deg
+    (n,), force_N (d,): the inputs.
+    """
+
+    criterion: str
+    criterion_label: str
+    robot: str
+    experiments: int
+    poses_deg: np.ndarray
+    O_t: float
+    O_t_star: float
+    chi: float
+    cov_diag: np.ndarray
+    lower_bound: float | None
+    gap: float | None
+    optimal_set_deg: np.ndarray
+    degenerate: bool
+    approximate_design: dict
+    notes: tuple[str, ...]
+    sigma: float
+    seed: int
+    test_pose_deg: np.ndarray
+    force_N: np.ndarray = field(repr=False)
+
+    def to_dict(self) -> dict:
+        """The JSON object of ``stiffcal design`` (inf as the string 'inf', poses rounded to 1e-6 deg)."""
+        d = self.approximate_design
+        return {
+            "criterion": self.criterion, "criterion_label": self.criterion_label, "robot": self.robot,
+            "experiments": self.experiments,
+            "poses_deg": [[round(float(a), 6) + 0.0 for a in p] for p in self.poses_deg],
+            "O_t": _json_number(self.O_t), "O_t_star": self.O_t_star, "chi": _json_number(self.chi),
+            "cov_diag": [_json_number(v) for v in self.cov_diag],
+            "lower_bound": self.lower_bound,
+            "gap": None if self.gap is None else _json_number(self.gap),
+            "optimal_set_deg": [[round(float(a), 6) + 0.0 for a in p] for p in self.optimal_set_deg],
+            "degenerate": self.degenerate,
+            "approximate_design": {"support_deg": np.round(d["support_deg"], 6).tolist(),
+                                   "weights": np.round(d["weights"], 9).tolist(),
+                                   "equivalence_gap": d["equivalence_gap"]},
+            "notes": list(self.notes), "sigma": self.sigma, "seed": self.seed,
+            "test_pose_deg": self.test_pose_deg.tolist(), "force_N": self.force_N.tolist(),
+        }
+
+
+def _robot(robot) -> Robot:
+    return robot if isinstance(robot, Robot) else load_robot(robot)
+
+
+def _with_limits(robot: Robot, joint_limits_deg) -> Robot:
+    """``robot`` with its joint limits replaced by ``joint_limits_deg`` (n, 2) [deg], checked."""
+    lim = float_list(joint_limits_deg, "joint_limits_deg")
+    if lim.size != 2 * robot.n_joints:
+        raise InputError(f"expected {robot.n_joints} [lower, upper] pairs (one per joint), got {lim.size} numbers",
+                         field="joint_limits_deg")
+    lim = lim.reshape(-1, 2)
+    for j, (lo, hi) in enumerate(lim):
+        if not -360.0 <= lo < hi <= 360.0:
+            raise InputError(f"expected -360 <= lower < upper <= 360 deg, got [{lo:g}, {hi:g}]",
+                             field=f"joint_limits_deg[{j}]")
+    return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True)
+
+
+def _stages(progress, total: int):
+    """A tqdm bar on stderr over the stages of a computation; ``progress`` None shows it only on a terminal."""
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, disable=None if progress is None else not progress, unit="stage", leave=False,
+                bar_format="{desc}: {n_fmt}/{total_fmt} stages {bar} {elapsed}")
+
+
+def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: str = "ot", sigma: float = 1.0,
+           joint_limits_deg=None, seed: int = 0, progress: bool | None = None) -> DesignResult:
+    """Optimal measurement poses for stiffness calibration at a test pose (the paper's method).
+
+    robot: a :class:`~stiffcal.robot.Robot` or the path of a robot file (docs/contracts.md); test_pose_deg:
+    (n,) the test pose q* [deg], within the joint limits; force_N: (d,) the force [N] in every measurement and
+    at the test pose (d = 2 for a planar arm, 3 for a spatial one), nonzero; experiments: the number of
+    measurement poses M (at least ceil(n / d)); criterion: one of ``ot a t d g mdc o1 o2 o3 o4`` (Table 1;
+    'ot' is the paper's test-pose criterion, eq. 16); sigma: the measurement noise standard deviation;
+    joint_limits_deg: (n, 2) [deg] replaces the robot file's limits; seed: seed of the random starts of
+    M-pose plans (results are deterministic for a seed); progress: a progress bar on stderr (None: only on a
+    terminal).
+
+    M = 1 is an exhaustive global search over one pose; M > 1 a Fedorov exchange over a candidate pool
+    started from the rounded optimal approximate design, polished in the continuum. For 'ot', the
+    equivalence theorem bounds O_t of any M-pose plan from below (``lower_bound``, ``gap``).
+    Raises :class:`InputError` for bad arguments or a file that does not hold a valid robot.
+    """
+    from . import criteria
+    from .certificate import approximate_design
+    from .design import Problem, optimal_single_pose
+    from .plans import optimise_plan, round_design
+    from .study import Study, check_test_inputs
+    from .tables import plan_summary
+
+    robot = _robot(robot)
+    if joint_limits_deg is not None:
+        robot = _with_limits(robot, joint_limits_deg)
+    if criterion not in criteria.CRITERIA_KEYS:
+        raise InputError(f"expected one of {', '.join(criteria.CRITERIA_KEYS)}, got {criterion!r}", field="criterion")
+    force = float_list(force_N, "force_N")
+    q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=360.0), force, "test_pose_deg",
+                            "force_N")
+    m = whole_number(experiments, "experiments", 1, 1000)
+    sigma = positive_number(sigma, "sigma")
+    seed = whole_number(seed, "seed", 0, 2**32 - 1)
+    if m < robot.min_poses:
+        raise InputError(f"expected at least {robot.min_poses} poses: {m} give {m * robot.task_dim} equations for "
+                         f"{robot.n_params} compliances", field="experiments")
+    study = Study(robot.name, robot, np.radians(q_t), force, sigma, (criterion,), 1.0, 1.0)
+    notes, optimal_set, degenerate, single = [], np.zeros((0, robot.n_joints)), False, None
+    with _stages(progress, 2 if m == 1 else 3) as bar:
+        bar.set_description("single pose")
+        try:
+            res1 = optimal_single_pose(Problem(robot, force, criterion, 1, np.radians(q_t), None, sigma))
+            single, notes, degenerate = res1.pose_deg, list(res1.notes), res1.degenerate
+            optimal_set = res1.optimal_set_deg
+        except InputError:
+            if m == 1:
+                raise
+        bar.update()
+        bar.set_description("approximate design and certificate")
+        approx = approximate_design(Problem(robot, force, "ot", 1, np.radians(q_t), None, sigma))
+        bar.update()
+        if m == 1:
+            poses = single[None, :]
+        else:
+            bar.set_description(f"plan of {m} poses")
+            prob = Problem(robot, force, criterion, m, np.radians(q_t), None, sigma)
+            starts = [round_design(approx, m)] + ([np.repeat(single[None], m, 0)] if single is not None else [])
+            poses = optimise_plan(prob, starts=starts, seed=seed).poses_deg
+            optimal_set, degenerate = np.zeros((0, robot.n_joints)), False
+            bar.update()
+    summ = plan_summary(study, poses)
+    bound = approx.lower_bound(m, sigma) if criterion == "ot" else None
+    notes += [f"joint {j + 1}'s axis passes through the measured point at every pose: its compliance never deflects "
+              "that point, cannot be identified from its position and is left out of the model (cov_diag 'inf'); "
+              "measure a point off that axis (tool_m) to identify it" for j in robot.inert_joints]
+    ot = float(summ["O_t"])
+    return DesignResult(
+        criterion=criterion, criterion_label=criteria.label(criterion), robot=robot.name, experiments=m,
+        poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=criteria.o_t_star(robot.n_params, m, sigma),
+        chi=float(summ["chi"]), cov_diag=np.array([float(summ[f"E_dk{i + 1}"]) for i in range(robot.n_joints)]),
+        lower_bound=bound, gap=None if bound is None else ot / bound - 1.0,
+        optimal_set_deg=np.asarray(optimal_set, float).reshape(-1, robot.n_joints), degenerate=bool(degenerate),
+        approximate_design={"support_deg": approx.support_deg, "weights": approx.weights,
+                            "equivalence_gap": approx.equivalence_gap},
+        notes=tuple(notes), sigma=sigma, seed=seed, test_pose_deg=q_t, force_N=force)
+
+
+def check_out_dir(out) -> Path:
+    """An output directory that does not exist or is a directory; an existing file is refused at once."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("expected a directory to write into, but a file of that name exists", source=str(out))
+    return out
+
+
+def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None, force_N=None,
+                         out=None, label: str | None = None, angle_resolution_deg: float | None = None,
+                         force_resolution_N: float | None = None) -> dict:
+    """What the stiffness model gets wrong in measured deflections (``stiffcal discrepancy``).
+
+    robot: a Robot or a robot file; data: the measured-data CSV (docs/measured-data.md); alpha: family-wise
+    false-alarm rate, in (0, 1); test_pose_deg (n,) [deg] and force_N (d,) [N]: the test pose and its force
+    for the predicted compensation error (give both or neither); out: a directory for ``verdict.json`` and
+    ``residuals.png``/``.svg`` (None: nothing is written). The files are written to a temporary directory
+    and moved into ``out`` only when everything succeeded. angle_resolution_deg [deg], force_resolution_N
+    [N]: joint angles and forces that agree within these are one configuration and one load (encoder and
+    load-cell resolution; defaults 0.01 deg and 0.5 N, docs/measured-data.md).
+
+    Returns the verdict (docs/measured-data.md: cause, causes, indistinguishable_from, p_value, structure,
+    nominal, extended, gain, outlier_rows, notes, ...). Raises :class:`InputError` for bad arguments or data.
+    """
+    from . import discrepancy
+    from . import measurements as M
+    from .study import check_test_inputs
+
+    robot = _robot(robot)
+    alpha = positive_number(alpha, "alpha", 1e-12, 1 - 1e-12)
+    res = (M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None
+           else positive_number(angle_resolution_deg, "angle_resolution_deg", 1e-12, 360.0),
+           M.FORCE_RESOLUTION_N if force_resolution_N is None
+           else positive_number(force_resolution_N, "force_resolution_N", 1e-12, 1e9))
+    if (test_pose_deg is None) != (force_N is None):
+        raise InputError("expected both the test pose and its force, or neither", field="test_pose_deg")
+    qt = ft = None
+    if test_pose_deg is not None:
+        ft = float_list(force_N, "force_N")
+        qt = np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=360.0), ft,
+                                          "test_pose_deg", "force_N"))
+    if out is None:
+        return discrepancy.analyse(robot, M.read_measurements(data, robot, *res), alpha, qt, ft)
+    out = check_out_dir(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        verdict = discrepancy.run(robot, str(data), str(tmp), alpha, qt, ft, label, *res)
+        out.mkdir(exist_ok=True)
+        for f in sorted(tmp.iterdir()):
+            f.replace(out / f.name)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return verdict

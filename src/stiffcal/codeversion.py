@@ -1,0 +1,109 @@
+"""Code versions of the workflow's steps, so that a change to library code reruns exactly the jobs whose
+output it can change (docs/workflow.md, "When a job reruns").
+
+Every rule declares ``params: code=code_version("<step>", ...)``, naming the functions of
+:mod:`stiffcal.pipeline` it runs. The version is a hash of
+
+* the source of those functions and of every module-level function and constant of ``pipeline.py`` they
+  refer to (transitively), and
+* the complete source of every ``stiffcal`` module they import (at module level or inside a function),
+  and of every module those import, transitively.
+
+Snakemake stores the parameters of every job it runs and reruns a job whose parameters changed (rerun
+trigger ``params``, on by default), so editing ``plots.py`` reruns the figure jobs and the report, and
+nothing else; editing a comment counts as a change (the hash is of the text). The analysis is static
+(Python's ``ast``): nothing is imported, so it costs a few milliseconds when the Snakefile is parsed.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+from functools import lru_cache
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent
+
+
+@lru_cache(maxsize=None)
+def _source(module: str) -> tuple[str, ast.Module]:
+    text = (PACKAGE / f"{module}.py").read_text(encoding="utf-8")
+    return text, ast.parse(text)
+
+
+def _is_module(name: str) -> bool:
+    return (PACKAGE / f"{name}.py").is_file()
+
+
+def imported_modules(node: ast.AST) -> set[str]:
+    """The ``stiffcal`` modules imported anywhere inside ``node`` (relative or absolute imports)."""
+    out: set[str] = set()
+    for n in ast.walk(node):
+        if isinstance(n, ast.ImportFrom):
+            if n.level == 1 and n.module:
+                out.add(n.module.split(".")[0])
+            elif n.level == 1 or (n.level == 0 and n.module == "stiffcal"):
+                out |= {a.name for a in n.names}
+            elif n.level == 0 and n.module and n.module.startswith("stiffcal."):
+                out.add(n.module.split(".")[1])
+        elif isinstance(n, ast.Import):
+            out |= {a.name.split(".")[1] for a in n.names if a.name.startswith("stiffcal.")}
+    return {m for m in out if _is_module(m)}
+
+
+def module_closure(modules) -> set[str]:
+    """``modules`` and every ``stiffcal`` module they import, transitively."""
+    seen: set[str] = set()
+    todo = list(modules)
+    while todo:
+        m = todo.pop()
+        if m not in seen:
+            seen.add(m)
+            todo += imported_modules(_source(m)[1])
+    return seen
+
+
+def _definitions(tree: ast.Module) -> dict[str, ast.AST]:
+    """Module-level functions, classes and assigned names of a module: name -> node."""
+    out: dict[str, ast.AST] = {}
+    for node in tree.body:
+        if isinstance(node, (ast.FunctionDef, ast.ClassDef)):
+            out[node.name] = node
+        elif isinstance(node, (ast.Assign, ast.AnnAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            out |= {t.id: node for t in targets if isinstance(t, ast.Name)}
+    return out
+
+
+def step_closure(steps) -> tuple[list[str], set[str]]:
+    """(pipeline definitions used, stiffcal modules imported) by the pipeline functions ``steps``."""
+    text, tree = _source("pipeline")
+    defs = _definitions(tree)
+    missing = [s for s in steps if s not in defs]
+    if missing:
+        raise KeyError(f"stiffcal.pipeline has no step {missing[0]!r}")
+    used: set[str] = set()
+    modules: set[str] = set()
+    todo = list(steps)
+    while todo:
+        name = todo.pop()
+        if name in used:
+            continue
+        used.add(name)
+        node = defs[name]
+        modules |= imported_modules(node)
+        todo += [n.id for n in ast.walk(node) if isinstance(n, ast.Name) and n.id in defs and n.id not in used]
+    return sorted(used), module_closure(modules)
+
+
+def code_version(*steps: str) -> str:
+    """12 hex digits of SHA-256 over the code that the pipeline functions ``steps`` run (module docstring)."""
+    text, tree = _source("pipeline")
+    defs = _definitions(tree)
+    used, modules = step_closure(steps)
+    h = hashlib.sha256()
+    for name in used:
+        h.update(f"pipeline.{name}\0{ast.get_source_segment(text, defs[name])}\0".encode())
+    for m in sorted(modules):
+        h.update(f"{m}\0{_source(m)[0]}\0".encode())
+    return h.hexdigest()[:12]

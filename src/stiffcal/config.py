@@ -1,0 +1,91 @@
+"""The workflow's config: read with the safe YAML loader and checked completely before any job runs.
+
+``snakemake`` reads ``config/config.yaml``, or instead (never merged with it) the one file given with
+``--configfile FILE``, which must then be a complete config; values given with ``--config KEY=VALUE``
+override either. :func:`check_config` checks everything a job would otherwise find wrong, so that a bad
+config stops the run (and the dry run) at once with one message naming the file and the field, and no job
+starts: the schema (types, ranges, unknown keys), every robot file, test poses within the joint limits,
+forces with one component per measured coordinate, map grids that divide 180 deg, unique names, plans
+that can identify every compliance, and the measured-data CSVs (read as the discrepancy job reads them).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .errors import InputError
+
+DEFAULT = "config/config.yaml"
+
+
+def workflow_config(configfiles, overrides: dict | None = None, root: str | Path = ".") -> tuple[str, dict]:
+    """(source, config): the config the workflow runs with. configfiles: the ``--configfile`` arguments (at most
+    one; none means :data:`DEFAULT`); overrides: the ``--config`` values. Read with
+    :func:`stiffcal.validation.read_yaml` (duplicate keys, aliases, YAML 1.2 numbers) and checked by
+    :func:`check_config`; an error names the file (or ``--config``) and the field."""
+    from .validation import read_yaml
+
+    root_abs = Path(root).resolve()
+    files = [str(Path(f).relative_to(root_abs)) if Path(f).is_absolute() and Path(f).is_relative_to(root_abs)
+             else str(f) for f in configfiles]
+    if len(files) > 1:
+        raise InputError(f"expected one --configfile (a complete config that replaces {DEFAULT}), got "
+                         f"{len(files)}: {', '.join(files)}", field="--configfile")
+    source = files[0] if files else DEFAULT
+    config = read_yaml(source if Path(source).is_absolute() else Path(root) / source)
+    if not isinstance(config, dict):
+        raise InputError("expected a mapping of config keys (docs/contracts.md)", source=source)
+    overrides = dict(overrides or {})
+    if overrides:
+        from snakemake.utils import update_config
+
+        update_config(config, overrides)
+    try:
+        check_config(config, root, source)
+    except InputError as err:
+        top = (err.field or "").split(".")[0].split("[")[0]
+        if top in overrides:
+            raise err.renamed(source="--config") from None
+        raise
+    return source, config
+
+
+def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) -> None:
+    """Check a workflow config completely (module docstring); raise :class:`InputError` naming ``source`` and
+    the field."""
+    from .maps import map_studies
+    from .robot import load_robot
+    from .study import design_studies, study_from_config
+    from .validation import validate
+
+    validate(config, "config", source)
+    study = study_from_config(config, root, source)
+    robot = study.robot
+    if robot.n_joints != 2 or robot.min_poses != 1:
+        raise InputError(f"expected a robot with 2 joints whose single pose identifies both compliances (Tables 2-3 "
+                         f"and Figures 4-5 are over (q1, q2)), got {robot.n_joints} joints; put other robots in "
+                         "'studies'", source=source, field="study.robot")
+    design_studies(config, root, source)
+    map_studies(config, root, source)
+    names = set()
+    for i, entry in enumerate(config.get("measured_data") or []):
+        where = f"measured_data[{i}]"
+        if entry["name"] in names:
+            raise InputError(f"expected unique names, got {entry['name']!r} twice", source=source,
+                             field=f"{where}.name")
+        names.add(entry["name"])
+        data_robot = load_robot(Path(root) / entry["robot"])
+        data = Path(root) / entry["data"]
+        if not data.is_file():
+            raise InputError(f"no such file: {entry['data']}", source=source, field=f"{where}.data")
+        from .measurements import read_measurements
+
+        read_measurements(data, data_robot)  # the data themselves (the message names the CSV, row and column)
+        force = entry.get("force_N", config["study"]["force_N"])
+        field = f"{where}.force_N" if "force_N" in entry else "study.force_N"
+        if data_robot.n_joints == robot.n_joints:  # the predicted gain at the study's test pose
+            if len(force) != data_robot.task_dim:
+                raise InputError(f"expected {data_robot.task_dim} force components for the {data_robot.kind} robot "
+                                 f"{entry['robot']}, got {len(force)}", source=source, field=field)
+            if not any(force):
+                raise InputError("expected a nonzero force at the test pose", source=source, field=field)

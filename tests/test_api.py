@@ -1,0 +1,118 @@
+"""The public Python API (``import stiffcal``): the paper's numbers, degrees at the edge, the CLI's checks,
+the CLI's JSON, and a wheel installed into a clean virtual environment."""
+
+import json
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import stiffcal
+from stiffcal.cli import main
+from stiffcal.errors import InputError
+
+PAPER_ROBOT = "config/robots/paper_2r.yaml"
+
+
+def test_import_exposes_the_api_lazily():
+    code = ("import sys, stiffcal; heavy = [m for m in ('scipy', 'pandas', 'matplotlib', 'jinja2', 'jsonschema') "
+            "if m in sys.modules]; print(heavy, sorted(stiffcal.__all__))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.startswith("[]")  # importing the package loads none of the heavy libraries
+    for name in ("load_robot", "design", "analyse_measurements", "DesignResult", "InputError"):
+        assert name in out
+
+
+def test_design_reproduces_the_paper_in_degrees(root):
+    """Test pose (60, 30) deg and F = (0, -1) N give Table 2's O_t pose (-27.50, 71.34) and Table 3's O_t and
+    chi (0.3869, 5.1694): the angles at the API edge are degrees."""
+    robot = stiffcal.load_robot(root / PAPER_ROBOT)
+    res = stiffcal.design(robot, test_pose_deg=[60, 30], force_N=[0, -1])
+    assert isinstance(res, stiffcal.DesignResult)
+    assert np.round(res.poses_deg[0], 2).tolist() == [-27.50, 71.34]
+    assert round(res.O_t, 4) == 0.3869 and round(res.chi, 4) == 5.1694
+    assert 0 < res.lower_bound <= res.O_t and res.gap == pytest.approx(res.O_t / res.lower_bound - 1)
+    assert res.cov_diag.shape == (2,)
+
+
+def test_design_result_is_the_cli_json(root, capsys, monkeypatch):
+    monkeypatch.chdir(root)
+    res = stiffcal.design(PAPER_ROBOT, [60, 30], [0, -1], criterion="a", seed=3)
+    assert main(["design", "--robot", PAPER_ROBOT, "--test-pose-deg", "60,30", "--force-N", "0,-1",
+                 "--criterion", "a", "--seed", "3"]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    assert json.loads(json.dumps(res.to_dict())) == cli
+    for key in ("O_t", "chi", "cov_diag", "poses_deg", "lower_bound", "gap"):
+        assert key in cli
+
+
+def test_joint_limits_argument_restricts_the_poses(root):
+    lim = [[-180, 180], [0, 40]]
+    res = stiffcal.design(root / PAPER_ROBOT, [60, 30], [0, -1], joint_limits_deg=lim)
+    assert 0 <= res.poses_deg[0, 1] <= 40 + 1e-9
+    free = stiffcal.design(root / PAPER_ROBOT, [60, 30], [0, -1])
+    assert res.O_t >= free.O_t  # a restricted search cannot do better than the free one
+
+
+@pytest.mark.parametrize("kwargs,field", [
+    ({"force_N": [0, -1, 5]}, "force_N"),             # a 3-component force on a planar arm
+    ({"test_pose_deg": [60, float("nan")]}, "test_pose_deg[1]"),
+    ({"sigma": 0}, "sigma"),
+    ({"sigma": 1e300}, "sigma"),
+    ({"experiments": 0}, "experiments"),
+    ({"criterion": "x"}, "criterion"),
+    ({"seed": -1}, "seed"),
+    ({"joint_limits_deg": [[0, 10]]}, "joint_limits_deg"),
+])
+def test_bad_arguments_name_the_argument(root, kwargs, field):
+    args = {"test_pose_deg": [60, 30], "force_N": [0, -1], **kwargs}
+    with pytest.raises(InputError) as err:
+        stiffcal.design(root / PAPER_ROBOT, args.pop("test_pose_deg"), args.pop("force_N"), **args)
+    assert err.value.field == field
+
+
+def test_analyse_measurements_writes_nothing_without_out(root, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    v = stiffcal.analyse_measurements(root / PAPER_ROBOT, root / "data/synthetic_paper_2r.csv")
+    assert v["cause"] == "backlash" and v["outlier_rows"] == [17]  # the hidden effect and blunder of data/README.md
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_wheel_installs_into_a_clean_venv_and_designs_from_a_robot_file(root, tmp_path):
+    """``pip wheel .`` -> a fresh venv; its stiffcal (not the source tree) loads a robot file (schemas are
+    package data) and designs. The fresh venv sees the pinned dependencies through a path file pointing at
+    this venv's site-packages (no download); that path file does not load the editable install."""
+    import shutil
+
+    src = tmp_path / "src-copy"  # build from a copy: setuptools writes build/ beside pyproject.toml
+    shutil.copytree(root / "src", src / "src", ignore=shutil.ignore_patterns("__pycache__"), symlinks=True)
+    for f in ("pyproject.toml", "README.md", "LICENSE"):
+        shutil.copy(root / f, src / f)
+    wheels = tmp_path / "wheels"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--no-build-isolation", "-q", "-w", str(wheels),
+                    str(src)], check=True, capture_output=True)
+    (whl,) = wheels.glob("stiffcal-*.whl")
+    env_dir = tmp_path / "venv"
+    venv.EnvBuilder(with_pip=False).create(env_dir)
+    py = env_dir / "bin" / "python"
+    site = Path(subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
+                               capture_output=True, text=True, check=True).stdout.strip())
+    deps = next(p for p in map(Path, sys.path) if p.name == "site-packages" and (p / "numpy").is_dir())
+    (site / "deps.pth").write_text(str(deps) + "\n")
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q", str(whl)],
+                   check=True, capture_output=True)
+    work = tmp_path / "elsewhere"
+    work.mkdir()
+    (work / "arm.yaml").write_text((root / PAPER_ROBOT).read_text())
+    code = ("import stiffcal, json; r = stiffcal.design(stiffcal.load_robot('arm.yaml'), [60, 30], [0, -1]); "
+            "print(json.dumps({'file': stiffcal.__file__, 'O_t': round(r.O_t, 4), 'version': stiffcal.__version__}))")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    out = json.loads(subprocess.run([str(py), "-c", code], cwd=work, capture_output=True, text=True, check=True,
+                                    env=env).stdout)
+    assert out["file"].startswith(str(site)) and out["O_t"] == 0.3869 and out["version"] == stiffcal.__version__
+    cli = subprocess.run([str(env_dir / "bin" / "stiffcal"), "--version"], capture_output=True, text=True, env=env)
+    assert cli.returncode == 0 and cli.stdout.strip() == f"stiffcal {stiffcal.__version__}"

@@ -1,0 +1,6 @@
+"""Rule study_summary: one design study's plans (versus_m.csv, plans.csv) and its two figures."""
+from stiffcal import pipeline
+
+i, o = snakemake.input, snakemake.output
+pipeline.run(snakemake, pipeline.study_summary, snakemake.params.study, i.robot, list(i.csvs), o.versus_m, o.plans,
+             o.plan_png, o.versus_m_png)
