@@ -7,8 +7,8 @@ unloaded reference rows; tracker noise growing with distance) in the 2-link, 3-l
 case is written as a lab's CSV with and without pose_id and analysed both ways (stiffcal.rates). Effect
 sizes are drawn log-uniformly; a case counts for an effect when the oracle test that knows the effect's
 exact shape has power >= 0.9 (stiffcal.rates); the rates are also printed against a weaker oracle that
-knows which cause is present but not its parameters (the F-test of that cause's regressors). Also printed, for two effects at once, the rate at which
-both are named.
+knows which cause is present but not its parameters (the F-test of that cause's regressors). Also printed,
+for two effects at once, the rate at which both are named.
 
 Run: .venv/bin/python benchmarks/rates_discrepancy.py [SEEDS] [ALPHA]     (defaults 20 seeds, alpha 0.01;
 about 10 minutes of CPU at 20 seeds). Prints one row per robot x protocol x effect: named / qualifying

@@ -10,11 +10,13 @@ a seed. Its log is written as the CSV a lab would write, with and without ``pose
 Each effect is scaled so that the RMS of its displacement, less what the nominal model absorbs, is a random
 multiple (log-uniform) of the noise, so cases range from invisible to obvious. Whether a case *should* be
 found is decided by an **oracle**: the most powerful test of that one effect, which knows its exact shape
-(its noise-free displacement vector e): the one-degree-of-freedom F-test of e against the nominal model (and the other hidden effects), with the
-noise known row by row. Its power at level alpha is 1 - F'(F_crit; 1, df, lambda), lambda = |(I - P) W e|^2
-with W the whitening by the noise and P the projection on the whitened nominal columns (Scheffe, *The
-Analysis of Variance*, 1959, sec. 2.8). The analysis is required to name an effect in at least 95 % of
-the cases where the oracle's power is at least 0.9, and to raise at most alpha false alarms on clean data.
+(its noise-free displacement vector e): the one-degree-of-freedom F-test of e against the nominal model
+(and the other hidden effects), with the noise known row by row. Its power at level alpha is
+1 - F'(F_crit; 1, df, lambda), lambda = |(I - P) W e|^2 with W the whitening by the noise and P the
+projection on the whitened nominal columns (Scheffe, *The Analysis of Variance*, 1959, sec. 2.8). The
+analysis is required to name an effect in at least 95 % of the cases where the oracle's power is at least
+0.9, and to raise at most alpha false alarms on clean data. A weaker oracle, which knows which cause is
+present but not its parameters (the F-test of that cause's regressors at level alpha), is also reported.
 For effects outside the catalogue the oracle tests the part of e that no catalogue cause explains, and the
 expected verdict is ``unexplained``.
 """
