@@ -420,6 +420,14 @@ def test_a_vertical_axis_under_hanging_weights_is_named(root):
         D.check_identifiable(robot, meas)
 
 
+def test_every_row_one_configuration_and_one_load_is_refused(paper_robot, rng):
+    q = np.tile(np.radians([10.0, 80.0]), (30, 1))
+    f = np.tile([0.0, -300.0], (30, 1))
+    dp = T.simulate(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), q, f, SIGMA, rng)
+    with pytest.raises(InputError, match="cannot test any cause: their 30 loaded rows hold 1 distinct"):
+        D.analyse(paper_robot, Measurements.from_arrays(q, f, dp))
+
+
 def test_no_degree_of_freedom_for_the_noise_is_refused(paper_robot):
     q = np.radians([[10, 20], [50, 80]])
     f = np.array([[0, -100.0], [100.0, 0]])
@@ -441,6 +449,8 @@ GOOD = "pose_id,q1_deg,q2_deg,fx_N,fy_N,dx_m,dy_m\n0,10,20,100,0,1e-4,2e-4\n1,40
     (GOOD.replace("1e-4,2e-4", "1e-4,nan"), "row 2 (data row 0), column dy_m': expected a finite number"),
     (GOOD.replace("3e-4", "inf"), "row 3 (data row 1), column dx_m': expected a finite number"),
     (GOOD.replace("40,70", "forty,70"), "column q1_deg': expected a finite number, got 'forty'"),
+    (GOOD.replace("3e-4", "3e295"), "row 3 (data row 1), column dx_m': expected displacements of at most 100 m"),
+    (GOOD.replace("0,-200", "0,-2e12"), "column fy_N': expected force components of at most 1e+07 N"),
     ("q1_deg,q2_deg,fx_N,fy_N,dx_m,dy_m\n", "no measurements"),
     (GOOD.replace("q2_deg,", "q2_deg,q3_deg,").replace("10,20", "10,20,5").replace("40,70", "40,70,5"),
      "expected 2 joint angles"),

@@ -142,7 +142,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"stiffcal {args.command}: internal error (please report; STIFFCAL_TRACEBACK=1 shows where): {msg}",
               file=sys.stderr)
         return 1
-    print(json.dumps(out, indent=2))
+    try:
+        print(json.dumps(out, indent=2))
+        sys.stdout.flush()
+    except BrokenPipeError:  # the reader went away (`| head`): no traceback, the usual exit status
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     return 0 if out.get("ok", True) else 1
 
 

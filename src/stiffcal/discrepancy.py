@@ -324,6 +324,18 @@ def check_identifiable(robot: Robot, meas: Measurements) -> None:
                          source=meas.source)
 
 
+def check_testable(robot: Robot, meas: Measurements) -> None:
+    """Raise :class:`InputError` when the distinct (configuration, load) pairs give no more equations than there
+    are compliances: the data then identify the compliances at best, and no cause and no lack of fit can be
+    tested (e.g. every row repeats one configuration and one load)."""
+    groups = len(np.unique(meas.group))
+    if groups * robot.task_dim <= robot.n_params:
+        raise InputError(
+            f"these data cannot test any cause: their {meas.n_rows} loaded rows hold {groups} distinct "
+            f"configuration-and-load pair{'s' if groups > 1 else ''} ({groups * robot.task_dim} distinct equations "
+            f"for {robot.n_params} compliances); measure more configurations or loads", source=meas.source)
+
+
 # --- the noise ---------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -723,6 +735,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     if not 0 < alpha < 1:
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
     check_identifiable(robot, meas)
+    check_testable(robot, meas)
     des_all = build_design(robot, meas)
     vm = variance_model(robot, meas)  # a first look, before the blunders are known
     w_all = np.ones(meas.n_rows) if vm is None else vm.weights

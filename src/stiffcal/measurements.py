@@ -208,6 +208,10 @@ def _check_units(columns, source: str) -> None:
                              f"got {got}", source=source, field=f"column {col}")
 
 
+#: magnitudes no measurement of a robot reaches (a value beyond is a corrupted cell, not a measurement)
+_MAX_ABS = {"q": 3600.0, "f": 1e7, "d": 100.0}
+
+
 def _numbers(df, cols: list[str], source: str) -> np.ndarray:
     import pandas as pd
 
@@ -219,6 +223,12 @@ def _numbers(df, cols: list[str], source: str) -> np.ndarray:
             r = bad[0]
             raise InputError(f"expected a finite number, got {df[c].iloc[r]!r}", source=source,
                              field=f"row {r + 2} (data row {r}), column {c}")
+        limit = _MAX_ABS[c[0]]
+        huge = np.flatnonzero(np.abs(num) > limit)
+        if huge.size:
+            r = huge[0]
+            raise InputError(f"expected {_NAMES[c[0]]} of at most {limit:g} {_UNITS[c[0]]} in magnitude, got "
+                             f"{df[c].iloc[r].strip()}", source=source, field=f"row {r + 2} (data row {r}), column {c}")
         values[:, j] = num
     return values
 
