@@ -15,7 +15,7 @@ $(STAMP): requirements.lock pyproject.toml
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
 	touch $(STAMP)
 
-# test-only dependencies (Pinocchio, to check our kinematics), pinned in requirements-test.lock
+# test-only dependencies (pypdf, ruff), pinned in requirements-test.lock
 $(TSTAMP): $(STAMP) requirements-test.lock
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements-test.lock
 	touch $(TSTAMP)

@@ -93,7 +93,7 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
     if not np.any(null) and w[0] > 1e-12 * w[-1]:
         return
     v = V[:, 0]
-    joints = [int(problem.robot.params[j]) + 1 for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
+    joints = [problem.robot.joint_names[problem.robot.params[j]] for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
     what = (f"the compliance of joint {joints[0]}" if len(joints) == 1 else
             "a combination of the compliances of joints " + ", ".join(map(str, joints)))
     raise InputError(f"{what} cannot be identified with the force {problem.force.tolist()} N at any pose: the force "
