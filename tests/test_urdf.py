@@ -288,3 +288,13 @@ def test_a_joint_subset_of_the_urdf_is_the_dh_arm_with_that_joint_held(root, tmp
     np.testing.assert_allclose(sub.fk(q), kuka[0].fk(full), atol=1e-12)
     np.testing.assert_allclose(sub.jacobian(q), kuka[0].jacobian(full)[..., :5], atol=1e-12)
     assert sub.joint_names == ("a1", "a2", "a3", "a4", "a5")
+
+
+def test_the_workflow_lists_the_urdf_as_an_input_of_its_robot(root):
+    """robot_inputs (the rules' ``urdf`` input): a URDF robot file reads its URDF, other kinds nothing."""
+    from stiffcal.robot import robot_inputs
+
+    assert robot_inputs(KUKA_URDF) == ["config/robots/kuka_kr210_r2700.urdf"]
+    assert robot_inputs(KUKA_DH) == [] and robot_inputs("no/such/robot.yaml") == []
+    rules = (root / "workflow/rules/studies.smk").read_text() + (root / "workflow/rules/discrepancy.smk").read_text()
+    assert rules.count("urdf=lambda wc: robot_inputs(") == 4

@@ -459,6 +459,19 @@ def load_robot(path: str | Path) -> Robot:
                    source=src, reference=doc.get("source", ""))
 
 
+def robot_inputs(path: str | Path) -> list[str]:
+    """The files a robot file reads besides itself: its URDF (``kind: urdf``), as a path relative to where
+    ``path`` is relative to; nothing for other kinds or a file that cannot be read (loading it reports why).
+    The workflow lists them as inputs, so that editing a URDF reruns the jobs of its robot."""
+    try:
+        doc = read_yaml(path)
+    except InputError:
+        return []
+    if isinstance(doc, dict) and doc.get("kind") == "urdf" and isinstance(doc.get("urdf"), str):
+        return [str(Path(path).parent / doc["urdf"])]
+    return []
+
+
 def _per_joint(doc: dict, n: int, src: str, what: str):
     """The optional per-joint fields (joint limits, compliances, joint names), checked against the n joints."""
     limits = doc.get("joint_limits_deg")
