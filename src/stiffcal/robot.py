@@ -143,21 +143,22 @@ class Chain:
 def chain_frames(chain: Chain, q: np.ndarray):
     """Joint axes and tip frame of a :class:`Chain` in the base frame, batched over poses.
 
-    q: (..., n) [rad]. Returns ``(origins (..., n, 3) [m], axes (..., n, 3) unit, T_tip (..., 4, 4))``:
-    a point of each joint's axis (its frame origin), the axis direction, and the pose of the tip frame.
+    q: (..., n) [rad]. Returns ``(origins (..., n, 3) [m], axes (..., n, 3) unit, R_tip (..., 3, 3),
+    p_tip (..., 3) [m])``: a point of each joint's axis (its frame origin), the axis direction, and the
+    rotation and origin of the tip frame.
     """
     q = np.asarray(q, float)
-    T = np.broadcast_to(np.eye(4), q.shape[:-1] + (4, 4))
+    R = np.broadcast_to(np.eye(3), q.shape[:-1] + (3, 3))
+    p = np.zeros(q.shape[:-1] + (3,))
     origins, axes = [], []
     for i in range(q.shape[-1]):
-        T = T @ chain.placements[i]
-        origins.append(T[..., :3, 3])
-        axes.append(T[..., :3, :3] @ chain.axes[i])
-        rot = np.zeros(q.shape[:-1] + (4, 4))
-        rot[..., :3, :3] = rotation_about(chain.axes[i], q[..., i])
-        rot[..., 3, 3] = 1.0
-        T = T @ rot
-    return np.stack(origins, axis=-2), np.stack(axes, axis=-2), T @ chain.tip
+        P = chain.placements[i]
+        p = p + R @ P[:3, 3]
+        R = R @ P[:3, :3]
+        origins.append(p)
+        axes.append(R @ chain.axes[i])
+        R = R @ rotation_about(chain.axes[i], q[..., i])
+    return np.stack(origins, axis=-2), np.stack(axes, axis=-2), R @ chain.tip[:3, :3], p + R @ chain.tip[:3, 3]
 
 
 def dh_jacobian(dh: np.ndarray, tool: np.ndarray, q: np.ndarray, convention: str = "standard") -> np.ndarray:
@@ -278,8 +279,8 @@ class Robot:
         if self.kind == "planar":
             return planar_jacobian(self.links_m, np.asarray(q, float))
         if self.kind == "urdf":
-            origins, axes, T = chain_frames(self.chain, q)
-            point = T[..., :3, :3] @ self.tool_m + T[..., :3, 3]
+            origins, axes, R, p = chain_frames(self.chain, q)
+            point = R @ self.tool_m + p
             return np.swapaxes(np.cross(axes, point[..., None, :] - origins), -1, -2)
         return dh_jacobian(self.dh, self.tool_m, q, self.convention)
 
@@ -290,10 +291,10 @@ class Robot:
         if self.kind == "planar":
             return planar_link_points(self.links_m, np.asarray(q, float))
         if self.kind == "urdf":
-            origins, _, T = chain_frames(self.chain, q)
+            origins, _, R, p = chain_frames(self.chain, q)
             base = np.zeros(origins.shape[:-2] + (1, 3))
-            tool = (T[..., :3, :3] @ self.tool_m + T[..., :3, 3])[..., None, :]
-            return np.concatenate([base, origins[..., 1:, :], T[..., None, :3, 3], tool], axis=-2)
+            return np.concatenate([base, origins[..., 1:, :], p[..., None, :], (R @ self.tool_m + p)[..., None, :]],
+                                  axis=-2)
         F = dh_frames(self.dh, q, self.convention)
         return np.concatenate([F[..., :, :3, 3], dh_tool_point(F, self.tool_m)[..., None, :]], axis=-2)
 
@@ -332,9 +333,8 @@ class Robot:
             p = as_xyz(planar_fk(self.links_m, q))
             return rotation_about(np.array([0.0, 0.0, 1.0]), c), p
         if self.kind == "urdf":
-            T = chain_frames(self.chain, q)[2]
-        else:
-            T = dh_frames(self.dh, q, self.convention)[..., -1, :, :]
+            return chain_frames(self.chain, q)[2:]
+        T = dh_frames(self.dh, q, self.convention)[..., -1, :, :]
         return T[..., :3, :3], T[..., :3, 3]
 
 

@@ -7,10 +7,12 @@ urdfdom) reads the file into a model of joints and frames; :func:`read_chain` ta
 joints on the path from ``base_frame`` to ``tip_frame`` and folds everything between two moving joints (fixed
 joints, and chain joints held at a stated angle) into one fixed transform: a
 :class:`stiffcal.robot.Chain` of placements and axes. The library then evaluates the kinematics with numpy,
-batched over tens of thousands of poses at once (the searches of :mod:`stiffcal.design` and the
-certificate evaluate the Jacobian at 2**15 poses per call, where one Pinocchio call per pose would cost a
-Python round trip each: ``benchmarks/bench_urdf.py`` measures both); the tests check the result against
-Pinocchio's own forward kinematics and frame Jacobian, pose by pose.
+batched over arrays of poses of any shape like the planar and DH kinds, which also gives every joint's axis
+in the base frame (:meth:`stiffcal.robot.Robot.joint_frames`: the Jacobian of any point of the tip frame)
+and keeps the :class:`~stiffcal.robot.Robot` a plain array-holding value. It costs about what Pinocchio costs
+called once per pose (``benchmarks/bench_urdf.py``: the Jacobian at 32768 poses in 0.057 s of CPU, Pinocchio
+0.060 s for position and Jacobian; the DH table 0.044 s); the tests check it against Pinocchio's own forward
+kinematics and frame Jacobian, pose by pose.
 
 Joints: ``revolute`` joints keep the URDF's ``<limit lower upper>`` as their joint limits; ``continuous``
 joints have none (their angle is reported in [-180, 180) deg). Prismatic, floating, planar and mimic joints
