@@ -207,7 +207,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
                                   "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
                                   "has_limits": robot.has_joint_limits,
                                   "inert": [robot.joint_names[j] for j in robot.inert_joints],
-                                  "keys": robot.joint_columns(""), "joint_names": list(robot.joint_names),
+                                  "joint_keys": robot.joint_columns(""), "joint_names": list(robot.joint_names),
                                   "urdf": robot.urdf},
         "test_pose_deg": np.degrees(study.test_pose).round(6).tolist(), "force_N": study.force.tolist(),
         "sigma": study.sigma, "micro": study.sigma < 1e-2,

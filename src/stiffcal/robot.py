@@ -127,7 +127,8 @@ def rotation_about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Chain:
-    """A serial chain of revolute joints as fixed transforms and joint axes (product of exponentials).
+    """A serial chain of revolute joints as fixed transforms and joint axes (the form of a URDF: each joint
+    placed in the previous frame, then turning about its axis).
 
     placements: (n, 4, 4) transform from the frame of joint i-1 after its rotation (for i = 1: the base
     frame) to the frame of joint i; axes: (n, 3) unit axis of joint i in its own frame; tip: (4, 4) from the
