@@ -15,7 +15,7 @@ $(STAMP): requirements.lock pyproject.toml
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check --no-deps --no-build-isolation -e .
 	touch $(STAMP)
 
-# test-only dependencies (Pinocchio, to check our kinematics), pinned in requirements-test.lock
+# test-only dependencies (pypdf, ruff), pinned in requirements-test.lock
 $(TSTAMP): $(STAMP) requirements-test.lock
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check -r requirements-test.lock
 	touch $(TSTAMP)
@@ -47,6 +47,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plans.py
 	$(BIN)/python benchmarks/bench_maps.py
 	$(BIN)/python benchmarks/bench_spatial.py
+	$(BIN)/python benchmarks/bench_urdf.py
 	$(BIN)/python benchmarks/bench_pipeline.py
 
 # Regenerate src/stiffcal/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.

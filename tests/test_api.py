@@ -84,8 +84,9 @@ def test_analyse_measurements_writes_nothing_without_out(root, tmp_path, monkeyp
 
 def test_wheel_installs_into_a_clean_venv_and_designs_from_a_robot_file(root, tmp_path):
     """``pip wheel .`` -> a fresh venv; its stiffcal (not the source tree) loads a robot file (schemas are
-    package data) and designs. The fresh venv sees the pinned dependencies through a path file pointing at
-    this venv's site-packages (no download); that path file does not load the editable install."""
+    package data) and designs, and reads a URDF robot (Pinocchio, a runtime dependency). The fresh venv sees
+    the pinned dependencies through a path file pointing at this venv's site-packages (no download), and
+    Pinocchio's libraries through cmeel's own path hook; that path file does not load the editable install."""
     import shutil
 
     src = tmp_path / "src-copy"  # build from a copy: setuptools writes build/ beside pyproject.toml
@@ -102,17 +103,22 @@ def test_wheel_installs_into_a_clean_venv_and_designs_from_a_robot_file(root, tm
     site = Path(subprocess.run([str(py), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
                                capture_output=True, text=True, check=True).stdout.strip())
     deps = next(p for p in map(Path, sys.path) if p.name == "site-packages" and (p / "numpy").is_dir())
-    (site / "deps.pth").write_text(str(deps) + "\n")
+    (site / "deps.pth").write_text(str(deps) + "\nimport cmeel_pth\n")  # cmeel_pth adds Pinocchio's prefix
     subprocess.run([sys.executable, "-m", "pip", "--python", str(py), "install", "--no-deps", "-q", str(whl)],
                    check=True, capture_output=True)
     work = tmp_path / "elsewhere"
     work.mkdir()
     (work / "arm.yaml").write_text((root / PAPER_ROBOT).read_text())
+    for f in ("kuka_kr210_r2700_urdf.yaml", "kuka_kr210_r2700.urdf"):
+        shutil.copy(root / "config/robots" / f, work / f)
     code = ("import stiffcal, json; r = stiffcal.design(stiffcal.load_robot('arm.yaml'), [60, 30], [0, -1]); "
-            "print(json.dumps({'file': stiffcal.__file__, 'O_t': round(r.O_t, 4), 'version': stiffcal.__version__}))")
+            "u = stiffcal.load_robot('kuka_kr210_r2700_urdf.yaml'); "
+            "print(json.dumps({'file': stiffcal.__file__, 'O_t': round(r.O_t, 4), 'version': stiffcal.__version__, "
+            "'joints': list(u.joint_names)}))")
     env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     out = json.loads(subprocess.run([str(py), "-c", code], cwd=work, capture_output=True, text=True, check=True,
                                     env=env).stdout)
     assert out["file"].startswith(str(site)) and out["O_t"] == 0.3869 and out["version"] == stiffcal.__version__
+    assert out["joints"] == ["a1", "a2", "a3", "a4", "a5", "a6"]
     cli = subprocess.run([str(env_dir / "bin" / "stiffcal"), "--version"], capture_output=True, text=True, env=env)
     assert cli.returncode == 0 and cli.stdout.strip() == f"stiffcal {stiffcal.__version__}"

@@ -223,7 +223,7 @@ def _mutations(rng: random.Random, doc: dict) -> tuple[str, str]:
         return _dump(d), key
     if choice == 3:  # joint limits that do not fit
         n = len(d.get("links_m") or d.get("dh"))
-        bad = rng.choice([[[10, -10]] * n, [[-180, 180]] * (n + 1), [[-400, 0]] * n, [[0, ".nan"]] * n])
+        bad = rng.choice([[[10, -10]] * n, [[-180, 180]] * (n + 1), [[-800, 0]] * n, [[0, ".nan"]] * n])
         d["joint_limits_deg"] = bad
         return _dump(d), "joint_limits_deg"
     if choice == 4:  # a repeated key

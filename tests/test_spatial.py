@@ -97,7 +97,8 @@ def test_a_point_on_the_last_axis_leaves_that_compliance_out(rng):
      "field 'links_m': 'links_m' belongs to a planar robot"),
     ("name: x\nkind: spatial\ndh_convention: standard\ndh: [{a_m: 1, alpha_deg: 0, d_m: 0}]\n"
      "joint_limits_deg: [[0, 1], [0, 1]]\n", "expected 1 [lower, upper] pairs"),
-    ("name: x\nkind: planar\nlinks_m: [1]\ntool_m: [0, 0, 1]\n", "field 'tool_m': 'tool_m' belongs to a spatial robot"),
+    ("name: x\nkind: planar\nlinks_m: [1]\ntool_m: [0, 0, 1]\n",
+     "field 'tool_m': 'tool_m' belongs to a spatial or urdf robot"),
 ])
 def test_bad_spatial_robot_files_get_one_clear_error(tmp_path, text, message):
     path = tmp_path / "r.yaml"

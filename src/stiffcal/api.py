@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .robot import Robot, load_robot
+from .robot import MAX_JOINT_ANGLE_DEG, Robot, load_robot
 
 __all__ = ["DesignResult", "design", "analyse_measurements", "load_robot", "float_list"]
 
@@ -98,7 +98,9 @@ class DesignResult:
     (equivalence theorem; criterion 'ot' only, else None); gap = O_t / lower_bound - 1; optimal_set_deg
     (k, n): every equally optimal single pose (M = 1); degenerate: the criterion does not prefer any pose;
     approximate_design: support_deg (k, n), weights (k,), equivalence_gap; notes; sigma, seed, test_pose_deg
-    (n,), force_N (d,): the inputs.
+    (n,), force_N (d,): the inputs; joint_names (n,): the robot's joint names, in the order of every pose and of
+    cov_diag. Every pose lies within the joint limits, written in the limits' own range (-229.51, not 130.49,
+    for a range of -230 to 50 deg).
     """
 
     criterion: str
@@ -120,13 +122,14 @@ class DesignResult:
     seed: int
     test_pose_deg: np.ndarray
     force_N: np.ndarray = field(repr=False)
+    joint_names: tuple[str, ...] = ()
 
     def to_dict(self) -> dict:
         """The JSON object of ``stiffcal design`` (inf as the string 'inf', poses rounded to 1e-6 deg)."""
         d = self.approximate_design
         return {
             "criterion": self.criterion, "criterion_label": self.criterion_label, "robot": self.robot,
-            "experiments": self.experiments,
+            "joint_names": list(self.joint_names), "experiments": self.experiments,
             "poses_deg": [[round(float(a), 6) + 0.0 for a in p] for p in self.poses_deg],
             "O_t": _json_number(self.O_t), "O_t_star": self.O_t_star, "chi": _json_number(self.chi),
             "cov_diag": [_json_number(v) for v in self.cov_diag],
@@ -154,9 +157,9 @@ def _with_limits(robot: Robot, joint_limits_deg) -> Robot:
                          field="joint_limits_deg")
     lim = lim.reshape(-1, 2)
     for j, (lo, hi) in enumerate(lim):
-        if not -360.0 <= lo < hi <= 360.0:
-            raise InputError(f"expected -360 <= lower < upper <= 360 deg, got [{lo:g}, {hi:g}]",
-                             field=f"joint_limits_deg[{j}]")
+        if not -MAX_JOINT_ANGLE_DEG <= lo < hi <= MAX_JOINT_ANGLE_DEG:
+            raise InputError(f"expected -{MAX_JOINT_ANGLE_DEG:g} <= lower < upper <= {MAX_JOINT_ANGLE_DEG:g} deg, got "
+                             f"[{lo:g}, {hi:g}]", field=f"joint_limits_deg[{j}]")
     return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True)
 
 
@@ -199,8 +202,8 @@ def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: st
     if criterion not in criteria.CRITERIA_KEYS:
         raise InputError(f"expected one of {', '.join(criteria.CRITERIA_KEYS)}, got {criterion!r}", field="criterion")
     force = float_list(force_N, "force_N")
-    q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=360.0), force, "test_pose_deg",
-                            "force_N")
+    q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG), force,
+                            "test_pose_deg", "force_N")
     m = whole_number(experiments, "experiments", 1, 1000)
     sigma = positive_number(sigma, "sigma")
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
@@ -233,19 +236,19 @@ def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: st
             bar.update()
     summ = plan_summary(study, poses)
     bound = approx.lower_bound(m, sigma) if criterion == "ot" else None
-    notes += [f"joint {j + 1}'s axis passes through the measured point at every pose: its compliance never deflects "
-              "that point, cannot be identified from its position and is left out of the model (cov_diag 'inf'); "
-              "measure a point off that axis (tool_m) to identify it" for j in robot.inert_joints]
+    notes += [f"joint {robot.joint_names[j]}'s axis passes through the measured point at every pose: its compliance "
+              "never deflects that point, cannot be identified from its position and is left out of the model "
+              "(cov_diag 'inf'); measure a point off that axis (tool_m) to identify it" for j in robot.inert_joints]
     ot = float(summ["O_t"])
     return DesignResult(
         criterion=criterion, criterion_label=criteria.label(criterion), robot=robot.name, experiments=m,
         poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=criteria.o_t_star(robot.n_params, m, sigma),
-        chi=float(summ["chi"]), cov_diag=np.array([float(summ[f"E_dk{i + 1}"]) for i in range(robot.n_joints)]),
+        chi=float(summ["chi"]), cov_diag=np.array([float(summ[e]) for e in robot.joint_columns("E_dk")]),
         lower_bound=bound, gap=None if bound is None else ot / bound - 1.0,
         optimal_set_deg=np.asarray(optimal_set, float).reshape(-1, robot.n_joints), degenerate=bool(degenerate),
         approximate_design={"support_deg": approx.support_deg, "weights": approx.weights,
                             "equivalence_gap": approx.equivalence_gap},
-        notes=tuple(notes), sigma=sigma, seed=seed, test_pose_deg=q_t, force_N=force)
+        notes=tuple(notes), sigma=sigma, seed=seed, test_pose_deg=q_t, force_N=force, joint_names=robot.joint_names)
 
 
 def check_out_dir(out) -> Path:
@@ -287,8 +290,8 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     qt = ft = None
     if test_pose_deg is not None:
         ft = float_list(force_N, "force_N")
-        qt = np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=360.0), ft,
-                                          "test_pose_deg", "force_N"))
+        qt = np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG),
+                                          ft, "test_pose_deg", "force_N"))
     if out is None:
         return discrepancy.analyse(robot, M.read_measurements(data, robot, *res), alpha, qt, ft)
     out = check_out_dir(out)

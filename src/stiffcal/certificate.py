@@ -41,8 +41,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import minimize
 
-from .design import (Problem, angle_diff, global_minimise, is_sampled, joint_grids, sample_joint_space, sampled_minimise,
-                     wrap_deg, _is_full_turn)
+from .design import (Problem, angle_diff, global_minimise, into_limits, is_sampled, joint_grids, sample_joint_space,
+                     sampled_minimise, _is_full_turn)
 from .robot import Robot
 from .stiffness import observation_matrix, pose_information
 
@@ -93,7 +93,7 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
     if not np.any(null) and w[0] > 1e-12 * w[-1]:
         return
     v = V[:, 0]
-    joints = [int(problem.robot.params[j]) + 1 for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
+    joints = [problem.robot.joint_names[problem.robot.params[j]] for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
     what = (f"the compliance of joint {joints[0]}" if len(joints) == 1 else
             "a combination of the compliances of joints " + ", ".join(map(str, joints)))
     raise InputError(f"{what} cannot be identified with the force {problem.force.tolist()} N at any pose: the force "
@@ -252,7 +252,7 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
         X, wts = merge_support(*_polish_design(problem, W, np.vstack([X[keep], xs[:1]]),
                                                np.append(wts[keep] * 0.9, 0.1) / (wts[keep].sum() * 0.9 + 0.1)))
     order = np.argsort(-wts, kind="stable")
-    return ApproximateDesign(wrap_deg(np.degrees(X[order])), wts[order], Phi, max_phi, Phi**2 / max_phi, it)
+    return ApproximateDesign(into_limits(problem.robot, np.degrees(X[order])), wts[order], Phi, max_phi, Phi**2 / max_phi, it)
 
 
 def _neg_phi(problem: Problem, C: np.ndarray):
@@ -297,4 +297,4 @@ def _sampled_design(problem: Problem, W, pool: np.ndarray, P: np.ndarray, iters:
     X, wts = merge_support(*_polish_design(problem, W, X, wts))
     Phi, max_phi, _ = _max_phi(problem, W, X, wts, 16, 1e-10)
     order = np.argsort(-wts, kind="stable")
-    return ApproximateDesign(wrap_deg(np.degrees(X[order])), wts[order], Phi, max_phi, Phi**2 / max_phi, it)
+    return ApproximateDesign(into_limits(problem.robot, np.degrees(X[order])), wts[order], Phi, max_phi, Phi**2 / max_phi, it)

@@ -65,6 +65,10 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
         raise InputError(f"expected a robot with 2 joints whose single pose identifies both compliances (Tables 2-3 "
                          f"and Figures 4-5 are over (q1, q2)), got {robot.n_joints} joints; put other robots in "
                          "'studies'", source=source, field="study.robot")
+    if robot.joint_columns("q") != ["q1", "q2"]:
+        raise InputError(f"expected the paper's joint names q1, q2 for the paper's study (its tables and figures "
+                         f"compare with the paper's printed q1, q2), got joint_names {list(robot.joint_names)}; "
+                         "put named robots in 'studies'", source=source, field="study.robot")
     design_studies(config, root, source)
     map_studies(config, root, source)
     names = set()

@@ -183,14 +183,25 @@ def wrap_deg(q_deg: np.ndarray) -> np.ndarray:
     return np.where(np.isclose(w, 180.0, atol=1e-9), -180.0, w) + 0.0  # + 0.0 turns -0.0 into 0.0
 
 
+#: angles within this of a joint limit [deg] count as on it (round-off of the degree-radian conversions)
+LIMIT_TOL_DEG = 1e-9
+
+
 def into_limits(robot: Robot, q_deg: np.ndarray) -> np.ndarray:
-    """Angles (..., n) [deg] wrapped to [-180, 180) and then, for a joint whose range spans a full turn or
-    more (e.g. [-200, 170]), shifted by a whole turn into its limits where the wrapped angle lies outside."""
+    """Angles (..., n) [deg] written in their joints' limits: each angle is moved by whole turns to the copy
+    that lies within the limits as the robot file writes them (a range [-230, 50] prints 130 deg as -230 + 0.49
+    = -229.51; a range [190, 260] prints -170 as 190), preferring the copy in [-180, 180) and then the fewest
+    turns. An angle with no copy within its limits gets the copy nearest to them. Angles within
+    :data:`LIMIT_TOL_DEG` of a limit are put on it. Joints without limits: [-180, 180)."""
     q = wrap_deg(q_deg)
     lo, hi = np.degrees(robot.joint_limits_rad.T)
-    turn = hi - lo >= 360.0 - 1e-9
-    q = np.where(turn & (q > hi + 1e-9), q - 360.0, q)
-    return np.where(turn & (q < lo - 1e-9), q + 360.0, q) + 0.0
+    turns = np.array([0.0, 1.0, -1.0, 2.0, -2.0, 3.0, -3.0])  # limits lie within +-720 deg
+    copies = q[..., None] + 360.0 * turns  # (..., n, 7), in order of preference
+    outside = np.maximum(lo[:, None] - copies, copies - hi[:, None])  # > 0: that far outside the limits
+    best = np.argmin(np.where(outside <= LIMIT_TOL_DEG, -1.0, outside), axis=-1)  # first copy within, else nearest
+    out = np.take_along_axis(copies, best[..., None], axis=-1)[..., 0]
+    within = np.take_along_axis(outside, best[..., None], axis=-1)[..., 0] <= LIMIT_TOL_DEG
+    return np.where(within, np.clip(out, lo, hi), out) + 0.0
 
 
 def representative(poses_deg: np.ndarray, tie_deg: float = 1e-3) -> np.ndarray:
@@ -203,7 +214,9 @@ def representative(poses_deg: np.ndarray, tie_deg: float = 1e-3) -> np.ndarray:
     3. the largest ``q1``, then the largest ``q2``, ``q3``, ... .
 
     Each step keeps the candidates within ``tie_deg`` of the best. For the paper's arm this selects
-    every pose printed in Table 2. poses_deg: (k, n) wrapped to [-180, 180). Returns (n,).
+    every pose printed in Table 2. poses_deg: (k, n), the candidates as they are printed: only copies within
+    the joint limits, written in the limits' range (:func:`into_limits`; [-180, 180) without limits), so the
+    pose chosen lies within the limits. Returns (n,).
     """
     cand = np.asarray(poses_deg, float)
 
@@ -366,7 +379,7 @@ def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int =
         xs, fs = polish_grid_minima(fun, robot, grids, values, n_refine, xatol)
     best = fs[0]
     near = fs <= best + set_rtol * max(abs(best), 1e-300)
-    opt_deg = wrap_deg(np.degrees(dedupe(xs[near])))
+    opt_deg = into_limits(robot, np.degrees(dedupe(xs[near])))
     rep = representative(opt_deg)
     value = float(plan_value(problem, np.radians(rep)[None, None, :])[0])
     return SinglePoseResult(rep, opt_deg, float(best), value)
@@ -421,7 +434,7 @@ def _polish(fun, x0: np.ndarray, bounds, xatol: float):
 def _degenerate_result(problem: Problem, grids, values) -> SinglePoseResult:
     """Every nonsingular pose is optimal: report the rule's pick among all finite grid nodes."""
     idx = np.argwhere(np.isfinite(values))
-    poses = wrap_deg(np.degrees(np.array([[g[i] for g, i in zip(grids, row)] for row in idx])))
+    poses = into_limits(problem.robot, np.degrees(np.array([[g[i] for g, i in zip(grids, row)] for row in idx])))
     rep = representative(poses, tie_deg=0.0)
     value = float(plan_value(problem, np.radians(rep)[None, None, :])[0])
     note = (f"{criteria.label(problem.criterion)} is constant ({value:.6g}) over every nonsingular pose: "

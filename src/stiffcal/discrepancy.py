@@ -311,13 +311,13 @@ def check_identifiable(robot: Robot, meas: Measurements) -> None:
     f = fit(X, meas.dp.ravel())
     if f.rank < n:
         scale = np.linalg.norm(X, axis=0)
-        unloaded = [int(robot.params[j]) + 1 for j in np.flatnonzero(scale <= RANK_RTOL * scale.max())]
+        unloaded = [robot.joint_names[robot.params[j]] for j in np.flatnonzero(scale <= RANK_RTOL * scale.max())]
         if unloaded:
             which = (f"joint{'s' if len(unloaded) > 1 else ''} {', '.join(map(str, unloaded))} never "
                      "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
         else:
             v = np.linalg.svd(X / np.where(scale > 0, scale, 1.0))[2][-1]
-            joints = [int(robot.params[j]) + 1 for j in np.flatnonzero(np.abs(v) > 0.1)]
+            joints = [robot.joint_names[robot.params[j]] for j in np.flatnonzero(np.abs(v) > 0.1)]
             which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
         raise InputError(f"the measurement plan cannot identify the {n} joint compliances: its information "
                          f"matrix has rank {f.rank}; {which}; measure other poses or load directions",
@@ -517,8 +517,8 @@ def _features(robot: Robot, meas: Measurements) -> dict[str, np.ndarray]:
         out["force direction"] = np.arctan2(meas.force[:, 1], meas.force[:, 0])
     else:
         out |= {f"force direction {a}": meas.force[:, i] / np.where(fmag > 0, fmag, 1.0) for i, a in enumerate("xyz")}
-    out |= {f"q{i + 1}": meas.q[:, i] for i in range(robot.n_joints)}
-    out |= {f"tau{i + 1}": tau[:, i] for i in range(robot.n_joints)}
+    out |= {name: meas.q[:, i] for i, name in enumerate(robot.joint_columns("q"))}
+    out |= {name: tau[:, i] for i, name in enumerate(robot.joint_columns("tau"))}
     return out
 
 
@@ -670,7 +670,7 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
     notes = []
     neg = [i for i in range(len(k)) if k[i] + k_ci[i] < 0]
     if neg:
-        names = ", ".join(f"k{int(robot.params[i]) + 1} = {k[i]:.3g}" for i in neg)
+        names = ", ".join(f"{robot.joint_columns('k')[robot.params[i]]} = {k[i]:.3g}" for i in neg)
         notes.append(f"negative compliance ({names} rad/(N m), below zero beyond its 95 % interval): a joint "
                      "cannot push back against the load; likely causes: absolute positions instead of "
                      "displacements in the d*_m columns, unloaded minus loaded instead of loaded minus "
@@ -785,6 +785,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     notes += plausibility(robot, m, f0.beta, k_ci)
     zp = zero_point(meas, noise.s2)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in robot.params],
+               "k_names": [robot.joint_columns("k")[j] for j in robot.params],
                "not_identifiable_joints": [j + 1 for j in robot.inert_joints], "sigma_m": sigma,
                "sigma_source": noise.source, "sigma_df": int(noise.df),
                "noise_varies": None if vm is None else {"p_value": vm.p_value, "sigma_ratio": vm.sigma_ratio},
@@ -873,7 +874,8 @@ def _extended(des: Design, f: Fit, causes: list[str], sigma: float, t: float, ro
 def parameter_names(cause: str, robot: Robot) -> list[str]:
     n = robot.n_joints
     return {"link_compliance": [f"c{i + 1}_1/(N m^2)" for i in range(robot.n_segments)],
-            "joint_coupling": [f"k{i + 1}{j + 1}_rad/(N m)" for i in range(n) for j in range(i + 1, n)],
+            "joint_coupling": [f"k{a}{b}_rad/(N m)" for i, a in enumerate(robot.joint_columns("")) for b in
+                               robot.joint_columns("")[i + 1:]],
             "nonlinear_joint_stiffness": [f"g{i + 1}_rad/(N m)^3" for i in range(n)],
             "backlash": [f"b{i + 1}_rad" for i in range(n)],
             "measurement_offset": [f"o{a}_m" for a in "xyz"[: robot.task_dim]]}[cause]
@@ -928,10 +930,10 @@ def _gain(robot, meas, des, causes, s2, test_pose, test_force) -> dict:
 def residual_features(robot: Robot, meas: Measurements) -> dict[str, np.ndarray]:
     """The quantities residuals are plotted against: joint angles [deg], |F| [N], F direction [deg], tau [N m]."""
     tau = torques(robot, meas.q, meas.force)
-    return {**{f"q{i + 1} [deg]": np.degrees(meas.q[:, i]) for i in range(robot.n_joints)},
+    return {**{name: np.degrees(meas.q[:, i]) for i, name in enumerate(robot.joint_columns("q", " [deg]"))},
             "|F| [N]": np.linalg.norm(meas.force, axis=1),
             "force direction [deg]": np.degrees(np.arctan2(meas.force[:, 1], meas.force[:, 0])),
-            **{f"tau{i + 1} [N m]": tau[:, i] for i in range(robot.n_joints)}}
+            **{name: tau[:, i] for i, name in enumerate(robot.joint_columns("tau", " [N m]"))}}
 
 
 def nominal_residuals(robot: Robot, meas: Measurements, keep: np.ndarray) -> np.ndarray:

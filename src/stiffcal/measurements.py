@@ -187,6 +187,38 @@ def expected_columns(robot: Robot) -> list[str]:
             + [f"d{a}_m" for a in axes])
 
 
+def angle_columns(columns, robot: Robot, source: str) -> list[str]:
+    """The file's joint-angle column of each joint (n,): ``q<i>_deg`` (joint i, 1-based) or ``q_<name>_deg``
+    (the joint of that name, :attr:`Robot.joint_names`). Raises :class:`InputError` for a joint given both
+    ways, a column of a joint number or name the robot does not have, or a named column with another unit;
+    a joint given neither way is left to the caller's missing-column message (its ``q<i>_deg`` is returned)."""
+    names = {name: i for i, name in enumerate(robot.joint_names)}
+    out = [f"q{i + 1}_deg" for i in range(robot.n_joints)]
+    expected = (f"expected {robot.n_joints} joint angles for robot {robot.source}: q1_deg ... q{robot.n_joints}_deg "
+                f"or q_<name>_deg with a name of {', '.join(robot.joint_names)}")
+    for col in columns:
+        number = re.fullmatch(r"q(\d+)_deg", col)
+        named = re.fullmatch(r"q_(.+)_(\w+)", col)
+        if number and not 1 <= int(number.group(1)) <= robot.n_joints:
+            raise InputError(f"{expected}; got a column {col}", source=source, field=f"column {col}")
+        if number or not named:
+            continue
+        name, unit = named.groups()
+        if name not in names:
+            if unit == "deg":
+                raise InputError(f"{expected}; got a column {col}", source=source, field=f"column {col}")
+            continue
+        if unit != "deg":
+            raise InputError(f"expected joint angles in deg with the unit in the name ('q_{name}_deg'), got unit "
+                             f"'{unit}'", source=source, field=f"column {col}")
+        j = names[name]
+        if f"q{j + 1}_deg" in columns and name != str(j + 1):
+            raise InputError(f"joint {name} is given twice, as q{j + 1}_deg and as {col}; keep one", source=source,
+                             field=f"column {col}")
+        out[j] = col
+    return out
+
+
 def _rows_text(rows: np.ndarray) -> str:
     """'rows 2, 5 and 9 (data rows 0, 3, 7)': file lines (header = line 1) and 0-based data rows."""
     rows = np.asarray(rows, int)[:_MAX_LISTED]
@@ -281,12 +313,7 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
         raise InputError(f"cannot read a CSV table ({err})", source=source) from None
     df.columns = [c.strip() for c in df.columns]
     _check_units(df.columns, source)
-    joints = sorted(int(c[1:-4]) for c in df.columns if re.fullmatch(r"q\d+_deg", c))
-    if joints and max(joints) > robot.n_joints:
-        raise InputError(f"expected {robot.n_joints} joint angles (q1_deg ... q{robot.n_joints}_deg) for robot "
-                         f"{robot.source}, got a column q{max(joints)}_deg", source=source,
-                         field=f"column q{max(joints)}_deg")
-    cols = expected_columns(robot)
+    cols = angle_columns(list(df.columns), robot, source) + expected_columns(robot)[robot.n_joints:]
     missing = [c for c in cols if c not in df.columns]
     if missing:
         raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(cols)} (and optionally pose_id)",

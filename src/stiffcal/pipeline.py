@@ -71,8 +71,8 @@ def comparison(p: dict, robot: str, table2_csv: str, table3_csv: str, table4_csv
     _write(cmp, out_csv)
 
 
-def _optimal_poses(t2, n: int) -> dict:
-    cols = [f"q{i + 1}_deg" for i in range(n)]
+def _optimal_poses(t2, robot) -> dict:
+    cols = robot.joint_columns("q", "_deg")
     return {r["criterion"]: r[cols].to_numpy(float) for _, r in t2.iterrows() if not r["degenerate"]}
 
 
@@ -82,7 +82,7 @@ def validation(p: dict, robot: str, table2_csv: str, out_csv: str) -> None:
     from . import tables
 
     study = _study({k: p[k] for k in ("test_pose_deg", "force_N", "sigma_m")}, robot)
-    poses = _optimal_poses(_read(table2_csv), study.robot.n_joints)
+    poses = _optimal_poses(_read(table2_csv), study.robot)
     plans = {f"{k}-optimal pose": poses[k][None, :] for k in ("ot", "a") if k in poses}
     _write(tables.monte_carlo_check(study, plans, int(p["samples"]), int(p["seed"])), out_csv)
 
@@ -112,7 +112,7 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
     _log(f"Phi = {d.phi:.9g}, bound Phi* >= {d.phi_lower:.9g}, equivalence gap {d.equivalence_gap:.2e}, "
          f"{len(d.weights)} support poses")
     phi = tables.phi_map(study, d) if out_phi_csv else None
-    _write(tables.design_table(d), out_support_csv)
+    _write(tables.design_table(d, study.robot), out_support_csv)
     _write(tables.certificate_table(d, study.sigma), out_certificate_csv)
     if phi is not None:
         _write(phi, out_phi_csv)
@@ -163,7 +163,7 @@ def study_summary(p: dict, robot: str, plan_csvs: list[str], out_versus_m_csv: s
     fig_plan = plots.fig_study_plan(study, plans[("best", m)], m)
     fig_m = plots.fig_study_versus_m(df, study.sigma)
     _write(df.drop(columns="poses_deg"), out_versus_m_csv)
-    _write(tables.plans_long(plans), out_plans_csv)
+    _write(tables.plans_long(plans, study.robot), out_plans_csv)
     plots.save(fig_plan, Path(out_plan_png).with_suffix(""))
     plots.save(fig_m, Path(out_versus_m_png).with_suffix(""))
 
@@ -174,7 +174,7 @@ def plans_table(p: dict, robot: str, m: int, design_json: str, table2_csv: str, 
     from . import tables
 
     study = _study({k: p[k] for k in ("test_pose_deg", "force_N", "sigma_m")}, robot)
-    single = _optimal_poses(_read(table2_csv), study.robot.n_joints)["ot"]
+    single = _optimal_poses(_read(table2_csv), study.robot)["ot"]
     _log(f"plans (i)-(iv) of {m} poses")
     _write(tables.plans_table(study, m, int(p["seed"]), _design(design_json), single), out_csv)
 
@@ -201,7 +201,7 @@ def paper_figures(p: dict, robot: str, table2_csv: str, chi_csv: str, support_cs
 
     study = _study(p, robot)
     t2 = _read(table2_csv)
-    pose = _optimal_poses(t2, study.robot.n_joints)["ot"]
+    pose = _optimal_poses(t2, study.robot)["ot"]
     opt_set = t2.set_index("criterion").loc["ot", "optimal_set_deg"]
     opt_set = np.array([[float(v) for v in q.split()] for q in str(opt_set).split(";")])
     figs = {"fig3": lambda: plots.fig3_accuracy(t2), "fig4": lambda: plots.fig4_poses(study, pose),

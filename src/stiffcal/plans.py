@@ -60,7 +60,7 @@ def canonical_plan(problem: Problem, plan_deg: np.ndarray) -> np.ndarray:
     robot = problem.robot
     plan = into_limits(robot, np.atleast_2d(plan_deg))
     if has_planar_symmetry(robot):
-        plan = np.array([representative(symmetric_copies(robot, p, problem.force)) for p in plan])
+        plan = np.array([representative(into_limits(robot, symmetric_copies(robot, p, problem.force))) for p in plan])
     order = np.lexsort(plan.T[::-1])
     return plan[order]
 

@@ -198,7 +198,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
               for r in robot.dh]
     versus_m = pd.read_csv(paths["studym"], keep_default_na=False, na_values=[""])
     long = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
-    cols = [f"q{i + 1}_deg" for i in range(robot.n_joints)]
+    cols = robot.joint_columns("q", "_deg")
     poses = {int(m): g[cols].to_numpy(float).tolist() for m, g in long.groupby("m", sort=True)}
     return {
         "entry": entry, "robot": {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "d": robot.task_dim,
@@ -206,7 +206,9 @@ def study_context(study, entry: dict, paths: dict) -> dict:
                                   "tool_m": None if robot.tool_m is None else robot.tool_m.tolist(),
                                   "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
                                   "has_limits": robot.has_joint_limits,
-                                  "inert": [j + 1 for j in robot.inert_joints]},
+                                  "inert": [robot.joint_names[j] for j in robot.inert_joints],
+                                  "joint_keys": robot.joint_columns(""), "joint_names": list(robot.joint_names),
+                                  "urdf": robot.urdf},
         "test_pose_deg": np.degrees(study.test_pose).round(6).tolist(), "force_N": study.force.tolist(),
         "sigma": study.sigma, "micro": study.sigma < 1e-2,
         "certificate": pd.read_csv(paths["studycert"]).to_dict("records")[0],

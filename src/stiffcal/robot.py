@@ -15,10 +15,20 @@ Conventions
   Rot_z(theta_i) Trans_z(d_i)`` with joint i turning about ``z_i`` (row i of the file then holds
   ``a_{i-1}, alpha_{i-1}, d_i, offset_i``, as Craig's tables print them). The measured point is the tool
   point ``tool_m`` given in the last frame. Measured coordinates: x, y, z (d = 3).
+* URDF arm (``kind: urdf``): the revolute and continuous joints of a URDF between a base frame and a tip
+  frame (:mod:`stiffcal.urdf`, read with Pinocchio), held as a :class:`Chain` of fixed transforms and joint
+  axes; the measured point is ``tool_m`` in the tip frame. Measured coordinates: x, y, z (d = 3).
+* Every robot names its joints (``joint_names``: the URDF's joint names, or ``joint_names:`` of a planar or
+  DH file, default "1".."n"); tables, plans and verdicts name joints by :meth:`Robot.joint_columns`
+  (``q1_deg`` for the default names, ``q_<name>_deg`` otherwise).
+* Whatever the kind, :meth:`Robot.joint_frames` and :meth:`Robot.tool_frame` give every joint's axis and the
+  tip frame in the base frame, so the Jacobian of any point t given in the tip frame is
+  ``J_lin = axes x (p + R t - origins)`` and the angular one is the axes.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -106,6 +116,52 @@ def dh_tool_point(frames: np.ndarray, tool: np.ndarray) -> np.ndarray:
     return T[..., :3, :3] @ tool + T[..., :3, 3]
 
 
+def rotation_about(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rotation matrices about a unit ``axis`` (3,) by ``angle`` (...) [rad] (Rodrigues' formula).
+    Returns (..., 3, 3)."""
+    x, y, z = np.asarray(axis, float)
+    K = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    s, c = np.sin(angle)[..., None, None], np.cos(angle)[..., None, None]
+    return np.eye(3) + s * K + (1.0 - c) * (K @ K)
+
+
+@dataclass(frozen=True)
+class Chain:
+    """A serial chain of revolute joints as fixed transforms and joint axes (the form of a URDF: each joint
+    placed in the previous frame, then turning about its axis).
+
+    placements: (n, 4, 4) transform from the frame of joint i-1 after its rotation (for i = 1: the base
+    frame) to the frame of joint i; axes: (n, 3) unit axis of joint i in its own frame; tip: (4, 4) from the
+    frame of joint n after its rotation to the tip frame. Lengths in metres. The pose of the tip frame is
+    ``placements[0] Rot(axes[0], q_1) ... placements[n-1] Rot(axes[n-1], q_n) tip``.
+    """
+
+    placements: np.ndarray
+    axes: np.ndarray
+    tip: np.ndarray
+
+
+def chain_frames(chain: Chain, q: np.ndarray):
+    """Joint axes and tip frame of a :class:`Chain` in the base frame, batched over poses.
+
+    q: (..., n) [rad]. Returns ``(origins (..., n, 3) [m], axes (..., n, 3) unit, R_tip (..., 3, 3),
+    p_tip (..., 3) [m])``: a point of each joint's axis (its frame origin), the axis direction, and the
+    rotation and origin of the tip frame.
+    """
+    q = np.asarray(q, float)
+    R = np.broadcast_to(np.eye(3), q.shape[:-1] + (3, 3))
+    p = np.zeros(q.shape[:-1] + (3,))
+    origins, axes = [], []
+    for i in range(q.shape[-1]):
+        P = chain.placements[i]
+        p = p + R @ P[:3, 3]
+        R = R @ P[:3, :3]
+        origins.append(p)
+        axes.append(R @ chain.axes[i])
+        R = R @ rotation_about(chain.axes[i], q[..., i])
+    return np.stack(origins, axis=-2), np.stack(axes, axis=-2), R @ chain.tip[:3, :3], p + R @ chain.tip[:3, 3]
+
+
 def dh_jacobian(dh: np.ndarray, tool: np.ndarray, q: np.ndarray, convention: str = "standard") -> np.ndarray:
     """Position Jacobian of the tool point of a revolute DH arm: column i is ``z_i x (p - o_i)`` for the
     axis ``z_i`` through ``o_i`` of joint i (frame i-1 in the standard convention, frame i in the modified).
@@ -123,13 +179,15 @@ def dh_jacobian(dh: np.ndarray, tool: np.ndarray, q: np.ndarray, convention: str
 class Robot:
     """A serial robot read from a robot file (docs/contracts.md).
 
-    Attributes: ``name``; ``kind`` ('planar' or 'spatial'); ``links_m`` (n,) [m] link lengths of a planar
-    arm (for a spatial arm: the distances between consecutive joint axes' origins, for drawing and scale);
-    ``joint_limits_rad`` (n, 2) [rad]; ``compliances`` (n,) [rad/(N m)] or None; ``source`` (the file it
-    came from, for messages); for spatial arms ``dh`` (n, 4) ``[a, alpha, d, offset]`` [m, rad],
-    ``convention`` ('standard' or 'modified') and ``tool_m`` (3,) [m] the measured point in the last frame;
-    ``inert_joints`` (joints that never move the measured point, :func:`inert_joints`); ``reference`` (the
-    file's ``source`` field: where the dimensions come from).
+    Attributes: ``name``; ``kind`` ('planar', 'spatial' or 'urdf'); ``links_m`` (n,) [m] link lengths of a
+    planar arm (for a spatial arm: the distances between consecutive points of :meth:`link_points`, for
+    drawing and scale); ``joint_limits_rad`` (n, 2) [rad]; ``compliances`` (n,) [rad/(N m)] or None;
+    ``source`` (the file it came from, for messages); for spatial arms ``dh`` (n, 4) ``[a, alpha, d, offset]``
+    [m, rad], ``convention`` ('standard' or 'modified') and ``tool_m`` (3,) [m] the measured point in the last
+    frame (for URDF arms: in the tip frame); ``inert_joints`` (joints that never move the measured point,
+    :func:`inert_joints`); ``reference`` (the file's ``source`` field: where the dimensions come from);
+    ``joint_names`` (n,) str (default "1".."n"); for URDF arms ``chain`` (:class:`Chain`) and ``urdf`` (the
+    URDF file).
     """
 
     name: str
@@ -144,10 +202,23 @@ class Robot:
     tool_m: np.ndarray | None = None
     inert_joints: tuple[int, ...] = ()
     reference: str = ""
+    joint_names: tuple[str, ...] = ()
+    chain: Chain | None = None
+    urdf: str = ""
+
+    def __post_init__(self):
+        if not self.joint_names:
+            object.__setattr__(self, "joint_names", default_joint_names(self.n_joints))
 
     @property
     def n_joints(self) -> int:
         return int(self.joint_limits_rad.shape[0])
+
+    def joint_columns(self, prefix: str, suffix: str = "") -> list[str]:
+        """Per-joint names of table columns and labels: ``prefix + i + suffix`` for the default joint names
+        "1".."n" (``q1_deg``, ``E_dk1``), ``prefix + '_' + name + suffix`` for named joints (``q_a1_deg``)."""
+        default = self.joint_names == default_joint_names(self.n_joints)
+        return [f"{prefix}{name if default else '_' + name}{suffix}" for name in self.joint_names]
 
     @property
     def params(self) -> np.ndarray:
@@ -172,7 +243,7 @@ class Robot:
     @property
     def n_segments(self) -> int:
         """Straight segments of the drawn arm (:meth:`link_points`): n links, plus the tool for a spatial arm."""
-        return self.n_joints + (self.kind == "spatial")
+        return self.n_joints + (self.kind != "planar")
 
     def outside_limits(self, q: np.ndarray) -> np.ndarray:
         """(..., n) [rad] -> (..., n) bool: angles outside the joint limits (all False without limits)."""
@@ -190,25 +261,41 @@ class Robot:
         """An upper bound on the distance from the base to the measured point [m]."""
         if self.kind == "planar":
             return float(self.links_m.sum())
+        if self.kind == "urdf":
+            steps = np.concatenate([self.chain.placements[:, :3, 3], self.chain.tip[None, :3, 3]])
+            return float(np.linalg.norm(steps, axis=1).sum() + np.linalg.norm(self.tool_m))
         return float(np.abs(self.dh[:, 0]).sum() + np.abs(self.dh[:, 2]).sum() + np.linalg.norm(self.tool_m))
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """(..., n) [rad] -> (..., d) [m]."""
         if self.kind == "planar":
             return planar_fk(self.links_m, np.asarray(q, float))
+        if self.kind == "urdf":
+            R, p = self.tool_frame(q)
+            return p + R @ self.tool_m
         return dh_tool_point(dh_frames(self.dh, q, self.convention), self.tool_m)
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """(..., n) [rad] -> (..., d, n) [m/rad]."""
         if self.kind == "planar":
             return planar_jacobian(self.links_m, np.asarray(q, float))
+        if self.kind == "urdf":
+            origins, axes, R, p = chain_frames(self.chain, q)
+            point = R @ self.tool_m + p
+            return np.swapaxes(np.cross(axes, point[..., None, :] - origins), -1, -2)
         return dh_jacobian(self.dh, self.tool_m, q, self.convention)
 
     def link_points(self, q: np.ndarray) -> np.ndarray:
         """Points of the drawn arm, base first, measured point last: (..., n) [rad] -> (..., n + 1, 2) for a
-        planar arm, (..., n + 2, 3) for a spatial one (base, frame origins 1..n, tool point) [m]."""
+        planar arm, (..., n + 2, 3) for a spatial one (base, frame origins 1..n, tool point; for a URDF arm:
+        base, the origins of joints 2..n, the tip frame's origin, tool point) [m]."""
         if self.kind == "planar":
             return planar_link_points(self.links_m, np.asarray(q, float))
+        if self.kind == "urdf":
+            origins, _, R, p = chain_frames(self.chain, q)
+            base = np.zeros(origins.shape[:-2] + (1, 3))
+            return np.concatenate([base, origins[..., 1:, :], p[..., None, :], (R @ self.tool_m + p)[..., None, :]],
+                                  axis=-2)
         F = dh_frames(self.dh, q, self.convention)
         return np.concatenate([F[..., :, :3, 3], dh_tool_point(F, self.tool_m)[..., None, :]], axis=-2)
 
@@ -216,31 +303,114 @@ class Robot:
         """The same robot with every length multiplied by ``factor``."""
         dh = None if self.dh is None else self.dh * np.array([factor, 1.0, factor, 1.0])
         tool = None if self.tool_m is None else self.tool_m * factor
-        return replace(self, links_m=self.links_m * factor, dh=dh, tool_m=tool)
+        chain = None
+        if self.chain is not None:
+            placements, tip = self.chain.placements.copy(), self.chain.tip.copy()
+            placements[:, :3, 3] *= factor
+            tip[:3, 3] *= factor
+            chain = Chain(placements, self.chain.axes, tip)
+        return replace(self, links_m=self.links_m * factor, dh=dh, tool_m=tool, chain=chain)
+
+    def joint_frames(self, q: np.ndarray):
+        """Every joint's axis in the base frame: (..., n) [rad] -> ``(origins (..., n, 3) [m], axes (..., n, 3))``,
+        ``origins`` a point of each axis, ``axes`` unit vectors (planar arms: z = 0 and e_z)."""
+        q = np.asarray(q, float)
+        if self.kind == "planar":
+            origins = as_xyz(planar_link_points(self.links_m, q)[..., :-1, :])
+            return origins, np.broadcast_to([0.0, 0.0, 1.0], origins.shape)
+        if self.kind == "urdf":
+            return chain_frames(self.chain, q)[:2]
+        F = dh_frames(self.dh, q, self.convention)
+        F = F[..., :-1, :, :] if self.convention == "standard" else F[..., 1:, :, :]
+        return F[..., :3, 3], F[..., :3, 2]
+
+    def tool_frame(self, q: np.ndarray):
+        """The tip frame in the base frame: (..., n) [rad] -> ``(R (..., 3, 3), p (..., 3) [m])``, its rotation and
+        origin; a point t given in the tip frame (``tool_m``, a target) is at ``p + R t``. Planar arms: the
+        frame at the end of the last link, x along that link; spatial arms: the last DH frame."""
+        q = np.asarray(q, float)
+        if self.kind == "planar":
+            c = q.sum(axis=-1)
+            p = as_xyz(planar_fk(self.links_m, q))
+            return rotation_about(np.array([0.0, 0.0, 1.0]), c), p
+        if self.kind == "urdf":
+            return chain_frames(self.chain, q)[2:]
+        T = dh_frames(self.dh, q, self.convention)[..., -1, :, :]
+        return T[..., :3, :3], T[..., :3, 3]
 
 
-def planar_robot(links_m, name: str = "planar", joint_limits_deg=None) -> Robot:
-    """Build a planar robot in memory (links in metres, optional (n, 2) limits in degrees)."""
+def default_joint_names(n: int) -> tuple[str, ...]:
+    """The joint names of a robot file without ``joint_names``: "1" .. "n" (columns ``q1_deg`` .. ``qn_deg``)."""
+    return tuple(str(i + 1) for i in range(n))
+
+
+#: widest joint limit accepted [deg]: data sheets give ranges beyond a turn (ABB axis 6: +-400 deg); a joint
+#: that turns endlessly is given without limits (or +-720, which holds every pose twice over)
+MAX_JOINT_ANGLE_DEG = 720.0
+#: what a joint name may hold: it becomes part of column names (``q_<name>_deg``) and CSV headers
+JOINT_NAME = re.compile(r"^[A-Za-z0-9_.:/-]+$")
+
+
+def check_joint_names(names, n: int, source: str, field: str = "joint_names") -> tuple[str, ...]:
+    """Validated joint names (n,): unique, made of letters, digits and ``_ . : / -``, and a name of digits
+    only must be its own joint's number (so that ``q3_deg`` always means joint 3). Raises :class:`InputError`
+    naming ``source`` and ``field``."""
+    names = tuple(str(v) for v in names)
+    if len(names) != n:
+        raise InputError(f"expected {n} names (one per joint), got {len(names)}", source=source, field=field)
+    for i, name in enumerate(names):
+        if not JOINT_NAME.match(name):
+            raise InputError(f"expected a name of letters, digits and _ . : / - (it names table columns such as "
+                             f"q_<name>_deg), got {name!r}", source=source, field=f"{field}[{i}]")
+        if name.isdigit() and name != str(i + 1):
+            raise InputError(f"a joint name of digits only must be the joint's own number ({i + 1}), got {name!r}",
+                             source=source, field=f"{field}[{i}]")
+        if name in names[:i]:
+            raise InputError(f"expected unique joint names, got {name!r} twice", source=source, field=f"{field}[{i}]")
+    return names
+
+
+def planar_robot(links_m, name: str = "planar", joint_limits_deg=None, joint_names=()) -> Robot:
+    """Build a planar robot in memory (links in metres, optional (n, 2) limits in degrees, optional names)."""
     links = np.asarray(links_m, float)
     has = joint_limits_deg is not None
     lim = np.radians(np.asarray(joint_limits_deg, float)) if has else np.tile([-np.pi, np.pi], (links.size, 1))
-    return Robot(name, "planar", links, lim, None, "<memory>", has)
+    return Robot(name, "planar", links, lim, None, "<memory>", has, joint_names=tuple(joint_names))
 
 
 def spatial_robot(dh_rows, tool_m=(0.0, 0.0, 0.0), name: str = "spatial", joint_limits_deg=None,
                   convention: str = "standard", compliances=None, source: str = "<memory>",
-                  reference: str = "") -> Robot:
+                  reference: str = "", joint_names=()) -> Robot:
     """Build a spatial DH robot in memory. dh_rows: (n, 4) ``[a_m, alpha_deg, d_m, offset_deg]``."""
     dh = np.asarray(dh_rows, float) * np.array([1.0, np.pi / 180, 1.0, np.pi / 180])
     n = len(dh)
     has = joint_limits_deg is not None
     lim = np.radians(np.asarray(joint_limits_deg, float)) if has else np.tile([-np.pi, np.pi], (n, 1))
     robot = Robot(name, "spatial", np.zeros(n), lim, None if compliances is None else np.asarray(compliances, float),
-                  source, has, dh, convention, np.asarray(tool_m, float), reference=reference)
+                  source, has, dh, convention, np.asarray(tool_m, float), reference=reference,
+                  joint_names=tuple(joint_names))
+    return _with_geometry(robot, "check dh and tool_m")
+
+
+def chain_robot(chain: Chain, tool_m, joint_limits_rad, joint_names, name: str = "urdf", compliances=None,
+                source: str = "<memory>", reference: str = "", urdf: str = "", has_joint_limits: bool = True) -> Robot:
+    """Build a URDF arm (``kind: urdf``) in memory from its :class:`Chain` (:func:`stiffcal.urdf.read_chain`).
+    tool_m: (3,) [m] the measured point in the tip frame; joint_limits_rad: (n, 2)."""
+    robot = Robot(name, "urdf", np.zeros(len(chain.axes)), np.asarray(joint_limits_rad, float),
+                  None if compliances is None else np.asarray(compliances, float), source, has_joint_limits,
+                  tool_m=np.asarray(tool_m, float), reference=reference, joint_names=tuple(joint_names), chain=chain,
+                  urdf=urdf)
+    return _with_geometry(robot, "check base_frame, tip_frame, the joints and tool_m")
+
+
+def _with_geometry(robot: Robot, advice: str) -> Robot:
+    """A spatial robot with its drawn link lengths and inert joints filled in; refused if no joint moves the
+    measured point."""
+    n = robot.n_joints
     links = np.linalg.norm(np.diff(robot.link_points(np.zeros(n)), axis=0), axis=-1)
     inert = inert_joints(robot)
     if len(inert) == n:
-        raise InputError("no joint moves the measured point: check dh and tool_m", source=source, field="tool_m")
+        raise InputError(f"no joint moves the measured point: {advice}", source=robot.source, field="tool_m")
     return replace(robot, links_m=links, inert_joints=inert)
 
 
@@ -255,37 +425,56 @@ def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, 
     return tuple(int(j) for j in np.flatnonzero(col <= 1e-12 * max(robot.reach_m, 1e-300)))
 
 
-#: fields that only one kind of robot file may have
-KIND_FIELDS = {"planar": ("links_m",), "spatial": ("dh", "dh_convention", "tool_m")}
+#: the kinds of robot file that may have each kind-specific field
+FIELD_KINDS = {"links_m": ("planar",), "dh": ("spatial",), "dh_convention": ("spatial",),
+               "tool_m": ("spatial", "urdf"), "joint_limits_deg": ("planar", "spatial"),
+               "joint_names": ("planar", "spatial"), "urdf": ("urdf",), "base_frame": ("urdf",),
+               "tip_frame": ("urdf",), "joints": ("urdf",), "fixed_joints_deg": ("urdf",)}
 
 
 def load_robot(path: str | Path) -> Robot:
-    """Read and validate a robot file (planar or spatial; schema ``workflow/schemas/robot.schema.yaml``).
+    """Read and validate a robot file (planar, spatial or urdf; schema ``workflow/schemas/robot.schema.yaml``).
 
     Raises :class:`InputError` naming the file and the field for a missing or negative link length,
-    an unknown ``kind``, a non-numeric value, joint limits or compliances that do not match the joints,
-    or a tool point that no joint can move in some direction of space.
+    an unknown ``kind``, a non-numeric value, joint limits, names or compliances that do not match the
+    joints, a field of another kind, a URDF that cannot be read or has no chain from ``base_frame`` to
+    ``tip_frame`` (:func:`stiffcal.urdf.read_chain`), or a tool point that no joint can move.
     """
     src = str(path)
     doc = read_yaml(path)
     if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
-        raise InputError("missing required field 'kind' (planar or spatial)", source=src, field="kind")
+        raise InputError("missing required field 'kind' (planar, spatial or urdf)", source=src, field="kind")
     validate(doc, "robot", src)
-    for key in KIND_FIELDS["planar" if doc["kind"] == "spatial" else "spatial"]:
-        if key in doc:
-            raise InputError(f"'{key}' belongs to a {'planar' if key == 'links_m' else 'spatial'} robot, but this "
-                             f"file says kind: {doc['kind']}; remove the field or change 'kind'", source=src, field=key)
+    for key, kinds in FIELD_KINDS.items():
+        if key in doc and doc["kind"] not in kinds:
+            raise InputError(f"'{key}' belongs to a {' or '.join(kinds)} robot, but this file says kind: "
+                             f"{doc['kind']}; remove the field or change 'kind'", source=src, field=key)
     if doc["kind"] == "spatial":
         return _load_spatial(doc, src)
+    if doc["kind"] == "urdf":
+        return _load_urdf(doc, src)
     links = np.asarray(doc["links_m"], float)
-    limits, comp = _per_joint(doc, links.size, src, "link")
-    return replace(planar_robot(links, doc["name"], limits),
+    limits, comp, names = _per_joint(doc, links.size, src, "link")
+    return replace(planar_robot(links, doc["name"], limits, names),
                    compliances=None if comp is None else np.asarray(comp, float),
                    source=src, reference=doc.get("source", ""))
 
 
+def robot_inputs(path: str | Path) -> list[str]:
+    """The files a robot file reads besides itself: its URDF (``kind: urdf``), as a path relative to where
+    ``path`` is relative to; nothing for other kinds or a file that cannot be read (loading it reports why).
+    The workflow lists them as inputs, so that editing a URDF reruns the jobs of its robot."""
+    try:
+        doc = read_yaml(path)
+    except InputError:
+        return []
+    if isinstance(doc, dict) and doc.get("kind") == "urdf" and isinstance(doc.get("urdf"), str):
+        return [str(Path(path).parent / doc["urdf"])]
+    return []
+
+
 def _per_joint(doc: dict, n: int, src: str, what: str):
-    """The optional per-joint fields (joint limits, compliances), checked against the n joints."""
+    """The optional per-joint fields (joint limits, compliances, joint names), checked against the n joints."""
     limits = doc.get("joint_limits_deg")
     if limits is not None:
         if len(limits) != n:
@@ -299,12 +488,28 @@ def _per_joint(doc: dict, n: int, src: str, what: str):
     if comp is not None and len(comp) != n:
         raise InputError(f"expected {n} values (one per {what}), got {len(comp)}", source=src,
                          field="compliances_rad_per_Nm")
-    return limits, comp
+    names = check_joint_names(doc["joint_names"], n, src) if "joint_names" in doc else ()
+    return limits, comp, names
 
 
 def _load_spatial(doc: dict, src: str) -> Robot:
     """A validated spatial robot document -> :class:`Robot`."""
     rows = [[r["a_m"], r["alpha_deg"], r["d_m"], r.get("offset_deg", 0.0)] for r in doc["dh"]]
-    limits, comp = _per_joint(doc, len(rows), src, "row of dh")
+    limits, comp, names = _per_joint(doc, len(rows), src, "row of dh")
     return spatial_robot(rows, doc.get("tool_m", [0.0, 0.0, 0.0]), doc["name"], limits, doc["dh_convention"], comp,
-                         src, doc.get("source", ""))
+                         src, doc.get("source", ""), names)
+
+
+def _load_urdf(doc: dict, src: str) -> Robot:
+    """A validated URDF robot document -> :class:`Robot` (the chain read by :func:`stiffcal.urdf.read_chain`)."""
+    from .urdf import read_chain
+
+    urdf = Path(src).parent / doc["urdf"]
+    arm = read_chain(urdf, doc["base_frame"], doc["tip_frame"], doc.get("joints"), doc.get("fixed_joints_deg"), src)
+    comp = doc.get("compliances_rad_per_Nm")
+    if comp is not None and len(comp) != len(arm.names):
+        raise InputError(f"expected {len(arm.names)} values (one per joint: {', '.join(arm.names)}), got {len(comp)}",
+                         source=src, field="compliances_rad_per_Nm")
+    names = check_joint_names(arm.names, len(arm.names), str(urdf), "joint names")
+    return chain_robot(arm.chain, doc.get("tool_m", [0.0, 0.0, 0.0]), arm.limits_rad, names, doc["name"], comp, src,
+                       doc.get("source", ""), str(doc["urdf"]), arm.has_limits)

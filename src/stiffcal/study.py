@@ -81,8 +81,8 @@ def check_test_inputs(robot: Robot, q_deg, force: np.ndarray, pose_field: str, f
     if out.size:
         j = int(out[0])
         lo, hi = np.degrees(robot.joint_limits_rad[j])
-        raise InputError(f"expected q{j + 1} within the joint limits [{lo:g}, {hi:g}] deg of {robot.source}, "
-                         f"got {q_deg[j]:g}", source=source, field=f"{pose_field}[{j}]")
+        raise InputError(f"expected {robot.joint_columns('q')[j]} within the joint limits [{lo:g}, {hi:g}] deg of "
+                         f"{robot.source}, got {q_deg[j]:g}", source=source, field=f"{pose_field}[{j}]")
     return q_deg
 
 

@@ -29,15 +29,17 @@ def write_csv(df: pd.DataFrame, path: str | Path) -> None:
         df.to_csv(tmp, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
 
 
-def _pose_cols(n: int) -> list[str]:
-    return [f"q{i + 1}_deg" for i in range(n)]
+def _pose_cols(robot) -> list[str]:
+    """The joint-angle columns of a robot's tables: q1_deg..qn_deg, or q_<name>_deg for named joints."""
+    return robot.joint_columns("q", "_deg")
 
 
 def plan_summary(study: Study, plan_deg: np.ndarray) -> dict:
     """O_t, chi, E[dk_i^2] and dk_i = sqrt(E[dk_i^2]) of plans, vectorised.
 
     plan_deg: (..., m, n) [deg]. Returns a dict of arrays of shape (...,): 'O_t' (eq. 16; inf when a
-    compliance is not identifiable), 'chi' (eq. 27), 'E_dk1'.. (eq. 11), 'dk1'.. .
+    compliance is not identifiable), 'chi' (eq. 27), 'E_dk1'.. (eq. 11), 'dk1'.. (per joint, named by
+    ``robot.joint_columns``: 'E_dk_a1' for a joint named a1).
     """
     plan = np.radians(np.asarray(plan_deg, float))
     m, n = plan.shape[-2:]
@@ -49,9 +51,9 @@ def plan_summary(study: Study, plan_deg: np.ndarray) -> dict:
     out = {"O_t": ot, "chi": criteria.chi(ot, robot.n_params, m, study.sigma)}
     cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint that never moves the point: not identifiable
     cov[..., robot.params] = cov_p
-    for i in range(n):
-        out[f"E_dk{i + 1}"] = cov[..., i]
-        out[f"dk{i + 1}"] = np.sqrt(cov[..., i])
+    for i, (e, dk) in enumerate(zip(robot.joint_columns("E_dk"), robot.joint_columns("dk"))):
+        out[e] = cov[..., i]
+        out[dk] = np.sqrt(cov[..., i])
     return out
 
 
@@ -63,12 +65,11 @@ def table2(study: Study) -> pd.DataFrame:
     n_optimal (size of the optimal set), optimal_set_deg ('q1 q2; ...'), degenerate.
     """
     rows = []
-    n = study.robot.n_joints
     for key in study.criteria:
         res = optimal_single_pose(study.problem(key), step_deg=study.search_step_deg)
         summ = plan_summary(study, res.pose_deg[None, :])
         row = {"criterion": key, "label": criteria.label(key)}
-        row.update(dict(zip(_pose_cols(n), res.pose_deg)))
+        row.update(dict(zip(_pose_cols(study.robot), res.pose_deg)))
         row.update({k: float(v) for k, v in summ.items() if k.startswith("E_dk")})
         row.update({"value": res.value, "n_optimal": len(res.optimal_set_deg),
                     "optimal_set_deg": "; ".join(" ".join(f"{a:.4f}" for a in p) for p in res.optimal_set_deg),
@@ -87,21 +88,21 @@ def table3(study: Study, t2: pd.DataFrame) -> pd.DataFrame:
     but the test-pose deflection is estimable); it differs from O_t only in the O_t* row when A_t is
     rank deficient. Criteria that select no pose (degenerate, e.g. G for one experiment) have no row.
     """
-    n = study.robot.n_joints
-    cols = _pose_cols(n)
+    cols = _pose_cols(study.robot)
+    dks = study.robot.joint_columns("dk")
     test_deg = np.degrees(study.test_pose)
     prob = study.problem("ot")
     M_t = information_matrix(prob.At[None])
     ref = {"row": "ot_star", "label": "O_t* (eq. 17)", **dict(zip(cols, test_deg)), "chi": 1.0}
-    ref.update({f"dk{i + 1}": float(np.sqrt(c)) for i, c in enumerate(covariance_diagonal(M_t, study.sigma))})
-    ref["O_t"] = criteria.o_t_star(n, 1, study.sigma)
+    ref.update({dk: float(np.sqrt(c)) for dk, c in zip(dks, covariance_diagonal(M_t, study.sigma))})
+    ref["O_t"] = criteria.o_t_star(study.robot.n_joints, 1, study.sigma)
     ref["O_t_lsq"] = float(criteria.o_t(M_t, prob.At, study.sigma))
     rows = [ref]
     for _, r in t2[~t2["degenerate"].astype(bool)].iterrows():
         summ = plan_summary(study, r[cols].to_numpy(float)[None, :])
         row = {"row": r["criterion"], "label": r["label"], **{c: r[c] for c in cols},
                "chi": float(summ["chi"])}
-        row.update({f"dk{i + 1}": float(summ[f"dk{i + 1}"]) for i in range(n)})
+        row.update({dk: float(summ[dk]) for dk in dks})
         row["O_t"] = row["O_t_lsq"] = float(summ["O_t"])
         rows.append(row)
     return pd.DataFrame(rows)
@@ -134,6 +135,7 @@ def monte_carlo_check(study: Study, plans: dict[str, np.ndarray], samples: int, 
     rows = []
     n = study.robot.n_joints
     k_true = study.robot.compliances if study.robot.compliances is not None else np.full(n, 1e-6)
+    E_dk = study.robot.joint_columns("E_dk")
     prob = study.problem("ot")
     for name, plan_deg in plans.items():
         plan = np.radians(np.atleast_2d(plan_deg))
@@ -143,7 +145,7 @@ def monte_carlo_check(study: Study, plans: dict[str, np.ndarray], samples: int, 
         dk = identify_batch(A, noisy) - k_true  # (s, n)
         err_t = dk @ prob.At.T  # (s, d): compensation error at the test pose (eq. 13)
         summ = plan_summary(study, np.atleast_2d(plan_deg))
-        quantities = [(f"E_dk{i + 1}", "eq. 11", float(summ[f"E_dk{i + 1}"]), dk[:, i] ** 2) for i in range(n)]
+        quantities = [(E_dk[i], "eq. 11", float(summ[E_dk[i]]), dk[:, i] ** 2) for i in range(n)]
         quantities.append(("O_t", "eq. 16", float(summ["O_t"]), np.sum(err_t**2, axis=1)))
         for q, eq, formula, draws in quantities:
             mean, se = float(draws.mean()), float(draws.std(ddof=1) / np.sqrt(samples))
@@ -174,10 +176,11 @@ def parse_plan(text: str) -> np.ndarray:
     return np.array([[float(v) for v in p.split()] for p in str(text).split(";")])
 
 
-def plans_long(plans: dict) -> pd.DataFrame:
-    """Plans in long form, one row per pose: columns plan, m, pose (1-based), q1_deg..qn_deg.
-    plans: (plan label, m) -> (m, n) poses [deg]."""
-    rows = [{"plan": label, "m": m, "pose": i + 1, **dict(zip(_pose_cols(len(q)), np.round(q, 4) + 0.0))}
+def plans_long(plans: dict, robot) -> pd.DataFrame:
+    """Plans in long form, one row per pose: columns plan, m, pose (1-based), q1_deg..qn_deg (q_<name>_deg
+    for named joints). plans: (plan label, m) -> (m, n) poses [deg]."""
+    cols = _pose_cols(robot)
+    rows = [{"plan": label, "m": m, "pose": i + 1, **dict(zip(cols, np.round(q, 4) + 0.0))}
             for (label, m), poses in plans.items() for i, q in enumerate(np.atleast_2d(poses))]
     return pd.DataFrame(rows)
 
@@ -234,16 +237,15 @@ def plans_table(study: Study, m: int, seed: int, design=None, single_deg=None) -
         summ = plan_summary(study, plan)
         row = {"plan": key, "variables": PLAN_VARIANTS[key], "m": m, "O_t": float(summ["O_t"]),
                "chi": float(summ["chi"]), "poses_deg": format_plan(plan)}
-        row.update({f"E_dk{i + 1}": float(summ[f"E_dk{i + 1}"]) for i in range(study.robot.n_joints)})
+        row.update({e: float(summ[e]) for e in study.robot.joint_columns("E_dk")})
         row.update({"lower_bound": bound, "gap": float(summ["O_t"]) / bound - 1.0})
         rows.append(row)
     return pd.DataFrame(rows)
 
 
-def design_table(design) -> pd.DataFrame:
-    """The optimal approximate design: support poses [deg] and weights."""
-    n = design.support_deg.shape[1]
-    df = pd.DataFrame(design.support_deg, columns=_pose_cols(n))
+def design_table(design, robot) -> pd.DataFrame:
+    """The optimal approximate design: support poses [deg] (columns as :func:`plans_long`) and weights."""
+    df = pd.DataFrame(design.support_deg, columns=_pose_cols(robot))
     df["weight"] = design.weights
     return df
 
@@ -266,7 +268,7 @@ def best_plan_row(study: Study, m: int, seed: int, design, extra_starts=()) -> d
     bound = design.lower_bound(m, study.sigma)
     row = {"m": m, "O_t": plan.loss, "rms_m": float(np.sqrt(plan.loss)), "chi": float(summ["chi"]),
            "lower_bound": bound, "gap": plan.loss / bound - 1.0}
-    row |= {f"E_dk{i + 1}": float(summ[f"E_dk{i + 1}"]) for i in range(study.robot.n_joints)}
+    row |= {e: float(summ[e]) for e in study.robot.joint_columns("E_dk")}
     row["within_limits"] = not study.robot.outside_limits(np.radians(plan.poses_deg)).any()
     row["poses_deg"] = format_plan(plan.poses_deg)
     return row

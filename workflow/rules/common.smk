@@ -10,6 +10,7 @@ from stiffcal.maps import MAP_DEFAULTS as _MAP_DEFAULTS
 from stiffcal.maps import map_studies as _map_studies
 from stiffcal.measurements import ANGLE_RESOLUTION_DEG as _ANGLE_RESOLUTION_DEG
 from stiffcal.measurements import FORCE_RESOLUTION_N as _FORCE_RESOLUTION_N
+from stiffcal.robot import robot_inputs
 from stiffcal.study import DEFAULTS as _STUDY_DEFAULTS
 from stiffcal.study import design_studies as _design_studies
 

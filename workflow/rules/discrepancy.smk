@@ -5,6 +5,7 @@ rule discrepancy:
     input:
         data=lambda wc: MEASURED[wc.dataset]["data"],
         robot=lambda wc: MEASURED[wc.dataset]["robot"],
+        urdf=lambda wc: robot_inputs(MEASURED[wc.dataset]["robot"]),
     output:
         verdict="results/discrepancy/{dataset}/verdict.json",
         png="results/discrepancy/{dataset}/residuals.png",

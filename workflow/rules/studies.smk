@@ -7,6 +7,7 @@
 rule study_design:
     input:
         robot=lambda wc: STUDIES[wc.name]["robot"],
+        urdf=lambda wc: robot_inputs(STUDIES[wc.name]["robot"]),
     output:
         json=f"{STUDY_DIR}/{{name}}/approximate_design.json",
         support=f"{STUDY_DIR}/{{name}}/approximate_design.csv",
@@ -25,6 +26,7 @@ rule study_design:
 rule study_plan:
     input:
         robot=lambda wc: STUDIES[wc.name]["robot"],
+        urdf=lambda wc: robot_inputs(STUDIES[wc.name]["robot"]),
         design=rules.study_design.output.json,
     output:
         csv=f"{STUDY_DIR}/{{name}}/plans/m{{m}}.csv",
@@ -43,6 +45,7 @@ rule study_plan:
 rule study_summary:
     input:
         robot=lambda wc: STUDIES[wc.name]["robot"],
+        urdf=lambda wc: robot_inputs(STUDIES[wc.name]["robot"]),
         csvs=lambda wc: expand(f"{STUDY_DIR}/{wc.name}/plans/m{{m}}.csv", m=STUDIES[wc.name]["m_values"]),
     output:
         versus_m=f"{STUDY_DIR}/{{name}}/versus_m.csv",

@@ -1,0 +1,300 @@
+"""Robot files of kind urdf (src/stiffcal/urdf.py): the kinematics against the DH file of the same arm and
+against Pinocchio's own forward kinematics and frame Jacobian, the same plans from both files of the KUKA
+KR 210 R2700, joint names in tables, JSON and measured data, and every bad URDF robot file refused with one
+message naming the file and the field."""
+
+import json
+import textwrap
+
+import numpy as np
+import pytest
+
+from stiffcal.cli import main
+from stiffcal.errors import InputError
+from stiffcal.measurements import read_measurements
+from stiffcal.robot import load_robot, planar_robot
+
+KUKA_DH = "config/robots/kuka_kr210_r2700.yaml"
+KUKA_URDF = "config/robots/kuka_kr210_r2700_urdf.yaml"
+TEST_POSE, FORCE = "20,-60,110,30,45,-20", "500,-300,-800"
+
+
+@pytest.fixture(scope="module")
+def kuka(root):
+    return load_robot(root / KUKA_DH), load_robot(root / KUKA_URDF)
+
+
+def test_kuka_urdf_gives_the_dh_files_kinematics(kuka, rng):
+    """The URDF (written from the data sheet's dimensions, not from the DH table) and the DH file give the same
+    measured point, Jacobian, drawn arm, joint limits and reach, at random poses over every joint's whole turn."""
+    dh, urdf = kuka
+    q = rng.uniform(-np.pi, np.pi, (2000, 6))
+    np.testing.assert_allclose(urdf.fk(q), dh.fk(q), atol=1e-12)
+    np.testing.assert_allclose(urdf.jacobian(q), dh.jacobian(q), atol=1e-12)
+    np.testing.assert_allclose(urdf.link_points(q), dh.link_points(q), atol=1e-12)
+    np.testing.assert_allclose(np.degrees(urdf.joint_limits_rad), np.degrees(dh.joint_limits_rad), atol=1e-9)
+    assert urdf.joint_names == ("a1", "a2", "a3", "a4", "a5", "a6") and urdf.kind == "urdf" and urdf.task_dim == 3
+    assert urdf.inert_joints == dh.inert_joints == () and urdf.has_joint_limits
+    np.testing.assert_allclose(urdf.compliances, dh.compliances)
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_joint_frames_and_tool_frame_give_the_jacobian_of_any_point(kuka, rng, which):
+    """J_lin = axes x (p + R t - origins) for a point t in the tip frame equals a central difference of that
+    point's position (the interface every kind provides), for the DH and the URDF file."""
+    robot = kuka[which]
+    t = rng.uniform(-0.3, 0.3, 3)
+    q = rng.uniform(-np.pi, np.pi, (20, 6))
+    origins, axes = robot.joint_frames(q)
+    R, p = robot.tool_frame(q)
+    point = p + R @ t
+    J = np.swapaxes(np.cross(axes, point[:, None, :] - origins), -1, -2)
+    h = 1e-6
+    for j in range(6):
+        dq = np.zeros(6)
+        dq[j] = h
+        Rp, pp = robot.tool_frame(q + dq)
+        Rm, pm = robot.tool_frame(q - dq)
+        np.testing.assert_allclose(J[..., j], ((pp + Rp @ t) - (pm + Rm @ t)) / (2 * h), atol=1e-8)
+    np.testing.assert_allclose(np.linalg.norm(axes, axis=-1), 1.0)
+    np.testing.assert_allclose(p + R @ robot.tool_m, robot.fk(q), atol=1e-12)
+
+
+def test_planar_joint_frames_lie_in_the_plane(rng):
+    robot = planar_robot([0.6, 0.4, 0.3])
+    q = rng.uniform(-np.pi, np.pi, (10, 3))
+    origins, axes = robot.joint_frames(q)
+    R, p = robot.tool_frame(q)
+    assert np.all(origins[..., 2] == 0) and np.all(axes == [0, 0, 1]) and np.all(p[..., 2] == 0)
+    J = np.swapaxes(np.cross(axes, p[:, None, :] - origins), -1, -2)
+    np.testing.assert_allclose(J[:, :2], robot.jacobian(q), atol=1e-12)
+    np.testing.assert_allclose(R[..., :2, 0], np.stack([np.cos(q.sum(1)), np.sin(q.sum(1))], -1), atol=1e-12)
+
+
+def _rpy(rng):
+    return " ".join(f"{v:.6f}" for v in rng.uniform(-np.pi, np.pi, 3))
+
+
+def _xyz(rng, scale=0.4):
+    return " ".join(f"{v:.6f}" for v in rng.uniform(-scale, scale, 3))
+
+
+def _random_urdf(rng) -> str:
+    """A tree: a revolute joint above the base (not in the chain), revolute and continuous joints about random
+    axes, a joint held at a fixed angle, fixed joints, and a prismatic branch off the chain."""
+    def axis():
+        a = rng.normal(size=3)
+        return " ".join(f"{v:.6f}" for v in a / np.linalg.norm(a))
+
+    joints = [("rail", "revolute", "world", "base_link"), ("j1", "revolute", "base_link", "l1"),
+              ("j2", "continuous", "l1", "l2"), ("j3", "revolute", "l2", "l3"), ("f1", "fixed", "l3", "l3b"),
+              ("j4", "revolute", "l3b", "l4"), ("j5", "revolute", "l4", "l5"), ("f2", "fixed", "l5", "tool_link"),
+              ("finger", "prismatic", "l2", "finger_link")]
+    links = sorted({j[2] for j in joints} | {j[3] for j in joints})
+    out = ['<?xml version="1.0"?>', '<robot name="random">'] + [f'  <link name="{name}"/>' for name in links]
+    for name, kind, parent, child in joints:
+        out.append(f'  <joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>'
+                   f'<origin xyz="{_xyz(rng)}" rpy="{_rpy(rng)}"/>')
+        if kind != "fixed":
+            out.append(f'    <axis xyz="{axis()}"/>')
+        if kind in ("revolute", "prismatic"):
+            out.append('    <limit lower="-2.5" upper="2.9" effort="1" velocity="1"/>')
+        out.append("  </joint>")
+    return "\n".join(out + ["</robot>", ""])
+
+
+def test_urdf_chain_matches_pinocchio_pose_by_pose(tmp_path, rng):
+    """Our batched chain against Pinocchio's forwardKinematics and frame Jacobian, one pose at a time, on random
+    URDFs: the measured point in the base frame and its Jacobian over the moving joints, with a joint above the
+    base, a continuous joint about a skew axis, a joint held at a stated angle and a branch off the chain."""
+    pin = pytest.importorskip("pinocchio")
+    for trial in range(4):
+        (tmp_path / "r.urdf").write_text(_random_urdf(rng))
+        tool = rng.uniform(-0.2, 0.2, 3)
+        (tmp_path / "r.yaml").write_text(textwrap.dedent(f"""\
+            name: random
+            kind: urdf
+            urdf: r.urdf
+            base_frame: base_link
+            tip_frame: tool_link
+            joints: [j1, j2, j4, j5]
+            fixed_joints_deg: {{j3: 25}}
+            tool_m: {tool.tolist()}
+            """))
+        robot = load_robot(tmp_path / "r.yaml")
+        assert robot.joint_names == ("j1", "j2", "j4", "j5")
+        np.testing.assert_allclose(robot.joint_limits_rad, [[-2.5, 2.9], [-np.pi, np.pi], [-2.5, 2.9], [-2.5, 2.9]])
+        model = pin.buildModelFromUrdf(str(tmp_path / "r.urdf"))
+        base, tip = model.getFrameId("base_link"), model.getFrameId("tool_link")
+        at_point = model.frames[tip].placement * pin.SE3(np.eye(3), tool)
+        point = model.addFrame(pin.Frame("point", model.frames[tip].parentJoint, tip, at_point, pin.FrameType.OP_FRAME))
+        data = model.createData()
+        ids = {model.names[j]: j for j in range(1, model.njoints)}
+        qs = rng.uniform(-2.5, 2.9, (8, 4))
+        ours_p, ours_J = robot.fk(qs), robot.jacobian(qs)
+        for q, p_ours, J_ours in zip(qs, ours_p, ours_J):
+            full = pin.neutral(model)
+            for name, angle in [("rail", rng.uniform(-2, 2)), ("j1", q[0]), ("j2", q[1]), ("j3", np.radians(25)),
+                                ("j4", q[2]), ("j5", q[3]), ("finger", rng.uniform(0, 0.1))]:
+                i = model.idx_qs[ids[name]]
+                if model.nqs[ids[name]] == 2:
+                    full[i:i + 2] = np.cos(angle), np.sin(angle)
+                else:
+                    full[i] = angle
+            pin.forwardKinematics(model, data, full)
+            pin.updateFramePlacements(model, data)
+            oMb = data.oMf[base]
+            np.testing.assert_allclose(p_ours, oMb.actInv(data.oMf[point]).translation, atol=1e-12)
+            J = pin.computeFrameJacobian(model, data, full, point, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+            cols = [model.idx_vs[ids[name]] for name in ("j1", "j2", "j4", "j5")]
+            np.testing.assert_allclose(J_ours, oMb.rotation.T @ J[:, cols], atol=1e-12)
+
+
+def _design(root, robot, capsys, *extra):
+    assert main(["design", "--robot", str(root / robot), "--test-pose-deg", TEST_POSE, "--force-N", FORCE,
+                 "--sigma", "1e-5", "--experiments", "6", "--quiet", *extra]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_kuka_urdf_and_dh_files_give_the_same_plans(root, kuka, capsys):
+    """``stiffcal design ... --experiments 6`` on the URDF and on the DH file: the same problem (each plan has
+    the same O_t on either robot, to 1e-9), plans of the same quality (O_t within 0.5 %, both within their
+    certified gap) and the same certified bound (0.2 %). The poses themselves differ: this optimum is flat, and
+    the exchange and polish follow round-off differences of 1e-16 in the Jacobian to other, equally good plans."""
+    from stiffcal.study import Study
+    from stiffcal.tables import plan_summary
+
+    a, b = _design(root, KUKA_DH, capsys), _design(root, KUKA_URDF, capsys)
+    assert b["joint_names"] == ["a1", "a2", "a3", "a4", "a5", "a6"] and a["joint_names"] == list("123456")
+    studies = [Study("s", r, np.radians([20, -60, 110, 30, 45, -20]), np.array([500.0, -300, -800]), 1e-5, ("ot",),
+                     1.0, 1.0) for r in kuka]
+    for plan in (a["poses_deg"], b["poses_deg"]):
+        ot = [float(plan_summary(s, np.array(plan))["O_t"]) for s in studies]
+        assert ot[0] == pytest.approx(ot[1], rel=1e-9)
+    assert b["O_t"] == pytest.approx(a["O_t"], rel=5e-3)
+    assert b["lower_bound"] == pytest.approx(a["lower_bound"], rel=2e-3)
+    for r in (a, b):
+        assert r["lower_bound"] <= r["O_t"] and r["gap"] < 0.15
+        assert not kuka[0].outside_limits(np.radians(r["poses_deg"])).any()
+
+
+def test_named_joints_name_every_column(tmp_path, capsys):
+    """joint_names of a planar file: the tables' columns, the long-form plans and the JSON name the joints;
+    without joint_names the columns stay q1_deg ..."""
+    from stiffcal.study import Study
+    from stiffcal.tables import plans_long, table2
+
+    (tmp_path / "arm.yaml").write_text("name: arm\nkind: planar\nlinks_m: [0.6, 0.4]\njoint_names: [shoulder, elbow]\n")
+    robot = load_robot(tmp_path / "arm.yaml")
+    study = Study("s", robot, np.radians([60, 30]), np.array([0.0, -1.0]), 1.0, ("ot",), 2.0, 2.0)
+    t2 = table2(study)
+    assert {"q_shoulder_deg", "q_elbow_deg", "E_dk_shoulder", "E_dk_elbow"} <= set(t2.columns)
+    assert list(plans_long({("best", 1): np.array([[1.0, 2.0]])}, robot).columns)[-2:] == ["q_shoulder_deg",
+                                                                                           "q_elbow_deg"]
+    assert main(["design", "--robot", str(tmp_path / "arm.yaml"), "--test-pose-deg", "60,30", "--force-N", "0,-1",
+                 "--quiet"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["joint_names"] == ["shoulder", "elbow"] and round(out["O_t"], 4) == 0.3869  # Table 3's O_t
+    plain = planar_robot([0.6, 0.4])
+    assert plain.joint_columns("q", "_deg") == ["q1_deg", "q2_deg"] and plain.joint_names == ("1", "2")
+
+
+def test_measured_data_accept_joint_names_beside_numbers(root, tmp_path, kuka):
+    """A CSV with q_<name>_deg columns reads the same joint angles as the same CSV with q1_deg ...; both forms of
+    one joint, an unknown name and a named column in another unit are refused naming the column."""
+    src = root / "tests/data/discrepancy/case4_kuka_coupling.a.csv"
+    text = src.read_text()
+    named = text.replace("q1_deg", "q_a1_deg").replace("q4_deg", "q_a4_deg").replace("q6_deg", "q_a6_deg")
+    (tmp_path / "named.csv").write_text(named)
+    ref = read_measurements(src, kuka[0])
+    got = read_measurements(tmp_path / "named.csv", kuka[1])
+    np.testing.assert_array_equal(got.q, ref.q)
+    np.testing.assert_array_equal(got.dp, ref.dp)
+    assert not any("q_a" in note for note in got.notes)  # every named column is used
+    bad = {"q_a1_deg,q1_deg": "joint a1 is given twice", "q_a7_deg": "q_<name>_deg with a name of a1, a2",
+           "q_a1_rad": "expected joint angles in deg", "q7_deg": "got a column q7_deg"}
+    for header, message in bad.items():
+        cols = header.split(",")
+        first = text.splitlines()[0].replace("q1_deg", cols[0]) + ("," + cols[1] if len(cols) > 1 else "")
+        rows = [r + (",1" if len(cols) > 1 else "") for r in text.splitlines()[1:]]
+        (tmp_path / "bad.csv").write_text("\n".join([first] + rows) + "\n")
+        with pytest.raises(InputError) as err:
+            read_measurements(tmp_path / "bad.csv", kuka[1])
+        assert message in str(err.value) and "bad.csv" in str(err.value) and "column" in str(err.value)
+
+
+def _urdf_file(tmp_path, root, body: str, urdf: str | None = None) -> str:
+    (tmp_path / "arm.urdf").write_text(urdf if urdf is not None else (root / "config/robots/kuka_kr210_r2700.urdf")
+                                       .read_text())
+    path = tmp_path / "robot.yaml"
+    path.write_text("name: u\nkind: urdf\nurdf: arm.urdf\n" + body)
+    return str(path)
+
+
+GOOD = "base_frame: base_link\ntip_frame: tool0\ntool_m: [-0.15, 0, 0.3]\n"
+PRISMATIC = """<robot name="p"><link name="a"/><link name="b"/><link name="c"/>
+<joint name="slide" type="prismatic"><parent link="a"/><child link="b"/><axis xyz="1 0 0"/>
+<limit lower="0" upper="1" effort="1" velocity="1"/></joint>
+<joint name="turn" type="revolute"><parent link="b"/><child link="c"/><origin xyz="0.5 0 0"/><axis xyz="0 0 1"/>
+<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"""
+MIMIC = PRISMATIC.replace('type="prismatic"', 'type="revolute"').replace(
+    '<axis xyz="1 0 0"/>', '<axis xyz="0 0 1"/><mimic joint="turn"/>').replace("<robot", "<robot")
+
+
+@pytest.mark.parametrize("body, urdf, field, message", [
+    ("base_frame: base_link\n", None, "<top level>", "tip_frame"),
+    (GOOD.replace("tool0", "tool9"), None, "tip_frame", "no link or frame 'tool9'; its links: base_link"),
+    (GOOD.replace("base_link", "link_3").replace("tool0", "link_1"), None, "base_frame", "is not on the path"),
+    (GOOD + "joints: [a1, a3, a4, a5, a6]\n", None, "fixed_joints_deg.a2",
+     "held at 0 deg (the default), outside its limits [-140, -5]"),
+    (GOOD + "joints: [a1, a3, a4, a5, a6]\nfixed_joints_deg: {a2: -200}\n", None, "fixed_joints_deg.a2",
+     "held at -200 deg"),
+    (GOOD + "joints: [a2, a1, a3, a4, a5, a6]\n", None, "joints", "in their order from base to tip"),
+    (GOOD + "joints: [a1, a9]\n", None, "joints[1]", "joint 'a9' is not in the chain"),
+    (GOOD + "joints: [a1, a2, a3, a4, a5]\nfixed_joints_deg: {a5: 0}\n", None, "fixed_joints_deg.a5", "moves"),
+    (GOOD + "joint_limits_deg: [[-1, 1]]\n", None, "joint_limits_deg", "belongs to a planar or spatial robot"),
+    (GOOD + "compliances_rad_per_Nm: [1.0e-6]\n", None, "compliances_rad_per_Nm", "expected 6 values"),
+    (GOOD, "<robot name='x'><link name='a'>", "urdf", "not well-formed XML"),
+    (GOOD, "<!DOCTYPE r [<!ENTITY a 'b'>]><robot name='x'/>", "urdf", "entity or DOCTYPE"),
+    (GOOD, "<robot name='x'><link name='a'/><link name='b'/><joint name='j' type='revolute'><parent link='a'/>"
+           "<child link='b'/><axis xyz='0 0 1'/></joint></robot>", "urdf", "does not specify limits"),
+    ("base_frame: a\ntip_frame: c\n", PRISMATIC, "urdf", "'slide' of the chain from 'a' to 'c' is not revolute"),
+    ("base_frame: a\ntip_frame: c\n", MIMIC, "urdf", "mimics another joint"),
+    ("base_frame: b\ntip_frame: c\n", PRISMATIC.replace('lower="-1" upper="1"', 'lower="-20" upper="1"'),
+     "urdf", "expected within +-720 deg"),
+])
+def test_bad_urdf_robot_files_get_one_clear_error(root, tmp_path, body, urdf, field, message):
+    path = _urdf_file(tmp_path, root, body, urdf)
+    with pytest.raises(InputError) as err:
+        load_robot(path)
+    text = str(err.value)
+    assert text.startswith(f"{path}: field '{field}'") and message in text and "\n" not in text, text
+
+
+def test_a_missing_urdf_is_named_and_the_cli_prints_one_line(root, tmp_path, capsys):
+    path = _urdf_file(tmp_path, root, GOOD)
+    (tmp_path / "arm.urdf").unlink()
+    assert main(["design", "--robot", path, "--test-pose-deg", TEST_POSE, "--force-N", FORCE, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "field 'urdf': no such file" in err and "arm.urdf" in err
+
+
+def test_a_joint_subset_of_the_urdf_is_the_dh_arm_with_that_joint_held(root, tmp_path, kuka, rng):
+    """joints: a1..a5 with a6 held at 30 deg gives the DH arm's position and Jacobian columns 1-5 at q6 = 30."""
+    path = _urdf_file(tmp_path, root, GOOD + "joints: [a1, a2, a3, a4, a5]\nfixed_joints_deg: {a6: 30}\n")
+    sub = load_robot(path)
+    q = rng.uniform(-np.pi, np.pi, (50, 5))
+    full = np.column_stack([q, np.full(50, np.radians(30))])
+    np.testing.assert_allclose(sub.fk(q), kuka[0].fk(full), atol=1e-12)
+    np.testing.assert_allclose(sub.jacobian(q), kuka[0].jacobian(full)[..., :5], atol=1e-12)
+    assert sub.joint_names == ("a1", "a2", "a3", "a4", "a5")
+
+
+def test_the_workflow_lists_the_urdf_as_an_input_of_its_robot(root):
+    """robot_inputs (the rules' ``urdf`` input): a URDF robot file reads its URDF, other kinds nothing."""
+    from stiffcal.robot import robot_inputs
+
+    assert robot_inputs(KUKA_URDF) == ["config/robots/kuka_kr210_r2700.urdf"]
+    assert robot_inputs(KUKA_DH) == [] and robot_inputs("no/such/robot.yaml") == []
+    rules = (root / "workflow/rules/studies.smk").read_text() + (root / "workflow/rules/discrepancy.smk").read_text()
+    assert rules.count("urdf=lambda wc: robot_inputs(") == 4
