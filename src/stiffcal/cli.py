@@ -81,7 +81,7 @@ def design(args) -> dict:
     notes = list(notes) + [f"joint {j + 1}'s axis passes through the measured point at every pose: its compliance never "
                            "deflects that point, cannot be identified from its position and is left out of the model "
                            "(cov_diag 'inf'); measure a point off that axis (tool_m) to identify it"
-                           for j in robot.inert_joints]
+                           for j in robot.inert_joints] + [design.convergence_note()] * (not design.converged)
     return {
         "criterion": args.criterion,
         "criterion_label": criteria.label(args.criterion),
@@ -94,11 +94,12 @@ def design(args) -> dict:
         "cov_diag": [_json_number(summ[f"E_dk{i + 1}"]) for i in range(n)],
         "lower_bound": bound,
         "gap": None if bound is None else _json_number(float(summ["O_t"]) / bound - 1.0),
+        "lower_bound_converged": None if bound is None else design.converged,
         "optimal_set_deg": [[round(float(a), 6) for a in p] for p in optimal_set],
         "degenerate": degenerate,
         "approximate_design": {"support_deg": design.support_deg.round(6).tolist(),
                                "weights": design.weights.round(9).tolist(),
-                               "equivalence_gap": design.equivalence_gap},
+                               "equivalence_gap": design.equivalence_gap, "converged": design.converged},
         "notes": notes,
         "sigma": args.sigma,
         "seed": args.seed,
