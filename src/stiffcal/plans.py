@@ -4,8 +4,13 @@ Global optimisation of an M-pose plan
 -------------------------------------
 The plan's information matrix is a sum over poses, so a plan is improved one pose at a time
 (Fedorov's exchange): with the other M - 1 poses fixed, the best replacement for pose j is found over a
-whole candidate pool at once (vectorised), and passes repeat until no pose changes. Every exchanged plan
-is then ranked, and the ``n_polish`` best are polished in the continuum (L-BFGS-B on all M n angles). Starts: the rounding of the optimal
+whole candidate pool at once, and passes repeat until no pose changes. For O_t (and A-optimality) every
+candidate is scored in closed form from quantities of the pool computed once (:func:`exchange_scores`:
+the adjugate formula for up to 3 parameters, the Woodbury identity with the pool's quadratic forms
+beyond), a few vector operations per step for the whole pool, with exactly the values (and so the plans)
+of a general inverse of every candidate's information matrix. The same engine serves any linear model
+(:func:`fedorov_exchange`). Every exchanged plan is then ranked, and the ``n_polish`` best are polished in
+the continuum (L-BFGS-B on all M n angles). Starts: the rounding of the optimal
 approximate design (:mod:`stiffcal.certificate`), the best single pose repeated (plan (i)), and
 ``n_starts`` random plans drawn from the pool with the given seed, so the result is deterministic for a
 seed. The certificate bounds how far the result can be from the true optimum; the tests compare it with
@@ -224,15 +229,18 @@ def _exchange_loop(score, value_of, slot_P, slot_X, slot_idx, pool_P, pool_X, ma
     """Fedorov's exchange on the slots of one plan (the engine of :func:`exchange` and
     :func:`fedorov_exchange`). slot_P (m, p, p), slot_X (m, d, p) or None and slot_idx (m,) (pool index, or
     -1 for a starting pose outside the pool) describe the plan and are updated in place;
-    ``score(j, M_rest)`` gives the loss of the plan with slot j replaced by every candidate. A replacement is
-    taken when it lowers the loss by a relative 1e-12; passes repeat until none does. Returns the loss."""
+    ``score(j, M_rest)`` gives the loss of the plan with slot j replaced by every candidate; the best (the
+    first of those within a relative 1e-12 of it, so that exact ties such as symmetric copies do not hang
+    on round-off) is taken when it lowers the loss by a relative 1e-12; passes repeat until none does.
+    Returns the loss."""
     m = len(slot_P)
     best = float(value_of(slot_P, slot_X))
     for _ in range(max_passes):
         changed = False
         for j in range(m):
             vals = score(j, np.delete(slot_P, j, axis=0).sum(axis=0))
-            c = int(np.argmin(vals))
+            low = np.min(vals)  # ties (symmetric copies: the same information) go to the first candidate
+            c = int(np.argmax(vals <= low + 1e-12 * abs(low)))
             if vals[c] < best * (1 - 1e-12) - 1e-300:
                 best = float(vals[c])
                 slot_P[j], slot_idx[j] = pool_P[c], c

@@ -101,12 +101,13 @@ def certified_bound_reference(problem, pool_size: int = 2000, searches: int = 10
     """An independent, slower certified lower bound on Phi* = min over designs of trace(W M(xi)^-1), for
     checking :func:`stiffcal.certificate.approximate_design` (tests). Shares no algorithm with it:
 
-    1. a pool of ``pool_size`` uniformly random poses within the limits; weights by ``iters`` iterations of
+    1. a pool of ``pool_size`` uniformly random poses within the limits (half of them with each limited
+       joint moved to a limit with probability 1/3); weights by ``iters`` iterations of
        the multiplicative algorithm (Silvey, Titterington & Torsney 1978);
     2. the support (weights >= 1e-4) is polished jointly, poses and weights (softmax), by L-BFGS-B on Phi
        with its gradient ``-w_i grad phi(x_i)``, ``-phi_i``;
-    3. ``rounds`` times: the maximum of phi(x, xi) over the joint space, by ``searches`` uniformly random poses
-       and L-BFGS-B from the ``polish_top`` best, joins the support with weight 0.1 (vertex direction) and
+    3. ``rounds`` times: the maximum of phi(x, xi) over the joint space, by ``searches`` random poses drawn
+       as in step 1 and L-BFGS-B from the ``polish_top`` best, joins the support with weight 0.1 (vertex direction) and
        step 2 repeats;
     4. the bound ``Phi(xi)^2 / max_x phi(x, xi)`` with a fresh maximisation (general equivalence theorem).
 
@@ -125,6 +126,12 @@ def certified_bound_reference(problem, pool_size: int = 2000, searches: int = 10
 
     def A_of(q):
         return observation_matrix(robot.model_jacobian(q), F)
+
+    def faces(q):
+        """Half of the poses with each limited joint at a limit with probability 1/3 (maxima lie there)."""
+        u = rng.uniform(size=q.shape)
+        moved = np.where(~free & (u < 1 / 6), lo, np.where(~free & (u > 5 / 6), hi, q))
+        return np.where(np.arange(len(q))[:, None] % 2 == 1, moved, q)
 
     def info(q):
         A = A_of(q)
@@ -172,27 +179,9 @@ def certified_bound_reference(problem, pool_size: int = 2000, searches: int = 10
         return Xz, wz / wz.sum()
 
     def max_phi(X, w):
-        C = np.linalg.inv(np.einsum("k,kij->ij", w, info(X))) @ At.T
-        fun = phi_fun(C)
-        best_q, best_v = [], []
-        for start in range(0, searches, 50_000):
-            q = rng.uniform(lo, hi, (min(50_000, searches - start), n))
-            v = fun(q)
-            top = np.argsort(-v)[:polish_top]
-            best_q.append(q[top])
-            best_v.append(v[top])
-        q, v = np.vstack(best_q), np.concatenate(best_v)
-        starts = np.vstack([q[np.argsort(-v)[:polish_top]], X])
-        bounds = [(None, None) if free[j] else (lo[j], hi[j]) for j in range(n)]
-        out = []
-        for x0 in starts:
-            res = _minimize(lambda x: (-float(fun(x[None])[0]), -grad_fd(fun, x[None])[0]), x0, jac=True,
-                            method="L-BFGS-B", bounds=bounds, options=dict(maxiter=500, gtol=1e-12, ftol=1e-15))
-            out.append((-float(res.fun), res.x))
-        val, x = max(out, key=lambda t: t[0])
-        return max(val, float(fun(starts[:1])[0])), x
+        return max_phi_reference(problem, X, w, searches, polish_top, rng)
 
-    pool = rng.uniform(lo, hi, (pool_size, n))
+    pool = faces(rng.uniform(lo, hi, (pool_size, n)))
     P = info(pool).reshape(pool_size, -1)
     w = np.full(pool_size, 1.0 / pool_size)
     for _ in range(iters):
@@ -209,3 +198,55 @@ def certified_bound_reference(problem, pool_size: int = 2000, searches: int = 10
     top, _ = max_phi(X, w)
     top = max(top, Phi)
     return Phi, top, Phi**2 / top
+
+
+def max_phi_reference(problem, X: np.ndarray, w: np.ndarray, searches: int = 400_000, polish_top: int = 100,
+                      rng=1):
+    """An independent global maximisation of ``phi(x, xi) = ||A(x) M(xi)^-1 A_t^T||_F^2`` for the design with
+    support X (k, n) [rad] and weights w (k,): ``searches`` uniformly random poses within the limits (half of
+    them with each limited joint moved to a limit with probability 1/3), then L-BFGS-B (central-difference
+    gradient) from the ``polish_top`` best and from the support. rng: a seed or a numpy Generator.
+    Returns (max phi, its pose (n,) [rad])."""
+    from scipy.optimize import minimize as _minimize
+
+    robot, F, At = problem.robot, problem.force, problem.At
+    n = robot.n_joints
+    rng = np.random.default_rng(rng)
+    free = robot.joint_limits_rad[:, 1] - robot.joint_limits_rad[:, 0] >= 2 * np.pi - 1e-12
+    lo, hi = robot.joint_limits_rad.T
+    lo, hi = np.where(free, -np.pi, lo), np.where(free, np.pi, hi)
+
+    def A_of(q):
+        return observation_matrix(robot.model_jacobian(q), F)
+
+    M = np.einsum("k,kdi,kdj->ij", w, A_of(X), A_of(X))
+    C = np.linalg.inv(M) @ At.T
+
+    def fun(q):
+        return np.sum((A_of(q) @ C) ** 2, axis=(-2, -1))
+
+    best_q, best_v = [], []
+    for start in range(0, searches, 50_000):
+        q = rng.uniform(lo, hi, (min(50_000, searches - start), n))
+        u = rng.uniform(size=q.shape)
+        moved = np.where(~free & (u < 1 / 6), lo, np.where(~free & (u > 5 / 6), hi, q))
+        q = np.where(np.arange(len(q))[:, None] % 2 == 1, moved, q)
+        v = fun(q)
+        top = np.argsort(-v)[:polish_top]
+        best_q.append(q[top])
+        best_v.append(v[top])
+    q, v = np.vstack(best_q), np.concatenate(best_v)
+    starts = np.vstack([q[np.argsort(-v)[:polish_top]], X])
+    bounds = [(None, None) if free[j] else (lo[j], hi[j]) for j in range(n)]
+    steps = 1e-6 * np.eye(n)
+
+    def negative(x):
+        g = (fun(x + steps) - fun(x - steps)) / 2e-6
+        return -float(fun(x[None])[0]), -g
+
+    out = [(float(fun(starts[:1])[0]), starts[0])]
+    for x0 in starts:
+        res = _minimize(negative, x0, jac=True, method="L-BFGS-B", bounds=bounds,
+                        options=dict(maxiter=500, gtol=1e-12, ftol=1e-15))
+        out.append((-float(res.fun), res.x))
+    return max(out, key=lambda t: t[0])
