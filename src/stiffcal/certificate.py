@@ -424,7 +424,8 @@ class PhiSearch:
         def fun(q):
             return np.sum((observation_matrix(self.robot.model_jacobian(q), force) @ C) ** 2, axis=(-2, -1))
         if climb:
-            Xc, fc = coordinate_ascent(fun, self.robot, np.vstack([self.Q[self.cell_best(phi)], extra]))
+            Xc, fc = coordinate_ascent(fun, self.robot, np.vstack([self.Q[self.cell_best(phi)], extra]),
+                                       sweeps=1)
             _, first = np.unique(np.round(np.degrees(Xc)), axis=0, return_index=True)
             first = first[np.argsort(-fc[first], kind="stable")[:n_climbed]]
             starts = np.vstack([starts, Xc[first]])
@@ -497,14 +498,18 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     top = np.argsort(-w, kind="stable")[:MAX_START_SUPPORT]
     top = top[w[top] >= 1e-3 * w[top[0]]]
     X, PS, wS = pool[top], P[top], w[top] / w[top].sum()
+    early = False
     for rnd in range(max_rounds):
         wS = optimal_weights(PS, W, wS)
         keep = wS > MIN_WEIGHT
         X, PS, wS = X[keep], PS[keep], wS[keep] / wS[keep].sum()
         Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", wS, PS))
-        found = search.maximise(Minv, X, n_refine, climb=rnd == 0, xtol=1e-7, drop_below=0.8 * Phi)
+        found = search.maximise(Minv, X, n_refine, climb=rnd == 0, xtol=1e-5, drop_below=0.8 * Phi)
         gap = _gap(found, Phi)
-        if gap <= target_gap or rnd == max_rounds - 1:  # confirm (or certify) with the thorough search
+        # the thorough search certifies the final design (and confirms the target gap); it also runs once as
+        # soon as the design is near optimal, to bring in the regions the quick searches missed early
+        if gap <= target_gap or rnd == max_rounds - 1 or (gap <= EQUIVALENCE_TOL and not early):
+            early = True
             found = search.maximise(Minv, X, n_certify, climb=True, drop_below=0.5 * Phi)
             gap = _gap(found, Phi)
             if gap <= target_gap or rnd == max_rounds - 1:
@@ -512,7 +517,16 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
         # the maxima of phi above Phi join the support with weight 0 (the weights step brings them in);
         # poses that coincide or carry the same information merge
         xg, fg, xm, fm = found
-        new = np.vstack([xm[fm > Phi], xg[fg > Phi]])
+        # a support pose whose maximum of phi is near (within MOVE_DEG) moves there when that lowers Phi at
+        # the same weights; the other maxima above Phi (at most MAX_NEW, the highest) join with weight 0
+        near = np.all(np.abs(angle_diff(xm, X)) <= np.radians(MOVE_DEG), axis=1)
+        moved = np.where(near[:, None], xm, X)
+        P_moved = _info(problem, moved)
+        if _phi_design(W, np.einsum("k,kij->ij", wS, P_moved))[0] < Phi:
+            X, PS, fm = moved, P_moved, np.where(near, -np.inf, fm)
+        xs, fs = np.vstack([xm, xg]), np.concatenate([fm, fg])
+        best = np.argsort(-fs, kind="stable")[:MAX_NEW]
+        new = xs[best[fs[best] > Phi]]
         X, wS = _merge(problem, np.vstack([X, new]), np.append(wS, np.zeros(len(new))))
         PS = _info(problem, X)
     max_phi = Phi * (1.0 + gap)
@@ -527,6 +541,10 @@ def _gap(found, Phi: float) -> float:
     return max(float(fg.max(initial=Phi)), float(fm.max(initial=Phi)), Phi) / Phi - 1.0
 
 
+#: a support pose moves to the maximum of phi found from it when that is this close on every joint [deg]
+MOVE_DEG = 1.0
+#: at most this many maxima of phi (the highest) join the support in a round
+MAX_NEW = 32
 #: poses of smaller weight leave the design (before its maximum of phi is sought, so the bound stays exact)
 MIN_WEIGHT = 1e-9
 #: at most this many poses of the multiplicative algorithm's pool weights start the support

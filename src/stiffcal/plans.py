@@ -78,18 +78,18 @@ def _plan_A(problem: Problem, q: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------
 # Scoring every candidate of a pool at once for an L-optimality criterion (O_t, eq. 16; A-optimality)
 
-def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int) -> tuple[np.ndarray, np.ndarray]:
+def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int, norm: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """``(trace(S^-1 G), ||S^-1||_F)`` for batches of symmetric dim x dim matrices given by their upper
     triangles S, G (..., dim(dim+1)/2): the adjugate formula ``S^-1 = adj(S) / det(S)`` for dim <= 3,
     ``numpy.linalg.inv`` beyond (which raises ``LinAlgError`` for an exactly singular S). A singular S gives
-    inf or nan."""
+    inf or nan. ``norm=False`` skips the norm (None) where it is not needed."""
     if dim == 1:
-        return G[..., 0] / S[..., 0], 1.0 / np.abs(S[..., 0])
+        return G[..., 0] / S[..., 0], 1.0 / np.abs(S[..., 0]) if norm else None
     if dim == 2:
         a, b, c = S[..., 0], S[..., 1], S[..., 2]
         det = a * c - b * b
         num = G[..., 0] * c - 2.0 * G[..., 1] * b + G[..., 2] * a
-        return num / det, np.sqrt(a * a + 2 * b * b + c * c) / np.abs(det)
+        return num / det, np.sqrt(a * a + 2 * b * b + c * c) / np.abs(det) if norm else None
     if dim == 3:
         a, b, c, d, e, f = (S[..., i] for i in range(6))
         A11, A12, A13 = d * f - e * e, c * e - b * f, b * e - c * d
@@ -97,8 +97,9 @@ def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int) -> tuple[np.ndarray,
         det = a * A11 + b * A12 + c * A13
         num = (G[..., 0] * A11 + G[..., 3] * A22 + G[..., 5] * A33
                + 2.0 * (G[..., 1] * A12 + G[..., 2] * A13 + G[..., 4] * A23))
-        adj = np.sqrt(A11**2 + A22**2 + A33**2 + 2 * (A12**2 + A13**2 + A23**2))
-        return num / det, adj / np.abs(det)
+        if not norm:
+            return num / det, None
+        return num / det, np.sqrt(A11**2 + A22**2 + A33**2 + 2 * (A12**2 + A13**2 + A23**2)) / np.abs(det)
     iu = np.triu_indices(dim)
 
     def full(v):
@@ -107,7 +108,7 @@ def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int) -> tuple[np.ndarray,
         out[(..., iu[1], iu[0])] = v
         return out
     inv = np.linalg.inv(full(S))
-    return np.einsum("...ij,...ji->...", inv, full(G)), np.linalg.norm(inv, axis=(-2, -1))
+    return np.einsum("...ij,...ji->...", inv, full(G)), np.linalg.norm(inv, axis=(-2, -1)) if norm else None
 
 
 @dataclass(frozen=True)
@@ -117,13 +118,14 @@ class PoolForms:
     info: (K, p, p) information matrices ``X_c^T X_c`` of the candidates; vech: (K, p(p+1)/2) their upper
     triangles; quad: (K q_d, p(p+1)/2) with ``quad @ vech(R)`` the upper triangles (q_d = d(d+1)/2 each) of
     ``X_c R X_c^T`` for any symmetric R, for the Woodbury identity when p > 3 (else None); d: rows per
-    candidate.
+    candidate; max_trace: the largest trace of a candidate's information matrix.
     """
 
     info: np.ndarray
     vech: np.ndarray
     quad: np.ndarray | None
     d: int
+    max_trace: float = 0.0
 
 
 def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> PoolForms:
@@ -146,7 +148,7 @@ def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> P
         quad = coef.reshape(-1, len(a))  # (K q_d, q_p)
     elif X is not None:
         d = X.shape[-2]
-    return PoolForms(info, vech(info), quad, d)
+    return PoolForms(info, vech(info), quad, d, float(np.einsum("kii->k", info).max(initial=0.0)))
 
 
 def _general_scores(M: np.ndarray, Xt: np.ndarray) -> np.ndarray:
@@ -195,16 +197,22 @@ def _woodbury_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np
     d = forms.d
     SG = (forms.quad @ np.column_stack([vech(R), vech(RWR)])).reshape(-1, d * (d + 1) // 2, 2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.trace(W @ R) - _inverse_traces(SG[..., 0] + vech(np.eye(d)), SG[..., 1], d)[0]
+        return np.trace(W @ R) - _inverse_traces(SG[..., 0] + vech(np.eye(d)), SG[..., 1], d, norm=False)[0]
 
 
 def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
     p = M_rest.shape[-1]
     Mc = vech(M_rest) + forms.vech
-    trace = Mc[:, [i for i, (r, c) in enumerate(zip(*np.triu_indices(p))) if r == c]].sum(axis=1)
+    w = np.linalg.eigvalsh(M_rest)
+    # lambda_min(M_c) >= lambda_min(M_rest) and lambda_max(M_c) <= trace(M_rest) + max trace(P_c): when that
+    # ratio clears DIRECT_MIN_RATIO, no candidate is near singular and the check per candidate is skipped
+    safe = w[0] > DIRECT_MIN_RATIO * (w.sum() + forms.max_trace)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         try:
-            val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p)
+            val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p, norm=not safe)
+            if safe:
+                return val
+            trace = Mc[:, [i for i, (r, c) in enumerate(zip(*np.triu_indices(p))) if r == c]].sum(axis=1)
             ok = np.isfinite(val) & (1.0 / (inv_norm * trace) > DIRECT_MIN_RATIO)
         except np.linalg.LinAlgError:  # LU met an exactly singular candidate: all by the general path
             val, ok = np.zeros(len(Mc)), np.zeros(len(Mc), bool)

@@ -96,8 +96,8 @@ def reference_exchange(pool_info: np.ndarray, Xt: np.ndarray, start, max_passes:
     return np.sort(idx), best
 
 
-def certified_bound_reference(problem, pool_size: int = 2000, searches: int = 100_000, polish_top: int = 20,
-                              rounds: int = 6, iters: int = 3000, polish_iters: int = 300, seed: int = 0):
+def certified_bound_reference(problem, pool_size: int = 1500, searches: int = 60_000, polish_top: int = 12,
+                              rounds: int = 6, iters: int = 2000, polish_iters: int = 300, seed: int = 0):
     """An independent, slower certified lower bound on Phi* = min over designs of trace(W M(xi)^-1), for
     checking :func:`stiffcal.certificate.approximate_design` (tests). Shares no algorithm with it:
 
