@@ -408,12 +408,12 @@ class PhiSearch:
             chosen.append(cand[mine])
         return np.vstack(chosen)
 
-    def maximise(self, Minv: np.ndarray, extra_starts: np.ndarray, n_refine: int = 32, climb: bool = False,
+    def maximise(self, Minv: np.ndarray, extra_starts: np.ndarray, n_refine: int = 32, climb: int = 0,
                  n_climbed: int = 64, xtol: float = 1e-9, drop_below: float = -np.inf):
         """Polished local maxima of phi for a design with ``M(xi)^-1 = Minv``: Newton (:func:`newton_maximise`)
-        from the ``n_refine`` best search points, from ``extra_starts`` (k, n) [rad] and, with ``climb``, from
-        the ``n_climbed`` best distinct results of :func:`coordinate_ascent` started at the best search point
-        of every cell of :meth:`cell_best` and at the extra starts; xtol, drop_below: see :func:`newton_maximise`. Returns (xs, phi)
+        from the ``n_refine`` best search points, from ``extra_starts`` (k, n) [rad] and, with ``climb`` > 0,
+        from the ``n_climbed`` best distinct results of ``climb`` sweeps of :func:`coordinate_ascent` started
+        at the best search point of every cell of :meth:`cell_best` and at the extra starts; xtol, drop_below: see :func:`newton_maximise`. Returns (xs, phi)
         of the search-point starts (best first), then (xs, phi) of the extra starts (in their order)."""
         C = Minv @ self.problem.At.T
         phi = self.V @ _vech2(C @ C.T)
@@ -425,7 +425,7 @@ class PhiSearch:
             return np.sum((observation_matrix(self.robot.model_jacobian(q), force) @ C) ** 2, axis=(-2, -1))
         if climb:
             Xc, fc = coordinate_ascent(fun, self.robot, np.vstack([self.Q[self.cell_best(phi)], extra]),
-                                       sweeps=1)
+                                       sweeps=int(climb))
             _, first = np.unique(np.round(np.degrees(Xc)), axis=0, return_index=True)
             first = first[np.argsort(-fc[first], kind="stable")[:n_climbed]]
             starts = np.vstack([starts, Xc[first]])
@@ -504,13 +504,14 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
         keep = wS > MIN_WEIGHT
         X, PS, wS = X[keep], PS[keep], wS[keep] / wS[keep].sum()
         Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", wS, PS))
-        found = search.maximise(Minv, X, n_refine, climb=rnd == 0, xtol=1e-5, drop_below=0.8 * Phi)
+        found = search.maximise(Minv, X, n_refine, climb=int(rnd == 0), xtol=1e-5, drop_below=0.8 * Phi)
         gap = _gap(found, Phi)
-        # the thorough search certifies the final design (and confirms the target gap); it also runs once as
-        # soon as the design is near optimal, to bring in the regions the quick searches missed early
-        if gap <= target_gap or rnd == max_rounds - 1 or (gap <= EQUIVALENCE_TOL and not early):
+        # the thorough search certifies the final design (and confirms the target gap); a lighter one runs once
+        # as soon as the design is near optimal, to bring in the regions the quick searches missed
+        last = gap <= target_gap or rnd == max_rounds - 1
+        if last or (gap <= EQUIVALENCE_TOL and not early):
             early = True
-            found = search.maximise(Minv, X, n_certify, climb=True, drop_below=0.5 * Phi)
+            found = search.maximise(Minv, X, n_certify, climb=2 if last else 1, drop_below=0.5 * Phi)
             gap = _gap(found, Phi)
             if gap <= target_gap or rnd == max_rounds - 1:
                 break
