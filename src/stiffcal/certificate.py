@@ -511,7 +511,8 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
         last = gap <= target_gap or rnd == max_rounds - 1
         if last or (gap <= EQUIVALENCE_TOL and not early):
             early = True
-            found = search.maximise(Minv, X, n_certify, climb=2 if last else 1, drop_below=0.5 * Phi)
+            found = search.maximise(Minv, X, n_certify if last else 4 * n_refine, climb=2 if last else 1,
+                                    drop_below=0.5 * Phi)
             gap = _gap(found, Phi)
             if gap <= target_gap or rnd == max_rounds - 1:
                 break
