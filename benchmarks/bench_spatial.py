@@ -10,8 +10,14 @@ Figures (issue 16, items 2-3):
 The baseline is the code of commit ``bench_plans.BASELINE_COMMIT`` run by the same measuring code in a
 subprocess; CPU seconds by ``time.process_time`` with one BLAS thread, printed beside each other as ratios.
 
-Run: .venv/bin/python benchmarks/bench_spatial.py   (about a minute)
+With ``--random-arms N`` it also designs for N random 6-axis arms with random joint limits, test poses and
+forces (seeds 0..N-1) and checks each certificate against an independent search (500,000 random poses,
+half of them on the limits, L-BFGS-B from the best 100: ``stiffcal.reference.max_phi_reference``).
+
+Run: .venv/bin/python benchmarks/bench_spatial.py [--random-arms N]   (about a minute, plus ~10 s an arm)
 """
+
+import sys
 
 from bench_plans import ROOT, baseline_src, run
 
@@ -49,7 +55,43 @@ plan = optimise_plan(Problem(robot, force, "ot", m, qt), starts=[round_design(de
 print(json.dumps(dict(cpu=t1 - t0, O_t=plan.loss, bound=design.lower_bound(m), gap=design.max_phi / design.phi - 1)))
 """
 
+RANDOM_ARM = """
+import json, time
+import numpy as np
+from stiffcal.certificate import approximate_design
+from stiffcal.design import Problem
+from stiffcal.reference import max_phi_reference
+from stiffcal.robot import spatial_robot
+rng = np.random.default_rng({seed})
+rows = np.column_stack([rng.uniform(-0.5, 0.8, 6), rng.choice([-90, 0, 90, 37], 6), rng.uniform(-0.4, 0.6, 6),
+                        rng.uniform(-60, 60, 6)])
+centre, half = rng.uniform(-60, 60, 6), rng.uniform(60, 200, 6)
+robot = spatial_robot(rows, rng.uniform(-0.2, 0.3, 3), joint_limits_deg=np.column_stack([centre - half, centre + half]))
+lo, hi = robot.joint_limits_rad.T
+prob = Problem(robot, rng.normal(size=3) * 100, "ot", 1, rng.uniform(lo, hi))
+t0 = time.process_time()
+d = approximate_design(prob)
+cpu = time.process_time() - t0
+top, _ = max_phi_reference(prob, np.radians(d.support_deg), d.weights, searches=500_000, polish_top=100)
+print(json.dumps(dict(cpu=cpu, gap=d.equivalence_gap, converged=d.converged, excess=top / d.max_phi - 1)))
+"""
+
+
+def random_arms(count: int) -> None:
+    bad = 0
+    for seed in range(count):
+        r = run(ROOT / "src", RANDOM_ARM.format(seed=seed))
+        ok = r["converged"] and r["excess"] <= 1e-6
+        bad += not ok
+        print(f"  random arm {seed:2d}: {r['cpu']:.2f} s, equivalence gap {r['gap']:.1e}, independent search above our "
+              f"maximum of phi by {max(r['excess'], 0.0):.1e} {'' if ok else '  <-- FAILS'}", flush=True)
+    print(f"random 6-axis arms with limits: {count - bad} of {count} converged and certified")
+
+
 if __name__ == "__main__":
+    if "--random-arms" in sys.argv:
+        random_arms(int(sys.argv[sys.argv.index("--random-arms") + 1]))
+        sys.exit(0)
     base = baseline_src()
     print("CPU seconds, one BLAS thread; baseline = stiffcal before issue 16 (bench_plans.BASELINE_COMMIT)")
     ours, old = run(ROOT / "src", KUKA), run(base, KUKA)
