@@ -1,60 +1,107 @@
-"""Benchmark: M-pose plans with their certificate, against a naive baseline in the same run.
+"""Benchmark: M-pose plans, ours against the baseline (stiffcal before issue 16) in the same run.
 
-Targets (issue 3): the paper's arm, M = 3 with the certificate, in at most 2 s on one core; a 3-link
-planar arm, M = 10 with the certificate, in at most 30 s. The baseline is a naive multi-start local
-search (random plans, L-BFGS-B on all M n angles, no exchange, no bound) given the same wall time
-budget as ours; it is reported as a time ratio and by how far its best O_t is above ours.
+Figures (issue 16, item 2): ``ot_versus_m`` of the paper's arm (the workflow rule: the best plan for every
+m = 1..m_max, the approximate design given) for m_max = 5, 10, 20, and an M = 10 plan of a 3-link planar arm.
+The baseline is the code of commit ``BASELINE_COMMIT`` (general-inverse / per-candidate Woodbury scoring of
+the exchange step, and its certificate), extracted with ``git archive`` and run in a subprocess by the same
+measuring code as ours. Each figure is CPU seconds (``time.process_time`` of the job, one BLAS thread), printed
+beside the baseline's as a ratio, with whether both give the same plans (same O_t to 1e-9, poses to 1e-3 deg).
 
-Run: .venv/bin/python benchmarks/bench_plans.py   (single-threaded BLAS is forced below)
+Run: .venv/bin/python benchmarks/bench_plans.py   (about 2 minutes; the baseline's m_max = 20 alone ~50 s)
 """
 
+import json
 import os
+import subprocess
+import sys
+import tarfile
+import tempfile
+from io import BytesIO
+from pathlib import Path
 
-for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ[var] = "1"
+import numpy as np
 
-import time  # noqa: E402
-
-import numpy as np  # noqa: E402
-
-from stiffcal.certificate import approximate_design  # noqa: E402
-from stiffcal.design import Problem  # noqa: E402
-from stiffcal.plans import optimise_plan, polish, round_design  # noqa: E402
-from stiffcal.robot import planar_robot  # noqa: E402
-
-
-def ours(problem):
-    t0 = time.perf_counter()
-    design = approximate_design(Problem(problem.robot, problem.force, "ot", 1, problem.test_pose))
-    plan = optimise_plan(problem, starts=[round_design(design, problem.m)])
-    return time.perf_counter() - t0, plan.loss, design.lower_bound(problem.m)
+ROOT = Path(__file__).resolve().parents[1]
+#: stiffcal before issue 16 (the baseline of every figure)
+BASELINE_COMMIT = "80d2fc9"
 
 
-def naive(problem, budget_s, seed=0):
-    """Random starts + local polish until the budget is spent; returns (time, best O_t, starts)."""
-    rng = np.random.default_rng(seed)
-    t0 = time.perf_counter()
-    best, starts = np.inf, 0
-    while time.perf_counter() - t0 < budget_s:
-        q0 = rng.uniform(-np.pi, np.pi, (problem.m, problem.robot.n_joints))
-        _, val = polish(problem, q0)
-        best, starts = min(best, val), starts + 1
-    return time.perf_counter() - t0, best, starts
+def baseline_src() -> Path:
+    """The baseline's ``src`` (with its schemas) extracted from git into a temporary directory."""
+    out = Path(tempfile.mkdtemp(prefix="stiffcal-baseline-"))
+    for part in ("src", "workflow/schemas"):
+        blob = subprocess.run(["git", "-C", str(ROOT), "archive", BASELINE_COMMIT, part], check=True,
+                              capture_output=True).stdout
+        with tarfile.open(fileobj=BytesIO(blob)) as tar:
+            tar.extractall(out, filter="data")
+    schemas = out / "src/stiffcal/schemas"
+    if schemas.is_symlink() or not schemas.exists():
+        schemas.unlink(missing_ok=True)
+        schemas.symlink_to(out / "workflow/schemas", target_is_directory=True)
+    return out / "src"
 
 
-CASES = [
-    ("paper 2R arm, M = 3", planar_robot([0.6, 0.4]), [60.0, 30.0], 3, 2.0),
-    ("3-link planar arm, M = 10", planar_robot([0.5, 0.35, 0.15]), [30.0, 40.0, -20.0], 10, 30.0),
-]
+def run(src: Path, code: str) -> dict:
+    """Run ``code`` (which prints one JSON object) with stiffcal imported from ``src``, one BLAS thread."""
+    env = dict(os.environ, PYTHONPATH=str(src), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               MKL_NUM_THREADS="1")
+    res = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True)
+    if res.returncode:
+        raise RuntimeError(f"benchmark job failed:\n{res.stderr}")
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+OT_VERSUS_M = """
+import json, time
+import numpy as np
+from stiffcal import tables
+from stiffcal.certificate import approximate_design
+from stiffcal.study import load_config, study_from_config
+study = study_from_config(load_config("config/config.yaml"), ".")
+design = approximate_design(study.problem("ot", 1))
+t0 = time.process_time()
+df = tables.ot_versus_m(study, range(1, {m_max} + 1), 0, design)
+print(json.dumps(dict(cpu=time.process_time() - t0, O_t=df.O_t.tolist(), poses=df.poses_deg.tolist())))
+"""
+
+THREE_LINK = """
+import json, time
+import numpy as np
+from stiffcal.certificate import approximate_design
+from stiffcal.design import Problem
+from stiffcal.plans import optimise_plan, round_design
+from stiffcal.robot import planar_robot
+robot = planar_robot([0.5, 0.35, 0.15])
+prob = Problem(robot, np.array([0.0, -1.0]), "ot", 10, np.radians([30.0, 40.0, -20.0]))
+design = approximate_design(Problem(robot, prob.force, "ot", 1, prob.test_pose))
+t0 = time.process_time()
+plan = optimise_plan(prob, starts=[round_design(design, 10)])
+print(json.dumps(dict(cpu=time.process_time() - t0, O_t=[plan.loss], poses=[plan.poses_deg.round(4).tolist()])))
+"""
+
+
+def _poses(p) -> np.ndarray:
+    return np.array([[float(v) for v in q.split()] for q in p.split(";")]) if isinstance(p, str) else np.array(p)
+
+
+def same(a: dict, b: dict) -> bool:
+    """Same O_t (to 1e-9) and poses (to 1e-3 deg) for every plan."""
+    close = all(abs(x - y) <= 1e-9 * abs(y) for x, y in zip(a["O_t"], b["O_t"]))
+    return close and len(a["O_t"]) == len(b["O_t"]) and all(
+        _poses(p).shape == _poses(q).shape and np.allclose(_poses(p), _poses(q), atol=1e-3)
+        for p, q in zip(a["poses"], b["poses"]))
+
+
+def compare(name: str, code: str, base: Path) -> None:
+    ours, old = run(ROOT / "src", code), run(base, code)
+    print(f"{name:34s} {ours['cpu']:9.2f} {old['cpu']:12.2f} {old['cpu'] / ours['cpu']:9.1f}x   "
+          f"{'same plans' if same(ours, old) else 'PLANS DIFFER'}", flush=True)
+
 
 if __name__ == "__main__":
-    print(f"{'case':28s} {'ours [s]':>9s} {'target':>7s} {'O_t':>12s} {'bound':>12s} {'gap':>8s} "
-          f"{'naive O_t (same time)':>22s} {'naive excess':>13s}")
-    for name, robot, qt, m, target in CASES:
-        prob = Problem(robot, np.array([0.0, -1.0]), "ot", m, np.radians(qt))
-        t, ot, lb = ours(prob)
-        tn, otn, starts = naive(prob, t)
-        print(f"{name:28s} {t:9.2f} {target:7.1f} {ot:12.6g} {lb:12.6g} {ot / lb - 1:8.2%} "
-              f"{otn:22.6g} {otn / ot - 1:13.2%}   ({starts} naive starts; time ratio naive/ours "
-              f"{tn / t:.2f})")
-        print(f"{'':28s} -> {'meets' if t <= target else 'MISSES'} the {target:.0f} s target")
+    base = baseline_src()
+    print(f"CPU seconds, one BLAS thread; baseline = stiffcal at {BASELINE_COMMIT} (before issue 16)")
+    print(f"{'job':34s} {'ours [s]':>9s} {'baseline [s]':>12s} {'speed-up':>9s}")
+    for m_max in (5, 10, 20):
+        compare(f"ot_versus_m, m_max = {m_max}", OT_VERSUS_M.format(m_max=m_max), base)
+    compare("3-link planar arm, M = 10", THREE_LINK, base)

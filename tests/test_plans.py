@@ -5,9 +5,11 @@ import pytest
 
 from stiffcal import criteria, reproduction, tables
 from stiffcal.certificate import approximate_design, candidate_pool
-from stiffcal.design import Problem
-from stiffcal.plans import canonical_plan, optimise_plan, ot_exchange_values, round_design, symmetric_copies
-from stiffcal.robot import planar_robot
+from stiffcal.design import Problem, sample_joint_space
+from stiffcal.plans import (canonical_plan, exchange_scores, fedorov_exchange, optimise_plan, pool_forms, round_design,
+                            symmetric_copies)
+from stiffcal.reference import general_exchange_scores, reference_exchange
+from stiffcal.robot import load_robot, planar_robot
 from stiffcal.stiffness import information_matrix, observation_matrix, pose_information
 
 F = np.array([0.0, -1.0])
@@ -146,14 +148,88 @@ def test_plans_do_not_depend_on_the_seed(paper_study):
     np.testing.assert_array_equal(again.poses_deg, vals[1].poses_deg)
 
 
-def test_woodbury_exchange_values_match_direct_evaluation(paper_robot, rng):
-    prob = Problem(paper_robot, F, "ot", 3, QT)
-    others = observation_matrix(paper_robot.jacobian(rng.uniform(-3, 3, (2, 2))), F)
-    pool = candidate_pool(paper_robot, 10.0)
-    pool_A = observation_matrix(paper_robot.jacobian(pool), F)
-    fast = ot_exchange_values(information_matrix(others), pool_A, prob.At, 1.0)
-    direct = criteria.loss_from_info("ot", information_matrix(others)[None] + pose_information(pool_A), 3, prob.At)
-    np.testing.assert_allclose(fast, direct, rtol=1e-8)
+def _pool_and_rest(robot, force, step, rest_poses_rad):
+    pool = candidate_pool(robot, step)
+    pool_A = observation_matrix(robot.model_jacobian(pool), force)
+    rest = observation_matrix(robot.model_jacobian(rest_poses_rad), force)
+    return pool_A, information_matrix(rest)
+
+
+@pytest.mark.parametrize("arm", ["paper", "3-link", "6-axis"])
+def test_exchange_scores_match_the_general_inverse(arm, paper_robot, root, rng):
+    """Closed form (p <= 3), Woodbury (p > 3) and the direct LU path against the eigen-decomposition of every
+    candidate's information matrix (reference.general_exchange_scores), for a well-conditioned, an empty and
+    a rank-deficient information matrix of the other poses; +inf exactly where the reference has it."""
+    if arm == "paper":
+        robot, force, step = paper_robot, F, 5.0
+    elif arm == "3-link":
+        robot, force, step = planar_robot([0.5, 0.35, 0.15]), F, 20.0
+    else:
+        robot, force, step = load_robot(root / KUKA), np.array([500.0, -300.0, -800.0]), 30.0
+    n = robot.n_joints
+    lo, hi = robot.joint_limits_rad.T
+    Xt = observation_matrix(robot.model_jacobian(rng.uniform(lo, hi)), force)
+    for rest_count in (0, 1, 4):
+        pool_A, M_rest = _pool_and_rest(robot, force, step, rng.uniform(lo, hi, (rest_count, n)))
+        forms = pool_forms(pool_A)
+        fast = exchange_scores(forms, M_rest, Xt)
+        slow = general_exchange_scores(forms, M_rest, Xt)
+        np.testing.assert_array_equal(np.isinf(fast), np.isinf(slow))
+        ok = np.isfinite(slow)
+        assert ok.sum() > 0.5 * len(slow) if (rest_count + 1) * Xt.shape[0] >= n else not ok.any()
+        np.testing.assert_allclose(fast[ok], slow[ok], rtol=1e-7)
+
+
+KUKA = "config/robots/kuka_kr210_r2700.yaml"
+
+
+@pytest.mark.parametrize("arm, m", [("paper", 2), ("paper", 3), ("paper", 6), ("3-link", 4), ("6-axis", 2),
+                                    ("6-axis", 6)])
+def test_plans_are_the_same_as_with_the_general_inverse_scoring(arm, m, paper_robot, root):
+    """The fast scoring of the exchange step (closed form / Woodbury with the pool's quadratic forms)
+    gives exactly the plans of the general-inverse scoring: same poses, same O_t."""
+    if arm == "paper":
+        prob, kw = Problem(paper_robot, F, "ot", m, QT), dict(pool_step_deg=4.0)
+    elif arm == "3-link":
+        prob, kw = Problem(planar_robot([0.5, 0.35, 0.15]), F, "ot", m, np.radians([30.0, 40.0, -20.0])), \
+            dict(pool_step_deg=20.0)
+    else:
+        robot = load_robot(root / KUKA)
+        prob, kw = Problem(robot, np.array([500.0, -300.0, -800.0]), "ot", m, np.radians([20, -60, 110, 30, 45, -20]),
+                           None, 1e-5), dict(pool=sample_joint_space(robot, 10, seed=0))
+    fast = optimise_plan(prob, n_starts=4, seed=2, **kw)
+    slow = optimise_plan(prob, n_starts=4, seed=2, scores=general_exchange_scores, **kw)
+    np.testing.assert_array_equal(fast.poses_deg, slow.poses_deg)
+    assert fast.loss == slow.loss
+
+
+def test_fedorov_exchange_for_a_generic_linear_model(rng):
+    """A linear model with more parameters than joints (as the discrepancy analysis has): the engine gives
+    the plain exchange's plan from the same starts, the value is tr(X_t M^-1 X_t^T) computed independently,
+    no single replacement improves it (brute force), and information matrices give the same as regressors."""
+    K, d, p, m = 150, 3, 8, 4
+    X = rng.normal(size=(K, d, p)) * rng.uniform(0.5, 2.0, p)
+    Xt = rng.normal(size=(2, p))
+    info = np.einsum("kdi,kdj->kij", X, X)
+    starts = [rng.choice(K, m) for _ in range(3)]
+    res = fedorov_exchange(X, Xt, m, starts=starts, n_starts=0)
+    ref = min((reference_exchange(info, Xt, s) for s in starts), key=lambda r: r[1])
+    np.testing.assert_array_equal(res.indices, ref[0])
+    assert res.value == pytest.approx(ref[1], rel=1e-10)
+    M = info[res.indices].sum(axis=0)
+    assert res.value == pytest.approx(np.trace(Xt @ np.linalg.inv(M) @ Xt.T), rel=1e-10)
+    for j in range(m):
+        others = np.delete(res.indices, j)
+        for c in range(K):
+            Mc = info[others].sum(axis=0) + info[c]
+            assert np.trace(Xt @ np.linalg.inv(Mc) @ Xt.T) >= res.value * (1 - 1e-9)
+    again = fedorov_exchange(info, Xt, m, information=True, starts=starts, n_starts=0)
+    np.testing.assert_array_equal(again.indices, res.indices)
+    assert again.value == pytest.approx(res.value, rel=1e-9)
+    seeded = fedorov_exchange(X, Xt, m, n_starts=8, greedy=True, seed=4)
+    assert seeded.value <= res.value * (1 + 1e-9) and seeded.starts == 9
+    with pytest.raises(ValueError):
+        fedorov_exchange(X, Xt, m, n_starts=0)
 
 
 def test_symmetric_copies_carry_the_same_information(paper_robot, rng):

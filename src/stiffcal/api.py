@@ -95,9 +95,12 @@ class DesignResult:
     representative of its symmetric copies; O_t (eq. 16) [unit of sigma squared]; O_t_star (eq. 17);
     chi = O_t*/O_t (eq. 27); cov_diag (n,) E[dk_i^2] (eq. 11) [(rad/(N m))^2 per sigma^2 unit], inf for
     a compliance the plan cannot identify; lower_bound: the certified lower bound on O_t of any M-pose plan
-    (equivalence theorem; criterion 'ot' only, else None); gap = O_t / lower_bound - 1; optimal_set_deg
+    (equivalence theorem; criterion 'ot' only, else None); gap = O_t / lower_bound - 1; lower_bound_converged:
+    whether the approximate design behind the bound reached the equivalence theorem's tolerance (None without a
+    bound; when False the bound is labelled not converged in ``notes``); optimal_set_deg
     (k, n): every equally optimal single pose (M = 1); degenerate: the criterion does not prefer any pose;
-    approximate_design: support_deg (k, n), weights (k,), equivalence_gap; notes; sigma, seed, test_pose_deg
+    approximate_design: support_deg (k, n), weights (k,), equivalence_gap, converged; notes; sigma, seed,
+    test_pose_deg
     (n,), force_N (d,): the inputs; joint_names (n,): the robot's joint names, in the order of every pose and of
     cov_diag. Every pose lies within the joint limits, written in the limits' own range (-229.51, not 130.49,
     for a range of -230 to 50 deg).
@@ -123,6 +126,7 @@ class DesignResult:
     test_pose_deg: np.ndarray
     force_N: np.ndarray = field(repr=False)
     joint_names: tuple[str, ...] = ()
+    lower_bound_converged: bool | None = None
 
     def to_dict(self) -> dict:
         """The JSON object of ``stiffcal design`` (inf as the string 'inf', poses rounded to 1e-6 deg)."""
@@ -135,11 +139,12 @@ class DesignResult:
             "cov_diag": [_json_number(v) for v in self.cov_diag],
             "lower_bound": self.lower_bound,
             "gap": None if self.gap is None else _json_number(self.gap),
+            "lower_bound_converged": self.lower_bound_converged,
             "optimal_set_deg": [[round(float(a), 6) + 0.0 for a in p] for p in self.optimal_set_deg],
             "degenerate": self.degenerate,
             "approximate_design": {"support_deg": np.round(d["support_deg"], 6).tolist(),
                                    "weights": np.round(d["weights"], 9).tolist(),
-                                   "equivalence_gap": d["equivalence_gap"]},
+                                   "equivalence_gap": d["equivalence_gap"], "converged": d["converged"]},
             "notes": list(self.notes), "sigma": self.sigma, "seed": self.seed,
             "test_pose_deg": self.test_pose_deg.tolist(), "force_N": self.force_N.tolist(),
         }
@@ -239,6 +244,8 @@ def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: st
     notes += [f"joint {robot.joint_names[j]}'s axis passes through the measured point at every pose: its compliance "
               "never deflects that point, cannot be identified from its position and is left out of the model "
               "(cov_diag 'inf'); measure a point off that axis (tool_m) to identify it" for j in robot.inert_joints]
+    if not approx.converged:
+        notes.append(approx.convergence_note())
     ot = float(summ["O_t"])
     return DesignResult(
         criterion=criterion, criterion_label=criteria.label(criterion), robot=robot.name, experiments=m,
@@ -247,8 +254,9 @@ def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: st
         lower_bound=bound, gap=None if bound is None else ot / bound - 1.0,
         optimal_set_deg=np.asarray(optimal_set, float).reshape(-1, robot.n_joints), degenerate=bool(degenerate),
         approximate_design={"support_deg": approx.support_deg, "weights": approx.weights,
-                            "equivalence_gap": approx.equivalence_gap},
-        notes=tuple(notes), sigma=sigma, seed=seed, test_pose_deg=q_t, force_N=force, joint_names=robot.joint_names)
+                            "equivalence_gap": approx.equivalence_gap, "converged": approx.converged},
+        notes=tuple(notes), sigma=sigma, seed=seed, test_pose_deg=q_t, force_N=force, joint_names=robot.joint_names,
+        lower_bound_converged=None if bound is None else approx.converged)
 
 
 def check_out_dir(out) -> Path:

@@ -180,7 +180,7 @@ def evaluate_grid(fun, grids: list[np.ndarray], chunk: int = 1 << 16) -> np.ndar
 def wrap_deg(q_deg: np.ndarray) -> np.ndarray:
     """Wrap angles to [-180, 180) degrees (values within 1e-9 deg of +180 become -180)."""
     w = (np.asarray(q_deg, float) + 180.0) % 360.0 - 180.0
-    return np.where(np.isclose(w, 180.0, atol=1e-9), -180.0, w) + 0.0  # + 0.0 turns -0.0 into 0.0
+    return np.where(np.isclose(w, 180.0, rtol=0.0, atol=1e-9), -180.0, w) + 0.0  # + 0.0 turns -0.0 into 0.0
 
 
 #: angles within this of a joint limit [deg] count as on it (round-off of the degree-radian conversions)

@@ -4,8 +4,13 @@ Global optimisation of an M-pose plan
 -------------------------------------
 The plan's information matrix is a sum over poses, so a plan is improved one pose at a time
 (Fedorov's exchange): with the other M - 1 poses fixed, the best replacement for pose j is found over a
-whole candidate pool at once (vectorised), and passes repeat until no pose changes. Every exchanged plan
-is then ranked, and the ``n_polish`` best are polished in the continuum (L-BFGS-B on all M n angles). Starts: the rounding of the optimal
+whole candidate pool at once, and passes repeat until no pose changes. For O_t (and A-optimality) every
+candidate is scored in closed form from quantities of the pool computed once (:func:`exchange_scores`:
+the adjugate formula for up to 3 parameters, the Woodbury identity with the pool's quadratic forms
+beyond), a few vector operations per step for the whole pool, with exactly the values (and so the plans)
+of a general inverse of every candidate's information matrix. The same engine serves any linear model
+(:func:`fedorov_exchange`). Every exchanged plan is then ranked, and the ``n_polish`` best are polished in
+the continuum (L-BFGS-B on all M n angles). Starts: the rounding of the optimal
 approximate design (:mod:`stiffcal.certificate`), the best single pose repeated (plan (i)), and
 ``n_starts`` random plans drawn from the pool with the given seed, so the result is deterministic for a
 seed. The certificate bounds how far the result can be from the true optimum; the tests compare it with
@@ -27,9 +32,9 @@ import numpy as np
 from scipy.optimize import minimize
 
 from . import criteria
-from .certificate import ApproximateDesign, candidate_pool, default_pool_step, has_planar_symmetry
+from .certificate import ApproximateDesign, candidate_pool, default_pool_step, has_planar_symmetry, vech
 from .design import Problem, _is_full_turn, into_limits, plan_loss, representative, wrap_deg
-from .stiffness import information_matrix, observation_matrix, pose_information
+from .stiffness import observation_matrix, pose_information
 
 
 @dataclass
@@ -70,60 +75,275 @@ def _plan_A(problem: Problem, q: np.ndarray) -> np.ndarray:
     return observation_matrix(problem.robot.model_jacobian(q), problem.force)
 
 
-def ot_exchange_values(M_rest: np.ndarray, pool_A: np.ndarray, At: np.ndarray, sigma: float) -> np.ndarray | None:
-    """O_t (eq. 16) of ``M_rest + A_c^T A_c`` for every candidate c, by the Woodbury identity.
+# ---------------------------------------------------------------------------------------------------
+# Scoring every candidate of a pool at once for an L-optimality criterion (O_t, eq. 16; A-optimality)
 
-    ``(R^-1 + A^T A)^-1 = R - R A^T (I + A R A^T)^-1 A R`` with ``R = M_rest^-1``, so
-    ``O_t(c) = sigma^2 [trace(W R) - trace(S_c^-1 G_c)]``, ``S_c = I + A_c R A_c^T``,
-    ``G_c = A_c R W R A_c^T``, ``W = A_t^T A_t``: d x d work per candidate, no eigen-decomposition.
-    M_rest: (n, n); pool_A: (N, d, n). Returns (N,), or None when M_rest is singular or ill conditioned
-    (eigenvalue ratio below ``1e-8``, where R would be inaccurate): the caller then uses the general path.
+def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int, norm: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """``(trace(S^-1 G), ||S^-1||_F)`` for batches of symmetric dim x dim matrices given by their upper
+    triangles S, G (..., dim(dim+1)/2): the adjugate formula ``S^-1 = adj(S) / det(S)`` for dim <= 3,
+    ``numpy.linalg.inv`` beyond (which raises ``LinAlgError`` for an exactly singular S). A singular S gives
+    inf or nan. ``norm=False`` skips the norm (None) where it is not needed."""
+    if dim == 1:
+        return G[..., 0] / S[..., 0], 1.0 / np.abs(S[..., 0]) if norm else None
+    if dim == 2:
+        a, b, c = S[..., 0], S[..., 1], S[..., 2]
+        det = a * c - b * b
+        num = G[..., 0] * c - 2.0 * G[..., 1] * b + G[..., 2] * a
+        return num / det, np.sqrt(a * a + 2 * b * b + c * c) / np.abs(det) if norm else None
+    if dim == 3:
+        a, b, c, d, e, f = (S[..., i] for i in range(6))
+        A11, A12, A13 = d * f - e * e, c * e - b * f, b * e - c * d
+        A22, A23, A33 = a * f - c * c, b * c - a * e, a * d - b * b
+        det = a * A11 + b * A12 + c * A13
+        num = (G[..., 0] * A11 + G[..., 3] * A22 + G[..., 5] * A33
+               + 2.0 * (G[..., 1] * A12 + G[..., 2] * A13 + G[..., 4] * A23))
+        if not norm:
+            return num / det, None
+        return num / det, np.sqrt(A11**2 + A22**2 + A33**2 + 2 * (A12**2 + A13**2 + A23**2)) / np.abs(det)
+    iu = np.triu_indices(dim)
+
+    def full(v):
+        out = np.zeros(v.shape[:-1] + (dim, dim))
+        out[(..., *iu)] = v
+        out[(..., iu[1], iu[0])] = v
+        return out
+    inv = np.linalg.inv(full(S))
+    return np.einsum("...ij,...ji->...", inv, full(G)), np.linalg.norm(inv, axis=(-2, -1)) if norm else None
+
+
+@dataclass(frozen=True)
+class PoolForms:
+    """A candidate pool prepared once for exchange scoring (:func:`exchange_scores`).
+
+    info: (K, p, p) information matrices ``X_c^T X_c`` of the candidates; vech: (K, p(p+1)/2) their upper
+    triangles; quad: (K q_d, p(p+1)/2) with ``quad @ vech(R)`` the upper triangles (q_d = d(d+1)/2 each) of
+    ``X_c R X_c^T`` for any symmetric R, for the Woodbury identity when p > 3 (else None); d: rows per
+    candidate; max_trace: the largest trace of a candidate's information matrix.
     """
-    w = np.linalg.eigvalsh(M_rest)
-    if not w[0] > 1e-8 * w[-1]:
-        return None
+
+    info: np.ndarray
+    vech: np.ndarray
+    quad: np.ndarray | None
+    d: int
+    max_trace: float = 0.0
+
+
+def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> PoolForms:
+    """Precompute the quadratic forms of a candidate pool: from its regressors X (K, d, p) or, without
+    them, its information matrices info (K, p, p) (factored as ``X_c = sqrt(Lambda) V^T`` on their rank)."""
+    if info is None:
+        info = pose_information(X)
+    p = info.shape[-1]
+    quad, d = None, 0
+    if p > 3:
+        if X is None:
+            lam, V = np.linalg.eigh(info)
+            rank = int(np.max(np.sum(lam > p * np.finfo(float).eps * np.maximum(lam[:, -1:], 0.0), axis=1)))
+            X = np.swapaxes(V[..., -rank:] * np.sqrt(np.maximum(lam[:, None, -rank:], 0.0)), -1, -2)
+        d = X.shape[-2]
+        (i, j), (a, b) = np.triu_indices(d), np.triu_indices(p)
+        # coefficient of R_ab (a <= b) in (X R X^T)_ij: X_ia X_jb + X_ib X_ja, halved on the diagonal a = b
+        coef = X[:, i][:, :, a] * X[:, j][:, :, b] + X[:, i][:, :, b] * X[:, j][:, :, a]
+        coef[..., a == b] *= 0.5
+        quad = coef.reshape(-1, len(a))  # (K q_d, q_p)
+    elif X is not None:
+        d = X.shape[-2]
+    return PoolForms(info, vech(info), quad, d, float(np.einsum("kii->k", info).max(initial=0.0)))
+
+
+def _general_scores(M: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """``trace(X_t M^-1 X_t^T)`` of information matrices M (K, p, p) by their eigen-decomposition, +inf
+    where M is singular (:func:`stiffcal.criteria.loss_from_info`)."""
+    return criteria.loss_from_info("ot", M, 1, Xt, 1.0)
+
+
+#: eigenvalue ratio of the information of the other poses above which the Woodbury identity is used
+WOODBURY_MIN_RATIO = 1e-8
+#: a candidate whose information matrix M_c has ``1 / (||M_c^-1||_F trace M_c)`` (a lower bound on its
+#: eigenvalue ratio) at most this is rescored by the general path
+DIRECT_MIN_RATIO = 1e-7
+
+
+def exchange_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """``trace(X_t (M_rest + X_c^T X_c)^-1 X_t^T)`` for every candidate c of a pool (O_t / sigma^2 of
+    eq. 16 with the other poses' information M_rest, when X_t = A_t), +inf where that matrix is singular.
+
+    forms: :func:`pool_forms` of the pool (K candidates); M_rest: (p, p); Xt: (d_t, p). Returns (K,).
+
+    * p > 3 and M_rest well conditioned (Woodbury): with ``R = M_rest^-1`` and ``W = X_t^T X_t``,
+      ``(M_rest + X_c^T X_c)^-1 = R - R X_c^T S_c^-1 X_c R``, ``S_c = I + X_c R X_c^T``, so the score is
+      ``trace(W R) - trace(S_c^-1 X_c R W R X_c^T)``; the d x d matrices S_c and ``X_c R W R X_c^T`` are
+      linear in R and RWR, hence one matrix product with the precomputed ``forms.quad`` for the whole pool,
+      and S_c is inverted in closed form (d <= 3).
+    * otherwise (direct): ``M_c = M_rest + X_c^T X_c`` is formed from its p(p+1)/2 entries and inverted by
+      the adjugate formula for p <= 3 (a few vector operations for the whole pool), by LU beyond.
+      Since ``lambda_min / lambda_max >= 1 / (||M_c^-1||_F trace M_c)``, candidates where that bound is at
+      most ``DIRECT_MIN_RATIO`` (near singular, where round-off would matter) are rescored by the general
+      path (:func:`stiffcal.criteria.loss_from_info`, an eigen-decomposition), so singular plans get +inf
+      by the same rule as everywhere else and the others are accurate to about 1e-9.
+    """
+    p = M_rest.shape[-1]
+    if p > 3 and forms.quad is not None:
+        w = np.linalg.eigvalsh(M_rest)
+        if w[0] > WOODBURY_MIN_RATIO * w[-1]:
+            return _woodbury_scores(forms, M_rest, Xt)
+    return _direct_scores(forms, M_rest, Xt)
+
+
+def _woodbury_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
     R = np.linalg.inv(M_rest)
-    W = At.T @ At
-    AR = pool_A @ R  # (N, d, n)
-    S = np.eye(pool_A.shape[1]) + AR @ np.swapaxes(pool_A, -1, -2)
-    G = AR @ W @ np.swapaxes(AR, -1, -2)
-    return sigma**2 * (np.trace(W @ R) - np.einsum("nij,nji->n", np.linalg.inv(S), G))
+    W = Xt.T @ Xt
+    RWR = R @ W @ R
+    d = forms.d
+    SG = (forms.quad @ np.column_stack([vech(R), vech(RWR)])).reshape(-1, d * (d + 1) // 2, 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.trace(W @ R) - _inverse_traces(SG[..., 0] + vech(np.eye(d)), SG[..., 1], d, norm=False)[0]
 
 
-def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30):
+def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    p = M_rest.shape[-1]
+    Mc = vech(M_rest) + forms.vech
+    w = np.linalg.eigvalsh(M_rest)
+    # lambda_min(M_c) >= lambda_min(M_rest) and lambda_max(M_c) <= trace(M_rest) + max trace(P_c): when that
+    # ratio clears DIRECT_MIN_RATIO, no candidate is near singular and the check per candidate is skipped
+    safe = w[0] > DIRECT_MIN_RATIO * (w.sum() + forms.max_trace)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        try:
+            val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p, norm=not safe)
+            if safe:
+                return val
+            trace = Mc[:, [i for i, (r, c) in enumerate(zip(*np.triu_indices(p))) if r == c]].sum(axis=1)
+            ok = np.isfinite(val) & (1.0 / (inv_norm * trace) > DIRECT_MIN_RATIO)
+        except np.linalg.LinAlgError:  # LU met an exactly singular candidate: all by the general path
+            val, ok = np.zeros(len(Mc)), np.zeros(len(Mc), bool)
+    if not ok.all():
+        val = np.array(val, float)
+        val[~ok] = _general_scores(M_rest[None] + forms.info[~ok], Xt)
+    return val
+
+
+@dataclass
+class ExchangeResult:
+    """Result of :func:`fedorov_exchange`: indices (m,) of the chosen pool points (sorted; repeats allowed);
+    value: ``trace(X_t M^-1 X_t^T)`` of the plan (O_t / sigma^2, eq. 16), +inf if no start identified every
+    parameter; starts: number of starting plans exchanged."""
+
+    indices: np.ndarray
+    value: float
+    starts: int
+
+
+def _exchange_loop(score, value_of, slot_P, slot_X, slot_idx, pool_P, pool_X, max_passes: int):
+    """Fedorov's exchange on the slots of one plan (the engine of :func:`exchange` and
+    :func:`fedorov_exchange`). slot_P (m, p, p), slot_X (m, d, p) or None and slot_idx (m,) (pool index, or
+    -1 for a starting pose outside the pool) describe the plan and are updated in place;
+    ``score(j, M_rest)`` gives the loss of the plan with slot j replaced by every candidate; the best (the
+    first of those within a relative 1e-12 of it, so that exact ties such as symmetric copies do not hang
+    on round-off) is taken when it lowers the loss by a relative 1e-12; passes repeat until none does.
+    Returns the loss."""
+    m = len(slot_P)
+    best = float(value_of(slot_P, slot_X))
+    for _ in range(max_passes):
+        changed = False
+        for j in range(m):
+            vals = score(j, np.delete(slot_P, j, axis=0).sum(axis=0))
+            low = np.min(vals)  # ties (symmetric copies: the same information) go to the first candidate
+            c = int(np.argmax(vals <= low + 1e-12 * abs(low)))
+            if vals[c] < best * (1 - 1e-12) - 1e-300:
+                best = float(vals[c])
+                slot_P[j], slot_idx[j] = pool_P[c], c
+                if slot_X is not None:
+                    slot_X[j] = pool_X[c]
+                changed = True
+        if not changed:
+            break
+    return best
+
+
+def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: bool = False,
+                     starts: list | tuple = (), n_starts: int = 16, greedy: bool = False, seed: int = 0,
+                     max_passes: int = 30) -> ExchangeResult:
+    """The best plan of m points from a finite pool for the L-optimality criterion O_t of ANY linear model
+    ``y = X beta + e`` (Fedorov's exchange, Fedorov 1972, ch. 3; scores by :func:`exchange_scores`).
+
+    pool: (K, d, p) regressors X_c of the candidate points or, with ``information=True``, (K, p, p)
+    information matrices ``X_c^T X_c``; Xt: (d_t, p) regressor at the test point (O_t / sigma^2 =
+    ``trace(X_t M^-1 X_t^T)``, ``M = sum X_i^T X_i``); m: number of points (a point may repeat); starts:
+    starting plans, each (m,) pool indices; n_starts: random starting plans drawn with ``seed``; greedy: also
+    start from the sequential (greedy) construction on a ridge-regularised information matrix (1e-9 of the
+    pool's mean trace). Each start is exchanged until no single replacement improves it; the best result is
+    returned (the first on ties). Deterministic for a seed. Raises ValueError without any start.
+    """
+    pool = np.asarray(pool, float)
+    Xt = np.atleast_2d(np.asarray(Xt, float))
+    forms = pool_forms(info=pool) if information else pool_forms(X=pool)
+    K, p = len(forms.info), forms.info.shape[-1]
+    rng = np.random.default_rng(seed)
+    inits = [np.asarray(s, int) for s in starts]
+    inits += [rng.choice(K, m, replace=K < m) for _ in range(n_starts)]
+    if greedy:
+        base, chosen = 1e-9 * np.trace(forms.info.mean(axis=0)) * np.eye(p), []
+        for _ in range(m):
+            c = int(np.argmin(exchange_scores(forms, base, Xt)))
+            chosen.append(c)
+            base = base + forms.info[c]
+        inits.append(np.array(chosen))
+    if not inits:
+        raise ValueError("fedorov_exchange needs at least one start (starts, n_starts or greedy)")
+    results = []
+    for idx in inits:
+        idx = idx.copy()
+        slot_P = forms.info[idx].copy()
+        val = _exchange_loop(lambda j, M_rest: exchange_scores(forms, M_rest, Xt),
+                             lambda P, _: _general_scores(P.sum(axis=0)[None], Xt)[0],
+                             slot_P, None, idx, forms.info, None, max_passes)
+        results.append((val, np.sort(idx)))
+    best = min(range(len(results)), key=lambda i: results[i][0])
+    return ExchangeResult(results[best][1], float(results[best][0]), len(inits))
+
+
+#: criteria whose exchange step is scored by :func:`exchange_scores` (L-optimality: W = A_t^T A_t or I)
+L_OPTIMAL = ("ot", "a")
+
+
+def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
+             forms: PoolForms | None = None, scores=None):
     """Fedorov exchange of an m-pose plan (m, n) [rad] over a pool (N, n) with rows pool_A (N, d, n).
 
-    Candidates are scored from information matrices (``M_rest + A_c^T A_c``), O(N n^2) per step; only
-    G-optimality, which needs the rows themselves, stacks them. Returns the improved plan and its loss.
+    O_t and A-optimality are scored by :func:`exchange_scores` (``scores``: another function of the same
+    signature, e.g. :func:`stiffcal.reference.general_exchange_scores` in the tests; forms: the pool's
+    :func:`pool_forms`, computed here when not given); other criteria from the information matrices
+    ``M_rest + A_c^T A_c`` of every candidate, and G-optimality, which needs the rows themselves, stacks them.
+    Returns the improved plan and its loss.
     """
     m = plan.shape[0]
     d, n = pool_A.shape[-2:]
     key = problem.criterion
-    pool_P = pose_information(pool_A)
     A = _plan_A(problem, plan)  # (m, d, n)
-    best = float(criteria.loss(key, A.reshape(m * d, n), m, problem.At, problem.sigma))
-    for _ in range(max_passes):
-        changed = False
-        for j in range(m):
-            others = np.delete(A, j, axis=0)
-            M_rest = information_matrix(others)
-            vals = ot_exchange_values(M_rest, pool_A, problem.At, problem.sigma) if key == "ot" else None
-            if vals is None:
-                rows = None
-                if key == "g":
-                    rows = np.concatenate([np.broadcast_to(others.reshape(1, -1, n), (len(pool), (m - 1) * d, n)),
-                                           pool_A], axis=1)
-                vals = criteria.loss_from_info(key, M_rest[None] + pool_P, m, problem.At, problem.sigma, rows)
-            c = int(np.argmin(vals))
-            if vals[c] < best * (1 - 1e-12) - 1e-300:
-                best = float(vals[c])
-                plan = plan.copy()
-                plan[j] = pool[c]
-                A = A.copy()
-                A[j] = pool_A[c]
-                changed = True
-        if not changed:
-            break
+    slot_P = pose_information(A)
+    idx = np.full(m, -1)
+    if key in L_OPTIMAL:
+        forms = forms or pool_forms(pool_A)
+        Xt, s2 = (problem.At, problem.sigma**2) if key == "ot" else (np.eye(n), 1.0)
+        scores = scores or exchange_scores
+
+        def score(j, M_rest):
+            return s2 * scores(forms, M_rest, Xt)
+        pool_P = forms.info
+    else:
+        pool_P = pose_information(pool_A)
+
+        def score(j, M_rest):
+            rows = None
+            if key == "g":
+                others = np.delete(A, j, axis=0)
+                rows = np.concatenate([np.broadcast_to(others.reshape(1, -1, n), (len(pool), (m - 1) * d, n)),
+                                       pool_A], axis=1)
+            return criteria.loss_from_info(key, M_rest[None] + pool_P, m, problem.At, problem.sigma, rows)
+
+    best = _exchange_loop(score, lambda P, X: criteria.loss(key, X.reshape(m * d, n), m, problem.At, problem.sigma),
+                          slot_P, A, idx, pool_P, pool_A, max_passes)
+    plan = np.where((idx >= 0)[:, None], pool[np.maximum(idx, 0)], plan)
     return plan, best
 
 
@@ -181,14 +401,16 @@ def round_design(design: ApproximateDesign, m: int) -> np.ndarray:
 
 def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.ndarray | None = None,
                   starts: list[np.ndarray] | None = None, n_starts: int = 16, seed: int = 0,
-                  pool_step_deg: float | None = None, canonical: bool = True, n_polish: int = 4) -> PlanResult:
+                  pool_step_deg: float | None = None, canonical: bool = True, n_polish: int = 4,
+                  scores=None) -> PlanResult:
     """Globally optimise the m-pose plan of ``problem`` (module docstring).
 
     pool: candidate poses (N, n) [rad] (default: :func:`candidate_pool`); free: which joints the continuous
     polish may move (default all; plans (ii)-(iii) fix some); starts: extra starting plans [deg];
     canonical: report each pose as its representative symmetric copy (False keeps the poses as found,
     e.g. when some joints are held fixed, which the symmetric copies would change); n_polish: how many
-    of the best exchanged plans are polished in the continuum.
+    of the best exchanged plans are polished in the continuum; scores: the candidate scoring of the exchange
+    step for O_t and A (default :func:`exchange_scores`; see :func:`exchange`).
     """
     m = problem.m
     rng = np.random.default_rng(seed)
@@ -197,7 +419,8 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
     pool_A = _plan_A(problem, pool)
     inits = [np.radians(np.atleast_2d(s)) for s in (starts or [])]
     inits += [pool[rng.choice(len(pool), m, replace=len(pool) < m)] for _ in range(n_starts)]
-    exchanged = [exchange(problem, init, pool, pool_A) for init in inits]
+    forms = pool_forms(pool_A) if problem.criterion in L_OPTIMAL else None
+    exchanged = [exchange(problem, init, pool, pool_A, forms=forms, scores=scores) for init in inits]
     order = np.argsort([v for _, v in exchanged], kind="stable")[:n_polish]
     results = [polish(problem, exchanged[i][0], free)[::-1] for i in order]
     vals = np.array([r[0] for r in results])

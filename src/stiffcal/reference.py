@@ -57,3 +57,196 @@ def naive_cell(b: float, force: np.ndarray, qt_deg, starts: int = 10, seed: int 
                          options=dict(xatol=1e-8, fatol=1e-13, maxiter=2000))
         best = min(best, float(r.fun))
     return best
+
+
+def general_exchange_scores(forms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """The slow reference for :func:`stiffcal.plans.exchange_scores`: ``trace(X_t (M_rest + P_c)^-1 X_t^T)``
+    for every candidate c of a pool (forms: :func:`stiffcal.plans.pool_forms`, whose ``info`` holds P_c),
+    by the general inverse of every candidate's information matrix (its eigen-decomposition, +inf where
+    singular: :func:`stiffcal.criteria.loss_from_info`), with no closed form and no Woodbury identity."""
+    from .criteria import loss_from_info
+
+    return loss_from_info("ot", M_rest[None] + forms.info, 1, Xt, 1.0)
+
+
+def reference_exchange(pool_info: np.ndarray, Xt: np.ndarray, start, max_passes: int = 30):
+    """Fedorov's exchange written plainly, for checking :func:`stiffcal.plans.fedorov_exchange`: from the
+    plan ``start`` (m pool indices), each pose in turn is replaced by the pool point that minimises
+    ``trace(X_t M^-1 X_t^T)`` (``np.linalg.inv`` of every candidate plan's information matrix, +inf when
+    its condition number exceeds 1e12), when that lowers it by a relative 1e-12; passes repeat until none
+    does. pool_info: (K, p, p); Xt: (d_t, p). Returns (indices (m,) sorted, value)."""
+    idx = [int(i) for i in start]
+
+    def value(M):
+        if np.linalg.cond(M) > 1e12:
+            return np.inf
+        return float(np.trace(Xt @ np.linalg.inv(M) @ Xt.T))
+
+    best = value(sum(pool_info[i] for i in idx))
+    for _ in range(max_passes):
+        changed = False
+        for j in range(len(idx)):
+            rest = sum(pool_info[i] for k, i in enumerate(idx) if k != j)
+            vals = [value(rest + P) for P in pool_info]
+            c = int(np.argmin(vals))
+            if vals[c] < best * (1 - 1e-12):
+                idx[j], best, changed = c, vals[c], True
+        if not changed:
+            break
+    return np.sort(idx), best
+
+
+def certified_bound_reference(problem, pool_size: int = 1500, searches: int = 60_000, polish_top: int = 12,
+                              rounds: int = 6, iters: int = 2000, polish_iters: int = 300, seed: int = 0):
+    """An independent, slower certified lower bound on Phi* = min over designs of trace(W M(xi)^-1), for
+    checking :func:`stiffcal.certificate.approximate_design` (tests). Shares no algorithm with it:
+
+    1. a pool of ``pool_size`` uniformly random poses within the limits (half of them with each limited
+       joint moved to a limit with probability 1/3); weights by ``iters`` iterations of
+       the multiplicative algorithm (Silvey, Titterington & Torsney 1978);
+    2. the support (weights >= 1e-4) is polished jointly, poses and weights (softmax), by L-BFGS-B on Phi
+       with its gradient ``-w_i grad phi(x_i)``, ``-phi_i``;
+    3. ``rounds`` times: the maximum of phi(x, xi) over the joint space, by ``searches`` random poses drawn
+       as in step 1 and L-BFGS-B from the ``polish_top`` best, joins the support with weight 0.1 (vertex direction) and
+       step 2 repeats;
+    4. the bound ``Phi(xi)^2 / max_x phi(x, xi)`` with a fresh maximisation (general equivalence theorem).
+
+    Returns (Phi(xi), max_x phi(x, xi), bound).
+    """
+    from scipy.optimize import minimize as _minimize
+
+    robot, F = problem.robot, problem.force
+    At = problem.At
+    W = At.T @ At
+    n = robot.n_joints
+    rng = np.random.default_rng(seed)
+    lo, hi = robot.joint_limits_rad.T
+    lo, hi = np.where(hi - lo >= 2 * np.pi, -np.pi, lo), np.where(hi - lo >= 2 * np.pi, np.pi, hi)
+    free = robot.joint_limits_rad[:, 1] - robot.joint_limits_rad[:, 0] >= 2 * np.pi - 1e-12
+
+    def A_of(q):
+        return observation_matrix(robot.model_jacobian(q), F)
+
+    def faces(q):
+        """Half of the poses with each limited joint at a limit with probability 1/3 (maxima lie there)."""
+        u = rng.uniform(size=q.shape)
+        moved = np.where(~free & (u < 1 / 6), lo, np.where(~free & (u > 5 / 6), hi, q))
+        return np.where(np.arange(len(q))[:, None] % 2 == 1, moved, q)
+
+    def info(q):
+        A = A_of(q)
+        return np.einsum("...di,...dj->...ij", A, A)
+
+    def phi_fun(C):
+        return lambda q: np.sum((A_of(q) @ C) ** 2, axis=(-2, -1))
+
+    def grad_fd(fun, X, h=1e-6):
+        steps = h * np.eye(n)
+        return (fun((X[:, None, :] + steps).reshape(-1, n)) - fun((X[:, None, :] - steps).reshape(-1, n))
+                ).reshape(len(X), n) / (2 * h)
+
+    def Phi_of(X, w):
+        return float(np.trace(W @ np.linalg.inv(np.einsum("k,kij->ij", w, info(X)))))
+
+    def polish(X, w):
+        k = len(w)
+
+        def fg(z):
+            Xz, logit = z[:k * n].reshape(k, n), z[k * n:]
+            wz = np.exp(logit - logit.max())
+            wz /= wz.sum()
+            M = np.einsum("k,kij->ij", wz, info(Xz))
+            try:
+                Minv = np.linalg.inv(M)
+            except np.linalg.LinAlgError:
+                return 1e300, np.zeros_like(z)
+            val = float(np.trace(W @ Minv))
+            if not (np.isfinite(val) and val > 0):
+                return 1e300, np.zeros_like(z)
+            C = Minv @ At.T
+            fun = phi_fun(C)
+            phis = fun(Xz)
+            gx = -wz[:, None] * grad_fd(fun, Xz)
+            gw = -phis
+            return val, np.concatenate([gx.ravel(), wz * (gw - wz @ gw)])
+
+        bounds = [(None, None) if free[j % n] else (lo[j % n], hi[j % n]) for j in range(k * n)] + [(-40, 40)] * k
+        z0 = np.concatenate([X.ravel(), np.log(np.maximum(w, 1e-16))])
+        res = _minimize(fg, z0, jac=True, method="L-BFGS-B", bounds=bounds,
+                        options=dict(maxiter=polish_iters, ftol=1e-13, gtol=1e-10))
+        Xz, logit = res.x[:k * n].reshape(k, n), res.x[k * n:]
+        wz = np.exp(logit - logit.max())
+        return Xz, wz / wz.sum()
+
+    def max_phi(X, w):
+        return max_phi_reference(problem, X, w, searches, polish_top, rng)
+
+    pool = faces(rng.uniform(lo, hi, (pool_size, n)))
+    P = info(pool).reshape(pool_size, -1)
+    w = np.full(pool_size, 1.0 / pool_size)
+    for _ in range(iters):
+        Minv = np.linalg.inv((w @ P).reshape(problem.robot.n_params, -1))
+        phis = P @ (Minv @ W @ Minv).ravel()
+        w = w * phis / np.trace(W @ Minv)
+        w /= w.sum()
+    keep = w >= 1e-4 * w.max()
+    X, w = polish(pool[keep], w[keep] / w[keep].sum())
+    for _ in range(rounds):
+        _, x = max_phi(X, w)
+        X, w = polish(np.vstack([X, x]), np.append(0.9 * w, 0.1))
+    Phi = Phi_of(X, w)
+    top, _ = max_phi(X, w)
+    top = max(top, Phi)
+    return Phi, top, Phi**2 / top
+
+
+def max_phi_reference(problem, X: np.ndarray, w: np.ndarray, searches: int = 400_000, polish_top: int = 100,
+                      rng=1):
+    """An independent global maximisation of ``phi(x, xi) = ||A(x) M(xi)^-1 A_t^T||_F^2`` for the design with
+    support X (k, n) [rad] and weights w (k,): ``searches`` uniformly random poses within the limits (half of
+    them with each limited joint moved to a limit with probability 1/3), then L-BFGS-B (central-difference
+    gradient) from the ``polish_top`` best and from the support. rng: a seed or a numpy Generator.
+    Returns (max phi, its pose (n,) [rad])."""
+    from scipy.optimize import minimize as _minimize
+
+    robot, F, At = problem.robot, problem.force, problem.At
+    n = robot.n_joints
+    rng = np.random.default_rng(rng)
+    free = robot.joint_limits_rad[:, 1] - robot.joint_limits_rad[:, 0] >= 2 * np.pi - 1e-12
+    lo, hi = robot.joint_limits_rad.T
+    lo, hi = np.where(free, -np.pi, lo), np.where(free, np.pi, hi)
+
+    def A_of(q):
+        return observation_matrix(robot.model_jacobian(q), F)
+
+    M = np.einsum("k,kdi,kdj->ij", w, A_of(X), A_of(X))
+    C = np.linalg.inv(M) @ At.T
+
+    def fun(q):
+        return np.sum((A_of(q) @ C) ** 2, axis=(-2, -1))
+
+    best_q, best_v = [], []
+    for start in range(0, searches, 50_000):
+        q = rng.uniform(lo, hi, (min(50_000, searches - start), n))
+        u = rng.uniform(size=q.shape)
+        moved = np.where(~free & (u < 1 / 6), lo, np.where(~free & (u > 5 / 6), hi, q))
+        q = np.where(np.arange(len(q))[:, None] % 2 == 1, moved, q)
+        v = fun(q)
+        top = np.argsort(-v)[:polish_top]
+        best_q.append(q[top])
+        best_v.append(v[top])
+    q, v = np.vstack(best_q), np.concatenate(best_v)
+    starts = np.vstack([q[np.argsort(-v)[:polish_top]], X])
+    bounds = [(None, None) if free[j] else (lo[j], hi[j]) for j in range(n)]
+    steps = 1e-6 * np.eye(n)
+
+    def negative(x):
+        g = (fun(x + steps) - fun(x - steps)) / 2e-6
+        return -float(fun(x[None])[0]), -g
+
+    out = [(float(fun(starts[:1])[0]), starts[0])]
+    for x0 in starts:
+        res = _minimize(negative, x0, jac=True, method="L-BFGS-B", bounds=bounds,
+                        options=dict(maxiter=500, gtol=1e-12, ftol=1e-15))
+        out.append((-float(res.fun), res.x))
+    return max(out, key=lambda t: t[0])

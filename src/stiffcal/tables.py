@@ -251,10 +251,13 @@ def design_table(design, robot) -> pd.DataFrame:
 
 
 def certificate_table(design, sigma: float) -> pd.DataFrame:
-    """The certificate's numbers: Phi(xi), max_x phi(x, xi), the equivalence gap and Phi* bound."""
+    """The certificate's numbers: Phi(xi), max_x phi(x, xi), the equivalence gap and Phi* bound, and whether
+    the design converged (gap within :data:`stiffcal.certificate.EQUIVALENCE_TOL`; else the bound is labelled
+    as not converged)."""
     return pd.DataFrame([{"Phi": design.phi, "max_phi": design.max_phi,
                           "equivalence_gap": design.equivalence_gap, "Phi_lower": design.phi_lower,
-                          "sigma": sigma, "multiplicative_iterations": design.iterations}])
+                          "sigma": sigma, "multiplicative_iterations": design.iterations,
+                          "converged": design.converged}])
 
 
 def best_plan_row(study: Study, m: int, seed: int, design, extra_starts=()) -> dict:
