@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stiffcal import criteria, reproduction, tables
+from stiffcal import reproduction, tables
 from stiffcal.certificate import approximate_design, candidate_pool
 from stiffcal.design import Problem, sample_joint_space
 from stiffcal.plans import (canonical_plan, exchange_scores, fedorov_exchange, optimise_plan, pool_forms, round_design,
