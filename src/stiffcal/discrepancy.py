@@ -988,10 +988,13 @@ def _ot_of(Xs: np.ndarray, Xt: np.ndarray) -> float:
 
 
 def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
-                 m: int | None = None, step_deg: float = 10.0, passes: int = 10):
+                 m: int | None = None, step_deg: float = 10.0, seed: int = 0):
     """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
     model nominal + ``causes``, the test force used in every measurement (as in the paper): Fedorov exchange
-    over a step_deg grid of poses within the joint limits. Returns (poses [deg] (m, n), O_t / sigma^2)."""
+    (:func:`stiffcal.plans.fedorov_exchange`, the engine of every plan) over a step_deg grid of poses within
+    the joint limits (4096 quasi-random poses for 4+ joints). Returns (poses [deg] (m, n), O_t / sigma^2)."""
+    from .plans import fedorov_exchange
+
     if is_sampled(robot, step_deg):
         pool = sample_joint_space(robot, 12, seed=0)  # a grid would be too large: 4096 quasi-random poses
     else:
@@ -1004,26 +1007,6 @@ def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.nda
     scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))  # O_t does not depend on the parameters' units: balance them
     scale[scale == 0] = 1.0
     Xp, Xt = Xp / scale, Xt / scale
-    p, d = Xp.shape[2], Xp.shape[1]
-    m = m or int(np.ceil(p / d)) + 1
-    info = np.einsum("kdi,kdj->kij", Xp, Xp)
-    ridge = 1e-9 * np.trace(info.mean(axis=0)) * np.eye(p)
-    chosen: list[int] = []
-    for _ in range(m):  # greedy D-optimal start (spread poses: a nonsingular plan), then exchange on O_t
-        base = sum((info[i] for i in chosen), ridge)
-        chosen.append(int(np.argmax(np.linalg.slogdet(base + info)[1])))
-    best = _ot_of(Xp[chosen], Xt)
-    for _ in range(passes):
-        improved = False
-        for i in range(m):
-            rest = sum((info[j] for k, j in enumerate(chosen) if k != i), np.zeros((p, p)))
-            cand = rest + info
-            ok = np.linalg.cond(cand) < 1e12
-            vals = np.full(len(pool), np.inf)
-            vals[ok] = np.einsum("ij,kji->k", Xt.T @ Xt, np.linalg.inv(cand[ok]))
-            k = int(np.argmin(vals))
-            if vals[k] < best * (1 - 1e-12):
-                chosen[i], best, improved = k, float(vals[k]), True
-        if not improved:
-            break
-    return np.degrees(pool[chosen]), best
+    m = m or int(np.ceil(Xp.shape[2] / Xp.shape[1])) + 1
+    res = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
+    return np.degrees(pool[res.indices]), res.value
