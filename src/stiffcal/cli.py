@@ -107,25 +107,52 @@ def design(args) -> dict:
     }
 
 
+def _test_pose(args, robot):
+    """(test pose (n,) [rad], its force (d,) [N]) from --test-pose-deg and --force-N, or (None, None)."""
+    if (args.test_pose_deg is None) != (args.force_N is None):
+        raise InputError("expected both --test-pose-deg and --force-N (the test pose and its force), or neither",
+                         field="--test-pose-deg")
+    if args.test_pose_deg is None:
+        return None, None
+    ft = _floats("--force-N", args.force_N)
+    return np.radians(check_test_inputs(robot, _floats("--test-pose-deg", args.test_pose_deg), ft, "--test-pose-deg",
+                                        "--force-N")), ft
+
+
 def discrepancy(args) -> dict:
     """``stiffcal discrepancy``: what the model gets wrong in measured data (writes DIR/verdict.json)."""
     from .discrepancy import run
 
     robot = load_robot(args.robot)
-    if (args.test_pose_deg is None) != (args.force_N is None):
-        raise InputError("expected both --test-pose-deg and --force-N (the test pose and its force), or neither",
-                         field="--test-pose-deg")
-    qt = ft = None
-    if args.test_pose_deg is not None:
-        ft = _floats("--force-N", args.force_N)
-        qt = np.radians(check_test_inputs(robot, _floats("--test-pose-deg", args.test_pose_deg), ft, "--test-pose-deg",
-                                          "--force-N"))
+    qt, ft = _test_pose(args, robot)
     v = run(robot, args.data, args.out, args.alpha, qt, ft, angle_resolution_deg=args.angle_resolution_deg,
             force_resolution_N=args.force_resolution_N)
     for note in v["notes"]:
         print(f"stiffcal discrepancy: note: {note}", file=sys.stderr)
     return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
         "verdict": f"{args.out}/verdict.json"}
+
+
+def discriminate(args) -> dict:
+    """``stiffcal discriminate``: the next experiment that tells rival causes apart (writes DIR/plan.json)."""
+    from .discrimination import run
+
+    robot = load_robot(args.robot)
+    qt, ft = _test_pose(args, robot)
+    out = run(robot, args.data, args.out, args.experiments, args.loads, args.repeats, args.weight, args.truth,
+              args.alpha, qt, ft, args.angle_resolution_deg, args.force_resolution_N, args.seed)
+    for note in out["notes"]:
+        print(f"stiffcal discriminate: note: {note}", file=sys.stderr)
+    plan, comp = out["plan"] or {}, out["compound"] or {}
+    cert = plan.get("certificate") or {}
+    return {"truth": out["models"][0]["causes"], "rivals": [m["causes"] for m in out["models"][1:]],
+            "separable": out["separable"],
+            "needs": sorted({n for s in out["separability"] if not s["separable"] for n in s["needs"]}),
+            "poses_deg": plan.get("poses_deg"), "forces_N": plan.get("forces_N"), "power": plan.get("power"),
+            "efficiency": cert.get("efficiency"), "power_bound": cert.get("power_bound"),
+            "compound": None if not comp else {k: comp[k] for k in ("weight", "poses_deg", "forces_N", "power",
+                                                                     "O_t_rms_m", "t_efficiency", "ot_efficiency")},
+            "plan": f"{args.out}/plan.json"}
 
 
 def verify_archive(args) -> dict:
@@ -163,6 +190,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="forces within this (per component) are one load; below it a row is unloaded (load-cell "
                         "resolution; default 0.5)")
     x.set_defaults(func=discrepancy)
+    t = sub.add_parser("discriminate", help="the next experiment that tells rival causes apart (writes DIR/plan.json)")
+    t.add_argument("--robot", required=True, help="robot YAML file")
+    t.add_argument("--data", required=True, help="measured-data CSV (docs/measured-data.md)")
+    t.add_argument("--experiments", type=int, required=True, help="number of measurements M in the plan")
+    t.add_argument("--out", required=True, help="output directory (plan.json, plan.png/svg)")
+    t.add_argument("--loads", help="loads the lab can apply: 'hanging:M1,M2' [N], 'directions:K:M1,M2' or "
+                                   "'forces:FX,FY;...' (default: the loads of the data)")
+    t.add_argument("--repeats", type=int, default=1, help="times each point of the plan is measured (default 1)")
+    t.add_argument("--weight", type=float, default=0.5,
+                   help="weight kappa of the discrimination in the compound plan, in [0, 1] (default 0.5)")
+    t.add_argument("--truth", choices=("best", "each"), default="best",
+                   help="design for the best-fitting model as the truth (T-optimality, default) or each in turn")
+    t.add_argument("--alpha", type=float, default=0.01, help="family-wise false-alarm rate (default 0.01)")
+    t.add_argument("--test-pose-deg", help="test pose for the compound plan's O_t (optional)")
+    t.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")
+    t.add_argument("--angle-resolution-deg", type=float, default=None, help="encoder resolution (default 0.01)")
+    t.add_argument("--force-resolution-N", type=float, default=None, help="load-cell resolution (default 0.5)")
+    t.add_argument("--seed", type=int, default=0, help="seed of the random starts of the exchange (default 0)")
+    t.set_defaults(func=discriminate)
     v = sub.add_parser("verify-archive", help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
     v.add_argument("file", help="results/archive/stiffcal-<commit>.tar.gz")
     v.set_defaults(func=verify_archive)
