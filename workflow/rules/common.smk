@@ -37,11 +37,13 @@ MEASURED = {m["name"]: m for m in config.get("measured_data", [])}
 
 
 def discrepancy_report_inputs(wildcards):
-    """verdict.json and the residual figure of every measured data set."""
+    """verdict.json, the residual figure, plan.json and the plan figure of every measured data set."""
     out = {}
     for name in MEASURED:
         out[f"verdict__{name}"] = f"results/discrepancy/{name}/verdict.json"
         out[f"residuals__{name}"] = f"results/discrepancy/{name}/residuals.png"
+        out[f"plan__{name}"] = f"results/discrepancy/{name}/plan.json"
+        out[f"planfig__{name}"] = f"results/discrepancy/{name}/plan.png"
     return out
 
 # Design studies (config `studies`), by name; validated here so that a bad entry stops the run at once.
