@@ -16,7 +16,7 @@ from stiffcal import rates as R
 from stiffcal import truth as T
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.measurements import Measurements
+from stiffcal.measurements import Measurements, read_measurements
 from stiffcal.robot import as_xyz, load_robot, planar_robot
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -137,6 +137,28 @@ def test_compound_scores_and_o_t_against_direct_computation(three_link):
         scores = crit.scores(rest)
         for c in rng.choice(len(pool), 8):
             assert scores[c] == pytest.approx(crit.value(np.append(rest, c)), rel=1e-6, abs=1e-6)
+
+
+def test_repeating_a_point_is_measuring_it_twice(three_link):
+    """repeats = 2 gives the same T-criterion, degrees of freedom and power as listing every point twice."""
+    robot, meas, v = three_link
+    rm = X.rivals_from_verdict(robot, meas, v)
+    q = np.radians([[10.0, 20.0, 30.0], [-100.0, 5.0, -60.0]])
+    F = np.array([[0.0, -400.0], [0.0, -800.0]])
+    for truth in (0, 1):
+        (a,) = X.plan_power(rm, q, F, 2, truth)
+        (b,) = X.plan_power(rm, np.repeat(q, 2, axis=0), np.repeat(F, 2, axis=0), 1, truth)
+        assert a.delta == pytest.approx(b.delta, rel=1e-9) and a.df_den == b.df_den == rm.noise_df + 2 * 2
+        assert a.power == pytest.approx(b.power, rel=1e-9)
+
+
+def test_each_model_in_turn_as_the_truth(two_link_csv):
+    robot = load_robot(ROOT / "config/robots/paper_2r.yaml")
+    meas = read_measurements(two_link_csv, robot)
+    res = X.discriminate(robot, meas, 3, X.load_set("hanging:100,300,600", 2), truth="each", m_curve=[3], effort=FAST)
+    assert sorted(res.pairs) == [(0, 1), (1, 0)]
+    assert res.power == pytest.approx(min(p.power for p in res.plan.powers))
+    assert res.certificate.bound >= res.certificate.delta == pytest.approx(res.plan.deltas.min())
 
 
 # --- the certificate -----------------------------------------------------------------------------------------

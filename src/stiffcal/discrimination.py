@@ -79,6 +79,8 @@ from .measurements import Measurements
 from .robot import Robot
 from .truth import Truth, _gravity, physics
 
+#: most distinct loads of the data a plan is made over by default (beyond, the loads must be given)
+MAX_DATA_LOADS = 16
 #: default weight kappa of the discrimination in the compound criterion (module docstring)
 COMPOUND_WEIGHT = 0.5
 #: the measurements that can separate causes whose position spans coincide
@@ -171,6 +173,10 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
         from .measurements import cluster
 
         labels = cluster(data_forces, np.full(d, resolution_N))
+        if labels.max() + 1 > MAX_DATA_LOADS:
+            raise InputError(f"expected the loads the lab can apply: the data have {labels.max() + 1} distinct loads "
+                             f"(more than {MAX_DATA_LOADS} to plan over); give them as 'hanging:M1,M2', "
+                             "'directions:K:M1,M2' or 'forces:FX,FY;...'", field=field_name)
         forces = np.array([data_forces[labels == g].mean(axis=0) for g in range(labels.max() + 1)])
     elif kind == "hanging":
         mags = _numbers(rest, "the hanging weights [N]", field_name)
@@ -720,12 +726,13 @@ def plan_power(rm: RivalModels, q: np.ndarray, force: np.ndarray, repeats: int =
 
 def noise_df(rm: RivalModels, q: np.ndarray, force: np.ndarray, repeats: int = 1, measurement=None) -> int:
     """Error degrees of freedom after the old data and the plan q (M, n) [rad], force (M, d), each point measured
-    ``repeats`` times: pure error gains (repeats - 1) per row of a point; a residual estimate (no replicates)
-    is that of the union of every cause on old and new rows together."""
+    ``repeats`` times: pure error gains (count - 1) per row of each distinct point measured count times; a
+    residual estimate (no replicates) is that of the union of every cause on old and new rows together."""
     mm = measurement or PositionModel()
     r = mm.rows(rm.robot)
-    if rm.pure_error:
-        return rm.noise_df + len(q) * r * (repeats - 1)
+    if rm.pure_error:  # every distinct point is one replicate group (a point of the plan may repeat)
+        distinct = len({tuple(np.round(np.r_[a, f], 9)) for a, f in zip(q, force)})
+        return rm.noise_df + r * (len(q) * repeats - distinct)
     Xo = rm.old_rows(D.CAUSES)
     Xn = np.sqrt(repeats) * D._stack(mm.columns(rm.robot, q, force, D.CAUSES))
     X = np.vstack([Xo, Xn])
@@ -847,8 +854,10 @@ def _minimax_theta(pair: Pair, B: np.ndarray, mu: np.ndarray, weight: float, the
 
     theta = theta0
     top = psi(theta)[0].max()
+    if not top > 0:  # the plan's theta already fits every candidate: nothing to lower
+        return theta
     for tau in top * np.array([1e-1, 1e-2, 1e-3, 1e-4]):
-        def g(th):
+        def g(th, tau=tau):
             v, e = psi(th)
             r = old.z - old.R @ th
             w = np.exp((v - v.max()) / tau)
@@ -856,8 +865,6 @@ def _minimax_theta(pair: Pair, B: np.ndarray, mu: np.ndarray, weight: float, the
             grad_max = -2 * np.einsum("k,kr,krp->p", w / w.sum(), e, B)
             return float(r @ r + weight * lse), -2 * old.R.T @ r + weight * grad_max
 
-        if tau <= 0:
-            break
         res = optimize.minimize(g, theta, jac=True, method="L-BFGS-B", options=dict(maxiter=500))
         theta = res.x
     return theta
@@ -1000,8 +1007,9 @@ class Discrimination:
     notes: tuple[str, ...] = field(default_factory=tuple)
 
     @property
-    def separable(self) -> bool:
-        return bool(self.pairs)
+    def separable(self) -> bool | None:
+        """Whether a plan can separate the rivals (None when there is no rival)."""
+        return bool(self.pairs) if len(self.rivals.models) > 1 else None
 
     @property
     def power(self) -> float | None:
@@ -1131,9 +1139,11 @@ def model_mean(robot: Robot, model: Rival, q: np.ndarray, force: np.ndarray) -> 
 @dataclass(frozen=True)
 class SeparationRate:
     """Simulated separation of ``rival`` when ``truth`` holds: the share of ``repetitions`` analyses of the
-    old design plus the plan (both simulated) whose verdict lists the truth's combination (as ``causes`` or
-    an equivalent combination) and no longer the rival's (``rate``), the share whose ``causes`` are the
-    truth's combination (``named``), and the predicted power."""
+    old design plus the plan (both simulated) whose verdict tells them apart (``rate``): some listed
+    combination (``causes`` or an equivalent one) holds the truth's causes (perhaps beside a false alarm) and
+    the rival's combination is no longer listed, i.e. no longer explains the data on its own (the event whose
+    probability the separating F-test's power predicts); the share whose ``causes`` are exactly the truth's
+    (``named``); and the predicted power."""
     truth: tuple[str, ...]
     rival: tuple[str, ...]
     repetitions: int
@@ -1153,7 +1163,6 @@ def simulate_separation(rm: RivalModels, q: np.ndarray, force: np.ndarray, repea
     T = rm.models[truth]
     qn, fn = np.repeat(q, repeats, axis=0), np.repeat(force, repeats, axis=0)
     q_all, f_all = np.vstack([old.q, qn]), np.vstack([old.force, fn])
-    config = np.concatenate([old.config, old.n_configurations + np.repeat(np.arange(len(q)), repeats)])
     mean = model_mean(robot, T, q_all, f_all)
     sig = np.concatenate([rm.sigma / rm.weights, np.full(len(qn), rm.sigma)])
     rng = np.random.default_rng(seed)
@@ -1162,11 +1171,12 @@ def simulate_separation(rm: RivalModels, q: np.ndarray, force: np.ndarray, repea
     named = 0
     for _ in range(repetitions):
         dp = mean + rng.normal(size=mean.shape) * sig[:, None]
-        meas = Measurements.from_arrays(q_all, f_all, dp, config=config, angle_resolution_deg=old.resolutions[0],
+        meas = Measurements.from_arrays(q_all, f_all, dp, angle_resolution_deg=old.resolutions[0],
                                         force_resolution_N=old.resolutions[1])
         v = D.analyse(robot, meas, rm.alpha, gain=False)
-        listed = {_combination(c) for c in [v["causes"], *v["equivalent_combinations"]]}
-        separated += [T.causes in listed and rm.models[j].causes not in listed for j in others]
+        listed = [set(c) for c in [v["causes"], *v["equivalent_combinations"]]]
+        told = any(set(T.causes) <= c for c in listed)  # the truth named, perhaps beside a false alarm
+        separated += [told and set(rm.models[j].causes) not in listed for j in others]
         named += _combination(v["causes"]) == T.causes
     pred = {p.rival: p.power for p in plan_power(rm, q, force, repeats, truth)}
     return [SeparationRate(T.causes, rm.models[j].causes, repetitions, float(s / repetitions), named / repetitions,

@@ -46,6 +46,15 @@ def discrepancy_report_inputs(wildcards):
         out[f"planfig__{name}"] = f"results/discrepancy/{name}/plan.png"
     return out
 
+def discriminate_params(wildcards):
+    """Exactly the config values rule discriminate uses: the data set's entry (name, data, robot, synthetic,
+    alpha, resolutions, discriminate settings), its force at the test pose (default study.force_N) and the
+    study's test pose."""
+    entry = MEASURED[wildcards.dataset]
+    return {**entry, "force_N": entry.get("force_N", config["study"]["force_N"]),
+            "test_pose_deg": config["study"]["test_pose_deg"]}
+
+
 # Design studies (config `studies`), by name; validated here so that a bad entry stops the run at once.
 from stiffcal.study import design_studies as _design_studies
 

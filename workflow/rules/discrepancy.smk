@@ -22,15 +22,6 @@ rule discrepancy:
 # The next experiment that tells the verdict's rival causes apart (stiffcal discriminate), one job per data set.
 
 
-def discriminate_params(wildcards):
-    """Exactly the config values rule discriminate uses: the data set's entry (name, data, robot, synthetic,
-    alpha, resolutions, discriminate settings), its force at the test pose (default study.force_N) and the
-    study's test pose."""
-    entry = MEASURED[wildcards.dataset]
-    return {**entry, "force_N": entry.get("force_N", config["study"]["force_N"]),
-            "test_pose_deg": config["study"]["test_pose_deg"]}
-
-
 rule discriminate:
     input:
         data=lambda wc: MEASURED[wc.dataset]["data"],
