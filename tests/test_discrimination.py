@@ -341,6 +341,15 @@ def test_fitted_link_coupling_and_offset_models_are_the_simulators_physics():
                            rtol=1e-9, atol=1e-9 * np.abs(D.model_columns(robot, q, F, causes) @ beta).max())
 
 
+def test_angles_a_round_off_below_zero_group_with_zero():
+    """A simulated plan's angle of -1e-17 rad wraps (mod 360 deg) to the edge of the periodic box of the grouping;
+    it must be one configuration with the angle 0 (stiffcal.measurements.cluster)."""
+    q = np.array([[-1e-17, 0.5], [0.0, 0.5], [1.0, 0.5]])
+    F = np.array([[0.0, -300.0]] * 3)
+    m = Measurements.from_arrays(q, F, np.zeros((3, 2)))
+    assert m.group[0] == m.group[1] != m.group[2]
+
+
 # --- loads and bad input -----------------------------------------------------------------------------------------
 
 def test_load_sets():
