@@ -362,8 +362,9 @@ def fig_discrimination(robot, plan: dict, title: str):
         ax.set_ylabel("y [m]")
         label = {"compound": f"compound plan (κ = {plan['compound']['weight'] if plan.get('compound') else ''})",
                  "plan": "discriminating plan", "ot_plan": "O_t-optimal plan"}[which]
-        ax.set_title(f"{label}, M = {plan['experiments']}" if session else "no plan: the rivals cannot be separated",
-                     fontsize=9)
+        none = ("no rival: nothing to discriminate" if len(plan["models"]) == 1 else
+                "no plan of these measurements separates the rivals")
+        ax.set_title(f"{label}, M = {plan['experiments']}" if session else none, fontsize=9)
         ax2 = fig.add_subplot(1, 2, 2)
         curve = plan.get("power_against_m") or []
         if curve:
@@ -374,8 +375,7 @@ def fig_discrimination(robot, plan: dict, title: str):
             ax2.axhline(0.9, color="0.6", ls=":", lw=1)
             ax2.legend(fontsize=7, loc="lower right")
         else:
-            ax2.text(0.5, 0.5, "no plan of these measurements\nseparates the rivals", ha="center", va="center",
-                     transform=ax2.transAxes)
+            ax2.text(0.5, 0.5, none.replace(": ", ":\n"), ha="center", va="center", transform=ax2.transAxes)
         ax2.set_ylim(0, 1.02)
         ax2.set_xlabel("number of measurements M")
         ax2.set_ylabel("predicted power of the separating F-test")
