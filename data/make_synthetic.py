@@ -10,7 +10,12 @@ unloaded reference row (zero force, zero displacement) logged before every loade
 the configurations; laser-tracker noise of 10 micrometres per coordinate, and one gross blunder (+1 mm in x
 on the loaded row that is data row 17 of the file). The analysis should name backlash and list row 17.
 
-Run: .venv/bin/python data/make_synthetic.py   (deterministic: seed 20261130)
+Also data/synthetic_paper_2r_hanging.csv: the same arm with a hidden backlash of 1e-4 rad in each joint,
+measured the way a lab with hanging weights only would: one mass of 300 N (force -y) at 12 configurations,
+twice, 10 micrometres of noise. With one load per configuration the data cannot tell the backlash from a
+nonlinear joint stiffness (the verdict lists both): the example of `stiffcal discriminate`.
+
+Run: .venv/bin/python data/make_synthetic.py   (deterministic: seeds 20261130 and 20261132)
 """
 
 from pathlib import Path
@@ -26,6 +31,20 @@ PROTOCOL = Protocol("4 pushes of 300 N, twice, unloaded rows", loads="directions
                     repeats=2, unloaded_rows=True, sigma_m=1e-5)
 
 
+HANGING_SEED = 20261132
+HANGING = Protocol("one hanging mass of 300 N, twice", loads="hanging", magnitudes_N=(300.0,), repeats=2, sigma_m=1e-5)
+
+
+def hanging() -> None:
+    """data/synthetic_paper_2r_hanging.csv (module docstring)."""
+    robot = load_robot(ROOT / "config/robots/paper_2r.yaml")
+    rng = np.random.default_rng(HANGING_SEED)
+    log = lab_log(robot, HANGING, rng, n_configs=12)
+    truth = Truth(k=np.array([1.5e-6, 3.0e-6]), gap=np.array([1e-4, 1e-4]))
+    dp = measure(robot, truth, log, rng)
+    (ROOT / "data/synthetic_paper_2r_hanging.csv").write_text(lab_csv(robot, log, dp), encoding="utf-8")
+
+
 def main() -> None:
     robot = load_robot(ROOT / "config/robots/paper_2r.yaml")
     rng = np.random.default_rng(SEED)
@@ -34,6 +53,7 @@ def main() -> None:
     truth = Truth(k=np.array([1.5e-6, 3.0e-6]), gap=np.array([5e-5, 5e-5]))
     dp = measure(robot, truth, log, rng, blunders={17: np.array([1e-3, 0.0])})
     (ROOT / "data/synthetic_paper_2r.csv").write_text(lab_csv(robot, log, dp), encoding="utf-8")
+    hanging()
 
 
 if __name__ == "__main__":

@@ -10,6 +10,7 @@ The public API (:mod:`stiffcal.api`; angles in degrees at this edge)::
     robot = stiffcal.load_robot("config/robots/paper_2r.yaml")
     res = stiffcal.design(robot, test_pose_deg=[60, 30], force_N=[0, -1], experiments=3)
     verdict = stiffcal.analyse_measurements(robot, "data/synthetic_paper_2r.csv")
+    plan = stiffcal.plan_discrimination(robot, "data/synthetic_paper_2r.csv", experiments=6)
 
 Names are imported on first use, so ``import stiffcal`` (and every workflow job) loads only what it needs.
 """
@@ -17,7 +18,7 @@ Names are imported on first use, so ``import stiffcal`` (and every workflow job)
 __version__ = "0.1.0"
 
 _LAZY = {"load_robot": "robot", "Robot": "robot", "design": "api", "DesignResult": "api",
-         "analyse_measurements": "api", "InputError": "errors"}
+         "analyse_measurements": "api", "plan_discrimination": "api", "InputError": "errors"}
 __all__ = ["__version__", *_LAZY]
 
 

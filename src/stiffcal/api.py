@@ -285,31 +285,95 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     """
     from . import discrepancy
     from . import measurements as M
-    from .study import check_test_inputs
 
     robot = _robot(robot)
     alpha = positive_number(alpha, "alpha", 1e-12, 1 - 1e-12)
-    res = (M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None
-           else positive_number(angle_resolution_deg, "angle_resolution_deg", 1e-12, 360.0),
-           M.FORCE_RESOLUTION_N if force_resolution_N is None
-           else positive_number(force_resolution_N, "force_resolution_N", 1e-12, 1e9))
-    if (test_pose_deg is None) != (force_N is None):
-        raise InputError("expected both the test pose and its force, or neither", field="test_pose_deg")
-    qt = ft = None
-    if test_pose_deg is not None:
-        ft = float_list(force_N, "force_N")
-        qt = np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG),
-                                          ft, "test_pose_deg", "force_N"))
+    res = _resolutions(angle_resolution_deg, force_resolution_N)
+    qt, ft = _test_pose(robot, test_pose_deg, force_N)
     if out is None:
         return discrepancy.analyse(robot, M.read_measurements(data, robot, *res), alpha, qt, ft)
+    return _written_whole(out, lambda tmp: discrepancy.run(robot, str(data), tmp, alpha, qt, ft, label, *res))
+
+
+def _resolutions(angle_resolution_deg, force_resolution_N) -> tuple[float, float]:
+    """The encoder and load-cell resolutions [deg, N] (docs/measured-data.md), defaults filled in, checked."""
+    from . import measurements as M
+
+    return (M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None
+            else positive_number(angle_resolution_deg, "angle_resolution_deg", 1e-12, 360.0),
+            M.FORCE_RESOLUTION_N if force_resolution_N is None
+            else positive_number(force_resolution_N, "force_resolution_N", 1e-12, 1e9))
+
+
+def _test_pose(robot: Robot, test_pose_deg, force_N):
+    """(test pose (n,) [rad], its force (d,) [N]) from degrees and newtons, both or neither, checked."""
+    from .study import check_test_inputs
+
+    if (test_pose_deg is None) != (force_N is None):
+        raise InputError("expected both the test pose and its force, or neither", field="test_pose_deg")
+    if test_pose_deg is None:
+        return None, None
+    ft = float_list(force_N, "force_N")
+    return np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG),
+                                        ft, "test_pose_deg", "force_N")), ft
+
+
+def _written_whole(out, write) -> dict:
+    """Run ``write(directory)`` into a temporary directory beside ``out`` and move its files into ``out`` only
+    when it succeeded (no partial output); returns what ``write`` returns."""
     out = check_out_dir(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
-        verdict = discrepancy.run(robot, str(data), str(tmp), alpha, qt, ft, label, *res)
+        result = write(str(tmp))
         out.mkdir(exist_ok=True)
         for f in sorted(tmp.iterdir()):
             f.replace(out / f.name)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return verdict
+    return result
+
+
+def plan_discrimination(robot, data, experiments, *, loads: str | None = None, repeats=1, weight=0.5,
+                        truth: str = "best", alpha=0.01, test_pose_deg=None, force_N=None, out=None,
+                        angle_resolution_deg=None, force_resolution_N=None, seed=0) -> dict:
+    """The next experiment that tells a verdict's rival causes apart (``stiffcal discriminate``; issue 18,
+    :mod:`stiffcal.discrimination`): the M-point plan (poses within the joint limits, loads from ``loads``)
+    that maximises the T-criterion of the rivals (Atkinson & Fedorov 1975), its predicted power, its
+    efficiency against the equivalence-theorem bound, and a compound plan with the extended model's O_t.
+
+    robot: a Robot or a robot file; data: the measured-data CSV; experiments: M (whole number >= 1); loads: a
+    load set ('hanging:M1,M2' [N], 'directions:K:M1,M2', 'forces:FX,FY;...'; default the data's loads);
+    repeats: times each point is measured; weight: kappa of the discrimination in the compound plan, in [0, 1];
+    truth: 'best' (the best-fitting model as the truth) or 'each'; alpha: family-wise rate; test_pose_deg (n,)
+    [deg] and force_N (d,) [N]: for the compound plan's O_t; out: a directory for plan.json and plan.png/svg
+    (None: nothing written; files moved in only on success); resolutions as :func:`analyse_measurements`.
+    Returns the plan.json dict (docs/measured-data.md). Raises :class:`InputError` for bad arguments or data.
+    """
+    import json
+
+    from . import discrimination
+    from . import measurements as M
+
+    robot = _robot(robot)
+    experiments = whole_number(experiments, "experiments", 1, 10_000)
+    repeats = whole_number(repeats, "repeats", 1, 1000)
+    seed = whole_number(seed, "seed", 0, 2**32 - 1)
+    weight = positive_number(weight, "weight", 0.0, 1.0)
+    alpha = positive_number(alpha, "alpha", 1e-12, 1 - 1e-12)
+    if truth not in ("best", "each"):
+        raise InputError(f"expected 'best' or 'each', got {truth!r}", field="truth")
+    res = _resolutions(angle_resolution_deg, force_resolution_N)
+    qt, ft = _test_pose(robot, test_pose_deg, force_N)
+
+    def write(directory):
+        return discrimination.run(robot, str(data), directory, experiments, loads, repeats, weight, truth, alpha,
+                                  qt, ft, *res, seed)
+
+    if out is not None:
+        return _written_whole(out, write)
+    meas = M.read_measurements(data, robot, *res)
+    ls = discrimination.load_set(loads, robot.task_dim, meas.force, meas.resolutions[1])
+    result = discrimination.discriminate(robot, meas, experiments, ls, repeats=repeats, weight=weight, truth=truth,
+                                         test_pose=qt, test_force=ft, alpha=alpha, seed=seed)
+    return json.loads(json.dumps(discrimination.to_json(result, str(data)), allow_nan=False))

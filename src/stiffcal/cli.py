@@ -72,6 +72,30 @@ def discrepancy(args) -> dict:
         "verdict": f"{args.out}/verdict.json"}
 
 
+def discriminate(args) -> dict:
+    """``stiffcal discriminate``: the next experiment that tells rival causes apart (writes DIR/plan.json)."""
+    from .api import check_out_dir, plan_discrimination
+
+    check_out_dir(args.out)  # before any work
+    out = plan_discrimination(args.robot, args.data, args.experiments, loads=args.loads, repeats=args.repeats,
+                              weight=args.weight, truth=args.truth, alpha=args.alpha,
+                              test_pose_deg=args.test_pose_deg, force_N=args.force_N, out=args.out,
+                              angle_resolution_deg=args.angle_resolution_deg,
+                              force_resolution_N=args.force_resolution_N, seed=args.seed)
+    for note in out["notes"]:
+        print(f"stiffcal discriminate: note: {note}", file=sys.stderr)
+    plan, comp = out["plan"] or {}, out["compound"] or {}
+    cert = plan.get("certificate") or {}
+    return {"truth": out["models"][0]["causes"], "rivals": [m["causes"] for m in out["models"][1:]],
+            "separable": out["separable"],
+            "needs": sorted({n for s in out["separability"] if not s["separable"] for n in s["needs"]}),
+            "poses_deg": plan.get("poses_deg"), "forces_N": plan.get("forces_N"), "power": plan.get("power"),
+            "efficiency": cert.get("efficiency"), "power_bound": cert.get("power_bound"),
+            "compound": None if not comp else {k: comp[k] for k in ("weight", "poses_deg", "forces_N", "power",
+                                                                     "O_t_rms_m", "t_efficiency", "ot_efficiency")},
+            "plan": f"{args.out}/plan.json"}
+
+
 def verify_archive(args) -> dict:
     """``stiffcal verify-archive FILE``: every file of the archive against its SHA256SUMS."""
     from .archive import verify_archive as verify
@@ -117,6 +141,25 @@ def build_parser() -> argparse.ArgumentParser:
                    help="forces within this (per component) are one load; below it a row is unloaded (load-cell "
                         "resolution; default 0.5)")
     x.set_defaults(func=discrepancy)
+    t = sub.add_parser("discriminate", help="the next experiment that tells rival causes apart (writes DIR/plan.json)")
+    t.add_argument("--robot", required=True, help="robot YAML file")
+    t.add_argument("--data", required=True, help="measured-data CSV (docs/measured-data.md)")
+    t.add_argument("--experiments", type=int, required=True, help="number of measurements M in the plan")
+    t.add_argument("--out", required=True, help="output directory (plan.json, plan.png/svg)")
+    t.add_argument("--loads", help="loads the lab can apply: 'hanging:M1,M2' [N], 'directions:K:M1,M2' or "
+                                   "'forces:FX,FY;...' (default: the loads of the data)")
+    t.add_argument("--repeats", type=int, default=1, help="times each point of the plan is measured (default 1)")
+    t.add_argument("--weight", default=0.5,
+                   help="weight kappa of the discrimination in the compound plan, in [0, 1] (default 0.5)")
+    t.add_argument("--truth", choices=("best", "each"), default="best",
+                   help="design for the best-fitting model as the truth (T-optimality, default) or each in turn")
+    t.add_argument("--alpha", default=0.01, help="family-wise false-alarm rate (default 0.01)")
+    t.add_argument("--test-pose-deg", help="test pose for the compound plan's O_t (optional)")
+    t.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")
+    t.add_argument("--angle-resolution-deg", default=None, help="encoder resolution (default 0.01)")
+    t.add_argument("--force-resolution-N", default=None, help="load-cell resolution (default 0.5)")
+    t.add_argument("--seed", type=int, default=0, help="seed of the random starts of the exchange (default 0)")
+    t.set_defaults(func=discriminate)
     v = sub.add_parser("verify-archive",
                        help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
     v.add_argument("file", help="results/archive/stiffcal-<commit>.tar.gz")

@@ -114,8 +114,9 @@ def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray) ->
         return np.stack([J[:, :, i] * tau[:, j, None] + J[:, :, j] * tau[:, i, None] for i, j in pairs], axis=-1)
     if cause == "nonlinear_joint_stiffness":
         return J * (tau**3)[:, None, :]
-    if cause == "backlash":
-        return J * np.sign(tau)[:, None, :]
+    if cause == "backlash":  # a torque within round-off of zero (the arm along the force) has no sign
+        tol = 1e-12 * robot.reach_m * np.linalg.norm(force, axis=-1, keepdims=True)
+        return J * (np.sign(tau) * (np.abs(tau) > tol))[:, None, :]
     if cause == "measurement_offset":
         return np.broadcast_to(np.eye(d), (len(q), d, d)).copy()
     raise ValueError(f"unknown cause {cause!r}")

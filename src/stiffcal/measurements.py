@@ -67,6 +67,7 @@ def cluster(values: np.ndarray, resolution: np.ndarray, period: np.ndarray | Non
         periodic = np.isfinite(box)
         # the tree wants every coordinate in [0, box): wrap the periodic ones, shift the others
         scaled = np.where(periodic, np.mod(scaled, np.where(periodic, box, 1.0)), scaled - scaled.min(axis=0))
+        scaled = np.where(periodic & (scaled >= box), 0.0, scaled)  # mod(-1e-17, box) rounds to box itself
     pairs = cKDTree(scaled, boxsize=box).query_pairs(1.0 + 1e-9, p=np.inf, output_type="ndarray")
     graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
     _, raw = connected_components(graph, directed=False)

@@ -288,6 +288,36 @@ def discrepancy(p: dict, out_verdict: str) -> None:
         _log(f"{p['name']}: note: {note}")
 
 
+#: settings of the next experiment of a measured data set (config ``measured_data[].discriminate``)
+DISCRIMINATE_DEFAULTS = {"experiments": 6, "loads": None, "repeats": 1, "weight": 0.5, "truth": "best", "seed": 0}
+
+
+def discriminate(p: dict, out_plan: str) -> None:
+    """One measured data set: plan.json and plan.png/svg beside it (stiffcal discriminate). p = the data set's
+    entry (name, data, robot, synthetic, alpha, resolutions, ``discriminate`` settings), its force_N and the
+    study's test_pose_deg (used when the robot has that many joints)."""
+    import numpy as np
+
+    from .discrimination import run
+    from .robot import load_robot
+
+    robot = load_robot(p["robot"])
+    s = {**DISCRIMINATE_DEFAULTS, **p.get("discriminate", {})}
+    qt_deg = np.asarray(p["test_pose_deg"], float)
+    qt = np.radians(qt_deg) if robot.n_joints == qt_deg.size else None
+    force = np.asarray(p["force_N"], float) if qt is not None else None
+    label = f"{p['name']} ({'SYNTHETIC data' if p.get('synthetic') else p['data']})"
+    out = run(robot, p["data"], str(Path(out_plan).parent), int(s["experiments"]), s["loads"], int(s["repeats"]),
+              float(s["weight"]), s["truth"], float(p.get("alpha", 0.01)), qt, force, p.get("angle_resolution_deg"),
+              p.get("force_resolution_N"), int(s["seed"]), label)
+    plan = out["plan"] or {}
+    _log(f"{p['name']}: truth {out['models'][0]['causes']}, rivals {[m['causes'] for m in out['models'][1:]]}, "
+         f"separable {out['separable']}, power {plan.get('power')}, efficiency "
+         f"{(plan.get('certificate') or {}).get('efficiency')}")
+    for note in out["notes"]:
+        _log(f"{p['name']}: note: {note}")
+
+
 #: the rules behind each table and figure of the report (its provenance lines)
 REPORT_RULES = {
     "table2": "table2", "table3": "table3", "table4": "plans_table (m = 2)", "table5": "plans_table (m = 3)",
@@ -295,7 +325,7 @@ REPORT_RULES = {
     "validation": "validation", "fig3": "paper_figures", "fig4": "paper_figures", "fig5": "chi_map + paper_figures",
     "fig_design": "approximate_design + paper_figures", "fig_ot_versus_m": "ot_versus_m + paper_figures",
     "map_statistics": "map_tile + map_merge + map_statistics", "fig6": "map_tile + map_merge + map_figures",
-    "fig_map": "map_tile + map_merge + map_figures", "discrepancy": "discrepancy",
+    "fig_map": "map_tile + map_merge + map_figures", "discrepancy": "discrepancy", "discriminate": "discriminate",
     "study_design": "study_design", "study_plans": "study_design + study_plan + study_summary",
     "fig_study_plan": "study_plan + study_summary", "fig_study_versus_m": "study_plan + study_summary"}
 REPORT_TABLES = ("table2", "table3", "table4", "table5", "design", "certificate", "ot_versus_m", "comparison",
@@ -313,7 +343,7 @@ def report_inputs(named: dict[str, str]) -> tuple[dict, dict, dict, dict]:
 
     tables = {k: named[k] for k in REPORT_TABLES if k in named}
     figures = {k: named[k] for k in REPORT_FIGURES if k in named}
-    figures |= {k: v for k, v in named.items() if k.startswith("residuals__")}
+    figures |= {k: v for k, v in named.items() if k.startswith(("residuals__", "planfig__"))}
     parts = {part: prefixed(part) for part in STUDY_PARTS}
     studies = {name: {part: parts[part][name] for part in STUDY_PARTS} for name in parts["studyplans"]}
     return tables, figures, prefixed("verdict"), studies
@@ -322,14 +352,17 @@ def report_inputs(named: dict[str, str]) -> tuple[dict, dict, dict, dict]:
 def report_html_from_inputs(config: dict, named: dict[str, str], out_html: str) -> None:
     """The report rule: :func:`report_html` from the rule's named inputs (see :func:`report_inputs`)."""
     tables, figures, verdicts, studies = report_inputs(named)
+    plans = {k.split("__", 1)[1]: v for k, v in named.items() if k.startswith("plan__")}
     report_html(config, tables, figures, named["printed"], REPORT_RULES, str(Path(named["template"]).parent),
-                out_html, verdicts, studies)
+                out_html, verdicts, studies, plans)
 
 
 def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: str, rules: dict,
-                template_dir: str, out_html: str, verdicts: dict | None = None, studies: dict | None = None) -> None:
-    """Render the HTML report from the generated tables, figures, discrepancy verdicts and design studies
-    (name -> paths of 'studycert', 'studyplans', 'studyfigplan', 'studyfigm')."""
+                template_dir: str, out_html: str, verdicts: dict | None = None, studies: dict | None = None,
+                plans: dict | None = None) -> None:
+    """Render the HTML report from the generated tables, figures, discrepancy verdicts, design studies
+    (name -> paths of 'studycert', 'studyplans', 'studyfigplan', 'studyfigm') and next experiments (data set
+    name -> plan.json)."""
     import json
 
     from . import report
@@ -339,6 +372,7 @@ def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: s
     ctx = report.build_context(config, tables_in, figures_in, printed_yaml, prov)
     ctx["verdicts"] = {k: json.loads(Path(v).read_text(encoding="utf-8")) for k, v in (verdicts or {}).items()}
     ctx["measured"] = {m["name"]: m for m in config.get("measured_data", [])}
+    ctx["plans"] = {k: json.loads(Path(v).read_text(encoding="utf-8")) for k, v in (plans or {}).items()}
     loaded = design_studies(config, ".", "config/config.yaml") if studies else {}
     ctx["studies"] = {name: report.study_context(*loaded[name], paths) for name, paths in (studies or {}).items()}
     html = report.render_html(ctx, template_dir)

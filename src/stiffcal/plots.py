@@ -317,3 +317,74 @@ def fig_study_versus_m(df: pd.DataFrame, sigma: float):
         ax2.grid(alpha=0.3)
         fig.tight_layout()
         return fig
+
+
+def fig_discrimination(robot, plan: dict, title: str):
+    """The next experiment (``stiffcal discriminate``, plan.json as ``plan``): the plan to measure (the compound
+    plan when there is one, else the discriminating plan) drawn with its loads (left; in the plane for a planar
+    arm, in 3-D for a spatial one), and the predicted power of the best discriminating plan against the number
+    of points M, with the certified bound at the chosen M (right)."""
+    which = "compound" if plan.get("compound") else ("plan" if plan.get("plan") else "ot_plan")
+    session = plan.get(which)
+    reach = robot.reach_m
+    with plt.rc_context(STYLE):
+        fig = plt.figure(figsize=(8.4, 3.8))
+        planar = robot.task_dim == 2
+        ax = fig.add_subplot(1, 2, 1) if planar else fig.add_subplot(1, 2, 1, projection="3d")
+        if session:
+            fmax = max(np.linalg.norm(session["forces_N"], axis=1).max(), 1e-300)
+            points: dict = {}  # a point measured several times is drawn once, labelled with every number
+            for i, (pose, f) in enumerate(zip(session["poses_deg"], session["forces_N"])):
+                points.setdefault((tuple(np.round(pose, 3)), tuple(np.round(f, 3))), []).append(i + 1)
+            for k, ((pose, f), numbers) in enumerate(points.items()):
+                pts = as_xyz(robot.link_points(np.radians(pose)))
+                arrow = as_xyz(np.asarray(f)) / fmax * 0.25 * reach
+                c = f"C{k % 10}"
+                text = " " + ",".join(map(str, numbers))
+                if planar:
+                    ax.plot(pts[:, 0], pts[:, 1], "o-", color=c, lw=1.4, ms=3, alpha=0.85)
+                    ax.annotate("", xy=pts[-1, :2] + arrow[:2], xytext=pts[-1, :2],
+                                arrowprops=dict(arrowstyle="-|>", color=c, lw=1.0))
+                    ax.text(*pts[-1, :2], text, fontsize=7, color=c)
+                else:
+                    ax.plot(*pts.T, "o-", color=c, lw=1.2, ms=2, alpha=0.85)
+                    ax.quiver(*pts[-1], *arrow, color=c, lw=1)
+                    ax.text(*pts[-1], text, fontsize=7, color=c)
+        if planar:
+            ax.plot(0, 0, "ks", ms=7)
+            ax.add_patch(plt.Circle((0, 0), reach, fill=False, ls=":", color="0.6"))
+            ax.set_xlim(-1.3 * reach, 1.3 * reach)
+            ax.set_ylim(-1.3 * reach, 1.3 * reach)
+            ax.set_aspect("equal")
+            ax.grid(alpha=0.3)
+        else:
+            for set_lim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
+                set_lim(-reach, reach)
+            ax.set_box_aspect((1, 1, 1))
+            ax.set_zlabel("z [m]")
+            ax.view_init(elev=22, azim=-60)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        label = {"compound": f"compound plan (κ = {plan['compound']['weight'] if plan.get('compound') else ''})",
+                 "plan": "discriminating plan", "ot_plan": "O_t-optimal plan"}[which]
+        none = ("no rival: nothing to discriminate" if len(plan["models"]) == 1 else
+                "no plan of these measurements separates the rivals")
+        ax.set_title(f"{label}, M = {plan['experiments']}" if session else none, fontsize=9)
+        ax2 = fig.add_subplot(1, 2, 2)
+        curve = plan.get("power_against_m") or []
+        if curve:
+            ax2.plot([c["m"] for c in curve], [c["power"] for c in curve], "o-", label="best discriminating plan")
+            cert = (plan.get("plan") or {}).get("certificate")
+            if cert:
+                ax2.plot([plan["experiments"]], [cert["power_bound"]], "k^", label="certified bound at M")
+            ax2.axhline(0.9, color="0.6", ls=":", lw=1)
+            ax2.legend(fontsize=7, loc="lower right")
+        else:
+            ax2.text(0.5, 0.5, none.replace(": ", ":\n"), ha="center", va="center", transform=ax2.transAxes)
+        ax2.set_ylim(0, 1.02)
+        ax2.set_xlabel("number of measurements M")
+        ax2.set_ylabel("predicted power of the separating F-test")
+        ax2.grid(alpha=0.3)
+        fig.suptitle(title, fontsize=9)
+        fig.tight_layout()
+        return fig

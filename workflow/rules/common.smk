@@ -76,12 +76,20 @@ MEASURED = {m["name"]: {"synthetic": False, "alpha": 0.01, "force_N": STUDY["for
 
 
 def discrepancy_report_inputs(wildcards):
-    """verdict.json and the residual figure of every measured data set."""
+    """verdict.json, the residual figure, plan.json and the plan figure of every measured data set."""
     out = {}
     for name in MEASURED:
         out[f"verdict__{name}"] = f"results/discrepancy/{name}/verdict.json"
         out[f"residuals__{name}"] = f"results/discrepancy/{name}/residuals.svg"
+        out[f"plan__{name}"] = f"results/discrepancy/{name}/plan.json"
+        out[f"planfig__{name}"] = f"results/discrepancy/{name}/plan.svg"
     return out
+
+
+def discriminate_params(wildcards):
+    """Exactly the config values rule discriminate uses: the data set's entry (name, data, robot, synthetic,
+    alpha, force_N, resolutions, discriminate settings) and the study's test pose."""
+    return {**MEASURED[wildcards.dataset], "test_pose_deg": STUDY["test_pose_deg"]}
 
 
 STUDY_DIR = "results/studies"
@@ -122,7 +130,8 @@ def all_outputs(wildcards):
     out += ["results/maps/fig5_chi.csv", "results/design/approximate_design.json", "results/maps/design_phi.csv"]
     out += [f"{MAPS}/{name}/map.csv" for name in MAP_STUDIES]
     for name in MEASURED:
-        out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg")]
+        out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg",
+                                                             "plan.json", "plan.png", "plan.svg")]
     for name, entry in STUDIES.items():
         out += [f"{STUDY_DIR}/{name}/{f}" for f in ("approximate_design.json", "approximate_design.csv")]
         out += [f"{STUDY_DIR}/{name}/plans/m{m}.csv" for m in entry["m_values"]]

@@ -19,3 +19,26 @@ rule discrepancy:
         ENV
     script:
         "../scripts/discrepancy.py"
+
+
+# The next experiment that tells the verdict's rival causes apart (stiffcal discriminate), one job per data set.
+
+
+rule discriminate:
+    input:
+        data=lambda wc: MEASURED[wc.dataset]["data"],
+        robot=lambda wc: MEASURED[wc.dataset]["robot"],
+        urdf=lambda wc: robot_inputs(MEASURED[wc.dataset]["robot"]),
+    output:
+        plan="results/discrepancy/{dataset}/plan.json",
+        png="results/discrepancy/{dataset}/plan.png",
+        svg="results/discrepancy/{dataset}/plan.svg",
+    params:
+        entry=discriminate_params,
+        code=code_version("discriminate"),
+    log:
+        f"{LOGS}/discriminate/{{dataset}}.log",
+    conda:
+        ENV
+    script:
+        "../scripts/discriminate.py"
