@@ -218,6 +218,35 @@ class Robot:
         tool = None if self.tool_m is None else self.tool_m * factor
         return replace(self, links_m=self.links_m * factor, dh=dh, tool_m=tool)
 
+    def joint_frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The joint axes in the base frame: (..., n) [rad] -> ``(origins (..., n, 3) [m], axes (..., n, 3))``,
+        a point on each joint's axis and its unit direction (planar arms: z = 0 and every axis e_z).
+
+        With :meth:`tool_frame` this gives the geometric Jacobian of any point t of the tip frame: linear
+        rows ``axes x (p + R t - origins)``, angular rows ``axes`` (Siciliano et al., *Robotics*, eq. 3.30)."""
+        q = np.asarray(q, float)
+        if self.kind == "planar":
+            pts = as_xyz(planar_link_points(self.links_m, q)[..., :-1, :])
+            return pts, np.broadcast_to(np.array([0.0, 0.0, 1.0]), pts.shape)
+        F = dh_frames(self.dh, q, self.convention)
+        F = F[..., :-1, :, :] if self.convention == "standard" else F[..., 1:, :, :]
+        return F[..., :3, 3], F[..., :3, 2]
+
+    def tool_frame(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tip frame in the base frame: (..., n) [rad] -> ``(R (..., 3, 3), p (..., 3) [m])``, its rotation
+        and origin. A point t given in the tip frame is at ``p + R t``; the tool point is t = ``tool_m``
+        (planar arms: the tip frame sits at the end of the last link with x along it, the tool point at
+        its origin; spatial DH arms: frame n)."""
+        q = np.asarray(q, float)
+        if self.kind == "planar":
+            c = np.sum(q, axis=-1)
+            ct, st, zero, one = np.cos(c), np.sin(c), np.zeros_like(c), np.ones_like(c)
+            R = np.stack([np.stack([ct, -st, zero], -1), np.stack([st, ct, zero], -1),
+                          np.stack([zero, zero, one], -1)], -2)
+            return R, as_xyz(planar_fk(self.links_m, q))
+        T = dh_frames(self.dh, q, self.convention)[..., -1, :, :]
+        return T[..., :3, :3], T[..., :3, 3]
+
 
 def planar_robot(links_m, name: str = "planar", joint_limits_deg=None) -> Robot:
     """Build a planar robot in memory (links in metres, optional (n, 2) limits in degrees)."""
