@@ -44,20 +44,21 @@ from scipy.optimize import minimize
 from .design import (Problem, angle_diff, global_minimise, is_sampled, joint_grids, sample_joint_space, sampled_minimise,
                      wrap_deg, _is_full_turn)
 from .robot import Robot
-from .stiffness import observation_matrix, pose_information
+from .stiffness import pose_information
 
 
 #: candidate pool of a sampled joint space (4+ joints): 2**POOL_LOG2 scrambled-Sobol poses
 POOL_LOG2 = 13
 
 
-def has_planar_symmetry(robot: Robot) -> bool:
-    """Whether a pose's half-turn and mirror copies carry the same information (planar arm, no limits)."""
+def has_planar_symmetry(robot: Robot, problem: Problem | None = None) -> bool:
+    """Whether a pose's half-turn and mirror copies carry the same information (planar arm, no limits, and
+    for ``problem`` no moment and no measured target beside the last link's line: :attr:`Problem.symmetric`)."""
     return robot.kind == "planar" and robot.n_joints >= 2 and all(
-        _is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad)
+        _is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad) and (problem is None or problem.symmetric)
 
 
-def candidate_pool(robot: Robot, step_deg: float) -> np.ndarray:
+def candidate_pool(robot: Robot, step_deg: float, problem: Problem | None = None) -> np.ndarray:
     """Candidate poses [rad], (N, n): a grid over the joint space, restricted to one symmetry cell
     (q1 in [-90, 90), first nonzero of q2..qn >= 0) when the arm is planar and every joint turns fully
     (both the half-turn and the mirror copy of a pose carry the same information). For 4+ joints
@@ -66,7 +67,7 @@ def candidate_pool(robot: Robot, step_deg: float) -> np.ndarray:
         return sample_joint_space(robot, POOL_LOG2, seed=0)
     grids = joint_grids(robot, step_deg)
     q = np.stack(np.meshgrid(*grids, indexing="ij"), -1).reshape(-1, robot.n_joints)
-    if not has_planar_symmetry(robot):
+    if not has_planar_symmetry(robot, problem):
         return q
     eps = 1e-12
     rest = q[:, 1:]
@@ -93,7 +94,7 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
     if not np.any(null) and w[0] > 1e-12 * w[-1]:
         return
     v = V[:, 0]
-    joints = [int(problem.robot.params[j]) + 1 for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
+    joints = [int(problem.params[j]) + 1 for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
     what = (f"the compliance of joint {joints[0]}" if len(joints) == 1 else
             "a combination of the compliances of joints " + ", ".join(map(str, joints)))
     raise InputError(f"{what} cannot be identified with the force {problem.force.tolist()} N at any pose: the force "
@@ -134,7 +135,7 @@ class ApproximateDesign:
 
 def _info(problem: Problem, q: np.ndarray) -> np.ndarray:
     """Per-pose information A^T A for poses q (..., n) [rad] -> (..., n, n)."""
-    return pose_information(observation_matrix(problem.robot.model_jacobian(q), problem.force))
+    return pose_information(problem.rows(q))
 
 
 def multiplicative(P: np.ndarray, W: np.ndarray, iters: int = 3000, tol: float = 1e-7, w0: np.ndarray | None = None):
@@ -231,7 +232,7 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     s_step = search_step_deg or min(step, 2.0)
     At = problem.At
     W = At.T @ At
-    pool = candidate_pool(robot, step)
+    pool = candidate_pool(robot, step, problem)
     P = _info(problem, pool)
     check_identifiable(problem, P)
     if is_sampled(robot, step):
@@ -258,7 +259,7 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
 def _neg_phi(problem: Problem, C: np.ndarray):
     """q (..., n) [rad] -> -phi(q, xi) = -||A(q) M(xi)^-1 A_t^T||_F^2, with C = M(xi)^-1 A_t^T (n, d)."""
     def f(q):
-        return -np.sum((observation_matrix(problem.robot.model_jacobian(q), problem.force) @ C) ** 2, axis=(-2, -1))
+        return -np.sum((problem.rows(q) @ C) ** 2, axis=(-2, -1))
     return f
 
 

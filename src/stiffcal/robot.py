@@ -129,7 +129,8 @@ class Robot:
     came from, for messages); for spatial arms ``dh`` (n, 4) ``[a, alpha, d, offset]`` [m, rad],
     ``convention`` ('standard' or 'modified') and ``tool_m`` (3,) [m] the measured point in the last frame;
     ``inert_joints`` (joints that never move the measured point, :func:`inert_joints`); ``reference`` (the
-    file's ``source`` field: where the dimensions come from).
+    file's ``source`` field: where the dimensions come from); ``targets`` {name: (3,) [m]}: further measured
+    points (tracker targets) in the tip frame (:meth:`tool_frame`), beside the tool point ``"tool"``.
     """
 
     name: str
@@ -144,6 +145,7 @@ class Robot:
     tool_m: np.ndarray | None = None
     inert_joints: tuple[int, ...] = ()
     reference: str = ""
+    targets: dict = field(default_factory=dict)
 
     @property
     def n_joints(self) -> int:
@@ -247,6 +249,18 @@ class Robot:
         T = dh_frames(self.dh, q, self.convention)[..., -1, :, :]
         return T[..., :3, :3], T[..., :3, 3]
 
+    @property
+    def target_names(self) -> tuple[str, ...]:
+        """Names of the points whose position can be measured: ``"tool"`` (the tool point, where the load is
+        applied) first, then the file's ``targets`` in their order."""
+        return (TOOL_TARGET,) + tuple(self.targets)
+
+    def target_point(self, name: str) -> np.ndarray:
+        """(3,) [m]: the point ``name`` (:attr:`target_names`) in the tip frame of :meth:`tool_frame`."""
+        if name == TOOL_TARGET:
+            return np.zeros(3) if self.tool_m is None else np.asarray(self.tool_m, float)
+        return np.asarray(self.targets[name], float)
+
 
 def planar_robot(links_m, name: str = "planar", joint_limits_deg=None) -> Robot:
     """Build a planar robot in memory (links in metres, optional (n, 2) limits in degrees)."""
@@ -284,6 +298,27 @@ def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, 
     return tuple(int(j) for j in np.flatnonzero(col <= 1e-12 * max(robot.reach_m, 1e-300)))
 
 
+#: the name of the tool point among the measured targets (``tool_m``; the end of the last link of a planar arm)
+TOOL_TARGET = "tool"
+
+
+def with_targets(robot: Robot, targets, src: str) -> Robot:
+    """``robot`` with the robot file's ``targets`` {name: [x, y] (planar) or [x, y, z] [m] in the tip frame},
+    checked: one coordinate per tip-frame axis of the arm, and no target named ``"tool"`` (the tool point's
+    name). Planar targets are stored with z = 0."""
+    out = {}
+    d = 2 if robot.kind == "planar" else 3
+    for name, xyz in (targets or {}).items():
+        if name == TOOL_TARGET:
+            raise InputError(f"the name '{TOOL_TARGET}' is the tool point's; give this target another name",
+                             source=src, field=f"targets.{name}")
+        if len(xyz) != d:
+            raise InputError(f"expected {d} coordinates [m] in the tip frame for a {robot.kind} robot, got {len(xyz)}",
+                             source=src, field=f"targets.{name}")
+        out[str(name)] = as_xyz(np.asarray(xyz, float))
+    return replace(robot, targets=out)
+
+
 #: fields that only one kind of robot file may have
 KIND_FIELDS = {"planar": ("links_m",), "spatial": ("dh", "dh_convention", "tool_m")}
 
@@ -305,12 +340,12 @@ def load_robot(path: str | Path) -> Robot:
             raise InputError(f"'{key}' belongs to a {'planar' if key == 'links_m' else 'spatial'} robot, but this "
                              f"file says kind: {doc['kind']}; remove the field or change 'kind'", source=src, field=key)
     if doc["kind"] == "spatial":
-        return _load_spatial(doc, src)
+        return with_targets(_load_spatial(doc, src), doc.get("targets"), src)
     links = np.asarray(doc["links_m"], float)
     limits, comp = _per_joint(doc, links.size, src, "link")
-    return replace(planar_robot(links, doc["name"], limits),
-                   compliances=None if comp is None else np.asarray(comp, float),
-                   source=src, reference=doc.get("source", ""))
+    return with_targets(replace(planar_robot(links, doc["name"], limits),
+                                compliances=None if comp is None else np.asarray(comp, float),
+                                source=src, reference=doc.get("source", "")), doc.get("targets"), src)
 
 
 def _per_joint(doc: dict, n: int, src: str, what: str):
