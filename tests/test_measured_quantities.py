@@ -22,7 +22,7 @@ from stiffcal.robot import load_robot
 
 PAPER = "config/robots/paper_2r.yaml"
 KUKA = "config/robots/kuka_kr210_r2700.yaml"
-TARGETS = {"planar": {"A": [-0.1, 0.05], "B": [-0.2, -0.05]},
+TARGETS = {"planar": {"A": [-0.1, 0.05], "B": [-0.3, 0.1]},
            "spatial": {"A": [0.1, 0.1, 0.25], "B": [-0.1, 0.05, 0.3], "C": [0.05, -0.12, 0.2]}}
 
 
@@ -154,7 +154,9 @@ def test_a_bending_link_and_joint_coupling_of_a_2_link_arm_are_separated_with_tw
     advice = " ".join(v["separation"].values())
     assert "no choice of poses" in advice and "orientation (columns rz_rad)" in advice
     assert "the position of target A too" in advice
-    for variant in (dict(targets=("tool", "A")), dict(orientation=True, sigma_rad=1e-5)):
+    # power: B 0.32 m from the tool point separates them in 20 of 20 seeds, A 0.11 m away in 11 of 20
+    # (benchmarks/measured_quantities.py)
+    for variant in (dict(targets=("tool", "B")), dict(orientation=True, sigma_rad=1e-5)):
         for seed in range(3):
             meas = read_measurements(_lab_csv(robot, replace(base, **variant), tmp_path / "two.csv", truth, seed),
                                      robot)
