@@ -86,3 +86,33 @@ def test_in_memory_robot_matches_file(paper_robot):
     r = planar_robot([0.6, 0.4])
     q = np.radians([[10.0, 20.0], [-70.0, 130.0]])
     np.testing.assert_array_equal(r.jacobian(q), paper_robot.jacobian(q))
+
+
+def _rotation_vector(R):
+    """Small-angle rotation vector of a rotation matrix close to I: the axial vector of (R - R^T) / 2."""
+    return 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+
+
+@pytest.mark.parametrize("name", ["paper_2r", "kuka_kr210_r2700"])
+def test_joint_frames_and_tool_frame_give_the_6d_jacobian_of_any_tip_point(name, root, rng):
+    """The interface every robot kind provides: the linear rows axes x (p + R t - origins) and the angular rows
+    axes are the derivatives of the point's position and of the tip frame's orientation (finite differences of
+    tool_frame alone), for the tool point and for another point of the tip frame."""
+    robot = load_robot(root / f"config/robots/{name}.yaml")
+    n = robot.n_joints
+    q = rng.uniform(-np.pi, np.pi, (6, n))
+    origins, axes = robot.joint_frames(q)
+    R, p = robot.tool_frame(q)
+    assert origins.shape == axes.shape == (6, n, 3) and R.shape == (6, 3, 3) and p.shape == (6, 3)
+    np.testing.assert_allclose(np.linalg.norm(axes, axis=-1), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(R @ np.swapaxes(R, -1, -2), np.broadcast_to(np.eye(3), R.shape), atol=1e-12)
+    h = 1e-6
+    for t in (np.zeros(3) if robot.tool_m is None else robot.tool_m, np.array([0.07, -0.11, 0.05])):
+        lin = np.cross(axes, (p + R @ t)[:, None, :] - origins)  # (6, n, 3)
+        for j in range(n):
+            Rp, pp = robot.tool_frame(q + h * np.eye(n)[j])
+            Rm, pm = robot.tool_frame(q - h * np.eye(n)[j])
+            np.testing.assert_allclose(lin[:, j], ((pp + Rp @ t) - (pm + Rm @ t)) / (2 * h), atol=1e-8)
+            np.testing.assert_allclose(axes[:, j], _rotation_vector(Rp @ np.swapaxes(Rm, -1, -2)) / (2 * h), atol=1e-8)
+    tool = np.zeros(3) if robot.tool_m is None else robot.tool_m
+    np.testing.assert_allclose((p + R @ tool)[:, :robot.task_dim], robot.fk(q), atol=1e-14)

@@ -146,8 +146,8 @@ REPORT = {"report_html": 1, "report_pdf": 1}
 @pytest.mark.parametrize("what,edit,expected", [
     ("one design study's force", lambda c: c["studies"][1].update(force_N=[100, 50, -150]),
      {"study_design": 1, "study_plan": 2, "study_summary": 1, **REPORT}),
-    ("one map's ratio", lambda c: c["maps"]["studies"][1].update(link_ratio=0.25),
-     {"map_tile": 2, "map_merge": 1, "map_statistics": 1, "map_figures": 1, **REPORT}),
+    ("one map's ratio", lambda c: c["maps"]["studies"][1].update(link_ratio=0.25),  # the comparison reads the map
+     {"map_tile": 2, "map_merge": 1, "map_statistics": 1, "map_figures": 1, "paper_comparison": 1, **REPORT}),
     ("the test pose", lambda c: c["study"].update(test_pose_deg=[50, 40]),
      {"table2": 1, "table3": 1, "validation": 1, "chi_map": 1, "approximate_design": 1, "plans_table": 2,
       "ot_versus_m": 1, "paper_comparison": 1, "paper_figures": 1, "discrepancy": 1, **REPORT}),

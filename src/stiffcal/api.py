@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .robot import MAX_JOINT_ANGLE_DEG, Robot, load_robot
+from .robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
 
 __all__ = ["DesignResult", "design", "analyse_measurements", "load_robot", "float_list"]
 
@@ -100,10 +100,10 @@ class DesignResult:
     bound; when False the bound is labelled not converged in ``notes``); optimal_set_deg
     (k, n): every equally optimal single pose (M = 1); degenerate: the criterion does not prefer any pose;
     approximate_design: support_deg (k, n), weights (k,), equivalence_gap, converged; notes; sigma, seed,
-    test_pose_deg
-    (n,), force_N (d,): the inputs; joint_names (n,): the robot's joint names, in the order of every pose and of
-    cov_diag. Every pose lies within the joint limits, written in the limits' own range (-229.51, not 130.49,
-    for a range of -230 to 50 deg).
+    test_pose_deg (n,), force_N (d,), moment_Nm (d_m,) or None, targets, orientation, sigma_rad, test_target,
+    orientation_length_m: the inputs; joint_names (n,): the robot's joint names, in the order of every pose and
+    of cov_diag. Every pose lies within the joint limits, written in the limits' own range (-229.51, not
+    130.49, for a range of -230 to 50 deg).
     """
 
     criterion: str
@@ -127,6 +127,12 @@ class DesignResult:
     force_N: np.ndarray = field(repr=False)
     joint_names: tuple[str, ...] = ()
     lower_bound_converged: bool | None = None
+    moment_Nm: np.ndarray | None = None
+    targets: tuple[str, ...] = ("tool",)
+    orientation: bool = False
+    sigma_rad: float | None = None
+    test_target: str = "tool"
+    orientation_length_m: float = 0.0
 
     def to_dict(self) -> dict:
         """The JSON object of ``stiffcal design`` (inf as the string 'inf', poses rounded to 1e-6 deg)."""
@@ -147,6 +153,9 @@ class DesignResult:
                                    "equivalence_gap": d["equivalence_gap"], "converged": d["converged"]},
             "notes": list(self.notes), "sigma": self.sigma, "seed": self.seed,
             "test_pose_deg": self.test_pose_deg.tolist(), "force_N": self.force_N.tolist(),
+            "moment_Nm": None if self.moment_Nm is None else self.moment_Nm.tolist(),
+            "targets": list(self.targets), "orientation": self.orientation, "sigma_rad": self.sigma_rad,
+            "test_target": self.test_target, "orientation_length_m": self.orientation_length_m,
         }
 
 
@@ -176,18 +185,26 @@ def _stages(progress, total: int):
                 bar_format="{desc}: {n_fmt}/{total_fmt} stages {bar} {elapsed}")
 
 
-def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: str = "ot", sigma: float = 1.0,
-           joint_limits_deg=None, seed: int = 0, progress: bool | None = None) -> DesignResult:
+def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1, criterion: str = "ot",
+           sigma: float = 1.0, targets=None, orientation: bool = False, sigma_rad: float | None = None,
+           test_target: str = "tool", orientation_length_m: float = 0.0, joint_limits_deg=None, seed: int = 0,
+           progress: bool | None = None) -> DesignResult:
     """Optimal measurement poses for stiffness calibration at a test pose (the paper's method).
 
     robot: a :class:`~stiffcal.robot.Robot` or the path of a robot file (docs/contracts.md); test_pose_deg:
-    (n,) the test pose q* [deg], within the joint limits; force_N: (d,) the force [N] in every measurement and
-    at the test pose (d = 2 for a planar arm, 3 for a spatial one), nonzero; experiments: the number of
-    measurement poses M (at least ceil(n / d)); criterion: one of ``ot a t d g mdc o1 o2 o3 o4`` (Table 1;
-    'ot' is the paper's test-pose criterion, eq. 16); sigma: the measurement noise standard deviation;
-    joint_limits_deg: (n, 2) [deg] replaces the robot file's limits; seed: seed of the random starts of
-    M-pose plans (results are deterministic for a seed); progress: a progress bar on stderr (None: only on a
-    terminal).
+    (n,) the test pose q* [deg], within the joint limits; force_N: (d,) the force [N] at the tool point in every
+    measurement and at the test pose (d = 2 for a planar arm, 3 for a spatial one); or instead wrench: the
+    force followed by the moment [N m] about the tool point, ``(fx, fy, mz)`` for a planar arm, ``(fx, fy, fz,
+    mx, my, mz)`` for a spatial one (eqs. 2-4 on the 6-D Jacobian, :mod:`stiffcal.observation`); not zero;
+    experiments: the number of measurement poses M (enough equations for the compliances); criterion: one of
+    ``ot a t d g mdc o1 o2 o3 o4`` (Table 1; 'ot' is the paper's test-pose criterion, eq. 16); sigma: the
+    position noise standard deviation [m]; targets: the targets whose positions are measured at every pose
+    (names of the robot file's ``targets`` and ``"tool"``; default the tool point); orientation: the tool's
+    orientation is measured too, with the noise sigma_rad [rad] (weighted least squares); test_target: the
+    target whose error O_t measures; orientation_length_m: a length scale [m] > 0 adds the tool's rotation
+    to that error (``|dp|^2 + L^2 |dr|^2``); joint_limits_deg: (n, 2) [deg] replaces the robot file's limits;
+    seed: seed of the random starts of M-pose plans (results are deterministic for a seed); progress: a
+    progress bar on stderr (None: only on a terminal).
 
     M = 1 is an exhaustive global search over one pose; M > 1 a Fedorov exchange over a candidate pool
     started from the rounded optimal approximate design, polished in the continuum. For 'ot', the
@@ -196,9 +213,9 @@ def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: st
     """
     from . import criteria
     from .certificate import approximate_design
-    from .design import Problem, optimal_single_pose
+    from .design import optimal_single_pose
     from .plans import optimise_plan, round_design
-    from .study import Study, check_test_inputs
+    from .study import Study, check_sensing, check_test_inputs
     from .tables import plan_summary
 
     robot = _robot(robot)
@@ -206,21 +223,27 @@ def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: st
         robot = _with_limits(robot, joint_limits_deg)
     if criterion not in criteria.CRITERIA_KEYS:
         raise InputError(f"expected one of {', '.join(criteria.CRITERIA_KEYS)}, got {criterion!r}", field="criterion")
-    force = float_list(force_N, "force_N")
+    force, moment, field_ = load_arguments(robot, force_N, wrench)
     q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG), force,
-                            "test_pose_deg", "force_N")
+                            "test_pose_deg", field_, None, moment, field_)
     m = whole_number(experiments, "experiments", 1, 1000)
     sigma = positive_number(sigma, "sigma")
+    sigma_rad = None if sigma_rad is None else positive_number(sigma_rad, "sigma_rad")
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
-    if m < robot.min_poses:
-        raise InputError(f"expected at least {robot.min_poses} poses: {m} give {m * robot.task_dim} equations for "
-                         f"{robot.n_params} compliances", field="experiments")
-    study = Study(robot.name, robot, np.radians(q_t), force, sigma, (criterion,), 1.0, 1.0)
+    sensing, test_target, length = check_sensing(
+        robot, [TOOL_TARGET] if targets is None else _names(targets, "targets"), orientation, sigma, sigma_rad,
+        test_target, positive_number(orientation_length_m, "orientation_length_m", 0.0), "", None)
+    study = Study(robot.name, robot, np.radians(q_t), force, sigma, (criterion,), 1.0, 1.0, moment, sensing,
+                  test_target, length)
+    base = study.problem(criterion)
+    if m < base.min_poses:
+        raise InputError(f"expected at least {base.min_poses} poses: {m} give {m * base.rows_per_pose} equations "
+                         f"for {base.n_params} compliances", field="experiments")
     notes, optimal_set, degenerate, single = [], np.zeros((0, robot.n_joints)), False, None
     with _stages(progress, 2 if m == 1 else 3) as bar:
         bar.set_description("single pose")
         try:
-            res1 = optimal_single_pose(Problem(robot, force, criterion, 1, np.radians(q_t), None, sigma))
+            res1 = optimal_single_pose(base)
             single, notes, degenerate = res1.pose_deg, list(res1.notes), res1.degenerate
             optimal_set = res1.optimal_set_deg
         except InputError:
@@ -228,35 +251,69 @@ def design(robot, test_pose_deg, force_N, *, experiments: int = 1, criterion: st
                 raise
         bar.update()
         bar.set_description("approximate design and certificate")
-        approx = approximate_design(Problem(robot, force, "ot", 1, np.radians(q_t), None, sigma))
+        approx = approximate_design(study.problem("ot"))
         bar.update()
         if m == 1:
             poses = single[None, :]
         else:
             bar.set_description(f"plan of {m} poses")
-            prob = Problem(robot, force, criterion, m, np.radians(q_t), None, sigma)
+            prob = study.problem(criterion, m)
             starts = [round_design(approx, m)] + ([np.repeat(single[None], m, 0)] if single is not None else [])
             poses = optimise_plan(prob, starts=starts, seed=seed).poses_deg
             optimal_set, degenerate = np.zeros((0, robot.n_joints)), False
             bar.update()
     summ = plan_summary(study, poses)
     bound = approx.lower_bound(m, sigma) if criterion == "ot" else None
-    notes += [f"joint {robot.joint_names[j]}'s axis passes through the measured point at every pose: its compliance "
-              "never deflects that point, cannot be identified from its position and is left out of the model "
-              "(cov_diag 'inf'); measure a point off that axis (tool_m) to identify it" for j in robot.inert_joints]
+    notes += [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
+              "compliance never deflects them, cannot be identified from their positions and is left out of the "
+              "model (cov_diag 'inf'); measure a point off that axis (tool_m, targets) or the orientation to "
+              "identify it" for j in range(robot.n_joints) if j not in base.params]
     if not approx.converged:
         notes.append(approx.convergence_note())
     ot = float(summ["O_t"])
     return DesignResult(
         criterion=criterion, criterion_label=criteria.label(criterion), robot=robot.name, experiments=m,
-        poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=criteria.o_t_star(robot.n_params, m, sigma),
+        poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=base.ot_star(m),
         chi=float(summ["chi"]), cov_diag=np.array([float(summ[e]) for e in robot.joint_columns("E_dk")]),
         lower_bound=bound, gap=None if bound is None else ot / bound - 1.0,
         optimal_set_deg=np.asarray(optimal_set, float).reshape(-1, robot.n_joints), degenerate=bool(degenerate),
         approximate_design={"support_deg": approx.support_deg, "weights": approx.weights,
                             "equivalence_gap": approx.equivalence_gap, "converged": approx.converged},
         notes=tuple(notes), sigma=sigma, seed=seed, test_pose_deg=q_t, force_N=force, joint_names=robot.joint_names,
-        lower_bound_converged=None if bound is None else approx.converged)
+        lower_bound_converged=None if bound is None else approx.converged, moment_Nm=moment,
+        targets=sensing.targets, orientation=sensing.orientation, sigma_rad=sensing.sigma_rad,
+        test_target=test_target, orientation_length_m=length)
+
+
+def _names(value, field: str) -> list[str]:
+    """A list of names from a list or a comma-separated string; InputError naming ``field``."""
+    names = value.split(",") if isinstance(value, str) else list(value)
+    names = [str(v).strip() for v in names]
+    if not names or not all(names):
+        raise InputError(f"expected comma-separated names, got {value!r}", field=field)
+    return names
+
+
+def load_arguments(robot: Robot, force_N, wrench, required: bool = True):
+    """``(force (d,), moment (d_m,) or None, field)`` from ``force_N`` (d,) or ``wrench`` (d + d_m,) [N, N m], one
+    of them (or neither when not ``required``: (None, None, 'force_N')); InputError naming the argument."""
+    from .observation import force_dim, wrench_dim
+
+    if force_N is not None and wrench is not None:
+        raise InputError("expected the force or the wrench, not both", field="wrench")
+    if wrench is not None:
+        w = float_list(wrench, "wrench")
+        d, dw = force_dim(robot), wrench_dim(robot)
+        if w.size != dw:
+            names = "fx, fy, mz" if robot.kind == "planar" else "fx, fy, fz, mx, my, mz"
+            raise InputError(f"expected {dw} wrench components ({names}) for a {robot.kind} robot, got {w.size}",
+                             field="wrench")
+        return w[:d], w[d:], "wrench"
+    if force_N is None:
+        if required:
+            raise InputError("expected the force (force_N) or the wrench", field="force_N")
+        return None, None, "force_N"
+    return float_list(force_N, "force_N"), None, "force_N"
 
 
 def check_out_dir(out) -> Path:
@@ -267,18 +324,22 @@ def check_out_dir(out) -> Path:
     return out
 
 
-def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None, force_N=None,
+def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None, force_N=None, wrench=None,
                          out=None, label: str | None = None, angle_resolution_deg: float | None = None,
-                         force_resolution_N: float | None = None) -> dict:
+                         force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
+                         sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
     """What the stiffness model gets wrong in measured deflections (``stiffcal discrepancy``).
 
     robot: a Robot or a robot file; data: the measured-data CSV (docs/measured-data.md); alpha: family-wise
-    false-alarm rate, in (0, 1); test_pose_deg (n,) [deg] and force_N (d,) [N]: the test pose and its force
-    for the predicted compensation error (give both or neither); out: a directory for ``verdict.json`` and
-    ``residuals.png``/``.svg`` (None: nothing is written). The files are written to a temporary directory
-    and moved into ``out`` only when everything succeeded. angle_resolution_deg [deg], force_resolution_N
-    [N]: joint angles and forces that agree within these are one configuration and one load (encoder and
-    load-cell resolution; defaults 0.01 deg and 0.5 N, docs/measured-data.md).
+    false-alarm rate, in (0, 1); test_pose_deg (n,) [deg] and force_N (d,) [N] or wrench (d + d_m,) [N, N m]:
+    the test pose and its load for the predicted compensation error (give the pose and one load, or neither);
+    out: a directory for ``verdict.json`` and ``residuals.png``/``.svg`` (None: nothing is written). The files
+    are written to a temporary directory and moved into ``out`` only when everything succeeded.
+    angle_resolution_deg [deg], force_resolution_N [N], moment_resolution_Nm [N m]: joint angles and loads
+    that agree within these are one configuration and one load (encoder and load-cell resolution; defaults
+    0.01 deg, 0.5 N and 0.05 N m, docs/measured-data.md). sigma_m [m] and sigma_rad [rad]: the noise levels
+    of positions and rotations, whose ratio weights the rotation rows (both or neither; default: estimated
+    from the data).
 
     Returns the verdict (docs/measured-data.md: cause, causes, indistinguishable_from, p_value, structure,
     nominal, extended, gain, outlier_rows, notes, ...). Raises :class:`InputError` for bad arguments or data.
@@ -288,34 +349,44 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
 
     robot = _robot(robot)
     alpha = positive_number(alpha, "alpha", 1e-12, 1 - 1e-12)
-    res = _resolutions(angle_resolution_deg, force_resolution_N)
-    qt, ft = _test_pose(robot, test_pose_deg, force_N)
+    res = _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm)
+    if (sigma_m is None) != (sigma_rad is None):
+        raise InputError("expected both noise levels (sigma_m and sigma_rad) or neither", field="sigma_rad")
+    sig = (None, None) if sigma_m is None else (positive_number(sigma_m, "sigma_m"),
+                                                 positive_number(sigma_rad, "sigma_rad"))
+    qt, ft = _test_pose(robot, test_pose_deg, force_N, wrench)
     if out is None:
-        return discrepancy.analyse(robot, M.read_measurements(data, robot, *res), alpha, qt, ft)
-    return _written_whole(out, lambda tmp: discrepancy.run(robot, str(data), tmp, alpha, qt, ft, label, *res))
+        return discrepancy.analyse(robot, M.read_measurements(data, robot, *res), alpha, qt, ft, sigma_m=sig[0],
+                                   sigma_rad=sig[1])
+    return _written_whole(out, lambda tmp: discrepancy.run(robot, str(data), tmp, alpha, qt, ft, label, *res, *sig))
 
 
-def _resolutions(angle_resolution_deg, force_resolution_N) -> tuple[float, float]:
-    """The encoder and load-cell resolutions [deg, N] (docs/measured-data.md), defaults filled in, checked."""
+def _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm=None) -> tuple[float, float, float]:
+    """The encoder, load-cell and moment resolutions [deg, N, N m] (docs/measured-data.md), defaults filled in,
+    checked."""
     from . import measurements as M
 
     return (M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None
             else positive_number(angle_resolution_deg, "angle_resolution_deg", 1e-12, 360.0),
             M.FORCE_RESOLUTION_N if force_resolution_N is None
-            else positive_number(force_resolution_N, "force_resolution_N", 1e-12, 1e9))
+            else positive_number(force_resolution_N, "force_resolution_N", 1e-12, 1e9),
+            M.MOMENT_RESOLUTION_NM if moment_resolution_Nm is None
+            else positive_number(moment_resolution_Nm, "moment_resolution_Nm", 1e-12, 1e9))
 
 
-def _test_pose(robot: Robot, test_pose_deg, force_N):
-    """(test pose (n,) [rad], its force (d,) [N]) from degrees and newtons, both or neither, checked."""
+def _test_pose(robot: Robot, test_pose_deg, force_N, wrench=None):
+    """(test pose (n,) [rad], its load: the force (d,) [N] or the wrench (d + d_m,) [N, N m]) from degrees,
+    newtons and newton metres; the pose and a load both or neither; checked."""
     from .study import check_test_inputs
 
-    if (test_pose_deg is None) != (force_N is None):
-        raise InputError("expected both the test pose and its force, or neither", field="test_pose_deg")
+    force, moment, field_ = load_arguments(robot, force_N, wrench, required=False)
+    if (test_pose_deg is None) != (force is None):
+        raise InputError("expected both the test pose and its force (or wrench), or neither", field="test_pose_deg")
     if test_pose_deg is None:
         return None, None
-    ft = float_list(force_N, "force_N")
-    return np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG),
-                                        ft, "test_pose_deg", "force_N")), ft
+    qt = np.radians(check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG),
+                                      force, "test_pose_deg", field_, None, moment, field_))
+    return qt, (force if moment is None else np.r_[force, moment])
 
 
 def _written_whole(out, write) -> dict:
@@ -368,11 +439,11 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
 
     def write(directory):
         return discrimination.run(robot, str(data), directory, experiments, loads, repeats, weight, truth, alpha,
-                                  qt, ft, *res, seed)
+                                  qt, ft, *res[:2], seed)
 
     if out is not None:
         return _written_whole(out, write)
-    meas = M.read_measurements(data, robot, *res)
+    meas = M.read_measurements(data, robot, *res[:2])
     ls = discrimination.load_set(loads, robot.task_dim, meas.force, meas.resolutions[1])
     result = discrimination.discriminate(robot, meas, experiments, ls, repeats=repeats, weight=weight, truth=truth,
                                          test_pose=qt, test_force=ft, alpha=alpha, seed=seed)

@@ -51,20 +51,21 @@ import numpy as np
 from .design import (SAMPLES_LOG2, Problem, angle_diff, grid_local_minima, into_limits, is_sampled, joint_grids,
                      sample_joint_space, _is_full_turn, _turn_start)
 from .robot import Robot
-from .stiffness import observation_matrix, pose_information
+from .stiffness import pose_information
 
 
 #: candidate pool of a sampled joint space (4+ joints): 2**POOL_LOG2 scrambled-Sobol poses
 POOL_LOG2 = 13
 
 
-def has_planar_symmetry(robot: Robot) -> bool:
-    """Whether a pose's half-turn and mirror copies carry the same information (planar arm, no limits)."""
+def has_planar_symmetry(robot: Robot, problem: Problem | None = None) -> bool:
+    """Whether a pose's half-turn and mirror copies carry the same information (planar arm, no limits, and
+    for ``problem`` no moment and no measured target beside the last link's line: :attr:`Problem.symmetric`)."""
     return robot.kind == "planar" and robot.n_joints >= 2 and all(
-        _is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad)
+        _is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad) and (problem is None or problem.symmetric)
 
 
-def candidate_pool(robot: Robot, step_deg: float) -> np.ndarray:
+def candidate_pool(robot: Robot, step_deg: float, problem: Problem | None = None) -> np.ndarray:
     """Candidate poses [rad], (N, n): a grid over the joint space, restricted to one symmetry cell
     (q1 in [-90, 90), first nonzero of q2..qn >= 0) when the arm is planar and every joint turns fully
     (both the half-turn and the mirror copy of a pose carry the same information). For 4+ joints
@@ -73,7 +74,7 @@ def candidate_pool(robot: Robot, step_deg: float) -> np.ndarray:
         return sample_joint_space(robot, POOL_LOG2, seed=0)
     grids = joint_grids(robot, step_deg)
     q = np.stack(np.meshgrid(*grids, indexing="ij"), -1).reshape(-1, robot.n_joints)
-    if not has_planar_symmetry(robot):
+    if not has_planar_symmetry(robot, problem):
         return q
     eps = 1e-12
     rest = q[:, 1:]
@@ -100,7 +101,8 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
     if not np.any(null) and w[0] > 1e-12 * w[-1]:
         return
     v = V[:, 0]
-    joints = [problem.robot.joint_names[problem.robot.params[j]] for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
+    joints = [problem.robot.joint_names[int(problem.params[j])]
+              for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
     what = (f"the compliance of joint {joints[0]}" if len(joints) == 1 else
             "a combination of the compliances of joints " + ", ".join(map(str, joints)))
     raise InputError(f"{what} cannot be identified with the force {problem.force.tolist()} N at any pose: the force "
@@ -160,7 +162,7 @@ class ApproximateDesign:
 
 def _info(problem: Problem, q: np.ndarray) -> np.ndarray:
     """Per-pose information A^T A for poses q (..., n) [rad] -> (..., n, n)."""
-    return pose_information(observation_matrix(problem.robot.model_jacobian(q), problem.force))
+    return pose_information(problem.rows(q))
 
 
 def vech(M: np.ndarray) -> np.ndarray:
@@ -419,10 +421,10 @@ class PhiSearch:
         phi = self.V @ _vech2(C @ C.T)
         starts = self.starts(phi, n_refine)
         extra = np.atleast_2d(extra_starts).reshape(-1, self.robot.n_joints)
-        force = self.problem.force
+        rows = self.problem.rows
 
         def fun(q):
-            return np.sum((observation_matrix(self.robot.model_jacobian(q), force) @ C) ** 2, axis=(-2, -1))
+            return np.sum((rows(q) @ C) ** 2, axis=(-2, -1))
         if climb:
             Xc, fc = coordinate_ascent(fun, self.robot, np.vstack([self.Q[self.cell_best(phi)], extra]),
                                        sweeps=int(climb))
@@ -490,7 +492,7 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     step = pool_step_deg or default_pool_step(robot.n_joints)
     At = problem.At
     W = At.T @ At
-    pool = candidate_pool(robot, step)
+    pool = candidate_pool(robot, step, problem)
     P = _info(problem, pool)
     check_identifiable(problem, P)
     search = PhiSearch(problem, search_step_deg or min(step, 2.0))

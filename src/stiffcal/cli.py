@@ -1,8 +1,9 @@
 """The ``stiffcal`` command: a thin layer over the Python API (:mod:`stiffcal.api`); contract in
 docs/contracts.md.
 
-``stiffcal design --robot FILE --test-pose-deg Q1,Q2,... --force-N FX,FY[,FZ] [--experiments M]
-[--criterion ot|a|t|d|g|mdc|o1|o2|o3|o4] [--sigma S] [--seed N] [--quiet]`` prints one JSON object.
+``stiffcal design --robot FILE --test-pose-deg Q1,Q2,... (--force-N FX,FY[,FZ] | --wrench F..,M..)
+[--experiments M] [--criterion ot|a|t|d|g|mdc|o1|o2|o3|o4] [--sigma S] [--targets A,B] [--orientation
+--sigma-rad S] [--test-target T] [--orientation-length-m L] [--seed N] [--quiet]`` prints one JSON object.
 
 Bad input gives one line on stderr naming the file or option and what was expected, and exit code 2;
 never a traceback. An internal error (a bug) is one line too, with exit code 1 (``STIFFCAL_TRACEBACK=1``
@@ -54,8 +55,11 @@ def design(args) -> dict:
     """Run ``stiffcal design``; returns the JSON-ready dict."""
     from .api import design as run
 
-    return run(args.robot, args.test_pose_deg, args.force_N, experiments=args.experiments, criterion=args.criterion,
-               sigma=args.sigma, seed=args.seed, progress=False if args.quiet else None).to_dict()
+    return run(args.robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=args.experiments,
+               criterion=args.criterion, sigma=args.sigma, targets=args.targets, orientation=args.orientation,
+               sigma_rad=args.sigma_rad, test_target=args.test_target,
+               orientation_length_m=args.orientation_length_m, seed=args.seed,
+               progress=False if args.quiet else None).to_dict()
 
 
 def discrepancy(args) -> dict:
@@ -64,8 +68,10 @@ def discrepancy(args) -> dict:
 
     check_out_dir(args.out)  # before any work
     v = analyse_measurements(args.robot, args.data, alpha=args.alpha, test_pose_deg=args.test_pose_deg,
-                             force_N=args.force_N, out=args.out, angle_resolution_deg=args.angle_resolution_deg,
-                             force_resolution_N=args.force_resolution_N)
+                             force_N=args.force_N, wrench=args.wrench, out=args.out,
+                             angle_resolution_deg=args.angle_resolution_deg, force_resolution_N=args.force_resolution_N,
+                             moment_resolution_Nm=args.moment_resolution_Nm, sigma_m=args.sigma_m,
+                             sigma_rad=args.sigma_rad)
     for note in v["notes"]:
         print(f"stiffcal discrepancy: note: {note}", file=sys.stderr)
     return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
@@ -120,10 +126,19 @@ def build_parser() -> argparse.ArgumentParser:
     d = sub.add_parser("design", help="optimal measurement poses for a test pose (prints JSON)")
     d.add_argument("--robot", required=True, help="robot YAML file (docs/contracts.md)")
     d.add_argument("--test-pose-deg", required=True, help="test pose q*, comma-separated degrees")
-    d.add_argument("--force-N", required=True, help="force F in newtons, comma-separated")
+    d.add_argument("--force-N", help="force F [N] at the tool point, comma-separated (or --wrench)")
+    d.add_argument("--wrench", help="force and moment about the tool point [N, N m]: FX,FY,MZ (planar) or "
+                                    "FX,FY,FZ,MX,MY,MZ (spatial), instead of --force-N")
     d.add_argument("--experiments", type=int, default=1, help="number of measurement poses M (default 1)")
     d.add_argument("--criterion", default="ot", help="ot a t d g mdc o1 o2 o3 o4 (default ot)")
-    d.add_argument("--sigma", default=1.0, help="measurement noise s.t.d. (default 1)")
+    d.add_argument("--sigma", default=1.0, help="position noise s.t.d. [m] (default 1)")
+    d.add_argument("--targets", help="targets whose positions are measured at every pose, comma-separated names of "
+                                     "the robot file's targets and 'tool' (default tool)")
+    d.add_argument("--orientation", action="store_true", help="the tool's orientation is measured too")
+    d.add_argument("--sigma-rad", default=None, help="orientation noise s.t.d. [rad] (with --orientation)")
+    d.add_argument("--test-target", default="tool", help="the target whose error at the test pose O_t measures")
+    d.add_argument("--orientation-length-m", default=0.0,
+                   help="length scale L [m] that adds the tool's rotation to the test pose's error (default 0)")
     d.add_argument("--seed", type=int, default=0, help="seed of the random starts of M-pose plans (default 0)")
     d.add_argument("--quiet", action="store_true", help="no progress bar on stderr (none is shown off a terminal)")
     d.set_defaults(func=design)
@@ -135,11 +150,16 @@ def build_parser() -> argparse.ArgumentParser:
     x.add_argument("--alpha", default=0.01, help="family-wise false-alarm rate (default 0.01)")
     x.add_argument("--test-pose-deg", help="test pose for the predicted compensation error (optional)")
     x.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")
+    x.add_argument("--wrench", help="force and moment at the test pose [N, N m], instead of --force-N")
     x.add_argument("--angle-resolution-deg", default=None,
                    help="joint angles within this are one configuration (encoder resolution; default 0.01)")
     x.add_argument("--force-resolution-N", default=None,
                    help="forces within this (per component) are one load; below it a row is unloaded (load-cell "
                         "resolution; default 0.5)")
+    x.add_argument("--moment-resolution-Nm", default=None,
+                   help="moments within this (per component) are one load (default 0.05)")
+    x.add_argument("--sigma-m", default=None, help="position noise [m] (with --sigma-rad: weights the rotation rows)")
+    x.add_argument("--sigma-rad", default=None, help="rotation noise [rad] (default: the ratio is estimated)")
     x.set_defaults(func=discrepancy)
     t = sub.add_parser("discriminate", help="the next experiment that tells rival causes apart (writes DIR/plan.json)")
     t.add_argument("--robot", required=True, help="robot YAML file")

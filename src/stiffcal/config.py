@@ -54,6 +54,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
     """Check a workflow config completely (module docstring); raise :class:`InputError` naming ``source`` and
     the field."""
     from .maps import map_studies
+    from .observation import moment_dim
     from .robot import load_robot
     from .study import design_studies, study_from_config
     from .validation import validate
@@ -61,7 +62,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
     validate(config, "config", source)
     study = study_from_config(config, root, source)
     robot = study.robot
-    if robot.n_joints != 2 or robot.min_poses != 1:
+    if robot.n_joints != 2 or study.problem("ot").min_poses != 1:
         raise InputError(f"expected a robot with 2 joints whose single pose identifies both compliances (Tables 2-3 "
                          f"and Figures 4-5 are over (q1, q2)), got {robot.n_joints} joints; put other robots in "
                          "'studies'", source=source, field="study.robot")
@@ -86,10 +87,19 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
 
         read_measurements(data, data_robot)  # the data themselves (the message names the CSV, row and column)
         force = entry.get("force_N", config["study"]["force_N"])
+        moment = entry.get("moment_Nm", config["study"].get("moment_Nm"))
         field = f"{where}.force_N" if "force_N" in entry else "study.force_N"
+        mfield = f"{where}.moment_Nm" if "moment_Nm" in entry else "study.moment_Nm"
+        if ("sigma_m" in entry) != ("sigma_rad" in entry):
+            raise InputError("expected both noise levels (sigma_m and sigma_rad) or neither", source=source,
+                             field=f"{where}.{'sigma_rad' if 'sigma_m' in entry else 'sigma_m'}")
         if data_robot.n_joints == robot.n_joints:  # the predicted gain at the study's test pose
             if len(force) != data_robot.task_dim:
                 raise InputError(f"expected {data_robot.task_dim} force components for the {data_robot.kind} robot "
                                  f"{entry['robot']}, got {len(force)}", source=source, field=field)
-            if not any(force):
+            dm = moment_dim(data_robot)
+            if moment is not None and len(moment) != dm:
+                raise InputError(f"expected {dm} moment component(s) for the {data_robot.kind} robot "
+                                 f"{entry['robot']}, got {len(moment)}", source=source, field=mfield)
+            if not any(force) and not any(moment or []):
                 raise InputError("expected a nonzero force at the test pose", source=source, field=field)

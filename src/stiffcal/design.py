@@ -29,13 +29,15 @@ For the paper's arm this rule selects every pose printed in Table 2.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from . import criteria
 from .errors import InputError
-from .robot import Robot
-from .stiffness import observation_matrix
+from .observation import Sensing, as_wrench, observation_rows, sensed_params, target_offsets, test_rows
+from .robot import TOOL_TARGET, Robot
+from .stiffness import observation_matrix, pose_information
 
 TWO_PI = 2.0 * np.pi
 
@@ -44,9 +46,14 @@ TWO_PI = 2.0 * np.pi
 class Problem:
     """A pose-selection problem.
 
-    robot; force: (d,) [N] applied in every measurement; criterion: key of :data:`criteria.CRITERIA_KEYS`;
-    m: number of measurement poses; test_pose: (n,) [rad] (needed for 'ot'); test_force: (d,) [N]
-    (default: ``force``); sigma: measurement noise standard deviation [m].
+    robot; force: (d,) [N] applied at the tool point in every measurement; criterion: key of
+    :data:`criteria.CRITERIA_KEYS`; m: number of measurement poses; test_pose: (n,) [rad] (needed for 'ot');
+    test_force: (d,) [N] (default: ``force`` and ``moment``); sigma: position noise standard deviation [m];
+    moment: (d_m,) [N m] about the tool point in every measurement (default none; d_m = 1 planar, 3 spatial);
+    test_moment: (d_m,) [N m] with ``test_force``; sensing: what is measured at every pose
+    (:class:`stiffcal.observation.Sensing`; default the tool point's position); test_target: the target whose
+    position error O_t measures; length_m: the length scale [m] that adds the tool's rotation to that error
+    (0: position only). The module :mod:`stiffcal.observation` gives the equations.
     """
 
     robot: Robot
@@ -56,19 +63,94 @@ class Problem:
     test_pose: np.ndarray | None = None
     test_force: np.ndarray | None = None
     sigma: float = 1.0
+    moment: np.ndarray | None = None
+    test_moment: np.ndarray | None = None
+    sensing: Sensing | None = None
+    test_target: str = TOOL_TARGET
+    length_m: float = 0.0
+
+    @cached_property
+    def _sensing(self) -> Sensing:
+        s = self.sensing or Sensing()
+        return Sensing(s.targets, s.orientation, self.sigma, s.sigma_rad)
+
+    @cached_property
+    def is_default(self) -> bool:
+        """The paper's problem: a force, the tool point's position measured, its error at the test pose."""
+        no_moment = all(v is None or not np.any(v) for v in (self.moment, self.test_moment))
+        return no_moment and self._sensing.is_default and self.test_target == TOOL_TARGET and self.length_m == 0
+
+    @property
+    def load(self) -> np.ndarray:
+        """The wrench (w,) [N, N m] of every measurement (:func:`stiffcal.observation.as_wrench`)."""
+        return as_wrench(self.robot, self.force if self.moment is None else np.r_[self.force, self.moment])
+
+    @property
+    def test_load(self) -> np.ndarray:
+        """The wrench (w,) at the test pose."""
+        if self.test_force is None:
+            return self.load
+        f = self.test_force if self.test_moment is None else np.r_[self.test_force, self.test_moment]
+        return as_wrench(self.robot, f)
+
+    @cached_property
+    def params(self) -> np.ndarray:
+        """Joints whose compliances the measurements see (:func:`stiffcal.observation.sensed_params`)."""
+        return self.robot.params if self.is_default else sensed_params(self.robot, self._sensing)
+
+    @property
+    def n_params(self) -> int:
+        return len(self.params)
+
+    @property
+    def rows_per_pose(self) -> int:
+        return self._sensing.rows_per_pose(self.robot)
+
+    @property
+    def min_poses(self) -> int:
+        """Fewest poses that give as many equations as compliances."""
+        return -(-self.n_params // self.rows_per_pose)
+
+    @cached_property
+    def symmetric(self) -> bool:
+        """Whether a pose's half-turn and mirror copies (planar arms, :func:`stiffcal.plans.symmetric_copies`)
+        carry the same information: no moment (a moment about z does not turn with the arm) and every measured
+        target on the last link's line (the mirror copy of a target beside it is another point)."""
+        if self.moment is not None and np.any(self.moment):
+            return False
+        off = target_offsets(self.robot, self._sensing.targets)
+        return bool(np.all(np.abs(off[:, 1:]) <= 1e-12))
+
+    def rows(self, q: np.ndarray) -> np.ndarray:
+        """Observation matrices (..., r, p) of poses q (..., n) [rad]: eq. 4 for the paper's problem, else
+        :func:`stiffcal.observation.observation_rows` (orientation rows weighted by sigma / sigma_rad)."""
+        if self.is_default:
+            return observation_matrix(self.robot.model_jacobian(q), self.force)
+        return observation_rows(self.robot, q, self.load, self._sensing, self.params)
 
     @property
     def At(self) -> np.ndarray | None:
-        """Observation matrix at the test pose, (d, n), or None."""
+        """Observation matrix at the test pose, (d, n) (with the rotation rows times ``length_m``), or None."""
         if self.test_pose is None:
             return None
-        F = self.force if self.test_force is None else self.test_force
-        return observation_matrix(self.robot.model_jacobian(self.test_pose), F)
+        if self.is_default:
+            F = self.force if self.test_force is None else self.test_force
+            return observation_matrix(self.robot.model_jacobian(self.test_pose), F)
+        return test_rows(self.robot, self.test_pose, self.test_load, self.test_target, self.length_m, self.params)
+
+    def ot_star(self, m: int) -> float:
+        """O_t* of eq. 17: O_t when all m measurements are taken at the test pose (``n sigma^2 / m`` for the
+        paper's problem; in general ``sigma^2 trace(A_t (m A_1^T A_1)^-1 A_t^T)`` with A_1 the rows measured
+        at the test pose, inf when they cannot give the error at the test pose)."""
+        if self.is_default:
+            return criteria.o_t_star(self.n_params, m, self.sigma)
+        A1 = self.rows(self.test_pose)
+        return float(criteria.o_t(m * pose_information(A1), self.At, self.sigma))
 
 
 def plan_observations(problem: Problem, q: np.ndarray) -> np.ndarray:
-    """Stacked observation matrices of plans. q: (..., m, n) [rad]. Returns (..., m d, n)."""
-    A = observation_matrix(problem.robot.model_jacobian(q), problem.force)
+    """Stacked observation matrices of plans. q: (..., m, n) [rad]. Returns (..., m r, p)."""
+    A = problem.rows(q)
     return A.reshape(A.shape[:-3] + (A.shape[-3] * A.shape[-2], A.shape[-1]))
 
 
@@ -355,7 +437,7 @@ def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int =
     """
     assert problem.m == 1, "optimal_single_pose is for one measurement pose"
     robot = problem.robot
-    d, n = robot.task_dim, robot.n_params
+    d, n = problem.rows_per_pose, problem.n_params
     few = f"one pose gives {d} equations for {n} compliances; use at least {-(-n // d)} poses"
     if d < n and problem.criterion in criteria.NEEDS_INVERSE:
         raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every pose: {few}")

@@ -42,16 +42,19 @@ lack of fit):
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from itertools import combinations
 
 import numpy as np
 from scipy import stats
 
+from .design import is_sampled, sample_joint_space
 from .errors import InputError
 from .measurements import Measurements
-from .robot import Robot, as_xyz
-from .design import is_sampled, sample_joint_space
+from .observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
+                          tool_twists)
+from .observation import torques as observation_torques
+from .robot import TOOL_TARGET, Robot, as_xyz
 from .stiffness import observation_matrix, random_directions
 
 CAUSES = ("link_compliance", "joint_coupling", "nonlinear_joint_stiffness", "backlash", "measurement_offset")
@@ -68,24 +71,140 @@ MAX_DEFLECTION_OF_REACH = 0.02
 
 # --- regressors ----------------------------------------------------------------------------------------
 
+@dataclass(frozen=True)
+class Observed:
+    """What each row of a data set measures (docs/measured-data.md): the position of one target (``target``
+    (N,) indices into ``names``; None: the tool point in every row) and, with ``orientation``, the tool's
+    small-angle rotation, its rows multiplied by ``rad_weight`` = sigma_m / sigma_rad [m/rad] (weighted least
+    squares, :mod:`stiffcal.observation`); ``params``: the joints whose compliances these quantities see
+    (:func:`stiffcal.observation.sensed_params`), None for the tool point's position (``Robot.params``);
+    n_offsets: the parameters of ``measurement_offset`` (default one per measured component of a row)."""
+    names: tuple[str, ...] = (TOOL_TARGET,)
+    target: np.ndarray | None = None
+    orientation: bool = False
+    rad_weight: float = 1.0
+    params: np.ndarray | None = None
+    n_offsets: int | None = None
+
+    @classmethod
+    def of(cls, robot: Robot, meas: Measurements, rad_weight: float = 1.0) -> "Observed":
+        """The quantities of ``meas`` (its targets, its orientation columns)."""
+        used = tuple(meas.target_names[t] for t in np.unique(meas.target))
+        ob = cls(meas.target_names, meas.target, meas.rot is not None, rad_weight)
+        if ob.default:
+            return ob
+        return replace(ob, params=sensed_params(robot, Sensing(used, ob.orientation)))
+
+    @property
+    def default(self) -> bool:
+        """Only the tool point's position, with its parameters: the paper's measurement (eq. 4)."""
+        return not self.orientation and self.params is None and (
+            self.target is None or all(self.names[t] == TOOL_TARGET for t in np.unique(self.target)))
+
+    def used(self) -> tuple[str, ...]:
+        """The targets the rows measure, in the order of ``names``."""
+        return (TOOL_TARGET,) if self.target is None else tuple(self.names[t] for t in np.unique(self.target))
+
+    def at_tool(self, robot: Robot) -> "Observed":
+        """The tool point's position with this model's parameters (a prediction at a test pose)."""
+        return replace(self, target=None, orientation=False, params=None if self.params is None
+                       else self.model_params(robot), n_offsets=self.rows_per(robot))
+
+    def take(self, rows) -> "Observed":
+        return self if self.target is None else replace(self, target=self.target[rows])
+
+    def rows_per(self, robot: Robot) -> int:
+        return force_dim(robot) + (moment_dim(robot) if self.orientation else 0)
+
+    def component_names(self, robot: Robot) -> list[str]:
+        """Names of a row's measured components: x, y (z), then rx, ry, rz (planar: rz)."""
+        rot = (["rz"] if robot.kind == "planar" else ["rx", "ry", "rz"]) if self.orientation else []
+        return list("xyz"[: force_dim(robot)]) + rot
+
+    def model_params(self, robot: Robot) -> np.ndarray:
+        return robot.params if self.params is None else self.params
+
+    def offsets(self, robot: Robot, n_rows: int) -> np.ndarray:
+        """(N, 1, 3) [m]: each row's target minus the tool point, in the tip frame."""
+        off = target_offsets(robot, self.names)
+        t = np.zeros(n_rows, int) if self.target is None else self.target
+        return off[t][:, None, :]
+
+
+def _plain(load: np.ndarray, robot: Robot, observed: Observed | None) -> bool:
+    """The paper's rows: a force (or a zero moment) and the tool point's position."""
+    d = force_dim(robot)
+    return (observed is None or observed.default) and (load.shape[-1] == d or not np.any(load[..., d:]))
+
+
 def torques(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """tau = J^T F (N, n) [N m]."""
-    return np.einsum("ndj,nd->nj", robot.jacobian(q), force)
+    """tau = J^T F (N, n) [N m]; with a wrench (N, d + d_m) (moment about the tool point) tau = J_W^T W
+    (:func:`stiffcal.observation.torques`)."""
+    force = np.asarray(force, float)
+    if force.shape[-1] == robot.task_dim:
+        return np.einsum("ndj,nd->nj", robot.jacobian(q), force)
+    return observation_torques(robot, q, force)
 
 
-def nominal_columns(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
+def _twists(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray:
+    """(N, 6, p): the rigid motion of the tool at the tool point (v [m], w [rad]) per unit parameter of a
+    robot cause (the nominal model as cause ``"nominal"``), under the wrench ``load`` (N, d + d_m)."""
+    if cause == "link_compliance":
+        return _link_twists(robot, q, load)
+    return _joint_columns(cause, tool_twists(robot, q)[0], observation_torques(robot, q, load))
+
+
+def _joint_columns(cause: str, J: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """(N, k, p): the columns of a joint cause (``"nominal"``: the compliances) from the joints' Jacobian columns
+    J (N, k, n) (positions of the tool point, or 6-D twists) and the torques tau (N, n) (module docstring)."""
+    n = J.shape[-1]
+    if cause == "nominal":
+        return J * tau[:, None, :]
+    if cause == "joint_coupling":
+        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
+        return np.stack([J[:, :, i] * tau[:, j, None] + J[:, :, j] * tau[:, i, None] for i, j in pairs], axis=-1)
+    if cause == "nonlinear_joint_stiffness":
+        return J * (tau**3)[:, None, :]
+    if cause == "backlash":  # a torque within round-off of zero (the arm along the force) has no sign
+        tol = 1e-12 * np.abs(tau).max(axis=-1, keepdims=True)
+        return J * (np.sign(tau) * (np.abs(tau) > tol))[:, None, :]
+    raise ValueError(f"unknown cause {cause!r}")
+
+
+def _general_columns(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray, observed: Observed) -> np.ndarray:
+    """(N, r, p): a cause's regressors for any load and measured quantities (:class:`Observed`)."""
+    q = np.asarray(q, float)
+    load = as_wrench(robot, np.broadcast_to(load, (len(q), np.shape(load)[-1])))
+    d = force_dim(robot)
+    if cause == "measurement_offset":  # the tracker's bias: one per position axis (every target), one per rotation
+        k = observed.rows_per(robot)
+        eye = np.eye(k, observed.n_offsets or k)
+        eye[d:, d:] *= observed.rad_weight
+        return np.broadcast_to(eye, (len(q),) + eye.shape).copy()
+    R = robot.tool_frame(q)[0]
+    X = observe(robot, _twists(cause, robot, q, load), R, observed.offsets(robot, len(q)), observed.orientation,
+                observed.rad_weight)
+    return X[..., observed.model_params(robot)] if cause == "nominal" else X
+
+
+def nominal_columns(robot: Robot, q: np.ndarray, force: np.ndarray, observed: Observed | None = None) -> np.ndarray:
     """(N, d, n): the observation matrices A of eq. 4, one per measurement (the model's parameters:
-    a joint that never moves the measured point is left out, see :attr:`Robot.params`)."""
-    return observation_matrix(robot.model_jacobian(q), force)
+    a joint that never moves the measured point is left out, see :attr:`Robot.params`). With a wrench
+    (N, d + d_m) or other measured quantities (``observed``): eqs. 3-4 on the 6-D Jacobian, (N, r, p)."""
+    force = np.asarray(force, float)
+    if _plain(force, robot, observed):
+        return observation_matrix(robot.model_jacobian(q), force[..., : robot.task_dim])
+    return _general_columns("nominal", robot, q, force, observed or Observed())
 
 
-def _link_columns(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """(N, d, segments): per link segment (consecutive ``robot.link_points``), the end-effector displacement
-    per unit 1/(E I) of a cantilever loaded at its distal end by the force F and the moment M = r x F it
-    transmits (bending only): tip deflection (L^3/3) F_perp + (L^2/2) M_perp x u, tip rotation
-    (L^2/2) u x F_perp + L M_perp, carried to the end effector by the lever r."""
+def _link_twists(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray:
+    """(N, 6, segments): per link segment (consecutive ``robot.link_points``, the last ending at the tool point),
+    the rigid motion at the tool point per unit 1/(E I) of a cantilever loaded at its distal end by the force F
+    and the moment M = r x F + M_tool it transmits (bending only): tip deflection (L^3/3) F_perp +
+    (L^2/2) M_perp x u, tip rotation (L^2/2) u x F_perp + L M_perp, carried to the tool point by the lever r."""
     pts = as_xyz(robot.link_points(q))
-    F = as_xyz(force)
+    W = load if robot.kind != "planar" else np.column_stack([load[:, :2], np.zeros((len(load), 3)), load[:, 2:]])
+    F, M_tool = as_xyz(W[:, :3]), W[:, 3:]
     pe = pts[:, -1, :]
     cols = []
     for i in range(pts.shape[1] - 1):
@@ -94,41 +213,48 @@ def _link_columns(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
         u = seg / np.where(L > 0, L, 1.0)[:, None]
         r = pe - pts[:, i + 1, :]
         F_perp = F - np.einsum("nd,nd->n", F, u)[:, None] * u
-        M = np.cross(r, F)
+        M = np.cross(r, F) + M_tool
         M_perp = M - np.einsum("nd,nd->n", M, u)[:, None] * u
         tip = (L**3 / 3)[:, None] * F_perp + (L**2 / 2)[:, None] * np.cross(M_perp, u)
         turn = (L**2 / 2)[:, None] * np.cross(u, F_perp) + L[:, None] * M_perp
-        cols.append(tip + np.cross(turn, r))
-    return np.stack(cols, axis=-1)[:, : robot.task_dim, :]
+        cols.append(np.concatenate([tip + np.cross(turn, r), turn], axis=-1))
+    return np.stack(cols, axis=-1)
 
 
-def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """(N, d, p_cause): the regressors of one extension (module docstring) [m per unit parameter]."""
-    J = robot.jacobian(q)
-    tau = torques(robot, q, force)
-    n, d = robot.n_joints, robot.task_dim
+def _link_columns(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """(N, d, segments): the tool point's displacement of :func:`_link_twists` under a force (N, d)."""
+    return _link_twists(robot, q, as_wrench(robot, force))[:, : robot.task_dim, :]
+
+
+def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray,
+                  observed: Observed | None = None) -> np.ndarray:
+    """(N, d, p_cause): the regressors of one extension (module docstring) [m per unit parameter]. With a
+    wrench (N, d + d_m) or other measured quantities (``observed``): (N, r, p_cause), every robot cause as a
+    rigid motion of the tool carried to each row's target and rotation (:func:`stiffcal.observation.observe`),
+    and ``measurement_offset`` one bias per position axis and per rotation axis."""
+    force = np.asarray(force, float)
+    if not _plain(force, robot, observed):
+        return _general_columns(cause, robot, q, force, observed or Observed())
+    force = force[..., : robot.task_dim]
+    d = robot.task_dim
     if cause == "link_compliance":
         return _link_columns(robot, q, force)
-    if cause == "joint_coupling":
-        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
-        return np.stack([J[:, :, i] * tau[:, j, None] + J[:, :, j] * tau[:, i, None] for i, j in pairs], axis=-1)
-    if cause == "nonlinear_joint_stiffness":
-        return J * (tau**3)[:, None, :]
-    if cause == "backlash":  # a torque within round-off of zero (the arm along the force) has no sign
-        tol = 1e-12 * robot.reach_m * np.linalg.norm(force, axis=-1, keepdims=True)
-        return J * (np.sign(tau) * (np.abs(tau) > tol))[:, None, :]
     if cause == "measurement_offset":
         return np.broadcast_to(np.eye(d), (len(q), d, d)).copy()
-    raise ValueError(f"unknown cause {cause!r}")
+    if cause == "nominal":
+        raise ValueError(f"unknown cause {cause!r}")
+    return _joint_columns(cause, robot.jacobian(q), torques(robot, q, force))
 
 
-def model_columns(robot: Robot, q: np.ndarray, force: np.ndarray, causes=(), predict: bool = False) -> np.ndarray:
+def model_columns(robot: Robot, q: np.ndarray, force: np.ndarray, causes=(), predict: bool = False,
+                  observed: Observed | None = None) -> np.ndarray:
     """(N, d, n + sum p_c): the nominal columns followed by those of every cause in ``causes`` (catalogue
     order). ``predict=True`` gives the regressors of a prediction of the robot's deflection: the columns of
-    the measuring system's causes (:data:`MEASUREMENT_CAUSES`) are zero."""
-    X = [nominal_columns(robot, q, force)]
+    the measuring system's causes (:data:`MEASUREMENT_CAUSES`) are zero. ``force`` (N, d) or a wrench
+    (N, d + d_m); ``observed``: the measured quantities of every row (default the tool point's position)."""
+    X = [nominal_columns(robot, q, force, observed)]
     for c in sorted(causes, key=CAUSES.index):
-        block = cause_columns(c, robot, q, force)
+        block = cause_columns(c, robot, q, force, observed)
         X.append(np.zeros_like(block) if predict and c in MEASUREMENT_CAUSES else block)
     return np.concatenate(X, axis=-1)
 
@@ -263,10 +389,25 @@ class Design:
         return np.concatenate(idx)
 
 
-def build_design(robot: Robot, meas: Measurements) -> Design:
-    X0 = _stack(nominal_columns(robot, meas.q, meas.force))
-    blocks = {c: _stack(cause_columns(c, robot, meas.q, meas.force)) for c in CAUSES}
-    return Design(X0, blocks, meas.dp.ravel(), robot.task_dim)
+def load_of(meas: Measurements) -> np.ndarray:
+    """The load of every row: the force (N, d), or the wrench (N, d + d_m) when the data have moments."""
+    return meas.wrench if meas.has_moment else meas.force
+
+
+def observations(meas: Measurements, observed: Observed) -> np.ndarray:
+    """(N, r): every row's measured quantities, the rotation [rad] times ``observed.rad_weight`` [m/rad]
+    (weighted least squares: every component then has the position noise)."""
+    return meas.dp if meas.rot is None else np.hstack([meas.dp, observed.rad_weight * meas.rot])
+
+
+def build_design(robot: Robot, meas: Measurements, observed: Observed | None = None) -> Design:
+    """The stacked regressors and observations of ``meas`` (every row its target's position and, when
+    measured, the tool's rotation weighted by ``observed.rad_weight``; default :meth:`Observed.of`)."""
+    ob = observed or Observed.of(robot, meas)
+    load = load_of(meas)
+    X0 = _stack(nominal_columns(robot, meas.q, load, ob))
+    blocks = {c: _stack(cause_columns(c, robot, meas.q, load, ob)) for c in CAUSES}
+    return Design(X0, blocks, observations(meas, ob).ravel(), ob.rows_per(robot))
 
 
 def find_blunders(des: Design, n_rows: int, alpha: float, max_fraction: float = 0.1) -> list[int]:
@@ -302,23 +443,25 @@ def _spans_within(a: np.ndarray, b: np.ndarray) -> bool:
     return fit(b, np.zeros(len(b))).rank == fit(np.hstack([b, a]), np.zeros(len(b))).rank
 
 
-def check_identifiable(robot: Robot, meas: Measurements) -> None:
+def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | None = None) -> None:
     """Enough equations for the compliances and a nonsingular plan, or one clear error."""
-    n, d, N = robot.n_params, robot.task_dim, meas.n_rows
+    ob = observed or Observed.of(robot, meas)
+    params = ob.model_params(robot)
+    n, d, N = len(params), ob.rows_per(robot), meas.n_rows
     if N * d < n:
         raise InputError(f"expected at least {n} equations for the {n} joint compliances, got {N * d} "
                          f"({N} loaded measurements of {d} coordinates)", source=meas.source)
-    X = _stack(nominal_columns(robot, meas.q, meas.force))
-    f = fit(X, meas.dp.ravel())
+    X = _stack(nominal_columns(robot, meas.q, load_of(meas), ob))
+    f = fit(X, observations(meas, ob).ravel())
     if f.rank < n:
         scale = np.linalg.norm(X, axis=0)
-        unloaded = [robot.joint_names[robot.params[j]] for j in np.flatnonzero(scale <= RANK_RTOL * scale.max())]
+        unloaded = [robot.joint_names[int(params[j])] for j in np.flatnonzero(scale <= RANK_RTOL * scale.max())]
         if unloaded:
             which = (f"joint{'s' if len(unloaded) > 1 else ''} {', '.join(map(str, unloaded))} never "
                      "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
         else:
             v = np.linalg.svd(X / np.where(scale > 0, scale, 1.0))[2][-1]
-            joints = [robot.joint_names[robot.params[j]] for j in np.flatnonzero(np.abs(v) > 0.1)]
+            joints = [robot.joint_names[int(params[j])] for j in np.flatnonzero(np.abs(v) > 0.1)]
             which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
         raise InputError(f"the measurement plan cannot identify the {n} joint compliances: its information "
                          f"matrix has rank {f.rank}; {which}; measure other poses or load directions",
@@ -353,7 +496,7 @@ class Noise:
 def noise_variance(des: Design, meas: Measurements) -> Noise:
     """Pure error when the data have replicates, else the residual variance of the union model; raises
     :class:`InputError` when neither has a degree of freedom (nothing could be tested)."""
-    ss_pe, df_pe = pure_error(meas.dp, meas.group)
+    ss_pe, df_pe = pure_error(des.y.reshape(-1, des.d), meas.group)
     if df_pe > 0:
         return Noise(ss_pe / df_pe, df_pe, "replicates (pure error)", ss_pe, df_pe)
     fu = fit(des.union(), des.y)
@@ -509,15 +652,18 @@ def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float)
 # --- lack of fit -----------------------------------------------------------------------------------------
 
 def _features(robot: Robot, meas: Measurements) -> dict[str, np.ndarray]:
-    """Quantities residuals are correlated with: row order, force magnitude and direction, joint angles,
-    joint torques."""
-    tau = torques(robot, meas.q, meas.force)
+    """Quantities residuals are correlated with: row order, force magnitude and direction, the moment's
+    components (when the data have moments), joint angles, joint torques."""
+    tau = torques(robot, meas.q, load_of(meas))
     fmag = np.linalg.norm(meas.force, axis=1)
     out = {"row order (drift?)": meas.rows.astype(float), "force magnitude": fmag}
     if meas.force.shape[1] == 2:
         out["force direction"] = np.arctan2(meas.force[:, 1], meas.force[:, 0])
     else:
         out |= {f"force direction {a}": meas.force[:, i] / np.where(fmag > 0, fmag, 1.0) for i, a in enumerate("xyz")}
+    if meas.has_moment:
+        axes = "z" if meas.moment.shape[1] == 1 else "xyz"
+        out |= {f"moment {a}": meas.moment[:, i] for i, a in enumerate(axes)}
     out |= {name: meas.q[:, i] for i, name in enumerate(robot.joint_columns("q"))}
     out |= {name: tau[:, i] for i, name in enumerate(robot.joint_columns("tau"))}
     return out
@@ -539,16 +685,19 @@ def _rank_standardised(A: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class Structure:
     """The features residuals are correlated with (:func:`_features` that vary), ranked once: names, and
-    their standardised ranks (N, k)."""
+    their standardised ranks (N, k); components: the names of a residual row's components (x, y (z), and the
+    rotation's rx, ry, rz or rz when the orientation is measured)."""
     names: tuple[str, ...]
     ranks: np.ndarray
+    components: tuple[str, ...] = ("x", "y", "z")
 
     @classmethod
     def of(cls, robot: Robot, meas: Measurements) -> "Structure":
         feats = _varying(_features(robot, meas))
+        comps = tuple(Observed(orientation=meas.rot is not None).component_names(robot))
         if not feats:
-            return cls((), np.zeros((meas.n_rows, 0)))
-        return cls(tuple(feats), _rank_standardised(np.stack(list(feats.values()), -1)))
+            return cls((), np.zeros((meas.n_rows, 0)), comps)
+        return cls(tuple(feats), _rank_standardised(np.stack(list(feats.values()), -1)), comps)
 
     def correlations(self, resid: np.ndarray) -> dict:
         """Spearman's rho and its p-value (the t approximation scipy.stats.spearmanr uses) of every residual
@@ -565,7 +714,7 @@ class Structure:
             t = r * np.sqrt((n - 2) / np.maximum(1.0 - r**2, 1e-300))
             p = 2 * stats.t.sf(np.abs(t), n - 2)
             for name, rho, pv in zip(self.names, r, p):
-                out[f"{'xyz'[axis]} vs {name}"] = {"spearman": float(rho), "p_value": float(pv)}
+                out[f"{self.components[axis]} vs {name}"] = {"spearman": float(rho), "p_value": float(pv)}
         return out
 
 
@@ -595,25 +744,34 @@ class ConfigurationModel:
     does a zero point that moves from one configuration to the next (a drift). It is the reference of a
     lack-of-fit test that needs several loads per configuration, not replicates.
 
-    basis: per configuration (rows (L_c,), orthonormal basis (L_c, r_c) of the span of [F, 1] over its rows);
-    rank: d sum_c r_c, the number of parameters of G."""
+    With several targets every target of a configuration has its own response, and with moments the load
+    is the wrench W: y = C_ct W + o_ct for the rows of target t at configuration c, y every measured component.
+
+    basis: per configuration and target (rows (L_c,), orthonormal basis (L_c, r_c) of the span of [F, 1] (or
+    [W, 1]) over its rows); rank: d sum_c r_c, the number of parameters of G."""
     basis: tuple
     rank: int
     d: int
 
     @classmethod
-    def of(cls, meas: Measurements, weights: np.ndarray | None = None) -> "ConfigurationModel":
-        """G for the measurements, its rows multiplied by ``weights`` (N,) when the fit is weighted."""
+    def of(cls, meas: Measurements, weights: np.ndarray | None = None, d: int | None = None) -> "ConfigurationModel":
+        """G for the measurements, its rows multiplied by ``weights`` (N,) when the fit is weighted; d: the
+        measured components per row (default the displacement's)."""
         blocks, rank = [], 0
+        d = meas.dp.shape[1] if d is None else d
         w = np.ones(meas.n_rows) if weights is None else weights
+        load = load_of(meas)
         for c in range(meas.n_configurations):
-            rows = np.flatnonzero(meas.config == c)
-            Z = np.hstack([meas.force[rows], np.ones((len(rows), 1))]) * w[rows, None]
-            U, sv, _ = np.linalg.svd(Z, full_matrices=False)
-            r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size else 0
-            blocks.append((rows, U[:, :r]))
-            rank += r * meas.dp.shape[1]
-        return cls(tuple(blocks), rank, meas.dp.shape[1])
+            for t in np.unique(meas.target):
+                rows = np.flatnonzero((meas.config == c) & (meas.target == t))
+                if rows.size == 0:
+                    continue
+                Z = np.hstack([load[rows], np.ones((len(rows), 1))]) * w[rows, None]
+                U, sv, _ = np.linalg.svd(Z, full_matrices=False)
+                r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size else 0
+                blocks.append((rows, U[:, :r]))
+                rank += r * d
+        return cls(tuple(blocks), rank, d)
 
     def residualise(self, A: np.ndarray) -> np.ndarray:
         """(N d, ...) stacked rows -> the same with G's fit removed, configuration by configuration."""
@@ -635,7 +793,7 @@ def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise
       (:func:`structure_p_value`), which sees a drift even where replicates repeat it.
     ``des`` and ``noise`` are weighted by ``weights`` (N,) when the noise varies from row to row. Returns
     None when no test is possible."""
-    G = ConfigurationModel.of(meas, weights)
+    G = ConfigurationModel.of(meas, weights, des.d)
     redG = Reduced.of(G.residualise(des.union()), G.residualise(des.y))
     Xu = des.union()
     feats = Structure.of(robot, meas)
@@ -665,13 +823,16 @@ def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise
 
 # --- checks of the data against physics ----------------------------------------------------------------
 
-def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarray) -> list[str]:
+def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarray,
+                 observed: Observed | None = None) -> list[str]:
     """Remarks on identified compliances that are not physical (negative, or far outside what serial robots
     have) and on displacements too large for an elasto-static model, each with its likely cause."""
     notes = []
+    ob = observed or Observed.of(robot, meas)
+    params = ob.model_params(robot)
     neg = [i for i in range(len(k)) if k[i] + k_ci[i] < 0]
     if neg:
-        names = ", ".join(f"{robot.joint_columns('k')[robot.params[i]]} = {k[i]:.3g}" for i in neg)
+        names = ", ".join(f"{robot.joint_columns('k')[int(params[i])]} = {k[i]:.3g}" for i in neg)
         notes.append(f"negative compliance ({names} rad/(N m), below zero beyond its 95 % interval): a joint "
                      "cannot push back against the load; likely causes: absolute positions instead of "
                      "displacements in the d*_m columns, unloaded minus loaded instead of loaded minus "
@@ -682,7 +843,7 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
         notes.append(f"the displacements are {100 * size / reach:.3g} % of the reach ({reach:.3g} m) in the median: "
                      "far more than an elastic deflection; likely causes: absolute positions instead of "
                      "displacements, or millimetres in columns labelled metres")
-    pred = np.einsum("ndp,p->nd", nominal_columns(robot, meas.q, meas.force), k)
+    pred = np.einsum("ndp,p->nd", nominal_columns(robot, meas.q, load_of(meas), ob), k)[:, : robot.task_dim]
     fmag = np.linalg.norm(meas.force, axis=1)
     ok = fmag > 0
     if ok.any() and np.all(k >= 0):
@@ -699,14 +860,15 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
     return notes
 
 
-def zero_point(meas: Measurements, s2: float) -> dict | None:
+def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0) -> dict | None:
     """The unloaded reference rows: how many, the RMS of their displacement, and (when they are not all
     exactly zero) the p-value of the chi-square test that they scatter about zero with the noise variance
-    s2 [m^2]; a moved zero point is a drift or a disturbed target."""
+    s2 [m^2] (their rotation, when measured, times ``rad_weight`` [m/rad]); a moved zero point is a drift or a
+    disturbed target."""
     n0 = len(meas.zero_rows)
     if n0 == 0:
         return None
-    z = meas.zero_dp
+    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rad_weight * meas.zero_rot])
     rms = float(np.sqrt(np.mean(z**2)))
     out = {"n_rows": int(n0), "rms_m": rms, "p_value": None}
     if rms == 0:
@@ -724,33 +886,72 @@ def zero_point(meas: Measurements, s2: float) -> dict | None:
 
 # --- the analysis --------------------------------------------------------------------------------------
 
+def rad_weight(robot: Robot, meas: Measurements, sigma_m: float | None = None,
+               sigma_rad: float | None = None) -> tuple[float, str | None]:
+    """``(sigma_m / sigma_rad [m/rad], note)``: the weight of the rotation rows (weighted least squares, eqs.
+    10-11), from the noise levels when both are given, else estimated: from the replicates (the pure error of
+    the displacements and of the rotations, Draper & Smith 2.1) or, without replicates, from the residuals of
+    the union of all extensions (two-step feasible weighted least squares, the residual degrees of freedom
+    shared in proportion to the rows). 1 without orientation columns."""
+    if meas.rot is None:
+        return 1.0, None
+    if sigma_m is not None and sigma_rad is not None:
+        w = float(sigma_m) / float(sigma_rad)
+        return w, (f"the rotation rows are weighted by sigma_m / sigma_rad = {w:.4g} m/rad (the noise levels "
+                   "given)")
+    ss_p, df_p = pure_error(meas.dp, meas.group)
+    ss_r, df_r = pure_error(meas.rot, meas.group)
+    how = "the replicates"
+    if df_p > 0 and df_r > 0 and ss_p > 0 and ss_r > 0:
+        w = float(np.sqrt((ss_p / df_p) / (ss_r / df_r)))
+    else:
+        how, w = "the residuals of the union of all extensions", 1.0
+        d = robot.task_dim
+        for _ in range(4):
+            des = build_design(robot, meas, Observed.of(robot, meas, w))
+            f = fit(des.union(), des.y)
+            r = (des.y - des.union() @ f.beta).reshape(-1, des.d)
+            share = f.df / len(des.y)
+            s2p, s2r = (np.sum(r[:, :d] ** 2) / (share * r[:, :d].size),
+                        np.sum((r[:, d:] / w) ** 2) / (share * r[:, d:].size))
+            if not (s2p > 0 and s2r > 0 and f.df > 0):
+                return 1.0, ("the rotation rows are weighted as the positions (1 m/rad): the data give no noise "
+                             "level of either; give sigma_m and sigma_rad")
+            w = float(np.sqrt(s2p / s2r))
+    return w, f"the rotation rows are weighted by sigma_m / sigma_rad = {w:.4g} m/rad, estimated from {how}"
+
+
 def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=None, test_force=None,
-            gain: bool = True) -> dict:
+            gain: bool = True, sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
     """The verdict for one data set (module docstring; fields in docs/measured-data.md).
 
     robot: the robot; meas: its measurements; alpha: family-wise false-alarm rate; test_pose (n,) [rad] and
-    test_force (d,) [N] (optional): the compensation error at the study's test pose under both models;
-    gain=False skips the prediction-error and plan comparison (faster, for simulation studies).
+    test_force (d,) [N] or wrench (d + d_m,) [N, N m] (optional): the compensation error of the tool point at
+    the study's test pose under both models; gain=False skips the prediction-error and plan comparison
+    (faster, for simulation studies); sigma_m [m] and sigma_rad [rad]: the noise levels of positions and
+    rotations, whose ratio weights the rotation rows (default: estimated, :func:`rad_weight`).
     Raises :class:`InputError` when the data cannot identify the compliances or estimate the noise.
     """
     if not 0 < alpha < 1:
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
     check_identifiable(robot, meas)
     check_testable(robot, meas)
-    des_all = build_design(robot, meas)
-    vm = variance_model(robot, meas)  # a first look, before the blunders are known
+    rw, rw_note = rad_weight(robot, meas, sigma_m, sigma_rad)
+    ob_all = Observed.of(robot, meas, rw)
+    des_all = build_design(robot, meas, ob_all)
+    vm = variance_model(robot, meas, des_all.y.reshape(-1, des_all.d))  # a first look, before the blunders
     w_all = np.ones(meas.n_rows) if vm is None else vm.weights
     blunders = find_blunders(des_all.weighted(w_all), meas.n_rows, alpha)
     keep = np.ones(meas.n_rows, bool)
     keep[blunders] = False
     m = meas.subset(keep)
-    check_identifiable(robot, m)
-    vm = variance_model(robot, m)
+    ob = ob_all.take(keep)
+    check_identifiable(robot, m, ob)
+    vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
     w = np.ones(m.n_rows) if vm is None else vm.weights
     des = des_all.rows(keep).weighted(w)
-    mw = Measurements(m.q, m.force, m.dp * w[:, None], m.group, m.source, m.config, m.config_labels, m.rows)
-    noise = noise_variance(des, mw)
-    notes = list(meas.notes)
+    noise = noise_variance(des, m)
+    notes = list(meas.notes) + ([rw_note] if rw_note else [])
     if noise.df < 10:
         notes.append(f"the noise estimate has only {noise.df} degrees of freedom: the tests have little power")
     if vm is not None:
@@ -783,11 +984,13 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     t = stats.t.isf(0.025, noise.df)
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
     lof_nominal = lof(frozenset(), sel.fits[frozenset()])
-    notes += plausibility(robot, m, f0.beta, k_ci)
-    zp = zero_point(meas, noise.s2)
-    nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in robot.params],
-               "k_names": [robot.joint_columns("k")[j] for j in robot.params],
-               "not_identifiable_joints": [j + 1 for j in robot.inert_joints], "sigma_m": sigma,
+    notes += plausibility(robot, m, f0.beta, k_ci, ob)
+    zp = zero_point(meas, noise.s2, rw)
+    params = ob.model_params(robot)
+    nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
+               "k_names": [robot.joint_columns("k")[int(j)] for j in params],
+               "not_identifiable_joints": [j + 1 for j in range(robot.n_joints) if j not in params],
+               "sigma_m": sigma, "rotation_weight_m_per_rad": rw if m.rot is not None else None,
                "sigma_source": noise.source, "sigma_df": int(noise.df),
                "noise_varies": None if vm is None else {"p_value": vm.p_value, "sigma_ratio": vm.sigma_ratio},
                "rss": f0.rss, "df": f0.df,
@@ -803,11 +1006,12 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
            "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
            "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
            "outlier_rows": [int(meas.rows[r]) for r in blunders],
-           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas) for c in indistinct},
+           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas, observed=ob)
+                          for c in indistinct},
            "zero_point": zp, "notes": notes}
     ext = sorted(chosen, key=CAUSES.index) if ranked else []
-    out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot) if ext else None
-    out["gain"] = _gain(robot, m, des, ext, noise.s2, test_pose, test_force) if ext and gain else None
+    out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
+    out["gain"] = _gain(robot, m, des, ext, noise.s2, test_pose, test_force, ob) if ext and gain else None
     if out["gain"] is not None and out["gain"]["loco_ratio"] is None:
         notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
                      "configurations (and a nonzero error of the extended model); it is left out")
@@ -832,80 +1036,168 @@ def _finite(obj, notes: list[str], path: str = ""):
     return obj
 
 
-def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe: int = 400) -> str:
+def pose_rows(robot: Robot, q: np.ndarray, load: np.ndarray, causes, observed: Observed,
+              predict: bool = False) -> np.ndarray:
+    """(K, T r, p): the regressors of poses q (K, n) under ``load`` ((w,) or (K, w)) when every target the data
+    measure (T of them, :meth:`Observed.used`) is measured at each pose, each with the rotation when it is
+    measured (as the rows of the data set were: one row per target)."""
+    used = observed.used()
+    K, T = len(q), len(used)
+    load = np.broadcast_to(load, (K, np.shape(load)[-1]))
+    tgt = np.tile([observed.names.index(t) for t in used], K)
+    X = model_columns(robot, np.repeat(q, T, axis=0), np.repeat(load, T, axis=0), causes, predict,
+                      replace(observed, target=tgt))
+    return X.reshape(K, T * X.shape[1], X.shape[2])
+
+
+def _nested(robot: Robot, a: str, b: str, q: np.ndarray, load: np.ndarray, observed: Observed):
+    """Which of causes a, b has its regressors in the span of the nominal model and the other's, on the probe
+    poses q and loads (a tuple of the nested ones: data of a nested cause are always explained by the other
+    one too), with the stacked regressors (X0, A, B)."""
+    X0, A, B = (_stack(pose_rows(robot, q, load, [c] if c else [], observed)) for c in (None, a, b))
+    n0 = X0.shape[1]
+    A, B = A[:, n0:], B[:, n0:]
+    nested = tuple(c for c, X, Y in ((a, A, B), (b, B, A)) if _spans_within(X, np.hstack([X0, Y])))
+    return nested, X0, A, B
+
+
+def _missing_measurements(robot: Robot, a: str, b: str, q, load, observed: Observed, nested: tuple) -> list[str]:
+    """The measurements that, added to the data's, leave fewer of a, b nested in the other (:func:`_nested`) on
+    the probe: the tool's orientation, a second target (one of the robot file's, else a point of the tool off
+    the tool point)."""
+    rot = "rz_rad" if robot.kind == "planar" else "rx_rad, ry_rad, rz_rad"
+    found = []
+    if not observed.orientation:
+        ob = replace(observed, orientation=True, params=sensed_params(robot, Sensing(observed.used(), True)))
+        if len(_nested(robot, a, b, q, load, ob)[0]) < len(nested):
+            found.append(f"the tool's orientation (columns {rot})")
+    others = [t for t in robot.target_names if t not in observed.used()]
+    trial = robot
+    if others:
+        what = f"the position of target {others[0]} too (a target column naming the target of each row)"
+    else:
+        size = 0.1 * robot.reach_m
+        point = np.array([size, size, 0.0 if robot.kind == "planar" else size])
+        trial = replace(robot, targets={**robot.targets, "_probe": point})
+        others = ["_probe"]
+        what = ("the position of a second target on the tool, off the tool point (its position in the robot file's "
+                "targets, a target column naming the target of each row)")
+    used = (*observed.used(), others[0])
+    ob = Observed(trial.target_names, np.array([trial.target_names.index(t) for t in used]), observed.orientation,
+                  observed.rad_weight, sensed_params(trial, Sensing(used, observed.orientation)))
+    if len(_nested(trial, a, b, q, load, ob)[0]) < len(nested):
+        found.append(what)
+    return found
+
+
+def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe: int = 400,
+                      observed: Observed | None = None) -> str:
     """Why causes a and b cannot be told apart here, and what measurement would separate them.
 
-    On a random probe of poses within the joint limits and forces in every direction, if one span still
-    lies inside the other for any end-effector position measurement, no choice of poses can separate them:
-    another measured quantity is needed. Otherwise the probe pose where b's extra regressors are farthest
-    from the span of a's model is the one to measure.
+    On a random probe of poses within the joint limits and loads in every direction (forces, and moments
+    when the data have them), measuring what the data measure (``observed``: targets, orientation): when a
+    cause's regressors lie in the span of the nominal model and the other's (it is *nested*), data of that
+    cause are always explained by the other too, and no choice of poses separates them; the advice then names
+    the measured quantities that would (the tool's orientation, a second target: the probe is repeated with
+    each added). For a planar 2-link arm with positions only the spans of link_compliance and joint_coupling
+    coincide; with the orientation or a second target a bending last link shows where coupling cannot explain
+    it (a bending first link still acts as a compliance of joints 1-2). Otherwise the probe pose where the
+    causes' predictions differ most is the one to measure.
     """
+    ob = observed or Observed.of(robot, meas)
     rng = np.random.default_rng(0)
     lims = robot.joint_limits_rad
     q = rng.uniform(lims[:, 0], lims[:, 1], (n_probe, robot.n_joints))
     f = random_directions(rng, n_probe, robot.task_dim) * np.median(np.linalg.norm(meas.force, axis=1))
-    X0 = _stack(nominal_columns(robot, q, f))
-    A, B = (_stack(cause_columns(c, robot, q, f)) for c in (a, b))
-    if _spans_within(B, np.hstack([X0, A])) or _spans_within(A, np.hstack([X0, B])):
-        return (f"for this robot every end-effector position measurement sees {a} and {b} (with the joint "
-                f"compliances) through the same directions, so no choice of poses or forces separates them; "
-                f"measure another quantity, e.g. the position of an intermediate joint or the end-effector "
-                f"orientation")
-    Xa = np.hstack([X0, A])
-    P = B - Xa @ np.linalg.lstsq(Xa, B, rcond=None)[0]
+    if meas.has_moment:
+        dm = meas.moment.shape[1]
+        f = np.hstack([f, random_directions(rng, n_probe, dm) if dm > 1 else rng.choice([-1.0, 1.0], (n_probe, 1))
+                       * np.median(np.linalg.norm(meas.moment, axis=1))])
+    nested, X0, A, B = _nested(robot, a, b, q, f, ob)
+    seen = ("end-effector position measurement" if ob.default else "measurement of "
+            + ", ".join(f"target {t}" for t in ob.used()) + (" and the orientation" if ob.orientation else ""))
+    if len(nested) == 2:
+        missing = _missing_measurements(robot, a, b, q, f, ob, nested)
+        advice = ("; measuring " + " or ".join(missing) + " would separate them" if missing else
+                  "; measure another quantity, e.g. the position of an intermediate joint")
+        return (f"for this robot every {seen} sees {a} and {b} (with the joint compliances) through the same "
+                f"directions, so no choice of poses or forces separates them{advice}")
+    wider, X = (b, A) if nested == (a,) else (a, B)
+    Y = np.hstack([X0, B if X is A else A])  # the larger model; X: the other cause's regressors
+    P = (Y - np.hstack([X0, X]) @ np.linalg.lstsq(np.hstack([X0, X]), Y, rcond=None)[0])
     per_pose = np.linalg.norm(P.reshape(n_probe, -1, P.shape[1]), axis=(1, 2))
     i = int(np.argmax(per_pose))
-    u = f[i] / np.linalg.norm(f[i])
+    fi = f[i, : robot.task_dim]
+    u = fi / np.linalg.norm(fi)
     where = (f"at {np.degrees(np.arctan2(u[1], u[0])):.0f} deg" if len(u) == 2 else
              f"along ({', '.join(f'{c:.2f}' for c in u)})")
-    return (f"these data do not separate {a} from {b}; a measurement at q = "
-            f"{np.round(np.degrees(q[i]), 1).tolist()} deg with the force {where} "
-            f"would (it is where their predictions differ most)")
+    pose = (f"a measurement at q = {np.round(np.degrees(q[i]), 1).tolist()} deg with the force {where} "
+            f"would{' show ' + wider + ' if it is the cause' if nested else ''} (it is where their predictions "
+            "differ most)")
+    if not nested:
+        return f"these data do not separate {a} from {b}; {pose}"
+    missing = _missing_measurements(robot, a, b, q, f, ob, nested)
+    what = ("the position of the tool point" if ob.default else
+            f"the position{'s' if len(ob.used()) > 1 else ''} of target{'s' if len(ob.used()) > 1 else ''} "
+            + " and ".join(ob.used()) + (" and the orientation" if ob.orientation else ""))
+    return (f"for this robot, measuring {what}, the deflections of {nested[0]} are also explained by {wider} (with "
+            f"the joint compliances) at every pose and force, so no choice of poses or forces separates them when "
+            f"{nested[0]} is the cause; {pose}"
+            + ("; measuring " + " or ".join(missing) + " would separate them" if missing else ""))
 
 
-def _extended(des: Design, f: Fit, causes: list[str], sigma: float, t: float, robot: Robot) -> dict:
+def _extended(des: Design, f: Fit, causes: list[str], sigma: float, t: float, robot: Robot,
+              observed: Observed | None = None) -> dict:
     n = des.X0.shape[1]
     ci = t * sigma * np.sqrt(np.diag(f.cov_unscaled))
-    names = [name for c in causes for name in parameter_names(c, robot)]
+    names = [name for c in causes for name in parameter_names(c, robot, observed)]
     return {"cause": "+".join(causes), "causes": causes, "k": f.beta[:n].tolist(), "k_ci95": ci[:n].tolist(),
             "parameters": f.beta[n:].tolist(), "parameters_ci95": ci[n:].tolist(),
             "parameter_names": names, "rss": f.rss, "df": f.df}
 
 
-def parameter_names(cause: str, robot: Robot) -> list[str]:
+def parameter_names(cause: str, robot: Robot, observed: Observed | None = None) -> list[str]:
     n = robot.n_joints
+    rot = [] if observed is None or not observed.orientation else [
+        f"o{c}_rad" for c in observed.component_names(robot)[robot.task_dim:]]
     return {"link_compliance": [f"c{i + 1}_1/(N m^2)" for i in range(robot.n_segments)],
             "joint_coupling": [f"k{a}{b}_rad/(N m)" for i, a in enumerate(robot.joint_columns("")) for b in
                                robot.joint_columns("")[i + 1:]],
             "nonlinear_joint_stiffness": [f"g{i + 1}_rad/(N m)^3" for i in range(n)],
             "backlash": [f"b{i + 1}_rad" for i in range(n)],
-            "measurement_offset": [f"o{a}_m" for a in "xyz"[: robot.task_dim]]}[cause]
+            "measurement_offset": [f"o{a}_m" for a in "xyz"[: robot.task_dim]] + rot}[cause]
 
 
-def loco_rms(robot: Robot, meas: Measurements, causes=()) -> float | None:
-    """RMS prediction error [m] of held-out configurations: each robot configuration (all its loads and
-    replicates) left out in turn and predicted from the others. None when fewer than two configurations."""
+def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None) -> float | None:
+    """RMS prediction error [m] of the positions of held-out configurations: each robot configuration (all its
+    loads, targets and replicates) left out in turn and predicted from the others (fitted on every measured
+    quantity, ``observed``). None when fewer than two configurations."""
     if meas.n_configurations < 2:
         return None
-    X = model_columns(robot, meas.q, meas.force, causes)
+    ob = observed or Observed.of(robot, meas)
+    X = model_columns(robot, meas.q, load_of(meas), causes, observed=ob)
+    y = observations(meas, ob)
+    d = robot.task_dim
     err = []
     for g in range(meas.n_configurations):
         test = meas.config == g
-        f = fit(_stack(X[~test]), meas.dp[~test].ravel())
-        err.append((meas.dp[test] - np.einsum("ndp,p->nd", X[test], f.beta)).ravel())
+        f = fit(_stack(X[~test]), y[~test].ravel())
+        err.append((y[test] - np.einsum("ndp,p->nd", X[test], f.beta))[:, :d].ravel())
     e = np.concatenate(err)
     return float(np.sqrt(np.mean(e**2)))
 
 
-def _gain(robot, meas, des, causes, s2, test_pose, test_force) -> dict:
-    nom, ext = loco_rms(robot, meas), loco_rms(robot, meas, causes)
+def _gain(robot, meas, des, causes, s2, test_pose, test_force, observed: Observed | None = None) -> dict:
+    ob = observed or Observed.of(robot, meas)
+    nom, ext = loco_rms(robot, meas, observed=ob), loco_rms(robot, meas, causes, ob)
     out = {"loco_rms_nominal_m": nom, "loco_rms_extended_m": ext,
            "loco_ratio": nom / ext if nom is not None and ext else None}
     if test_pose is not None and test_force is not None:
         qt = np.atleast_2d(test_pose)
         ft = np.atleast_2d(test_force)
-        Xt0 = nominal_columns(robot, qt, ft)[0]
-        Xt1 = model_columns(robot, qt, ft, causes, predict=True)[0]
+        at_tool = ob.at_tool(robot)
+        Xt0 = nominal_columns(robot, qt, ft, at_tool)[0]
+        Xt1 = model_columns(robot, qt, ft, causes, predict=True, observed=at_tool)[0]
         f0, f1 = fit(des.X0, des.y), fit(des.model(causes), des.y)
         bias = Xt1 @ f1.beta - Xt0 @ f0.beta  # the extended model taken as the truth
         var0 = s2 * np.trace(Xt0 @ f0.cov_unscaled @ Xt0.T)
@@ -913,10 +1205,9 @@ def _gain(robot, meas, des, causes, s2, test_pose, test_force) -> dict:
         out.update({"test_pose_rms_nominal_m": float(np.sqrt(bias @ bias + var0)),
                     "test_pose_rms_extended_m": float(np.sqrt(var1)),
                     "test_pose_model_error_m": float(np.linalg.norm(bias))})
-        plan, ot_ext = optimal_plan(robot, causes, qt[0], ft[0])
-        plan_nom, _ = optimal_plan(robot, (), qt[0], ft[0], m=len(plan))
-        F = np.broadcast_to(ft[0], (len(plan), ft.shape[1]))
-        Xn = model_columns(robot, np.radians(plan_nom), F, causes)
+        plan, ot_ext = optimal_plan(robot, causes, qt[0], ft[0], observed=ob)
+        plan_nom, _ = optimal_plan(robot, (), qt[0], ft[0], m=len(plan), observed=ob)
+        Xn = pose_rows(robot, np.radians(plan_nom), ft[0], causes, ob)
         scale = np.sqrt(np.mean(Xn**2, axis=(0, 1)))
         scale[scale == 0] = 1.0
         ot_nom_plan = _ot_of(Xn / scale, Xt1 / scale)
@@ -929,27 +1220,37 @@ def _gain(robot, meas, des, causes, s2, test_pose, test_force) -> dict:
 
 
 def residual_features(robot: Robot, meas: Measurements) -> dict[str, np.ndarray]:
-    """The quantities residuals are plotted against: joint angles [deg], |F| [N], F direction [deg], tau [N m]."""
-    tau = torques(robot, meas.q, meas.force)
+    """The quantities residuals are plotted against: joint angles [deg], |F| [N], F direction [deg], the
+    moment [N m] (when the data have moments), tau [N m]."""
+    tau = torques(robot, meas.q, load_of(meas))
+    moment = {}
+    if meas.has_moment:
+        axes = "z" if meas.moment.shape[1] == 1 else "xyz"
+        moment = {f"m{a} [N m]": meas.moment[:, i] for i, a in enumerate(axes)}
     return {**{name: np.degrees(meas.q[:, i]) for i, name in enumerate(robot.joint_columns("q", " [deg]"))},
             "|F| [N]": np.linalg.norm(meas.force, axis=1),
-            "force direction [deg]": np.degrees(np.arctan2(meas.force[:, 1], meas.force[:, 0])),
+            "force direction [deg]": np.degrees(np.arctan2(meas.force[:, 1], meas.force[:, 0])), **moment,
             **{name: tau[:, i] for i, name in enumerate(robot.joint_columns("tau", " [N m]"))}}
 
 
-def nominal_residuals(robot: Robot, meas: Measurements, keep: np.ndarray) -> np.ndarray:
-    """(N, d) residuals [m] of the nominal fit made on the rows ``keep`` (all rows get a residual)."""
-    X = nominal_columns(robot, meas.q, meas.force)
-    f = fit(_stack(X[keep]), meas.dp[keep].ravel())
-    return meas.dp - np.einsum("ndp,p->nd", X, f.beta)
+def nominal_residuals(robot: Robot, meas: Measurements, keep: np.ndarray, observed: Observed | None = None):
+    """(N, d) position residuals [m] of the nominal fit made on the rows ``keep`` (all rows get a residual;
+    the fit uses every measured quantity, ``observed``)."""
+    ob = observed or Observed.of(robot, meas)
+    X = nominal_columns(robot, meas.q, load_of(meas), ob)
+    y = observations(meas, ob)
+    f = fit(_stack(X[keep]), y[keep].ravel())
+    return (y - np.einsum("ndp,p->nd", X, f.beta))[:, : robot.task_dim]
 
 
 def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_pose=None, test_force=None,
         label: str | None = None, angle_resolution_deg: float | None = None,
-        force_resolution_N: float | None = None) -> dict:
+        force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
+        sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
     """Read, analyse, and write ``out_dir/verdict.json`` and ``out_dir/residuals.{png,svg}``; everything is
     computed before anything is written, so bad data leave no partial output. Resolutions default to
-    :data:`stiffcal.measurements.ANGLE_RESOLUTION_DEG` and :data:`~stiffcal.measurements.FORCE_RESOLUTION_N`."""
+    :data:`stiffcal.measurements.ANGLE_RESOLUTION_DEG`, :data:`~stiffcal.measurements.FORCE_RESOLUTION_N` and
+    :data:`~stiffcal.measurements.MOMENT_RESOLUTION_NM`; sigma_m, sigma_rad: :func:`analyse`."""
     import json
     from pathlib import Path
 
@@ -960,13 +1261,15 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="--alpha")
     meas = M.read_measurements(data_path, robot,
                                M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None else angle_resolution_deg,
-                               M.FORCE_RESOLUTION_N if force_resolution_N is None else force_resolution_N)
-    verdict = analyse(robot, meas, alpha, test_pose, test_force)
+                               M.FORCE_RESOLUTION_N if force_resolution_N is None else force_resolution_N,
+                               M.MOMENT_RESOLUTION_NM if moment_resolution_Nm is None else moment_resolution_Nm)
+    verdict = analyse(robot, meas, alpha, test_pose, test_force, sigma_m=sigma_m, sigma_rad=sigma_rad)
     verdict = {"data": str(data_path), "robot": robot.source, **verdict}
     text = json.dumps(verdict, indent=2, allow_nan=False)
     keep = np.ones(meas.n_rows, bool)
     keep[np.isin(meas.rows, verdict["outlier_rows"])] = False
-    resid = nominal_residuals(robot, meas, keep)
+    weight = verdict["nominal"]["rotation_weight_m_per_rad"]
+    resid = nominal_residuals(robot, meas, keep, Observed.of(robot, meas, 1.0 if weight is None else weight))
     fig = plots.fig_residuals(meas.subset(keep), residual_features(robot, meas.subset(keep)), resid[keep],
                               verdict["nominal"]["sigma_m"],
                               f"Nominal-model residuals: {label or Path(data_path).name}")
@@ -989,22 +1292,25 @@ def _ot_of(Xs: np.ndarray, Xt: np.ndarray) -> float:
 
 
 def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
-                 m: int | None = None, step_deg: float = 10.0, seed: int = 0):
+                 m: int | None = None, step_deg: float = 10.0, seed: int = 0, observed: Observed | None = None):
     """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
-    model nominal + ``causes``, the test force used in every measurement (as in the paper): Fedorov exchange
+    model nominal + ``causes``, the test force (or wrench) used in every measurement (as in the paper), every
+    pose measuring what the data measured (``observed``: its targets and orientation; default the tool point)
+    and O_t the tool point's position error at the test pose: Fedorov exchange
     (:func:`stiffcal.plans.fedorov_exchange`, the engine of every plan) over a step_deg grid of poses within
     the joint limits (4096 quasi-random poses for 4+ joints). Returns (poses [deg] (m, n), O_t / sigma^2)."""
     from .plans import fedorov_exchange
 
+    ob = observed or Observed()
     if is_sampled(robot, step_deg):
         pool = sample_joint_space(robot, 12, seed=0)  # a grid would be too large: 4096 quasi-random poses
     else:
         lims = np.degrees(robot.joint_limits_rad)
         axes = [np.arange(lo, hi + 1e-9, step_deg) for lo, hi in lims]
         pool = np.radians(np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, robot.n_joints))
-    F = np.broadcast_to(test_force, (len(pool), len(test_force)))
-    Xp = model_columns(robot, pool, F, causes)
-    Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True)[0]
+    Xp = pose_rows(robot, pool, np.asarray(test_force, float), causes, ob)
+    Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True,
+                       observed=ob.at_tool(robot))[0]
     scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))  # O_t does not depend on the parameters' units: balance them
     scale[scale == 0] = 1.0
     Xp, Xt = Xp / scale, Xt / scale

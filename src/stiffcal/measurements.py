@@ -3,18 +3,24 @@ replicates and the unloaded zero point.
 
 One row per measurement, units in the column names: ``pose_id`` (optional: a label of the robot
 configuration), ``q1_deg`` ... ``qn_deg``, ``fx_N``, ``fy_N`` (``fz_N``), ``dx_m``, ``dy_m`` (``dz_m``): the
-displacement of the measured point between the unloaded and the loaded state.
+displacement of the measured point between the unloaded and the loaded state. Optional: the moment
+``mx_Nm``, ``my_Nm``, ``mz_Nm`` about the tool point (planar arms: ``mz_Nm``), the orientation deflection
+``rx_rad``, ``ry_rad``, ``rz_rad`` (small-angle rotation vector of the tool; planar arms: ``rz_rad``), and
+``target``, the name of the target whose displacement the row gives (the robot file's ``targets``, or
+``tool``; default the tool point). Forces, moments, displacements and rotations are in the base frame.
 
 How rows are grouped (calibration labs measure every configuration under several loads, often repeating
 the load sequence):
 
-- **replicates** are rows whose joint angles agree within ``angle_resolution_deg`` and whose force agrees
-  within ``force_resolution_N`` (component by component; rows linked through a chain of such pairs form one
-  group), whatever their ``pose_id``. Their spread is the pure error.
+- **replicates** are rows of the same target whose joint angles agree within ``angle_resolution_deg``, whose
+  force agrees within ``force_resolution_N`` and moment within ``moment_resolution_Nm`` (component by
+  component; rows linked through a chain of such pairs form one group), whatever their ``pose_id``. Their
+  spread is the pure error.
 - **configurations** are rows whose joint angles agree within ``angle_resolution_deg``; with a ``pose_id``
   column, the label names the configuration, and rows sharing a label must share their joint angles.
   Configurations are what leave-one-configuration-out prediction and the residual plots use.
-- **unloaded rows** (every force component within ``force_resolution_N`` of zero) are the zero point of the
+- **unloaded rows** (every force component within ``force_resolution_N`` of zero, every moment component
+  within ``moment_resolution_Nm``) are the zero point of the
   displacement, not a measurement of compliance: they are set aside (``zero_rows``) and used only to check
   that the zero point did not move.
 
@@ -31,16 +37,18 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .robot import Robot
+from .observation import force_dim, moment_dim
+from .robot import TOOL_TARGET, Robot
 
 #: default resolutions that decide which rows repeat a configuration or a load (documented in docs/)
 ANGLE_RESOLUTION_DEG = 0.01
 FORCE_RESOLUTION_N = 0.5
+MOMENT_RESOLUTION_NM = 0.05
 
-_UNITS = {"q": "deg", "f": "N", "d": "m"}
-_PATTERN = re.compile(r"^(q\d+|f[xyz]|d[xyz])(?:_(.*))?$")
-_NAMES = {"q": "joint angles", "f": "force components", "d": "displacements"}
-_UNSUPPORTED = re.compile(r"^(m[xyz]|r[xyz])(_.*)?$|^target$")
+_UNITS = {"q": "deg", "f": "N", "d": "m", "m": "Nm", "r": "rad"}
+_PATTERN = re.compile(r"^(q\d+|f[xyz]|d[xyz]|m[xyz]|r[xyz])(?:_(.*))?$")
+_NAMES = {"q": "joint angles", "f": "force components", "d": "displacements", "m": "moment components",
+          "r": "orientation deflections"}
 _MAX_LISTED = 5
 
 
@@ -89,7 +97,10 @@ class Measurements:
     zero_rows (N0,) int, zero_dp (N0, d) [m], zero_config (N0,) int: the unloaded reference rows, their
     displacement and configuration (-1 when no loaded row shares their joint angles);
     notes: what the reader noticed (unused columns, ignored blank labels);
-    resolutions: (angle [deg], force [N]) used to group the rows.
+    resolutions: (angle [deg], force [N], moment [N m]) used to group the rows;
+    moment (N, d_m) [N m] about the tool point (zero without moment columns); rot (N, d_r) [rad] the tool's
+    orientation deflection, or None when it was not measured; target (N,) int: the target of each row, an
+    index into target_names; zero_rot (N0, d_r) [rad] the unloaded rows' orientation (None without it).
     """
 
     q: np.ndarray
@@ -104,10 +115,21 @@ class Measurements:
     zero_dp: np.ndarray | None = None
     zero_config: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     notes: tuple[str, ...] = ()
-    resolutions: tuple[float, float] = (ANGLE_RESOLUTION_DEG, FORCE_RESOLUTION_N)
+    resolutions: tuple[float, ...] = (ANGLE_RESOLUTION_DEG, FORCE_RESOLUTION_N, MOMENT_RESOLUTION_NM)
+    moment: np.ndarray | None = None
+    rot: np.ndarray | None = None
+    target: np.ndarray | None = None
+    target_names: tuple[str, ...] = (TOOL_TARGET,)
+    zero_rot: np.ndarray | None = None
 
     def __post_init__(self):
         n_rows = len(self.q)
+        if self.moment is None:
+            object.__setattr__(self, "moment", np.zeros((n_rows, 3 if self.force.shape[1] == 3 else 1)))
+        if self.target is None:
+            object.__setattr__(self, "target", np.zeros(n_rows, int))
+        if len(self.resolutions) == 2:
+            object.__setattr__(self, "resolutions", (*self.resolutions, MOMENT_RESOLUTION_NM))
         if self.config is None:
             config = cluster(np.degrees(self.q), np.full(self.q.shape[1], self.resolutions[0]),
                              np.full(self.q.shape[1], 360.0))
@@ -123,15 +145,21 @@ class Measurements:
     @classmethod
     def from_arrays(cls, q, force, dp, source: str = "<memory>", config=None,
                     angle_resolution_deg: float = ANGLE_RESOLUTION_DEG,
-                    force_resolution_N: float = FORCE_RESOLUTION_N) -> "Measurements":
+                    force_resolution_N: float = FORCE_RESOLUTION_N, moment=None, rot=None, target=None,
+                    target_names=(TOOL_TARGET,), moment_resolution_Nm: float = MOMENT_RESOLUTION_NM) -> "Measurements":
         """Measurements from arrays of loaded rows, grouped into replicates and configurations by the
         resolutions (module docstring). q (N, n) [rad]; force (N, d) [N]; dp (N, d) [m]; config (N,) optional
-        configuration labels."""
+        configuration labels; moment (N, d_m) [N m], rot (N, d_r) [rad], target (N,) int into target_names:
+        optional (:class:`Measurements`)."""
         q, force, dp = (np.asarray(a, float) for a in (q, force, dp))
-        res = (float(angle_resolution_deg), float(force_resolution_N))
-        group = replicate_groups(np.degrees(q), force, *res)
+        res = (float(angle_resolution_deg), float(force_resolution_N), float(moment_resolution_Nm))
+        moment = None if moment is None else np.asarray(moment, float)
+        target = None if target is None else np.asarray(target, int)
+        group = replicate_groups(np.degrees(q), force, *res[:2], moment, res[2], target)
         cfg = None if config is None else np.unique(np.asarray(config), return_inverse=True)[1].ravel()
-        return cls(q, force, dp, group, source, config=cfg, resolutions=res)
+        return cls(q, force, dp, group, source, config=cfg, resolutions=res, moment=moment,
+                   rot=None if rot is None else np.asarray(rot, float), target=target,
+                   target_names=tuple(target_names))
 
     @property
     def n_rows(self) -> int:
@@ -147,7 +175,23 @@ class Measurements:
         used, config = np.unique(self.config[keep], return_inverse=True)
         return Measurements(self.q[keep], self.force[keep], self.dp[keep], self.group[keep], self.source,
                             config.ravel(), tuple(self.config_labels[c] for c in used), self.rows[keep],
-                            self.zero_rows, self.zero_dp, self.zero_config, self.notes, self.resolutions)
+                            self.zero_rows, self.zero_dp, self.zero_config, self.notes, self.resolutions,
+                            self.moment[keep], None if self.rot is None else self.rot[keep], self.target[keep],
+                            self.target_names, self.zero_rot)
+
+    @property
+    def wrench(self) -> np.ndarray:
+        """(N, d + d_m) [N, N m]: force and moment of every row."""
+        return np.hstack([self.force, self.moment])
+
+    @property
+    def has_moment(self) -> bool:
+        return bool(np.any(self.moment))
+
+    @property
+    def obs(self) -> np.ndarray:
+        """(N, d (+ d_r)): the measured quantities of every row, displacement [m] then rotation [rad]."""
+        return self.dp if self.rot is None else np.hstack([self.dp, self.rot])
 
     def structure(self) -> dict:
         """Counts that say how the data were taken: configurations, loads per configuration, replicate
@@ -158,7 +202,10 @@ class Measurements:
                 "loads_per_configuration": _span(loads), "n_replicate_groups": int(len(sizes)),
                 "replicates_per_group": _span(sizes[sizes > 0]),
                 "n_groups_with_replicates": int(np.sum(sizes > 1)), "n_unloaded_rows": int(len(self.zero_rows)),
-                "angle_resolution_deg": self.resolutions[0], "force_resolution_N": self.resolutions[1]}
+                "angle_resolution_deg": self.resolutions[0], "force_resolution_N": self.resolutions[1],
+                "moment_resolution_Nm": self.resolutions[2],
+                "targets": [self.target_names[t] for t in np.unique(self.target)],
+                "orientation": self.rot is not None}
 
 
 def _span(counts) -> dict:
@@ -173,19 +220,40 @@ def _angle_label(q_deg: np.ndarray) -> str:
 
 
 def replicate_groups(q_deg: np.ndarray, force: np.ndarray, angle_resolution_deg: float = ANGLE_RESOLUTION_DEG,
-                     force_resolution_N: float = FORCE_RESOLUTION_N) -> np.ndarray:
-    """(N,) replicate-group labels: rows whose joint angles [deg] (N, n) and forces [N] (N, d) agree within
-    the resolutions (:func:`cluster`, angles modulo 360 deg)."""
+                     force_resolution_N: float = FORCE_RESOLUTION_N, moment: np.ndarray | None = None,
+                     moment_resolution_Nm: float = MOMENT_RESOLUTION_NM,
+                     target: np.ndarray | None = None) -> np.ndarray:
+    """(N,) replicate-group labels: rows of the same target (N,) int whose joint angles [deg] (N, n), forces [N]
+    (N, d) and moments [N m] (N, d_m) agree within the resolutions (:func:`cluster`, angles modulo 360 deg)."""
     n, d = q_deg.shape[1], force.shape[1]
-    res = np.r_[np.full(n, angle_resolution_deg), np.full(d, force_resolution_N)]
-    period = np.r_[np.full(n, 360.0), np.full(d, np.inf)]
-    return cluster(np.hstack([q_deg, force]), res, period)
+    cols, res = [q_deg, force], [np.full(n, angle_resolution_deg), np.full(d, force_resolution_N)]
+    period = [np.full(n, 360.0), np.full(d, np.inf)]
+    if moment is not None:
+        cols.append(moment)
+        res.append(np.full(moment.shape[1], moment_resolution_Nm))
+        period.append(np.full(moment.shape[1], np.inf))
+    if target is not None:  # targets are integers: a resolution of 1/2 keeps different ones apart
+        cols.append(np.asarray(target, float)[:, None])
+        res.append([0.5])
+        period.append([np.inf])
+    return cluster(np.hstack(cols), np.concatenate(res), np.concatenate(period))
+
+
+def _axes(prefix: str, unit: str, k: int, rotation: bool = False) -> list[str]:
+    """Column names of a vector quantity: 'fx_N', 'fy_N' (k = 2); rotations and moments of a planar arm: 'mz_Nm'."""
+    return [f"{prefix}{a}_{unit}" for a in ("z" if rotation and k == 1 else "xyz"[:k])]
 
 
 def expected_columns(robot: Robot) -> list[str]:
-    axes = "xyz"[: robot.task_dim]
-    return ([f"q{i + 1}_deg" for i in range(robot.n_joints)] + [f"f{a}_N" for a in axes]
-            + [f"d{a}_m" for a in axes])
+    """The columns every measured-data CSV of ``robot`` has: joint angles, force, displacement."""
+    d = force_dim(robot)
+    return [f"q{i + 1}_deg" for i in range(robot.n_joints)] + _axes("f", "N", d) + _axes("d", "m", d)
+
+
+def optional_columns(robot: Robot) -> dict[str, list[str]]:
+    """The optional column groups of ``robot``: 'moment' and 'orientation' (all of a group or none)."""
+    dm = moment_dim(robot)
+    return {"moment": _axes("m", "Nm", dm, True), "orientation": _axes("r", "rad", dm, True)}
 
 
 def angle_columns(columns, robot: Robot, source: str) -> list[str]:
@@ -294,18 +362,21 @@ def _configurations(labels, q_deg: np.ndarray, angle_res: float, source: str) ->
 
 
 def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: float = ANGLE_RESOLUTION_DEG,
-                      force_resolution_N: float = FORCE_RESOLUTION_N) -> Measurements:
+                      force_resolution_N: float = FORCE_RESOLUTION_N,
+                      moment_resolution_Nm: float = MOMENT_RESOLUTION_NM) -> Measurements:
     """Read and validate a measured-data CSV for ``robot`` (module docstring).
 
     Raises :class:`InputError` (naming the file, row and column) for: an unreadable file; a column with a
-    wrong or missing unit; missing or surplus joint, force or displacement columns; a value that is not a
-    finite number; blank ``pose_id`` cells beside filled ones; rows that share a ``pose_id`` but not their
+    wrong or missing unit; missing or surplus joint, force or displacement columns; some but not all of the
+    arm's moment or orientation columns; a value that is not a finite number; a ``target`` the robot file does
+    not name, or blank; blank ``pose_id`` cells beside filled ones; rows that share a ``pose_id`` but not their
     joint angles; no loaded row. Columns the analysis does not use are named in ``notes``.
     """
     import pandas as pd
 
     source = str(path)
-    for name, v in (("angle resolution", angle_resolution_deg), ("force resolution", force_resolution_N)):
+    for name, v in (("angle resolution", angle_resolution_deg), ("force resolution", force_resolution_N),
+                    ("moment resolution", moment_resolution_Nm)):
         if not (np.isfinite(v) and v > 0):
             raise InputError(f"expected a {name} > 0, got {v}", field=name.replace(" ", "_"))
     try:
@@ -317,26 +388,35 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     cols = angle_columns(list(df.columns), robot, source) + expected_columns(robot)[robot.n_joints:]
     missing = [c for c in cols if c not in df.columns]
     if missing:
-        raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(cols)} (and optionally pose_id)",
-                         source=source)
-    unsupported = [c for c in df.columns if _UNSUPPORTED.match(c)]
-    if unsupported:
-        raise InputError(f"column {unsupported[0]}: moments, orientation deflections and several targets are not "
-                         "supported by this version; dropping them would bias the compliances, so remove the "
-                         "column only if its values are zero", source=source, field=f"column {unsupported[0]}")
+        raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(cols)} (and optionally pose_id, "
+                         "target, the moment and the orientation)", source=source)
+    groups = {}
+    for what, names in optional_columns(robot).items():
+        have = [c for c in names if c in df.columns]
+        if have and len(have) < len(names):
+            raise InputError(f"missing column(s) {', '.join(c for c in names if c not in have)}: the {what} has "
+                             f"{len(names)} component(s) for a {robot.kind} robot ({', '.join(names)}); give all or "
+                             "none", source=source, field=f"column {have[0]}")
+        groups[what] = names if have else []
     if len(df) == 0:
         raise InputError("no measurements (the file has a header only)", source=source)
+    used = cols + groups["moment"] + groups["orientation"]
     notes = []
-    surplus = [c for c in df.columns if _PATTERN.match(c) and c not in cols]
+    surplus = [c for c in df.columns if _PATTERN.match(c) and c not in used]
     if surplus:
         notes.append(f"column(s) {', '.join(surplus)} do not belong to a {robot.kind} robot with {robot.task_dim} "
                      f"measured coordinates and are ignored")
-    unused = [c for c in df.columns if c not in cols and c != "pose_id" and c not in surplus]
+    unused = [c for c in df.columns if c not in used and c not in ("pose_id", "target") and c not in surplus]
     if unused:
         notes.append(f"column(s) {', '.join(unused)} not used by the analysis")
-    values = _numbers(df, cols, source)
-    n, d = robot.n_joints, robot.task_dim
-    q_deg, force, dp = values[:, :n], values[:, n:n + d], values[:, n + d:]
+    values = _numbers(df, used, source)
+    n, d, dm = robot.n_joints, force_dim(robot), moment_dim(robot)
+    q_deg, force, dp = values[:, :n], values[:, n:n + d], values[:, n + d:n + 2 * d]
+    at = n + 2 * d
+    moment = values[:, at:at + dm] if groups["moment"] else np.zeros((len(df), dm))
+    at += len(groups["moment"])
+    rot = values[:, at:at + dm] if groups["orientation"] else None
+    target, target_names = _targets(df, robot, source)
 
     labels = None
     if "pose_id" in df.columns:
@@ -352,9 +432,11 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
             labels = raw
     config, names = _configurations(labels, q_deg, angle_resolution_deg, source)
 
-    unloaded = np.all(np.abs(force) <= force_resolution_N, axis=1)
+    unloaded = np.all(np.abs(force) <= force_resolution_N, axis=1) & np.all(np.abs(moment) <= moment_resolution_Nm,
+                                                                            axis=1)
     if unloaded.all():
-        raise InputError(f"every row is unloaded (all force components within {force_resolution_N:g} N of zero); "
+        raise InputError(f"every row is unloaded (all force components within {force_resolution_N:g} N of zero"
+                         f"{f' and moments within {moment_resolution_Nm:g} N m' if groups['moment'] else ''}); "
                          "expected measurements under load", source=source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
@@ -364,7 +446,26 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     cfg_loaded, cfg_index = np.unique(config[loaded], return_inverse=True)
     lookup = {int(c): i for i, c in enumerate(cfg_loaded)}
     zero_config = np.array([lookup.get(int(c), -1) for c in config[zero]], int)
-    res = (float(angle_resolution_deg), float(force_resolution_N))
-    group = replicate_groups(q_deg[loaded], force[loaded], *res)
+    res = (float(angle_resolution_deg), float(force_resolution_N), float(moment_resolution_Nm))
+    has_m = bool(groups["moment"])
+    group = replicate_groups(q_deg[loaded], force[loaded], *res[:2], moment[loaded] if has_m else None, res[2],
+                             target[loaded])
     return Measurements(np.radians(q_deg[loaded]), force[loaded], dp[loaded], group, source, cfg_index.ravel(),
-                        tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config, tuple(notes), res)
+                        tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config, tuple(notes), res,
+                        moment[loaded], None if rot is None else rot[loaded], target[loaded], target_names,
+                        None if rot is None else rot[zero])
+
+
+def _targets(df, robot: Robot, source: str) -> tuple[np.ndarray, tuple[str, ...]]:
+    """The ``target`` column as (N,) indices into the robot's target names (all the tool point without it)."""
+    names = robot.target_names
+    if "target" not in df.columns:
+        return np.zeros(len(df), int), names
+    raw = df["target"].str.strip().to_numpy()
+    index = {t: i for i, t in enumerate(names)}
+    bad = np.flatnonzero([t not in index for t in raw])
+    if bad.size:
+        r = int(bad[0])
+        raise InputError(f"expected a target of robot {robot.source} ({', '.join(names)}: its targets and the tool "
+                         f"point), got {raw[r]!r}", source=source, field=f"row {r + 2} (data row {r}), column target")
+    return np.array([index[t] for t in raw], int), names

@@ -17,7 +17,8 @@ from pathlib import Path
 
 def _study(p: dict, robot: str, where: str = "study"):
     """The :class:`~stiffcal.study.Study` of a rule's study parameters (a subset of config ``study`` or an
-    entry of ``studies``, defaults filled in) and its robot file."""
+    entry of ``studies``, defaults filled in; keys a study does not have, such as ``seed``, are ignored) and
+    its robot file."""
     from .study import study_from_entry
 
     return study_from_entry({"name": "study", **p, "robot": robot}, ".", "config", where)
@@ -62,7 +63,7 @@ def comparison(p: dict, robot: str, table2_csv: str, table3_csv: str, table4_csv
     test_pose_deg, force_N, sigma_m and seed."""
     from . import reproduction
 
-    study = _study({k: v for k, v in p.items() if k != "seed"}, robot)
+    study = _study(p, robot)
     stats = _read(statistics_csv) if statistics_csv else None
     cmp = reproduction.comparison_table(study, *(_read(f) for f in (table2_csv, table3_csv, table4_csv, table5_csv)),
                                         reproduction.load_printed(printed_yaml), stats, seed=int(p["seed"]))
@@ -81,7 +82,7 @@ def validation(p: dict, robot: str, table2_csv: str, out_csv: str) -> None:
     force_N, sigma_m, samples, seed."""
     from . import tables
 
-    study = _study({k: p[k] for k in ("test_pose_deg", "force_N", "sigma_m")}, robot)
+    study = _study(p, robot)
     poses = _optimal_poses(_read(table2_csv), study.robot)
     plans = {f"{k}-optimal pose": poses[k][None, :] for k in ("ot", "a") if k in poses}
     _write(tables.monte_carlo_check(study, plans, int(p["samples"]), int(p["seed"])), out_csv)
@@ -105,7 +106,7 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
     from .certificate import approximate_design as compute
     from .integrity import atomic_write
 
-    study = _study({k: v for k, v in p.items() if k in ("name", "test_pose_deg", "force_N", "sigma_m")}, robot)
+    study = _study(p, robot)
     _log(f"approximate design for {name or 'the paper study'} ({study.robot.n_joints} joints): multiplicative "
          "algorithm, polish, equivalence-theorem bound")
     d = compute(study.problem("ot"), pool_step_deg=p.get("pool_step_deg"))
@@ -139,7 +140,7 @@ def study_plan(p: dict, robot: str, m: int, seed: int, design_json: str, out_csv
 
     from . import tables
 
-    study = _study({k: p[k] for k in ("name", "test_pose_deg", "force_N", "sigma_m")}, robot)
+    study = _study(p, robot)
     _log(f"{p['name']}: best plan of {m} poses")
     row = tables.best_plan_row(study, m, seed, _design(design_json))
     _log(f"{p['name']}: m = {m}, O_t = {row['O_t']:.6g} (RMS {row['rms_m']:.4g}), bound {row['lower_bound']:.6g}, "
@@ -156,7 +157,7 @@ def study_summary(p: dict, robot: str, plan_csvs: list[str], out_versus_m_csv: s
 
     from . import plots, tables
 
-    study = _study({k: p[k] for k in ("name", "test_pose_deg", "force_N", "sigma_m")}, robot)
+    study = _study(p, robot)
     df = pd.concat([_read(c) for c in plan_csvs]).sort_values("m", kind="stable").reset_index(drop=True)
     plans = {("best", int(r.m)): tables.parse_plan(r.poses_deg) for r in df.itertuples()}
     m = int(p["draw_m"])
@@ -173,7 +174,7 @@ def plans_table(p: dict, robot: str, m: int, design_json: str, table2_csv: str, 
     force_N, sigma_m, seed."""
     from . import tables
 
-    study = _study({k: p[k] for k in ("test_pose_deg", "force_N", "sigma_m")}, robot)
+    study = _study(p, robot)
     single = _optimal_poses(_read(table2_csv), study.robot)["ot"]
     _log(f"plans (i)-(iv) of {m} poses")
     _write(tables.plans_table(study, m, int(p["seed"]), _design(design_json), single), out_csv)
@@ -184,7 +185,7 @@ def ot_versus_m(p: dict, robot: str, design_json: str, out_csv: str) -> None:
     search_step_deg, m_max, seed."""
     from . import tables
 
-    study = _study({k: p[k] for k in ("test_pose_deg", "force_N", "sigma_m", "search_step_deg")}, robot)
+    study = _study(p, robot)
     m_max = int(p["m_max"])
     _log(f"best plans for m = 1..{m_max}")
     _write(tables.ot_versus_m(study, range(1, m_max + 1), int(p["seed"]), _design(design_json)), out_csv)
@@ -268,8 +269,8 @@ def map_figures(maps_by_figure: dict, out_pngs: dict) -> None:
 
 def discrepancy(p: dict, out_verdict: str) -> None:
     """One measured data set: verdict.json and residuals.png/svg beside it (stiffcal discrepancy).
-    p = the data set's entry (name, data, robot, synthetic, force_N, alpha, angle_resolution_deg,
-    force_resolution_N) and the study's test_pose_deg."""
+    p = the data set's entry (name, data, robot, synthetic, force_N, moment_Nm, alpha, angle_resolution_deg,
+    force_resolution_N, moment_resolution_Nm, sigma_m, sigma_rad) and the study's test_pose_deg."""
     import numpy as np
 
     from .discrepancy import run
@@ -278,10 +279,12 @@ def discrepancy(p: dict, out_verdict: str) -> None:
     robot = load_robot(p["robot"])
     qt_deg = np.asarray(p["test_pose_deg"], float)
     qt = np.radians(qt_deg) if robot.n_joints == qt_deg.size else None
-    force = np.asarray(p["force_N"], float) if qt is not None else None
+    load = p["force_N"] + list(p.get("moment_Nm") or [])
+    force = np.asarray(load, float) if qt is not None else None
     label = f"{p['name']} ({'SYNTHETIC data' if p.get('synthetic') else p['data']})"
     v = run(robot, p["data"], str(Path(out_verdict).parent), float(p["alpha"]), qt, force, label,
-            p.get("angle_resolution_deg"), p.get("force_resolution_N"))
+            p.get("angle_resolution_deg"), p.get("force_resolution_N"), p.get("moment_resolution_Nm"),
+            p.get("sigma_m"), p.get("sigma_rad"))
     _log(f"{p['name']}: cause {v['cause']} (causes {v['causes']}, p = {v['p_value']:.3g}), indistinguishable from "
          f"{v['indistinguishable_from'] or 'none'}, outlier rows {v['outlier_rows']}")
     for note in v["notes"]:

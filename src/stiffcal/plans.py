@@ -34,7 +34,7 @@ from scipy.optimize import minimize
 from . import criteria
 from .certificate import ApproximateDesign, candidate_pool, default_pool_step, has_planar_symmetry, vech
 from .design import Problem, _is_full_turn, into_limits, plan_loss, representative, wrap_deg
-from .stiffness import observation_matrix, pose_information
+from .stiffness import pose_information
 
 
 @dataclass
@@ -64,15 +64,15 @@ def canonical_plan(problem: Problem, plan_deg: np.ndarray) -> np.ndarray:
     sorted (by q1, then q2, ...)."""
     robot = problem.robot
     plan = into_limits(robot, np.atleast_2d(plan_deg))
-    if has_planar_symmetry(robot):
+    if has_planar_symmetry(robot, problem):
         plan = np.array([representative(into_limits(robot, symmetric_copies(robot, p, problem.force))) for p in plan])
     order = np.lexsort(plan.T[::-1])
     return plan[order]
 
 
 def _plan_A(problem: Problem, q: np.ndarray) -> np.ndarray:
-    """Stacked observation rows of poses q (..., n) [rad] -> (..., d, n)."""
-    return observation_matrix(problem.robot.model_jacobian(q), problem.force)
+    """Stacked observation rows of poses q (..., n) [rad] -> (..., r, p) (:meth:`Problem.rows`)."""
+    return problem.rows(q)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -415,7 +415,7 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
     m = problem.m
     rng = np.random.default_rng(seed)
     if pool is None:
-        pool = candidate_pool(problem.robot, pool_step_deg or default_pool_step(problem.robot.n_joints))
+        pool = candidate_pool(problem.robot, pool_step_deg or default_pool_step(problem.robot.n_joints), problem)
     pool_A = _plan_A(problem, pool)
     inits = [np.radians(np.atleast_2d(s)) for s in (starts or [])]
     inits += [pool[rng.choice(len(pool), m, replace=len(pool) < m)] for _ in range(n_starts)]

@@ -192,6 +192,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     import pandas as pd
 
     robot = study.robot
+    prob = study.problem("ot")
     dh = None
     if robot.dh is not None:
         dh = [{"a_m": r[0], "alpha_deg": float(np.degrees(r[1])), "d_m": r[2], "offset_deg": float(np.degrees(r[3]))}
@@ -201,12 +202,13 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     cols = robot.joint_columns("q", "_deg")
     poses = {int(m): g[cols].to_numpy(float).tolist() for m, g in long.groupby("m", sort=True)}
     return {
-        "entry": entry, "robot": {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "d": robot.task_dim,
+        "entry": entry, "robot": {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "d": prob.rows_per_pose,
                                   "source": robot.reference, "dh": dh, "convention": robot.convention,
                                   "tool_m": None if robot.tool_m is None else robot.tool_m.tolist(),
                                   "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
                                   "has_limits": robot.has_joint_limits,
-                                  "inert": [robot.joint_names[j] for j in robot.inert_joints],
+                                  "inert": [robot.joint_names[j] for j in range(robot.n_joints)
+                                            if j not in prob.params],
                                   "joint_keys": robot.joint_columns(""), "joint_names": list(robot.joint_names),
                                   "urdf": robot.urdf},
         "test_pose_deg": np.degrees(study.test_pose).round(6).tolist(), "force_N": study.force.tolist(),

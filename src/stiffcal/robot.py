@@ -187,7 +187,8 @@ class Robot:
     frame (for URDF arms: in the tip frame); ``inert_joints`` (joints that never move the measured point,
     :func:`inert_joints`); ``reference`` (the file's ``source`` field: where the dimensions come from);
     ``joint_names`` (n,) str (default "1".."n"); for URDF arms ``chain`` (:class:`Chain`) and ``urdf`` (the
-    URDF file).
+    URDF file); ``targets`` {name: (3,) [m]}: further measured points (tracker targets) in the tip frame
+    (:meth:`tool_frame`), beside the tool point ``"tool"``.
     """
 
     name: str
@@ -205,6 +206,7 @@ class Robot:
     joint_names: tuple[str, ...] = ()
     chain: Chain | None = None
     urdf: str = ""
+    targets: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.joint_names:
@@ -313,7 +315,10 @@ class Robot:
 
     def joint_frames(self, q: np.ndarray):
         """Every joint's axis in the base frame: (..., n) [rad] -> ``(origins (..., n, 3) [m], axes (..., n, 3))``,
-        ``origins`` a point of each axis, ``axes`` unit vectors (planar arms: z = 0 and e_z)."""
+        ``origins`` a point of each axis, ``axes`` unit vectors (planar arms: z = 0 and e_z).
+
+        With :meth:`tool_frame` this gives the geometric Jacobian of any point t of the tip frame: linear
+        rows ``axes x (p + R t - origins)``, angular rows ``axes`` (Siciliano et al., *Robotics*, eq. 3.30)."""
         q = np.asarray(q, float)
         if self.kind == "planar":
             origins = as_xyz(planar_link_points(self.links_m, q)[..., :-1, :])
@@ -337,6 +342,18 @@ class Robot:
             return chain_frames(self.chain, q)[2:]
         T = dh_frames(self.dh, q, self.convention)[..., -1, :, :]
         return T[..., :3, :3], T[..., :3, 3]
+
+    @property
+    def target_names(self) -> tuple[str, ...]:
+        """Names of the points whose position can be measured: ``"tool"`` (the tool point, where the load is
+        applied) first, then the file's ``targets`` in their order."""
+        return (TOOL_TARGET,) + tuple(self.targets)
+
+    def target_point(self, name: str) -> np.ndarray:
+        """(3,) [m]: the point ``name`` (:attr:`target_names`) in the tip frame of :meth:`tool_frame`."""
+        if name == TOOL_TARGET:
+            return np.zeros(3) if self.tool_m is None else np.asarray(self.tool_m, float)
+        return np.asarray(self.targets[name], float)
 
 
 def default_joint_names(n: int) -> tuple[str, ...]:
@@ -432,6 +449,27 @@ FIELD_KINDS = {"links_m": ("planar",), "dh": ("spatial",), "dh_convention": ("sp
                "tip_frame": ("urdf",), "joints": ("urdf",), "fixed_joints_deg": ("urdf",)}
 
 
+#: the name of the tool point among the measured targets (``tool_m``; the end of the last link of a planar arm)
+TOOL_TARGET = "tool"
+
+
+def with_targets(robot: Robot, targets, src: str) -> Robot:
+    """``robot`` with the robot file's ``targets`` {name: [x, y] (planar) or [x, y, z] [m] in the tip frame},
+    checked: one coordinate per tip-frame axis of the arm, and no target named ``"tool"`` (the tool point's
+    name). Planar targets are stored with z = 0."""
+    out = {}
+    d = 2 if robot.kind == "planar" else 3
+    for name, xyz in (targets or {}).items():
+        if name == TOOL_TARGET:
+            raise InputError(f"the name '{TOOL_TARGET}' is the tool point's; give this target another name",
+                             source=src, field=f"targets.{name}")
+        if len(xyz) != d:
+            raise InputError(f"expected {d} coordinates [m] in the tip frame for a {robot.kind} robot, got {len(xyz)}",
+                             source=src, field=f"targets.{name}")
+        out[str(name)] = as_xyz(np.asarray(xyz, float))
+    return replace(robot, targets=out)
+
+
 def load_robot(path: str | Path) -> Robot:
     """Read and validate a robot file (planar, spatial or urdf; schema ``workflow/schemas/robot.schema.yaml``).
 
@@ -450,14 +488,14 @@ def load_robot(path: str | Path) -> Robot:
             raise InputError(f"'{key}' belongs to a {' or '.join(kinds)} robot, but this file says kind: "
                              f"{doc['kind']}; remove the field or change 'kind'", source=src, field=key)
     if doc["kind"] == "spatial":
-        return _load_spatial(doc, src)
+        return with_targets(_load_spatial(doc, src), doc.get("targets"), src)
     if doc["kind"] == "urdf":
-        return _load_urdf(doc, src)
+        return with_targets(_load_urdf(doc, src), doc.get("targets"), src)
     links = np.asarray(doc["links_m"], float)
     limits, comp, names = _per_joint(doc, links.size, src, "link")
-    return replace(planar_robot(links, doc["name"], limits, names),
-                   compliances=None if comp is None else np.asarray(comp, float),
-                   source=src, reference=doc.get("source", ""))
+    return with_targets(replace(planar_robot(links, doc["name"], limits, names),
+                                compliances=None if comp is None else np.asarray(comp, float),
+                                source=src, reference=doc.get("source", "")), doc.get("targets"), src)
 
 
 def robot_inputs(path: str | Path) -> list[str]:

@@ -11,16 +11,27 @@ import numpy as np
 from .criteria import CRITERIA_KEYS
 from .design import Problem
 from .errors import InputError
-from .robot import Robot, load_robot
+from .observation import Sensing, moment_dim
+from .robot import TOOL_TARGET, Robot, load_robot
 from .validation import read_yaml, validate
 
+#: the keys of a study entry (``study`` or an item of ``studies``) that say what is loaded and measured, with
+#: their defaults: a force only, the tool point's position, its error at the test pose (the paper's study)
+SENSING_DEFAULTS = {"moment_Nm": None, "targets": [TOOL_TARGET], "orientation": False, "sigma_rad": None,
+                    "test_target": TOOL_TARGET, "orientation_length_m": 0.0}
+#: the keys every computation of a study's plans depends on
+PROBLEM_KEYS = ("test_pose_deg", "force_N", "sigma_m", *SENSING_DEFAULTS)
+
 DEFAULTS = {"sigma_m": 1.0, "criteria": list(CRITERIA_KEYS[1:]) + ["ot"], "search_step_deg": 1.0,
-            "fig5_step_deg": 1.0}
+            "fig5_step_deg": 1.0, **SENSING_DEFAULTS}
 
 
 @dataclass(frozen=True)
 class Study:
-    """name; robot; test_pose: (n,) [rad]; force: (d,) [N]; sigma [m]; criteria keys; grid steps [deg]."""
+    """name; robot; test_pose: (n,) [rad]; force: (d,) [N]; sigma [m] (position noise); criteria keys; grid
+    steps [deg]; moment: (d_m,) [N m] about the tool point, or None; sensing: what is measured
+    (:class:`stiffcal.observation.Sensing`, None: the tool point's position); test_target and length_m: where
+    and how O_t measures the error at the test pose (:class:`stiffcal.design.Problem`)."""
 
     name: str
     robot: Robot
@@ -30,9 +41,14 @@ class Study:
     criteria: tuple[str, ...]
     search_step_deg: float
     fig5_step_deg: float
+    moment: np.ndarray | None = None
+    sensing: Sensing | None = None
+    test_target: str = TOOL_TARGET
+    length_m: float = 0.0
 
     def problem(self, criterion: str, m: int = 1) -> Problem:
-        return Problem(self.robot, self.force, criterion, m, self.test_pose, None, self.sigma)
+        return Problem(self.robot, self.force, criterion, m, self.test_pose, None, self.sigma, self.moment,
+                       None, self.sensing, self.test_target, self.length_m)
 
 
 def load_config(path: str | Path) -> dict:
@@ -56,27 +72,56 @@ def study_from_entry(entry: dict, root: str | Path = ".", source: str = "config"
     s = {**DEFAULTS, **entry}
     robot = load_robot(Path(root) / s["robot"])
     force = np.asarray(s["force_N"], float)
+    moment = None if s["moment_Nm"] is None else np.asarray(s["moment_Nm"], float)
     q = np.radians(check_test_inputs(robot, s["test_pose_deg"], force, f"{where}.test_pose_deg", f"{where}.force_N",
-                                     source))
+                                     source, moment, f"{where}.moment_Nm"))
+    sensing, target, length = check_sensing(robot, s["targets"], s["orientation"], float(s["sigma_m"]), s["sigma_rad"],
+                                            s["test_target"], s["orientation_length_m"], where, source)
     return Study(s["name"], robot, q, force, float(s["sigma_m"]), tuple(s["criteria"]), float(s["search_step_deg"]),
-                 float(s["fig5_step_deg"]))
+                 float(s["fig5_step_deg"]), moment, sensing, target, length)
+
+
+def check_sensing(robot: Robot, targets, orientation: bool, sigma_m: float, sigma_rad, test_target: str,
+                  length_m: float, where: str = "", source: str | None = None):
+    """``(Sensing, test_target, length_m)`` of a study or a CLI call, checked: known targets (the robot file's
+    ``targets`` and ``"tool"``), each once, the orientation noise when the orientation is measured, a known test
+    target and a length scale >= 0. Raises :class:`InputError` naming ``source`` and the field (prefixed by
+    ``where``)."""
+    pre = f"{where}." if where else ""
+    sensing = Sensing(tuple(str(t) for t in targets), bool(orientation), sigma_m,
+                      None if sigma_rad is None else float(sigma_rad))
+    sensing.check(robot, pre, source)
+    if test_target not in robot.target_names:
+        raise InputError(f"expected a target of robot {robot.source} ({', '.join(robot.target_names)}), got "
+                         f"{test_target!r}", source=source, field=f"{pre}test_target")
+    if not (np.isfinite(length_m) and length_m >= 0):
+        raise InputError(f"expected a length >= 0 [m], got {length_m}", source=source,
+                         field=f"{pre}orientation_length_m")
+    return sensing, str(test_target), float(length_m)
 
 
 def check_test_inputs(robot: Robot, q_deg, force: np.ndarray, pose_field: str, force_field: str,
-                      source: str | None = None) -> np.ndarray:
-    """The test pose (one angle per joint, within the joint limits) and force (one component per measured
-    coordinate, nonzero) of a study or a CLI call; raises :class:`InputError` naming ``source`` and the
-    field. Returns the test pose (n,) [deg]."""
+                      source: str | None = None, moment: np.ndarray | None = None,
+                      moment_field: str = "moment_Nm") -> np.ndarray:
+    """The test pose (one angle per joint, within the joint limits), force (one component per measured
+    coordinate) and moment (optional: one component per rotation coordinate, 1 planar, 3 spatial), not both
+    zero, of a study or a CLI call; raises :class:`InputError` naming ``source`` and the field. Returns the test
+    pose (n,) [deg]."""
     q_deg = np.asarray(q_deg, float)
-    n, d = robot.n_joints, robot.task_dim
+    n, d, dm = robot.n_joints, robot.task_dim, moment_dim(robot)
     if q_deg.size != n:
         raise InputError(f"expected {n} joint angles (robot {robot.source} has {n} joints), got {q_deg.size}",
                          source=source, field=pose_field)
     if np.size(force) != d:
         raise InputError(f"expected {d} force components for a {robot.kind} robot, got {np.size(force)}",
                          source=source, field=force_field)
-    if not np.any(force):
-        raise InputError("expected a nonzero force: with F = 0 nothing deflects", source=source, field=force_field)
+    if moment is not None and np.size(moment) != dm:
+        raise InputError(f"expected {dm} moment component{'s' * (dm > 1)} for a {robot.kind} robot "
+                         f"({'mz' if dm == 1 else 'mx, my, mz'}), got {np.size(moment)}", source=source,
+                         field=moment_field)
+    if not np.any(force) and (moment is None or not np.any(moment)):
+        raise InputError("expected a nonzero force or moment: with no load nothing deflects", source=source,
+                         field=force_field)
     out = np.flatnonzero(robot.outside_limits(np.radians(q_deg)))
     if out.size:
         j = int(out[0])
@@ -87,7 +132,7 @@ def check_test_inputs(robot: Robot, q_deg, force: np.ndarray, pose_field: str, f
 
 
 #: defaults of an entry of config ``studies`` (design studies for any robot)
-DESIGN_DEFAULTS = {"sigma_m": 1.0, "m_values": [2, 3, 4, 5, 6, 7, 8], "draw_m": None}
+DESIGN_DEFAULTS = {"sigma_m": 1.0, "m_values": [2, 3, 4, 5, 6, 7, 8], "draw_m": None, **SENSING_DEFAULTS}
 
 
 def design_studies(config: dict, root: str | Path = ".", source: str = "config") -> dict[str, tuple[Study, dict]]:
@@ -98,17 +143,17 @@ def design_studies(config: dict, root: str | Path = ".", source: str = "config")
         if e["name"] in out:
             raise InputError(f"expected unique study names, got {e['name']!r} twice", source=source,
                              field=f"studies[{i}].name")
-        st = study_from_entry({k: e[k] for k in ("name", "robot", "test_pose_deg", "force_N", "sigma_m")},
-                              root, source, f"studies[{i}]")
+        st = study_from_entry({k: e[k] for k in ("name", "robot", *PROBLEM_KEYS)}, root, source, f"studies[{i}]")
         if e["draw_m"] is None:
             e["draw_m"] = max(e["m_values"])
         if e["draw_m"] not in e["m_values"]:
             raise InputError(f"expected one of m_values {e['m_values']}, got {e['draw_m']}", source=source,
                              field=f"studies[{i}].draw_m")
-        too_few = [m for m in e["m_values"] if m < st.robot.min_poses]
+        prob = st.problem("ot")
+        too_few = [m for m in e["m_values"] if m < prob.min_poses]
         if too_few:
-            raise InputError(f"expected m >= {st.robot.min_poses}: {too_few[0]} poses give "
-                             f"{too_few[0] * st.robot.task_dim} equations for {st.robot.n_params} compliances",
+            raise InputError(f"expected m >= {prob.min_poses}: {too_few[0]} poses give "
+                             f"{too_few[0] * prob.rows_per_pose} equations for {prob.n_params} compliances",
                              source=source, field=f"studies[{i}].m_values")
         out[e["name"]] = (st, e)
     return out

@@ -14,7 +14,7 @@ import pandas as pd
 
 from . import criteria
 from .design import optimal_single_pose, plan_observations
-from .stiffness import covariance_diagonal, identify_batch, information_matrix, observation_matrix
+from .stiffness import covariance_diagonal, identify_batch, information_matrix
 from .study import Study
 
 FLOAT_FORMAT = "%.10g"
@@ -43,15 +43,14 @@ def plan_summary(study: Study, plan_deg: np.ndarray) -> dict:
     """
     plan = np.radians(np.asarray(plan_deg, float))
     m, n = plan.shape[-2:]
-    robot = study.robot
     prob = study.problem("ot", m)
-    M = information_matrix(observation_matrix(robot.model_jacobian(plan), study.force))
+    M = information_matrix(prob.rows(plan))
     cov_p = covariance_diagonal(M, study.sigma)
     ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma), np.inf)
-    out = {"O_t": ot, "chi": criteria.chi(ot, robot.n_params, m, study.sigma)}
-    cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint that never moves the point: not identifiable
-    cov[..., robot.params] = cov_p
-    for i, (e, dk) in enumerate(zip(robot.joint_columns("E_dk"), robot.joint_columns("dk"))):
+    out = {"O_t": ot, "chi": prob.ot_star(m) / np.asarray(ot, float)}
+    cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint the measurements never see: not identifiable
+    cov[..., prob.params] = cov_p
+    for i, (e, dk) in enumerate(zip(study.robot.joint_columns("E_dk"), study.robot.joint_columns("dk"))):
         out[e] = cov[..., i]
         out[dk] = np.sqrt(cov[..., i])
     return out
@@ -95,7 +94,7 @@ def table3(study: Study, t2: pd.DataFrame) -> pd.DataFrame:
     M_t = information_matrix(prob.At[None])
     ref = {"row": "ot_star", "label": "O_t* (eq. 17)", **dict(zip(cols, test_deg)), "chi": 1.0}
     ref.update({dk: float(np.sqrt(c)) for dk, c in zip(dks, covariance_diagonal(M_t, study.sigma))})
-    ref["O_t"] = criteria.o_t_star(study.robot.n_joints, 1, study.sigma)
+    ref["O_t"] = prob.ot_star(1)
     ref["O_t_lsq"] = float(criteria.o_t(M_t, prob.At, study.sigma))
     rows = [ref]
     for _, r in t2[~t2["degenerate"].astype(bool)].iterrows():
@@ -119,7 +118,7 @@ def chi_map(study: Study, step_deg: float | None = None) -> pd.DataFrame:
     q = np.radians(np.stack([Q1, Q2], -1))[..., None, :]
     prob = study.problem("ot")
     ot = criteria.loss("ot", plan_observations(prob, q), 1, prob.At, study.sigma)
-    chi = criteria.chi(ot, 2, 1, study.sigma)
+    chi = prob.ot_star(1) / ot
     return pd.DataFrame({"q1_deg": Q1.ravel(), "q2_deg": Q2.ravel(), "O_t": ot.ravel(), "chi": chi.ravel()})
 
 
@@ -139,13 +138,14 @@ def monte_carlo_check(study: Study, plans: dict[str, np.ndarray], samples: int, 
     prob = study.problem("ot")
     for name, plan_deg in plans.items():
         plan = np.radians(np.atleast_2d(plan_deg))
-        A = observation_matrix(study.robot.jacobian(plan), study.force)  # (m, d, n)
-        dp = np.einsum("mdn,n->md", A, k_true)
+        A = prob.rows(plan)  # (m, r, p): every row with the noise sigma (weighted least squares)
+        k_p = k_true[prob.params]
+        dp = np.einsum("mdn,n->md", A, k_p)
         noisy = dp[None] + rng.normal(0.0, study.sigma, size=(samples,) + dp.shape)
-        dk = identify_batch(A, noisy) - k_true  # (s, n)
+        dk = identify_batch(A, noisy) - k_p  # (s, p)
         err_t = dk @ prob.At.T  # (s, d): compensation error at the test pose (eq. 13)
         summ = plan_summary(study, np.atleast_2d(plan_deg))
-        quantities = [(E_dk[i], "eq. 11", float(summ[E_dk[i]]), dk[:, i] ** 2) for i in range(n)]
+        quantities = [(E_dk[j], "eq. 11", float(summ[E_dk[j]]), dk[:, i] ** 2) for i, j in enumerate(prob.params)]
         quantities.append(("O_t", "eq. 16", float(summ["O_t"]), np.sum(err_t**2, axis=1)))
         for q, eq, formula, draws in quantities:
             mean, se = float(draws.mean()), float(draws.std(ddof=1) / np.sqrt(samples))
@@ -302,9 +302,8 @@ def phi_map(study: Study, design, step_deg: float = 2.0) -> pd.DataFrame:
     Q1, Q2 = np.meshgrid(g, g, indexing="ij")
     prob = study.problem("ot")
     X = np.radians(design.support_deg)
-    M = np.einsum("k,kij->ij", design.weights,
-                  information_matrix(observation_matrix(study.robot.jacobian(X), study.force)[:, None]))
+    M = np.einsum("k,kij->ij", design.weights, information_matrix(prob.rows(X)[:, None]))
     C = np.linalg.inv(M) @ prob.At.T
-    A = observation_matrix(study.robot.jacobian(np.radians(np.stack([Q1, Q2], -1))), study.force)
+    A = prob.rows(np.radians(np.stack([Q1, Q2], -1)))
     ratio = np.sum((A @ C) ** 2, axis=(-2, -1)) / design.phi
     return pd.DataFrame({"q1_deg": Q1.ravel(), "q2_deg": Q2.ravel(), "ratio": ratio.ravel()})

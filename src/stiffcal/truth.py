@@ -5,8 +5,14 @@ deflection laws solved per joint, link bending from integrating the beam curvatu
 and the measuring system adds noise, a bias, a drift or blunders. Used to make the example data set and
 by the tests that hide an effect and require the analysis to find it.
 
-Units: angles rad, forces N, lengths m, joint compliances rad/(N m), link bending compliances
+Units: angles rad, forces N, moments N m, lengths m, joint compliances rad/(N m), link bending compliances
 1/(E I) in 1/(N m^2).
+
+Loads are applied at the tool point (``tool_m``; the end of the last link of a planar arm): a force and,
+optionally, a moment about that point. The tracker measures the displacement of a target (the tool point,
+or a target of the robot file's ``targets``, rigidly attached to the tip frame) and, optionally, the
+small-angle rotation of the tool; every joint deflection dq_j turns everything beyond joint j about its axis
+(``joint_frames``), and every element ds of a bending link turns everything beyond it by the curvature.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .robot import Robot, as_xyz
+from .robot import TOOL_TARGET, Robot, as_xyz
 from .stiffness import random_directions
 
 #: Gauss-Legendre nodes for the curvature integral along a link (exact for the quadratic integrand)
@@ -48,9 +54,39 @@ class Truth:
     extra: dict = field(default_factory=dict)
 
 
-def joint_torques(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-    """tau = J^T F: (N, n) [N m] for q (N, n) [rad], force (N, d) [N]."""
-    return np.einsum("ndj,nd->nj", robot.jacobian(q), force)
+def joint_torques(robot: Robot, q: np.ndarray, force: np.ndarray, moment: np.ndarray | None = None) -> np.ndarray:
+    """tau = J^T F (+ a^T M): (N, n) [N m] for q (N, n) [rad], force (N, d) [N] and moment (N, d_m) [N m]
+    (d_m = 1 planar, 3 spatial) about the tool point: the virtual work of the load through a unit rotation
+    of each joint, from the joint axes (:meth:`Robot.joint_frames`)."""
+    tau = np.einsum("ndj,nd->nj", robot.jacobian(q), force)
+    if moment is None or not np.any(moment):
+        return tau
+    axes = robot.joint_frames(q)[1]  # (N, n, 3): a unit rotation of joint j turns the tool by a_j
+    return tau + np.einsum("njd,nd->nj", axes, _moment3(robot, moment))
+
+
+def _moment3(robot: Robot, moment: np.ndarray) -> np.ndarray:
+    """(N, d_m) -> (N, 3): a planar arm's moment about z as a 3-D vector."""
+    moment = np.asarray(moment, float)
+    return np.column_stack([np.zeros((len(moment), 2)), moment]) if robot.kind == "planar" else moment
+
+
+def target_world(robot: Robot, q: np.ndarray, target: np.ndarray | None, names) -> np.ndarray:
+    """(N, 3) [m]: the base-frame position of each row's target (``target`` (N,) indices into the target
+    ``names`` of the robot; None: the tool point)."""
+    R, p = robot.tool_frame(q)
+    names = tuple(names) if names is not None else (TOOL_TARGET,)
+    pts = np.array([robot.target_point(t) for t in names])
+    t = np.zeros(len(q), int) if target is None else np.asarray(target, int)
+    return p + np.einsum("nij,nj->ni", R, pts[t])
+
+
+def joint_motion(robot: Robot, q: np.ndarray, dq: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(displacement (N, 3) [m] of points (N, 3), rotation (N, 3) [rad] of the tool)`` of small joint
+    rotations dq (N, n): joint j turns everything beyond it by dq_j about its axis."""
+    origins, axes = robot.joint_frames(q)
+    turn = axes * dq[:, :, None]  # (N, n, 3)
+    return np.cross(turn, points[:, None, :] - origins).sum(axis=1), turn.sum(axis=1)
 
 
 def joint_deflections(truth: Truth, tau: np.ndarray, q: np.ndarray | None = None) -> np.ndarray:
@@ -79,10 +115,20 @@ def link_bending_displacement(robot: Robot, q: np.ndarray, force: np.ndarray, c:
     without the torsion about the link) turns everything beyond s by kappa ds; integrated along each link
     by Gauss-Legendre quadrature. c: (segments,) [1/(N m^2)].
     """
-    pts = as_xyz(robot.link_points(q))  # (N, segments + 1, 3)
+    pe = as_xyz(robot.link_points(q))[:, -1, :]
+    return link_bending_motion(robot, q, force, c, None, pe)[0][:, : robot.task_dim]
+
+
+def link_bending_motion(robot: Robot, q: np.ndarray, force: np.ndarray, c: np.ndarray, moment: np.ndarray | None,
+                        points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(displacement (N, 3) [m] of points (N, 3) rigidly attached to the tool, rotation (N, 3) [rad] of the
+    tool)`` of Euler-Bernoulli links bending under the force (N, d) and the moment (N, d_m) at the tool point
+    (:func:`link_bending_displacement`; the moment about a point x of a link is (p_tool - x) x F + M)."""
+    pts = as_xyz(robot.link_points(q))
     F = as_xyz(force)
+    M_tool = np.zeros_like(F) if moment is None else _moment3(robot, moment)
     pe = pts[:, -1, :]
-    out = np.zeros_like(pe)
+    disp, rot = np.zeros_like(pe), np.zeros_like(pe)
     for i in range(pts.shape[1] - 1):
         a, b = pts[:, i, :], pts[:, i + 1, :]
         L = np.linalg.norm(b - a, axis=-1)
@@ -91,37 +137,61 @@ def link_bending_displacement(robot: Robot, q: np.ndarray, force: np.ndarray, c:
         u = (b - a) / np.where(L > 0, L, 1.0)[:, None]
         for xg, wg in zip(_GL_X, _GL_W):
             x = a + 0.5 * (xg + 1.0) * (b - a)
-            r = pe - x
-            M = np.cross(r, F)
+            M = np.cross(pe - x, F) + M_tool
             M_perp = M - np.einsum("nd,nd->n", M, u)[:, None] * u
-            out += (0.5 * wg * L * c[i])[:, None] * np.cross(M_perp, r)
-    return out[:, : robot.task_dim]
+            kappa = (0.5 * wg * L * c[i])[:, None] * M_perp  # the turn of the element ds at x
+            disp += np.cross(kappa, points - x)
+            rot += kappa
+    return disp, rot
 
 
 def physics(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray,
-            order: np.ndarray | None = None) -> np.ndarray:
+            order: np.ndarray | None = None, moment: np.ndarray | None = None, target: np.ndarray | None = None,
+            target_names=None, orientation: bool = False) -> np.ndarray:
     """Noise-free measured displacements (N, d) [m] of ``truth``: joint laws, link bending, and the measuring
-    system's offset and drift (``order`` (N,): the time order of each row, default the row index)."""
-    tau = joint_torques(robot, q, force)
-    dq = joint_deflections(truth, tau, q)
-    dp = np.einsum("ndj,nj->nd", robot.jacobian(q), dq)
-    if truth.link_bending is not None:
-        dp = dp + link_bending_displacement(robot, q, force, np.asarray(truth.link_bending, float))
+    system's offset and drift (``order`` (N,): the time order of each row, default the row index).
+
+    With a ``moment`` (N, d_m) [N m] about the tool point, rows of other targets (``target`` (N,) indices into
+    ``target_names``) or ``orientation``: (N, d (+ d_r)), the displacement of each row's target and the
+    tool's rotation [rad] (planar: about z). ``offset`` and ``drift`` act on the positions."""
+    if (moment is None or not np.any(moment)) and target is None and not orientation:
+        tau = joint_torques(robot, q, force)
+        dq = joint_deflections(truth, tau, q)
+        dp = np.einsum("ndj,nj->nd", robot.jacobian(q), dq)
+        if truth.link_bending is not None:
+            dp = dp + link_bending_displacement(robot, q, force, np.asarray(truth.link_bending, float))
+    else:
+        dq = joint_deflections(truth, joint_torques(robot, q, force, moment), q)
+        pts = target_world(robot, q, target, target_names)
+        disp, rot = joint_motion(robot, q, dq, pts)
+        if truth.link_bending is not None:
+            bd, br = link_bending_motion(robot, q, force, np.asarray(truth.link_bending, float), moment, pts)
+            disp, rot = disp + bd, rot + br
+        d = robot.task_dim
+        dp = np.hstack([disp[:, :d], (rot[:, 2:] if d == 2 else rot)]) if orientation else disp[:, :d]
+    d = robot.task_dim
     if truth.offset is not None:
-        dp = dp + np.asarray(truth.offset, float)
+        dp[:, :d] = dp[:, :d] + np.asarray(truth.offset, float)
     if truth.drift is not None:
         t = np.arange(len(q)) if order is None else np.asarray(order, float)
-        dp = dp + t[:, None] * np.asarray(truth.drift, float)
+        dp[:, :d] = dp[:, :d] + t[:, None] * np.asarray(truth.drift, float)
     return dp
 
 
 def simulate(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, sigma,
              rng: np.random.Generator, blunders: dict[int, np.ndarray] | None = None,
-             order: np.ndarray | None = None) -> np.ndarray:
+             order: np.ndarray | None = None, moment: np.ndarray | None = None, target: np.ndarray | None = None,
+             target_names=None, orientation: bool = False, sigma_rad=None) -> np.ndarray:
     """Measured displacements dp (N, d) [m]: :func:`physics` plus N(0, sigma^2) noise per coordinate (sigma
-    [m] a scalar or one per row, (N,)); blunders {row: (d,) extra error [m]} adds gross errors."""
-    dp = physics(robot, truth, q, force, order)
-    dp = dp + rng.normal(0.0, 1.0, dp.shape) * np.reshape(np.broadcast_to(sigma, (len(q),)), (-1, 1))
+    [m] a scalar or one per row, (N,)); blunders {row: (d,) extra error [m]} adds gross errors. With the
+    orientation (N, d + d_r): the rotation gets N(0, sigma_rad^2) noise [rad] (a scalar or one per row)."""
+    dp = physics(robot, truth, q, force, order, moment, target, target_names, orientation)
+    sig = np.reshape(np.broadcast_to(sigma, (len(q),)), (-1, 1))
+    if orientation:
+        sig = np.hstack([np.repeat(sig, robot.task_dim, 1),
+                         np.repeat(np.reshape(np.broadcast_to(sigma_rad, (len(q),)), (-1, 1)),
+                                   dp.shape[1] - robot.task_dim, 1)])
+    dp = dp + rng.normal(0.0, 1.0, dp.shape) * sig
     for row, err in (blunders or {}).items():
         dp[row] += err
     return dp
@@ -155,7 +225,11 @@ class Protocol:
     sequence on the spot; unloaded_rows: an unloaded reference row (zero force, zero displacement) logged
     before every loaded one; tracker_m: the tracker's position [m] in the robot's frame, the noise growing
     with the distance to it as sigma_m + sigma_per_m * distance [m] (a laser tracker's MPE has that form);
-    pose_id: whether the log numbers the configurations.
+    pose_id: whether the log numbers the configurations; lever_m: the loads hang from a loading bar, applied
+    at this distance [m] from the tool point along a random horizontal direction per configuration (in the
+    plane for a planar arm), so that each carries the moment r x F about the tool point (0: at the tool point);
+    targets: the targets the tracker measures, one row each per reading (the robot file's ``targets``, ``tool``
+    the tool point); orientation: a 6-DoF tracker logs the tool's rotation too, with the noise sigma_rad [rad].
     """
 
     name: str
@@ -168,19 +242,29 @@ class Protocol:
     sigma_m: float = 1e-5
     sigma_per_m: float = 0.0
     tracker_m: tuple[float, ...] = (2.5, 0.5, 0.0)
+    lever_m: float = 0.0
+    targets: tuple[str, ...] = (TOOL_TARGET,)
+    orientation: bool = False
+    sigma_rad: float = 1e-5
 
 
 @dataclass(frozen=True)
 class LabLog:
     """A simulated measurement log: one row per reading, in time order. q (N, n) [rad]; force (N, d) [N];
     config (N,) int (the configuration each row belongs to); loaded (N,) bool (False: an unloaded reference
-    row); sigma (N,) [m] the noise of each row."""
+    row); sigma (N,) [m] the noise of each row; moment (N, d_m) [N m] or None; target (N,) int into
+    target_names, or None (the tool point); orientation: the rotation is logged, with the noise sigma_rad [rad]."""
 
     q: np.ndarray
     force: np.ndarray
     config: np.ndarray
     loaded: np.ndarray
     sigma: np.ndarray
+    moment: np.ndarray | None = None
+    target: np.ndarray | None = None
+    target_names: tuple[str, ...] = (TOOL_TARGET,)
+    orientation: bool = False
+    sigma_rad: float = 1e-5
 
 
 def _gravity(d: int) -> np.ndarray:
@@ -214,45 +298,79 @@ def lab_log(robot: Robot, protocol: Protocol, rng: np.random.Generator, n_config
     d = robot.task_dim
     configs = rng.uniform(lims[:, 0], lims[:, 1], (n_configs, robot.n_joints))
     per = [configuration_loads(protocol, d, rng) for _ in range(n_configs)]
+    levers = _levers(protocol, d, rng, n_configs)
     once = [(c, f) for c in range(n_configs) for f in per[c]]
     if protocol.interleaved:
         seq = once * protocol.repeats
     else:
         seq = [(c, f) for c in range(n_configs) for _ in range(protocol.repeats) for f in per[c]]
+    names = robot.target_names
+    targets = [names.index(t) for t in protocol.targets]
     rows = []
     for c, f in seq:
-        if protocol.unloaded_rows:
-            rows.append((c, np.zeros(d), False))
-        rows.append((c, f, True))
+        for t in targets:  # the tracker measures each target in turn under the same load
+            if protocol.unloaded_rows:
+                rows.append((c, np.zeros(d), False, t))
+            rows.append((c, f, True, t))
     config = np.array([r[0] for r in rows])
     force = np.array([r[1] for r in rows])
     loaded = np.array([r[2] for r in rows])
+    target = np.array([r[3] for r in rows])
     q = configs[config]
+    moment = None
+    if levers is not None:
+        moment = np.cross(as_xyz(levers[config]), as_xyz(force))
+        moment = moment[:, 2:] if d == 2 else moment
     tracker = as_xyz(np.asarray(protocol.tracker_m, float)[:d])
-    dist = np.linalg.norm(as_xyz(robot.fk(q)) - tracker, axis=-1)
-    return LabLog(q, force, config, loaded, protocol.sigma_m + protocol.sigma_per_m * dist)
+    plain = tuple(protocol.targets) == (TOOL_TARGET,)
+    where = as_xyz(robot.fk(q)) if plain else target_world(robot, q, target, names)
+    dist = np.linalg.norm(where - tracker, axis=-1)
+    return LabLog(q, force, config, loaded, protocol.sigma_m + protocol.sigma_per_m * dist, moment,
+                  None if plain else target, names, protocol.orientation, protocol.sigma_rad)
+
+
+def _levers(protocol: Protocol, d: int, rng: np.random.Generator, n_configs: int) -> np.ndarray | None:
+    """(n_configs, d) [m]: the loading bar of each configuration (:class:`Protocol`), or None without one."""
+    if protocol.lever_m == 0:
+        return None
+    ang = rng.uniform(-np.pi, np.pi, n_configs)
+    bar = np.stack([np.cos(ang), np.sin(ang)], -1) * protocol.lever_m
+    if d == 2:  # in the arm's vertical plane: along x, to either side
+        return np.column_stack([np.sign(bar[:, 0]) * protocol.lever_m, np.zeros(n_configs)])
+    return np.column_stack([bar, np.zeros(n_configs)])
 
 
 def measure(robot: Robot, truth: Truth, log: LabLog, rng: np.random.Generator,
             blunders: dict[int, np.ndarray] | None = None) -> np.ndarray:
     """Displacements (N, d) [m] of every row of ``log``: loaded rows from :func:`simulate` (the drift runs
-    in time order over all rows), unloaded reference rows exactly zero (the log's reference)."""
-    dp = simulate(robot, truth, log.q, log.force, log.sigma, rng, blunders, order=np.arange(len(log.q)))
+    in time order over all rows), unloaded reference rows exactly zero (the log's reference). With the
+    orientation logged: (N, d + d_r), the rotation [rad] after the displacement."""
+    dp = simulate(robot, truth, log.q, log.force, log.sigma, rng, blunders, order=np.arange(len(log.q)),
+                  moment=log.moment, target=log.target, target_names=log.target_names, orientation=log.orientation,
+                  sigma_rad=log.sigma_rad)
     dp[~log.loaded] = 0.0
     return dp
 
 
 def lab_csv(robot: Robot, log: LabLog, dp: np.ndarray, pose_id: bool = True) -> str:
     """The log as the measured-data CSV a lab would write (``pose_id`` numbering the configurations from 1,
-    when asked), angles to 1e-4 deg, forces to 0.01 N and displacements to 1e-9 m as trackers print them."""
+    when asked), angles to 1e-4 deg, forces to 0.01 N, moments to 1e-4 N m, displacements to 1e-9 m and
+    rotations to 1e-12 rad as trackers print them; with the log's moments (``mx_Nm``.. or ``mz_Nm``), targets
+    (``target``) and orientation (``rx_rad``.. or ``rz_rad``) columns when it has them."""
     n, d = robot.n_joints, robot.task_dim
     axes = "xyz"[:d]
+    rot_axes = "z" if d == 2 else "xyz"
     head = (["pose_id"] if pose_id else []) + [f"q{i + 1}_deg" for i in range(n)] + [f"f{a}_N" for a in axes] \
-        + [f"d{a}_m" for a in axes]
+        + ([f"m{a}_Nm" for a in rot_axes] if log.moment is not None else []) \
+        + (["target"] if log.target is not None else []) + [f"d{a}_m" for a in axes] \
+        + ([f"r{a}_rad" for a in rot_axes] if log.orientation else [])
     lines = [",".join(head)]
     qd = np.degrees(log.q)
     for r in range(len(qd)):
         cells = ([str(int(log.config[r]) + 1)] if pose_id else []) + [f"{v:.4f}" for v in qd[r]] \
-            + [f"{v:.2f}" for v in log.force[r]] + [f"{v:.9e}" for v in dp[r]]
+            + [f"{v:.2f}" for v in log.force[r]] \
+            + ([f"{v:.4f}" for v in log.moment[r]] if log.moment is not None else []) \
+            + ([log.target_names[log.target[r]]] if log.target is not None else []) \
+            + [f"{v:.9e}" for v in dp[r, :d]] + ([f"{v:.12e}" for v in dp[r, d:]] if log.orientation else [])
         lines.append(",".join(cells))
     return "\n".join(lines) + "\n"

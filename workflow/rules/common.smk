@@ -10,8 +10,10 @@ from stiffcal.maps import MAP_DEFAULTS as _MAP_DEFAULTS
 from stiffcal.maps import map_studies as _map_studies
 from stiffcal.measurements import ANGLE_RESOLUTION_DEG as _ANGLE_RESOLUTION_DEG
 from stiffcal.measurements import FORCE_RESOLUTION_N as _FORCE_RESOLUTION_N
+from stiffcal.measurements import MOMENT_RESOLUTION_NM as _MOMENT_RESOLUTION_NM
 from stiffcal.robot import robot_inputs
 from stiffcal.study import DEFAULTS as _STUDY_DEFAULTS
+from stiffcal.study import PROBLEM_KEYS as _PROBLEM_KEYS
 from stiffcal.study import design_studies as _design_studies
 
 TABLES = "results/tables"
@@ -33,7 +35,8 @@ def study_params(*keys):
     return {k: STUDY[k] for k in keys}
 
 
-POSE_FORCE = ("test_pose_deg", "force_N", "sigma_m")
+# what every computation of the study's plans depends on: test pose, load, what is measured and how precisely
+POSE_FORCE = _PROBLEM_KEYS
 
 # Maps over test poses (Figures 6-10): the studies of config `maps`, each split into tiles (one job each).
 try:
@@ -71,7 +74,8 @@ def map_figure_outputs():
 
 # Measured data sets (config `measured_data`), by name, defaults filled in.
 MEASURED = {m["name"]: {"synthetic": False, "alpha": 0.01, "force_N": STUDY["force_N"],
-                        "angle_resolution_deg": _ANGLE_RESOLUTION_DEG, "force_resolution_N": _FORCE_RESOLUTION_N, **m}
+                        "moment_Nm": STUDY["moment_Nm"], "angle_resolution_deg": _ANGLE_RESOLUTION_DEG, "force_resolution_N": _FORCE_RESOLUTION_N,
+                        "moment_resolution_Nm": _MOMENT_RESOLUTION_NM, **m}
             for m in config.get("measured_data") or []}
 
 
@@ -103,7 +107,7 @@ wildcard_constraints:
 def study_entry(wildcards):
     """The values of a design study's entry that its design and plans depend on."""
     e = STUDIES[wildcards.name]
-    return {k: e[k] for k in ("name", "test_pose_deg", "force_N", "sigma_m")}
+    return {k: e[k] for k in ("name", *_PROBLEM_KEYS)}
 
 
 def report_inputs(wildcards):
