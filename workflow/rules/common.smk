@@ -74,7 +74,8 @@ def map_figure_outputs():
 
 # Measured data sets (config `measured_data`), by name, defaults filled in.
 MEASURED = {m["name"]: {"synthetic": False, "alpha": 0.01, "force_N": STUDY["force_N"],
-                        "moment_Nm": STUDY["moment_Nm"], "angle_resolution_deg": _ANGLE_RESOLUTION_DEG, "force_resolution_N": _FORCE_RESOLUTION_N,
+                        "moment_Nm": STUDY["moment_Nm"], "angle_resolution_deg": _ANGLE_RESOLUTION_DEG,
+                        "force_resolution_N": _FORCE_RESOLUTION_N,
                         "moment_resolution_Nm": _MOMENT_RESOLUTION_NM, **m}
             for m in config.get("measured_data") or []}
 
@@ -88,12 +89,6 @@ def discrepancy_report_inputs(wildcards):
         out[f"plan__{name}"] = f"results/discrepancy/{name}/plan.json"
         out[f"planfig__{name}"] = f"results/discrepancy/{name}/plan.svg"
     return out
-
-
-def discriminate_params(wildcards):
-    """Exactly the config values rule discriminate uses: the data set's entry (name, data, robot, synthetic,
-    alpha, force_N, resolutions, discriminate settings) and the study's test pose."""
-    return {**MEASURED[wildcards.dataset], "test_pose_deg": STUDY["test_pose_deg"]}
 
 
 STUDY_DIR = "results/studies"

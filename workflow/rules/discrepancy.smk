@@ -34,7 +34,7 @@ rule discriminate:
         png="results/discrepancy/{dataset}/plan.png",
         svg="results/discrepancy/{dataset}/plan.svg",
     params:
-        entry=discriminate_params,
+        entry=lambda wc: {**MEASURED[wc.dataset], "test_pose_deg": STUDY["test_pose_deg"]},
         code=code_version("discriminate"),
     log:
         f"{LOGS}/discriminate/{{dataset}}.log",
