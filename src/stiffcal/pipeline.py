@@ -173,40 +173,46 @@ def _map_study(config: dict, name: str) -> maps.MapStudy:
     return by_name[name]
 
 
-def map_tile(config: dict, name: str, tile: int, out_csv: str) -> None:
-    """One job of a map (Figures 6-10): the symmetry classes of tile ``tile``, every member cell written."""
+def map_tile(config: dict, name: str, tile: int, out_npz: str) -> None:
+    """One job of a map (Figures 6-10): the symmetry classes of tile ``tile``, every member cell written to
+    a tile file (binary, layout in :mod:`stiffcal.maps`)."""
     st = _map_study(config, name)
     _log(f"map {name} (b = {st.link_ratio:.4g}, step {st.step_deg:g} deg): tile {tile + 1} of {st.n_tiles}")
-    df = maps.map_tile(st.link_ratio, st.force_deg, st.step_deg, st.tile_cells, tile,
-                       progress=maps.log_progress(f"map {name} tile {tile + 1}"))
-    tables.write_csv(df, out_csv)
+    arrays = maps.map_tile(st.link_ratio, st.force_deg, st.step_deg, st.tile_cells, tile,
+                           progress=maps.log_progress(f"map {name} tile {tile + 1}"))
+    counts = np.bincount(arrays["status"], minlength=len(maps.STATUS))
+    _log(f"map {name} tile {tile + 1}: " + ", ".join(f"{maps.STATUS[k]} {c}" for k, c in enumerate(counts) if c))
+    maps.save_arrays(out_npz, arrays)
 
 
-def map_merge(config: dict, name: str, tile_csvs: list[str], out_csv: str) -> None:
-    """results/maps/<study>/map.csv from its tiles (checked complete)."""
+def map_merge(config: dict, name: str, tile_npzs: list[str], out_npz: str, out_csv: str) -> None:
+    """results/maps/<study>/map.npz (for the other jobs) and map.csv (for users) from its tiles, checked
+    complete."""
     st = _map_study(config, name)
-    df = maps.merge_tiles([_read(p) for p in tile_csvs], st.step_deg)
-    _log(f"map {name}: {len(df)} cells, O_t in [{df.O_t.min():.4g}, {df.O_t.max():.4g}]")
-    tables.write_csv(df, out_csv)
+    tiles = [maps.load_arrays(p, maps.TILE_ARRAYS) for p in tile_npzs]
+    mp = maps.merge_tiles(tiles, st.link_ratio, st.force_deg, st.step_deg)
+    _log(f"map {name}: {mp.O_t.size} cells, O_t in [{mp.O_t.min():.4g}, {mp.O_t.max():.4g}]")
+    maps.save_map(out_npz, mp)
+    tables.write_csv(maps.map_frame(mp), out_csv)
 
 
-def map_statistics(config: dict, map_csvs: dict, printed_yaml: str, out_csv: str) -> None:
+def map_statistics(config: dict, map_npzs: dict, printed_yaml: str, out_csv: str) -> None:
     """The statistics the paper quotes for Figure 6, ours beside theirs, and their grid dependence."""
     studies = maps.map_studies(config, ".", "config/config.yaml")
     steps = [float(s) for s in {**maps.MAP_DEFAULTS, **config["maps"]}["statistics_steps_deg"]]
     printed = {k: float(v) for k, v in reproduction.load_printed(printed_yaml).get("figure6", {}).items()}
-    df = maps.statistics_table({n: _read(p) for n, p in map_csvs.items()}, studies, steps, printed)
+    df = maps.statistics_table({n: maps.load_map(p) for n, p in map_npzs.items()}, studies, steps, printed)
     for _, r in df[df.statistic == "mean"].iterrows():
         _log(f"map {r.study}: mean chi {r.ours:.4g} on the {r.grid_deg:g} deg grid (paper: {r.paper})")
     tables.write_csv(df, out_csv)
 
 
-def fig6(map_csv: str, out_png: str) -> None:
-    plots.save(plots.fig6_inverse_chi(_read(map_csv)), Path(out_png).with_suffix(""))
+def fig6(map_npz: str, out_png: str) -> None:
+    plots.save(plots.fig6_inverse_chi(maps.load_map(map_npz)), Path(out_png).with_suffix(""))
 
 
-def fig_map_poses(map_csv: str, figure: int, out_png: str) -> None:
-    plots.save(plots.fig_optimal_poses(_read(map_csv), figure), Path(out_png).with_suffix(""))
+def fig_map_poses(map_npz: str, figure: int, out_png: str) -> None:
+    plots.save(plots.fig_optimal_poses(maps.load_map(map_npz), figure), Path(out_png).with_suffix(""))
 
 
 def discrepancy(config: dict, name: str, out_verdict: str) -> None:

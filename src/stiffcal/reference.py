@@ -57,3 +57,47 @@ def naive_cell(b: float, force: np.ndarray, qt_deg, starts: int = 10, seed: int 
                          options=dict(xatol=1e-8, fatol=1e-13, maxiter=2000))
         best = min(best, float(r.fun))
     return best
+
+
+# --- long-double references for the maps (issue 16): eq. 16 by explicit 2 x 2 algebra in 80-bit precision --
+
+def _observation_ld(b: float, force: np.ndarray, q_deg) -> tuple[np.ndarray, np.ndarray]:
+    """A = J diag(J^T F) (eq. 4) and det A of the arm (1, b) at poses q_deg (N, 2) [deg], in long double;
+    det A = tau1 tau2 det J with det J = b sin q2 (a product: no cancellation next to singular poses)."""
+    L = np.longdouble
+    q = np.radians(np.atleast_2d(np.asarray(q_deg, L)))
+    F = np.asarray(force, L)
+    c1, s1, c12, s12 = np.cos(q[:, 0]), np.sin(q[:, 0]), np.cos(q.sum(1)), np.sin(q.sum(1))
+    J = np.empty((len(q), 2, 2), L)
+    J[:, 0, 0], J[:, 1, 0], J[:, 0, 1], J[:, 1, 1] = -(s1 + b * s12), c1 + b * c12, -b * s12, b * c12
+    tau = np.einsum("ndi,d->ni", J, F)
+    return J * tau[:, None, :], tau[:, 0] * tau[:, 1] * b * np.sin(q[:, 1])
+
+
+def ot_long_double(b: float, force: np.ndarray, qt_deg, q_deg) -> np.ndarray:
+    """O_t / sigma^2 = ||A_t A^-1||_F^2 (eq. 16, one measurement pose; l1 = 1) for measurement poses q_deg
+    (N, 2) [deg] and the test pose qt_deg (2,), in long double with A^-1 = adj(A) / det A; +inf where
+    det A = 0. Independent of the reduction of :mod:`stiffcal.maps`."""
+    At, _ = _observation_ld(b, force, qt_deg)
+    A, det = _observation_ld(b, force, q_deg)
+    adj = np.empty_like(A)
+    adj[:, 0, 0], adj[:, 1, 1], adj[:, 0, 1], adj[:, 1, 0] = A[:, 1, 1], A[:, 0, 0], -A[:, 0, 1], -A[:, 1, 0]
+    G = np.einsum("ij,njk->nik", At[0], adj)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.einsum("nij,nij->n", G, G) / (det * det)
+    return np.where(det != 0, out, np.inf)
+
+
+def brute_force_cell_ld(b: float, force: np.ndarray, qt_deg, step_deg: float = 2.0, polish: int = 6) -> float:
+    """min O_t / sigma^2 over one measurement pose: every pose of a step_deg grid over the whole joint space,
+    then Nelder-Mead from the ``polish`` best grid poses, all evaluated by :func:`ot_long_double`."""
+    g = np.arange(-180.0, 180.0, step_deg) + step_deg / 3   # off the singular lines q2 = 0, 180
+    Q = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    vals = ot_long_double(b, force, qt_deg, Q).astype(float)
+    best = float(vals.min())
+    for i in np.argsort(vals)[:polish]:
+        with np.errstate(invalid="ignore", over="ignore"):
+            r = minimize(lambda q: float(ot_long_double(b, force, qt_deg, q)[0]), Q[i], method="Nelder-Mead",
+                         options=dict(xatol=1e-11, fatol=1e-17, maxiter=20000, maxfev=40000))
+        best = min(best, float(r.fun))
+    return best

@@ -1,5 +1,6 @@
 # Maps over test poses (Figures 6-10). Each map is split into tiles of `maps.tile_cells` symmetry classes,
 # one job each, so that `--cores N` or the SLURM profile (workflow/profiles/slurm) runs them in parallel.
+# Tiles and maps are handed over as binary .npz files (layout in src/stiffcal/maps.py); map.csv is for users.
 
 
 wildcard_constraints:
@@ -10,7 +11,7 @@ wildcard_constraints:
 
 rule map_tile:
     output:
-        csv=temp(f"{MAPS}/{{study}}/tiles/{{tile}}.csv"),
+        npz=temp(f"{MAPS}/{{study}}/tiles/{{tile}}.npz"),
     log:
         f"{LOGS}/maps/{{study}}/tile{{tile}}.log",
     benchmark:
@@ -27,8 +28,9 @@ rule map_tile:
 
 rule map_merge:
     input:
-        tiles=lambda wc: expand(f"{MAPS}/{wc.study}/tiles/{{tile}}.csv", tile=range(MAP_STUDIES[wc.study].n_tiles)),
+        tiles=lambda wc: expand(f"{MAPS}/{wc.study}/tiles/{{tile}}.npz", tile=range(MAP_STUDIES[wc.study].n_tiles)),
     output:
+        npz=f"{MAPS}/{{study}}/map.npz",
         csv=f"{MAPS}/{{study}}/map.csv",
     log:
         f"{LOGS}/maps/{{study}}/merge.log",
@@ -45,7 +47,7 @@ rule map_merge:
 
 rule map_statistics:
     input:
-        maps=expand(f"{MAPS}/{{study}}/map.csv", study=MAP_STUDIES),
+        maps=expand(f"{MAPS}/{{study}}/map.npz", study=MAP_STUDIES),
         printed=PRINTED,
     output:
         csv=f"{TABLES}/map_statistics.csv",
@@ -64,7 +66,7 @@ rule map_statistics:
 
 rule fig6:
     input:
-        map=lambda wc: f"{MAPS}/{MAP_FIGURES[7]}/map.csv",
+        map=lambda wc: f"{MAPS}/{MAP_FIGURES[7]}/map.npz",
     output:
         png=f"{FIGURES}/fig6.png",
         svg=f"{FIGURES}/fig6.svg",
@@ -80,7 +82,7 @@ rule fig6:
 
 rule fig_map_poses:
     input:
-        map=lambda wc: f"{MAPS}/{MAP_FIGURES[int(wc.mapfig)]}/map.csv",
+        map=lambda wc: f"{MAPS}/{MAP_FIGURES[int(wc.mapfig)]}/map.npz",
     output:
         png=f"{FIGURES}/fig{{mapfig}}.png",
         svg=f"{FIGURES}/fig{{mapfig}}.svg",
