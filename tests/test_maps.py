@@ -132,15 +132,13 @@ def test_hull_bound_is_below_every_value_of_the_strip(rng):
     """The pruning bound (barycentric combination of the table's exact strip minima) is below O_t at every
     sampled point of the strip, for S anywhere in the table."""
     b = 2 / 3
-    tab = solver.table(b)
-    S = _random_S(rng, 200, rho_min=0.02)
-    simplex = tab.tri.find_simplex(solver.disc_point(S))
-    S = S[simplex >= 0]
-    simplex = simplex[simplex >= 0]
-    T = tab.tri.transform[simplex]
-    lam2 = np.einsum("nij,nj->ni", T[:, :2], solver.disc_point(S) - T[:, 2])
-    lam = np.concatenate([lam2, 1 - lam2.sum(1, keepdims=True)], 1)
-    bound = np.einsum("nc,nck->nk", lam, tab.strip_min[tab.tri.simplices[simplex]])
+    S = _random_S(rng, 200, rho_min=0.002)
+    tab = solver.build_table(b, S)
+    corners, lam, found = tab.mesh.locate(solver.disc_point(S))
+    assert found.mean() > 0.99
+    S, corners, lam = S[found], corners[found], lam[found]
+    assert np.allclose(np.einsum("nc,nck->nk", lam, tab.S[corners]), S, atol=1e-12)   # S is their combination
+    bound = np.einsum("nc,nck->nk", lam, tab.strip_min[corners])
     edges = solver.STRIP_EDGES
     for k in range(solver.N_STRIPS):
         th = np.linspace(edges[k], edges[k + 1], 41)[1:-1]

@@ -1,5 +1,6 @@
 """Baseline for ``benchmarks/bench_maps.py`` and the tests: the map solver and its workflow hand-over as
-they were at commit 8afcc70 (before issue 16), verbatim below this docstring except for this paragraph.
+they were at commit 8afcc70 (before issue 16), verbatim below this docstring except for this paragraph, one helper now shared with the new solver
+(``e1_roots``), and the config, statistics and progress functions, which the new module kept.
 
 Every cell is solved by the exact method alone (companion-matrix roots of q12 and q4, closed forms, a hull
 sample, finite-difference Newton polish); every tile recomputes the symmetry classes of the whole grid;
@@ -62,18 +63,16 @@ and writes it for every member; tiles of classes are the workflow's jobs.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy.spatial import ConvexHull
 
 from ._map_polynomials import Q4, Q12
+from ._map_solver import e1_roots
 from .criteria import chi as chi_of
-from .errors import InputError
-from .robot import load_robot, planar_jacobian
+from .robot import planar_jacobian
 from .stiffness import observation_matrix
 
 #: columns of results/maps/<study>/map.csv
@@ -171,27 +170,8 @@ def polynomial_roots(coeffs: np.ndarray) -> np.ndarray:
 
 def _c_roots_e1(S: np.ndarray, x: np.ndarray, b: float) -> np.ndarray:
     """Roots c of the quadratic E1(x, c) = x dP/dx - 2P for S (N, 3), x (N, K) -> (N, K, 2), NaN outside
-    (-1, 1) or complex."""
-    s11, s12, s22 = (S[:, i, None] for i in range(3))
-    a1 = s11 * b * b - 2 * s12 * b * b * x + s22 * (1 + b * b) * x * x
-    da1 = -2 * s12 * b * b + 2 * s22 * (1 + b * b) * x
-    b1 = -2 * s12 * b * x + 2 * s22 * b * x * x
-    db1 = -2 * s12 * b + 4 * s22 * b * x
-    a2 = b * b * (x - 1) ** 2 + 1
-    da2 = 2 * b * b * (x - 1)
-    b2 = -2 * b * (x - 1)
-    db2 = -2 * b
-    p = [a1 * a2, a1 * b2 + b1 * a2, b1 * b2]
-    dp = [da1 * a2 + a1 * da2, da1 * b2 + a1 * db2 + db1 * a2 + b1 * da2, db1 * b2 + b1 * db2]
-    e0, e1, e2 = (x * d - 2 * v for d, v in zip(dp, p))
-    with np.errstate(all="ignore"):
-        disc = np.sqrt(e1 * e1 - 4 * e2 * e0)
-        q = -0.5 * (e1 + np.copysign(disc, e1))
-        small = np.abs(e2) <= 1e-14 * (np.abs(e0) + np.abs(e1))
-        r1 = np.where(small, -e0 / e1, q / e2)
-        r2 = np.where(small, np.nan, e0 / q)
-    roots = np.stack([r1, r2], axis=-1)
-    return np.where(np.abs(roots) < 1, roots, np.nan)
+    (-1, 1) or complex (the same function now serves the new solver)."""
+    return e1_roots(S, b, x)
 
 
 def _closed_form_candidates(S: np.ndarray, tr: np.ndarray, b: float, force_deg: float, qt_deg: np.ndarray):
@@ -499,128 +479,3 @@ def merge_tiles(frames: list[pd.DataFrame], step_deg: float) -> pd.DataFrame:
         raise ValueError(f"the map tiles hold {len(df)} cells ({df.duplicated(['q1t_deg', 'q2t_deg']).sum()} "
                          f"repeated); the {step_deg} deg grid has {expected}")
     return df.reset_index(drop=True)[MAP_COLUMNS]
-
-
-def log_progress(label: str):
-    """A progress callback printing '<label>: done/total cells (rate)' lines."""
-    t0 = time.perf_counter()
-
-    def report(done, total):
-        dt = time.perf_counter() - t0
-        print(f"[stiffcal {time.strftime('%H:%M:%S')}] {label}: {done}/{total} cells "
-              f"({done / max(dt, 1e-9):,.0f} cells/s)", flush=True)
-    return report
-
-
-# --- studies and statistics --------------------------------------------------------------------------
-
-MAP_DEFAULTS = {"step_deg": 1.0, "force_deg": -90.0, "tile_cells": 8192, "statistics_steps_deg": [10, 5, 2, 1]}
-
-
-@dataclass(frozen=True)
-class MapStudy:
-    """One map of the config's ``maps.studies``: b = l2 / l1, the paper's figure number, grid settings."""
-
-    name: str
-    link_ratio: float
-    figure: int
-    step_deg: float
-    force_deg: float
-    tile_cells: int
-
-    @property
-    def n_tiles(self) -> int:
-        return n_tiles(self.step_deg, self.force_deg, self.tile_cells)
-
-
-def _check_step(step: float, source: str, field: str) -> None:
-    k = 180.0 / step
-    if abs(k - round(k)) > 1e-9:
-        raise InputError(f"expected a step that divides 180 deg (so that the grid maps onto itself under "
-                         f"the arm's symmetries), got {step}", source=source, field=field)
-
-
-def map_studies(config: dict, root=".", source: str = "config") -> list[MapStudy]:
-    """The map studies of a validated config (empty without a ``maps`` block); InputError names the field."""
-    if not config.get("maps"):
-        return []
-    m = {**MAP_DEFAULTS, **config["maps"]}
-    _check_step(float(m["step_deg"]), source, "maps.step_deg")
-    for i, s in enumerate(m["statistics_steps_deg"]):
-        _check_step(float(s), source, f"maps.statistics_steps_deg[{i}]")
-    out, names, figures = [], set(), set()
-    for i, s in enumerate(m["studies"]):
-        field = f"maps.studies[{i}]"
-        if s["name"] in names:
-            raise InputError(f"expected a unique name, got {s['name']!r} twice", source=source, field=f"{field}.name")
-        if s["figure"] in figures:
-            raise InputError(f"expected each figure once, got figure {s['figure']} twice", source=source,
-                             field=f"{field}.figure")
-        names.add(s["name"])
-        figures.add(s["figure"])
-        if "robot" in s:
-            robot = load_robot(Path(root) / s["robot"])
-            if robot.kind != "planar" or robot.n_joints != 2:
-                raise InputError(f"expected a planar robot with 2 joints for a map, got {robot.kind} with "
-                                 f"{robot.n_joints}", source=source, field=f"{field}.robot")
-            b = float(robot.links_m[1] / robot.links_m[0])
-        else:
-            b = float(s["link_ratio"])
-        out.append(MapStudy(s["name"], b, int(s["figure"]), float(m["step_deg"]), float(m["force_deg"]),
-                            int(m["tile_cells"])))
-    return out
-
-
-def rank_deficient(b: float, force_deg: float, qt_deg: np.ndarray, rtol: float = 1e-12) -> np.ndarray:
-    """(N,) bool: A_t has rank < 2 (det S / tr(S)^2 < rtol): the test arm is straight or folded, or the
-    force passes through a joint. Measuring at such a test pose cannot identify both compliances."""
-    S = test_information(b, force_deg, qt_deg)
-    tr = S[:, 0] + S[:, 2]
-    return (S[:, 0] * S[:, 2] - S[:, 1] ** 2) <= rtol * tr * tr
-
-
-#: Figure 6 shades 1/chi: "white" cells gain at least 10-fold (1/chi <= 0.1), "dark" ones at most 1.25-fold
-WHITE_CHI, DARK_CHI = 10.0, 1.25
-
-
-def chi_statistics(df: pd.DataFrame) -> dict[str, float]:
-    """The statistics that the paper quotes for Figure 6, computed from a map table (:data:`MAP_COLUMNS`).
-
-    ``mean`` is over every cell with A_t != 0 (chi = 2 sigma^2 / O_t there, eq. 27 with eq. 17, the
-    convention of the paper's Table 3); ``mean_regular`` leaves out the rank-deficient test poses, where
-    measuring at the test pose is impossible (O_t* is really infinite). Near the test poses with A_t = 0,
-    chi grows like 1 / r^2 (r the distance in the test-pose plane), so the mean over the continuum is
-    infinite and any grid mean grows like log(1 / step): the median and the harmonic mean do not.
-    ``white`` / ``dark`` are the fractions of the plane with 1/chi <= 0.1 and 1/chi >= 0.8.
-    """
-    chi = df["chi"].to_numpy(float)
-    b, phi = float(df["link_ratio"].iloc[0]), float(df["force_deg"].iloc[0])
-    finite = np.isfinite(chi)
-    regular = ~rank_deficient(b, phi, df[["q1t_deg", "q2t_deg"]].to_numpy(float))
-    return {"cells": float(len(chi)), "cells_At_zero": float((~finite).sum()),
-            "cells_rank_deficient": float((~regular).sum()),
-            "mean": float(chi[finite].mean()), "mean_regular": float(chi[regular].mean()),
-            "median": float(np.median(chi[finite])), "harmonic_mean": float(1.0 / np.mean(1.0 / chi)),
-            "p99": float(np.percentile(chi[finite], 99)), "max_regular": float(chi[regular].max()),
-            "min": float(chi.min()), "white": float(np.mean(chi >= WHITE_CHI)), "dark": float(np.mean(chi <= DARK_CHI))}
-
-
-def statistics_table(maps_by_study: dict[str, pd.DataFrame], studies: list[MapStudy], steps_deg,
-                     paper: dict) -> pd.DataFrame:
-    """Rows (study, grid_deg, statistic, ours, paper, note): every study's map statistics, and for the
-    paper's arm (the study of Figure 7) the mean chi on each grid of steps_deg, beside the paper's."""
-    rows = []
-    for st in studies:
-        grids = {st.step_deg: maps_by_study[st.name]}
-        if st.figure == 7:
-            for step in steps_deg:
-                if step not in grids:
-                    grids[float(step)] = map_frame(st.link_ratio, st.force_deg, test_pose_grid(step))
-        for step in sorted(grids, reverse=True):
-            stats = chi_statistics(grids[step])
-            keys = stats if step == st.step_deg else ("mean", "mean_regular", "median", "harmonic_mean")
-            for k in keys:
-                p = paper.get(k) if st.figure == 7 else None
-                rows.append({"study": st.name, "link_ratio": st.link_ratio, "grid_deg": step, "statistic": k,
-                             "ours": stats[k], "paper": p if p is not None else np.nan})
-    return pd.DataFrame(rows)

@@ -88,9 +88,9 @@ def _q_parts(S, b, x, c):
     return q1, q1x, q1c, q1xx, q1xc, q2, q2x, q2c
 
 
-def _line_parts(R, b, x, c, s):
-    """Q1, dQ1/dc, Q2, dQ2/dc at (x, c, s) from the factor R (accurate next to rank-one S)."""
-    r00, r01, r10, r11 = R[..., 0, 0], R[..., 0, 1], R[..., 1, 0], R[..., 1, 1]
+def _line_parts(r00, r01, r10, r11, b, x, c, s):
+    """Q1, dQ1/dc, Q2, dQ2/dc at (x, c, s) from the entries of the factor R of S (accurate next to
+    rank-one S)."""
     bx = (b + c) * x
     w1, w2 = r00 * b - r01 * bx, r10 * b - r11 * bx
     s22 = r01 * r01 + r11 * r11
@@ -115,25 +115,33 @@ def c_star(S, R, b, x, c0=None, iters: int = 80):
     if c0 is not None:
         g = np.where(np.abs(c0) < 1, np.arccos(np.clip(np.nan_to_num(c0), -1, 1)), g)
     act = np.arange(n)
+    ga, xa, la, ha = g, x, lo, hi
+    ra = [R[:, i, j] for i in (0, 1) for j in (0, 1)]
     for _ in range(iters):
-        if not len(act):
-            break
-        ga, xa, Ra = g[act], x[act], R[act]
         c, s = np.cos(ga), np.sin(ga)
-        q1, q1c, q2, q2c = _line_parts(Ra, b, xa, c, s)
+        q1, q1c, q2, q2c = _line_parts(*ra, b, xa, c, s)
         with np.errstate(divide="ignore", invalid="ignore"):
             a1, a2 = q1c / q1, q2c / q2
             d = a1 + a2 + 4 * c / (s * s)                 # d log O_t / dc, increasing in c
             dd = -a1 * a1 - a2 * a2 + 4 * (1 + c * c) / (s * s) ** 2
-            new = ga + d / (dd * s)                       # Newton in gamma (dc/dgamma = -s)
+            step = d / (dd * s)                           # Newton in gamma (dc/dgamma = -s)
         # d > 0: the root has a smaller c, i.e. a larger gamma (c = cos(gamma))
-        la = np.where(d > 0, ga, lo[act])
-        ha = np.where(d > 0, hi[act], ga)
+        la = np.where(d > 0, ga, la)
+        ha = np.where(d > 0, ha, ga)
+        done = (np.abs(step) <= 4 * eps * ga) | (ha - la <= 4 * eps * ha) | (d == 0)
+        new = ga + step
         bad = ~np.isfinite(new) | (new <= la) | (new >= ha)
-        new = np.where(bad, 0.5 * (la + ha), new)
-        done = (np.abs(new - ga) <= 4 * eps * ga) | (ha - la <= 4 * eps * ha) | (d == 0)
-        lo[act], hi[act], g[act] = la, ha, np.where(d == 0, ga, new)
-        act = act[~done]
+        ga = np.where(done, ga, np.where(bad, 0.5 * (la + ha), new))
+        if done.all():
+            g[act] = ga
+            break
+        if done.mean() > 0.25:                            # drop the converged ones now and then
+            g[act[done]] = ga[done]
+            keep = ~done
+            act, ga, xa, la, ha = act[keep], ga[keep], xa[keep], la[keep], ha[keep]
+            ra = [r[keep] for r in ra]
+    else:
+        g[act] = ga
     c, s = np.cos(g), np.sin(g)
     return c, s, objective(R, b, x, c, s)
 
@@ -426,11 +434,11 @@ def refine(q, lo, hi, iters: int = 80, tol: float = 1e-11):
         a_hi = np.where(same, a_hi, a_th)
         a_flo = np.where(same, f, a_flo)
         with np.errstate(divide="ignore", invalid="ignore"):
-            new = a_th - f / df
+            step = -f / df
+        new = a_th + step
         bad = ~np.isfinite(new) | (new <= a_lo) | (new >= a_hi)
-        new = np.where(bad, 0.5 * (a_lo + a_hi), new)
-        done = (f == 0) | (np.abs(new - a_th) <= tol) | (a_hi - a_lo <= tol)
-        new = np.where(f == 0, a_th, new)
+        done = (f == 0) | ((np.abs(step) <= tol) & ~bad) | (a_hi - a_lo <= tol)
+        new = np.where(f == 0, a_th, np.where(bad, 0.5 * (a_lo + a_hi), new))
         lo[act], hi[act], th[act], flo[act] = a_lo, a_hi, new, a_flo
         act = act[~done]
     return th
@@ -549,24 +557,118 @@ def special_angles(b: float) -> np.ndarray:
     return 2 * np.arctan2(w[:, 1], w[:, 0])
 
 
-def table_nodes(b: float) -> np.ndarray:
+#: rings of the table next to the rank-one boundary (rho = sqrt(det S) of normalised S) and beyond
+OUTER_RHOS = (0.0006, 0.0012, 0.0025, 0.005, 0.01, 0.019)
+INNER_RHOS = tuple(np.concatenate([np.geomspace(0.03, 0.09, 4), np.linspace(0.13, 0.46, 8)]))
+
+
+def table_nodes(b: float, cells: np.ndarray | None = None) -> tuple[np.ndarray, list]:
     """Nodes (N, 3) of the table: normalised S on rings of constant rho = sqrt(det S) (rho = 1/2 is
-    S = I/2), finer towards the rank-one boundary (rho = 0), where the optimum moves fastest, with extra
-    angles near the four rank-one S that test poses approach (:func:`special_angles`), so that the
-    triangulation reaches rho ~ 0.004 there."""
-    pts = [np.zeros((1, 2))]
-    inner = np.concatenate([np.geomspace(0.03, 0.09, 4), np.linspace(0.13, 0.46, 8)])
-    outer = np.array([0.003, 0.006, 0.011, 0.019])
-    for i, rho in enumerate(np.concatenate([outer, inner])):
+    S = I/2), 48 angles each away from the rank-one boundary (rho = 0). The rings next to it (OUTER_RHOS)
+    need finer angles to enclose cells there (a chord of angle d cuts rho up to r d / 2 off the disc):
+    ring j gets the spacing 1.2 rho_(j+1) / r, at the angles where cells (normalised S (M, 3)) with rho
+    below 1.5 rho_(j+1) lie, or, without cells, near the four rank-one S that test poses approach
+    (:func:`special_angles`). Any node set gives valid bounds; the nodes only decide how many cells the
+    triangles enclose. Returns the nodes and the rings as (radius r = sqrt(1/4 - rho^2), angles) from the
+    centre out, the nodes listed ring by ring."""
+    rings = [(0.0, np.zeros(1))]
+    for i, rho in enumerate(INNER_RHOS):
         a = np.linspace(0, 2 * np.pi, 48, endpoint=False) + (np.pi / 48) * (i % 2)
-        if rho < 0.025:
-            fine = (special_angles(b)[:, None] + np.linspace(-0.24, 0.24, 25)[None, :]).ravel()
-            far = np.min(np.abs(np.angle(np.exp(1j * (a[:, None] - special_angles(b)[None, :])))), axis=1) > 0.25
-            a = np.concatenate([a[far], fine])
+        rings.append((np.sqrt(0.25 - rho * rho), a))
+    if cells is not None and len(cells):
+        uv = disc_point(cells)
+        c_rho = np.sqrt(np.maximum(cells[:, 0] * cells[:, 2] - cells[:, 1] ** 2, 0.0))
+        c_alpha = np.arctan2(uv[:, 1], uv[:, 0]) % (2 * np.pi)
+    nxt = OUTER_RHOS[1:] + (INNER_RHOS[0],)
+    for rho, rho_next in zip(OUTER_RHOS, nxt):
         r = np.sqrt(0.25 - rho * rho)
-        pts.append(r * np.stack([np.cos(a), np.sin(a)], axis=-1))
-    uv = np.concatenate(pts)
-    return np.stack([0.5 + uv[:, 0], uv[:, 1], 0.5 - uv[:, 0]], axis=-1)
+        n = int(np.ceil(2 * np.pi * r / (1.2 * rho_next)))
+        grid = 2 * np.pi * np.arange(n) / n
+        if cells is not None and len(cells):
+            near = c_rho < 1.5 * rho_next
+            used = np.zeros(n, bool)
+            k = np.round(c_alpha[near] * n / (2 * np.pi)).astype(int) % n
+            for shift in (-2, -1, 0, 1, 2):
+                used[(k + shift) % n] = True
+        else:
+            d = np.abs(np.angle(np.exp(1j * (grid[:, None] - special_angles(b)[None, :]))))
+            used = d.min(axis=1) < 0.25
+        if used.any():
+            rings.append((r, grid[used]))
+    uv = np.concatenate([r * np.stack([np.cos(a), np.sin(a)], axis=-1) for r, a in rings])
+    return np.stack([0.5 + uv[:, 0], uv[:, 1], 0.5 - uv[:, 0]], axis=-1), rings
+
+
+class RingMesh:
+    """Triangles over the table's rings: a point between rings j and j + 1 lies in one of the triangles of
+    the quadrilateral formed by the nodes bracketing its angle on both rings (or, between a chord and its
+    arc, in the next quadrilateral out). Any triangle containing a point gives a valid hull bound."""
+
+    def __init__(self, rings, keep: np.ndarray):
+        self.radius, self.angles, self.index = [], [], []
+        start = 0
+        for r, a in rings:
+            idx = np.arange(start, start + len(a))
+            start += len(a)
+            ok = keep[idx]
+            if ok.any():
+                order = np.argsort(a[ok])
+                self.radius.append(r)
+                self.angles.append(a[ok][order])
+                self.index.append(idx[ok][order])
+        by_radius = np.argsort(self.radius, kind="stable")
+        self.radius = np.array(self.radius)[by_radius]
+        self.angles = [self.angles[i] for i in by_radius]
+        self.index = [self.index[i] for i in by_radius]
+        remap = np.cumsum(keep) - 1                       # node index among the kept nodes
+        self.index = [remap[i] for i in self.index]
+        uv = np.concatenate([r * np.stack([np.cos(a), np.sin(a)], -1) for r, a in rings])
+        self.uv = uv[keep]                                # the kept nodes, in node order
+
+    def _bracket(self, j, alpha):
+        """The two nodes of ring j (an array per point) around angle alpha (cyclic)."""
+        out_lo = np.zeros(len(j), int)
+        out_hi = np.zeros(len(j), int)
+        for ring in np.unique(j):
+            m = j == ring
+            a, idx = self.angles[ring], self.index[ring]
+            k = np.searchsorted(a, alpha[m], side="right")
+            out_lo[m] = idx[(k - 1) % len(a)]
+            out_hi[m] = idx[k % len(a)]
+        return out_lo, out_hi
+
+    def locate(self, uv: np.ndarray):
+        """(corners (N, 3), barycentric weights (N, 3), found (N,)) for points uv (N, 2)."""
+        n = len(uv)
+        r = np.hypot(uv[:, 0], uv[:, 1])
+        alpha = np.arctan2(uv[:, 1], uv[:, 0]) % (2 * np.pi)
+        j0 = np.clip(np.searchsorted(self.radius, r, side="right") - 1, 0, len(self.radius) - 2)
+        corners = np.zeros((n, 3), int)
+        lam = np.zeros((n, 3))
+        found = np.zeros(n, bool)
+        for dj in (0, 1, -1):
+            j = np.clip(j0 + dj, 0, len(self.radius) - 2)
+            todo = np.nonzero(~found)[0]
+            if not len(todo):
+                break
+            a, b = self._bracket(j[todo], alpha[todo])
+            c, d = self._bracket(j[todo] + 1, alpha[todo])
+            for tri in ((a, b, c), (b, c, d), (a, b, d), (a, c, d)):
+                t = np.stack(tri, axis=1)
+                P = self.uv[t]                                # (m, 3, 2)
+                M = np.stack([P[:, 0] - P[:, 2], P[:, 1] - P[:, 2]], axis=-1)
+                det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
+                rhs = uv[todo] - P[:, 2]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    l1 = (rhs[:, 0] * M[:, 1, 1] - rhs[:, 1] * M[:, 0, 1]) / det
+                    l2 = (M[:, 0, 0] * rhs[:, 1] - M[:, 1, 0] * rhs[:, 0]) / det
+                    l3 = 1 - l1 - l2
+                ok = (np.abs(det) > 1e-300) & (l1 >= -1e-12) & (l2 >= -1e-12) & (l3 >= -1e-12) & ~found[todo]
+                hit = todo[ok]
+                corners[hit] = t[ok]
+                lam[hit] = np.stack([l1, l2, l3], axis=-1)[ok].clip(0, 1)
+                found[hit] = True
+        return corners, lam, found
 
 
 @dataclass(frozen=True)
@@ -576,7 +678,7 @@ class MapTable:
     strip (N, N_STRIPS), lowered by TABLE_SLACK."""
     b: float
     S: np.ndarray
-    tri: object
+    mesh: RingMesh
     x: np.ndarray
     c: np.ndarray
     s: np.ndarray
@@ -596,8 +698,10 @@ def _node_minima(S: np.ndarray, b: float):
     # line minima on the interior edges (theta = 0 and +-pi/2 are singular: O_t = inf there)
     edges = np.arange(1, K)
     edges = edges[np.abs(STRIP_EDGES[edges]) > 1e-12]
-    xe = np.tan(_edges(S.dtype.type)[edges])
-    _, _, ve = c_star(np.repeat(S, len(edges), 0), np.repeat(R, len(edges), 0), b, np.tile(xe, n))
+    xe = np.tile(np.tan(_edges(S.dtype.type)[edges]), n)
+    Se, Re = np.repeat(S, len(edges), 0), np.repeat(R, len(edges), 0)
+    c0, v0 = candidate_values(Se, Re, b, xe[:, None])     # E1's roots start the line searches
+    _, _, ve = c_star(Se, Re, b, xe, c0[np.arange(len(xe)), 0, np.argmin(v0[:, 0, :], axis=1)])
     ve = ve.astype(float).reshape(n, len(edges))
     m[:, edges - 1] = np.minimum(m[:, edges - 1], ve)
     m[:, edges] = np.minimum(m[:, edges], ve)
@@ -613,13 +717,12 @@ def _node_minima(S: np.ndarray, b: float):
     return m, x, c, bad
 
 
-def build_table(b: float, nodes: np.ndarray | None = None) -> MapTable:
-    """The table of :class:`MapTable`, every entry by the exact method (isolated stationary points of each
-    strip and the unique line minima on the strip edges), in long double for nodes next to the rank-one
-    boundary where double precision does not resolve the roots; nodes that still fail are left out."""
-    from scipy.spatial import Delaunay
-
-    S = table_nodes(b) if nodes is None else nodes
+def build_table(b: float, cells: np.ndarray | None = None) -> MapTable:
+    """The table of :class:`MapTable` for the normalised S of the cells it will serve (:func:`table_nodes`),
+    every entry by the exact method (isolated stationary points of each strip and the unique line minima
+    on the strip edges), in long double for nodes next to the rank-one boundary where double precision
+    does not resolve the roots; nodes that still fail are left out."""
+    S, rings = table_nodes(b, cells)
     m, x, c, bad = _node_minima(S, b)
     if bad.any():
         m2, x2, c2, bad2 = _node_minima(S[bad].astype(np.longdouble), b)
@@ -627,12 +730,7 @@ def build_table(b: float, nodes: np.ndarray | None = None) -> MapTable:
         bad[bad] = bad2
     good = ~bad
     S, x, c, m = S[good], x[good], c[good], m[good]
-    return MapTable(b, S, Delaunay(disc_point(S)), x, c, np.sqrt((1 - c) * (1 + c)), m * (1 - TABLE_SLACK))
-
-
-@lru_cache(maxsize=8)
-def table(b: float) -> MapTable:
-    return build_table(b)
+    return MapTable(b, S, RingMesh(rings, good), x, c, np.sqrt((1 - c) * (1 + c)), m * (1 - TABLE_SLACK))
 
 
 @dataclass(frozen=True)
@@ -656,13 +754,7 @@ def solve(S: np.ndarray, R: np.ndarray, b: float, tab: MapTable | None = None) -
     rows = np.arange(n)
     if tab is not None:
         # the lookup: the optima of the table's corners, evaluated for this S, bound the optimum above
-        uv = disc_point(S.astype(float))
-        simplex = tab.tri.find_simplex(uv)
-        inside = simplex >= 0
-        corners = tab.tri.simplices[np.where(inside, simplex, 0)]          # (n, 3)
-        T = tab.tri.transform[np.where(inside, simplex, 0)]
-        lam2 = np.einsum("nij,nj->ni", T[:, :2], uv - T[:, 2])
-        lam = np.concatenate([lam2, 1 - lam2.sum(axis=1, keepdims=True)], axis=1).clip(0, 1)
+        corners, lam, inside = tab.mesh.locate(disc_point(S.astype(float)))
         cx, cc, cs = (a[corners].reshape(n, 6) for a in (tab.x, tab.c, tab.s))
         uvals = objective(R[:, None], b, cx, cc, cs)
         uvals = np.where(np.isfinite(uvals), uvals, np.inf)

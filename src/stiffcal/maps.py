@@ -225,8 +225,8 @@ def _fallback(S, R, b, tab):
     th = np.concatenate([np.linspace(-1.5, -0.05, 8), np.linspace(0.05, 1.5, 8)])
     ga = np.linspace(0.1, np.pi - 0.1, 8)
     T, G = (a.ravel() for a in np.meshgrid(th, ga, indexing="ij"))
-    starts_t = np.concatenate([np.arctan(tab.x.ravel()), T])
-    starts_g = np.concatenate([np.arctan2(tab.s.ravel(), tab.c.ravel()), G])
+    starts_t = np.concatenate([np.arctan(tab.x.ravel()), T]) if tab is not None else T
+    starts_g = np.concatenate([np.arctan2(tab.s.ravel(), tab.c.ravel()), G]) if tab is not None else G
     n = len(S)
     vals = solver.objective(R[:, None], b, np.tan(starts_t)[None], np.cos(starts_g)[None], np.sin(starts_g)[None])
     vals = np.where(np.isfinite(vals), vals, np.inf)
@@ -240,12 +240,15 @@ def _fallback(S, R, b, tab):
     return v1[np.arange(n), k], np.tan(t1), np.cos(g1), np.sin(g1)
 
 
+#: below this many cells the table costs more than it saves: every strip is searched instead
+TABLE_MIN_CELLS = 2000
+
+
 def solve_cells(b: float, force_deg: float, qt_deg: np.ndarray, tab=None) -> CellSolution:
-    """The certified map for test poses qt_deg (N, 2) [deg] (module docstring); tab: the table for b
-    (built on first use and cached)."""
+    """The certified map for test poses qt_deg (N, 2) [deg] (module docstring); tab: a table for b
+    (by default built for these cells when there are at least TABLE_MIN_CELLS)."""
     qt = np.atleast_2d(np.asarray(qt_deg, float))
     n = len(qt)
-    tab = tab or solver.table(float(b))
     A = test_observation(b, force_deg, qt)
     S = _info(A)
     tr = S[:, 0] + S[:, 2]
@@ -256,6 +259,8 @@ def solve_cells(b: float, force_deg: float, qt_deg: np.ndarray, tab=None) -> Cel
     reg = np.nonzero(~zero & ~special)[0]
     if len(reg):
         Sn, Rn = S[reg] / tr[reg, None], A[reg] / np.sqrt(tr[reg])[:, None, None]
+        if tab is None and len(reg) >= TABLE_MIN_CELLS:
+            tab = solver.build_table(float(b), Sn)
         sol = solver.solve(Sn, Rn, b, tab)
         v, xx, cc, ss = sol.value, sol.x, sol.c, sol.s
         st = np.where(sol.certificate == 1, HULL, EXACT).astype(np.int8)
@@ -532,7 +537,7 @@ def log_progress(label: str):
 
 # --- studies and statistics --------------------------------------------------------------------------
 
-MAP_DEFAULTS = {"step_deg": 1.0, "force_deg": -90.0, "tile_cells": 65536, "statistics_steps_deg": [10, 5, 2, 1]}
+MAP_DEFAULTS = {"step_deg": 1.0, "force_deg": -90.0, "tile_cells": 65536, "statistics_steps_deg": [10, 5, 2, 1, 0.5]}
 
 
 @dataclass(frozen=True)
