@@ -537,7 +537,8 @@ def log_progress(label: str):
 
 # --- studies and statistics --------------------------------------------------------------------------
 
-MAP_DEFAULTS = {"step_deg": 1.0, "force_deg": -90.0, "tile_cells": 65536, "statistics_steps_deg": [10, 5, 2, 1, 0.5]}
+MAP_DEFAULTS = {"step_deg": 1.0, "force_deg": -90.0, "tile_cells": 65536, "statistics_steps_deg": [10, 5, 2, 1, 0.5],
+                "pairs_step_deg": 6.0}
 
 
 @dataclass(frozen=True)
@@ -571,6 +572,7 @@ def map_studies(config: dict, root=".", source: str = "config") -> list[MapStudy
     _check_step(float(m["step_deg"]), source, "maps.step_deg")
     for i, s in enumerate(m["statistics_steps_deg"]):
         _check_step(float(s), source, f"maps.statistics_steps_deg[{i}]")
+    _check_step(float(m["pairs_step_deg"]), source, "maps.pairs_step_deg")
     out, names, figures = [], set(), set()
     for i, s in enumerate(m["studies"]):
         field = f"maps.studies[{i}]"
@@ -659,3 +661,214 @@ def statistics_table(maps_by_study: dict[str, MapArrays], studies: list[MapStudy
                 rows.append({"study": st.name, "link_ratio": st.link_ratio, "grid_deg": step, "statistic": k,
                              "ours": stats[k], "paper": p if p is not None else np.nan})
     return pd.DataFrame(rows)
+
+
+# --- plans of two poses (case iv of Table 4) over the test poses -----------------------------------------
+
+def pose_pool(step_deg: float) -> np.ndarray:
+    """Measurement poses (K, 2) [deg] that hold every information matrix once (q1 in [-90, 90), q2 in
+    [0, 180]; the other copies are q1 + 180 and the mirror image), singular ones included: one pose of a
+    pair may be singular when the other makes up for it."""
+    g1 = np.arange(-90.0, 90.0 - 1e-9, step_deg)
+    g2 = np.arange(0.0, 180.0 + 1e-9, step_deg)
+    Q1, Q2 = np.meshgrid(g1, g2, indexing="ij")
+    return np.stack([Q1.ravel(), Q2.ravel()], axis=-1)
+
+
+def _pair_ot(S: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """tr(S M^-1) for S, M (..., 3) as (11, 12, 22); +inf where M is (numerically) singular."""
+    det = M[..., 0] * M[..., 2] - M[..., 1] ** 2
+    num = S[..., 0] * M[..., 2] - 2 * S[..., 1] * M[..., 1] + S[..., 2] * M[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = num / det
+    return np.where(det > 1e-12 * M[..., 0] * M[..., 2] + 1e-300, v, np.inf)
+
+
+def _pair_polish(b, force_deg, S, q, iters: int = 20, h: float = 1e-5):
+    """Damped Newton steps (central differences) on log O_t of two-pose plans q (N, 4) [rad], vectorised
+    over the cells S (N, 3); never worse than the start. Returns (q, value)."""
+    def f(qq):
+        A = test_observation(b, force_deg, np.degrees(qq.reshape(-1, 2))).reshape(len(qq), 2, 2, 2)
+        with np.errstate(all="ignore"):
+            v = _pair_ot(S, _info(A[:, 0]) + _info(A[:, 1]))
+            return np.where(np.isfinite(v) & (v > 0), np.log(v), np.inf)
+
+    f0 = f(q)
+    eye = np.eye(4) * h
+    act = np.isfinite(f0)
+    for _ in range(iters):
+        fp = np.stack([f(q + e) for e in eye], 1)
+        fm = np.stack([f(q - e) for e in eye], 1)
+        H = np.empty((len(q), 4, 4))
+        with np.errstate(all="ignore"):
+            g = (fp - fm) / (2 * h)
+            for i in range(4):
+                H[:, i, i] = (fp[:, i] - 2 * f0 + fm[:, i]) / h**2
+                for j in range(i + 1, 4):
+                    H[:, i, j] = H[:, j, i] = (f(q + eye[i] + eye[j]) - fp[:, i] - fp[:, j] + f0) / h**2
+            w, V = np.linalg.eigh(np.nan_to_num(H))
+            step = -np.einsum("nij,nj,nkj,nk->ni", V, 1 / np.maximum(np.abs(w), 1e-3), V, np.nan_to_num(g))
+        step *= np.minimum(1.0, 0.1 / np.maximum(np.abs(step).max(axis=1, keepdims=True), 1e-300))
+        improved = np.zeros(len(q), bool)
+        for frac in (1.0, 0.5, 0.25, 0.0625):
+            cand = f(q + frac * step)
+            take = (cand < f0 - 1e-15) & ~improved & act
+            q = np.where(take[:, None], q + frac * step, q)
+            f0 = np.where(take, cand, f0)
+            improved |= take
+        act = improved
+        if not act.any():
+            break
+    return q, np.exp(f0)
+
+
+def _partner_values(S: np.ndarray, Ma: np.ndarray, MP: np.ndarray) -> np.ndarray:
+    """tr(S (Ma + MP_k)^-1) for cells S, Ma (n, 3) and every pool pose MP (K, 3): (n, K)."""
+    m0 = Ma[:, 0, None] + MP[None, :, 0]
+    m1 = Ma[:, 1, None] + MP[None, :, 1]
+    m2 = Ma[:, 2, None] + MP[None, :, 2]
+    det = m0 * m2 - m1 * m1
+    num = S[:, 0, None] * m2 - 2 * S[:, 1, None] * m1 + S[:, 2, None] * m0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = num / det
+    return np.where(det > 1e-12 * m0 * m2 + 1e-300, v, np.inf)
+
+
+def _coarse_pairs(S: np.ndarray, MC: np.ndarray, keep: int) -> np.ndarray:
+    """The keep best unordered pairs (n, keep, 2) of the coarse pool MC (K, 3) for cells S (n, 3), by
+    evaluating every pair."""
+    K = len(MC)
+    i, j = np.triu_indices(K)
+    best_v = np.full((len(S), keep), np.inf)
+    best_p = np.zeros((len(S), keep), int)
+    for lo in range(0, len(i), 8192):
+        sl = slice(lo, lo + 8192)
+        v = _partner_values(S, np.zeros_like(S), MC[i[sl]] + MC[j[sl]])
+        k = np.argpartition(v, keep - 1, axis=1)[:, :keep]          # this chunk's best, then merged
+        allv = np.concatenate([best_v, np.take_along_axis(v, k, 1)], axis=1)
+        allp = np.concatenate([best_p, k + lo], axis=1)
+        k = np.argsort(allv, axis=1, kind="stable")[:, :keep]
+        best_v, best_p = np.take_along_axis(allv, k, 1), np.take_along_axis(allp, k, 1)
+    return np.stack([i[best_p], j[best_p]], axis=-1)
+
+
+def best_pairs(b: float, force_deg: float, qt_deg: np.ndarray, single_deg: np.ndarray, pool_step_deg: float = 3.0,
+               coarse_step_deg: float = 12.0, starts: int = 3, chunk: int = 128):
+    """The best plan of two measurement poses for test poses qt_deg (N, 2) [deg] (O_t / sigma^2, l1 = 1,
+    |F| = 1). Every pair of a coarse pool (:func:`pose_pool`, coarse_step_deg) is evaluated; from the
+    ``starts`` best, and from the single optimum single_deg (N, 2) (NaN where there is none) with its best
+    partner, each pose is replaced in turn by its best partner on the finer pool until nothing changes,
+    and damped Newton steps polish the result in the continuum; the single optimum measured twice (plan
+    (i), O_t1 / 2) is the fallback, so the result is never above it. Returns (O_t (N,), poses (N, 2, 2)
+    [deg]). A search of a 4-D problem, not a certificate: ``tests/test_maps.py`` and the benchmark check
+    sampled cells against a brute force over all pairs."""
+    qt = np.atleast_2d(np.asarray(qt_deg, float))
+    S = test_information(b, force_deg, qt)
+    pool, coarse = pose_pool(pool_step_deg), pose_pool(coarse_step_deg)
+    MP = _info(test_observation(b, force_deg, pool))
+    MC = _info(test_observation(b, force_deg, coarse))
+    # a coarse pose's nearest pose of the fine pool
+    near = np.argmin(np.abs(np.angle(np.exp(1j * np.radians(coarse[:, None, :] - pool[None, :, :])))).sum(-1), axis=1)
+    out_v = np.full(len(qt), np.inf)
+    out_q = np.zeros((len(qt), 4))
+    sd_all = np.atleast_2d(np.asarray(single_deg, float))
+    for lo in range(0, len(qt), chunk):
+        Sc, sd = S[lo:lo + chunk], sd_all[lo:lo + chunk]
+        n = len(Sc)
+        ok = np.all(np.isfinite(sd), axis=1)
+        sd = np.where(ok[:, None], sd, 0.0)
+        Ms = _info(test_observation(b, force_deg, sd))
+        first = near[_coarse_pairs(Sc, MC, starts)]                       # (n, starts, 2) fine-pool indices
+        a_all = np.concatenate([first[:, :, 0].T.ravel(), np.full(n, -1)])
+        b_all = np.concatenate([first[:, :, 1].T.ravel(), np.argmin(_partner_values(Sc, Ms, MP), axis=1)])
+        rows = np.tile(np.arange(n), starts + 1)
+        Sr = Sc[rows]
+        Ma = np.where((a_all >= 0)[:, None], MP[a_all], Ms[rows])
+        for _ in range(10):                      # exchange on the fine pool (the single optimum stays put)
+            b_new = np.argmin(_partner_values(Sr, Ma, MP), axis=1)
+            a_new = np.where(a_all >= 0, np.argmin(_partner_values(Sr, MP[b_new], MP), axis=1), -1)
+            if np.array_equal(a_new, a_all) and np.array_equal(b_new, b_all):
+                break
+            a_all, b_all = a_new, b_new
+            Ma = np.where((a_all >= 0)[:, None], MP[a_all], Ms[rows])
+        qa = np.where((a_all >= 0)[:, None], pool[a_all], sd[rows])
+        q, v = _pair_polish(b, force_deg, Sr, np.radians(np.concatenate([qa, pool[b_all]], axis=1)))
+        v = np.where((a_all >= 0) | ok[rows], v, np.inf)
+        v, q = v.reshape(starts + 1, n), q.reshape(starts + 1, n, 4)
+        k = np.argmin(v, axis=0)
+        v, q = v[k, np.arange(n)], q[k, np.arange(n)]
+        # the single optimum measured twice (plan (i)): a stationary point of the pair problem
+        v1 = np.where(ok, _pair_ot(Sc, 2 * Ms), np.inf)
+        rep = v1 < v
+        out_v[lo:lo + chunk] = np.where(rep, v1, v)
+        out_q[lo:lo + chunk] = np.where(rep[:, None], np.radians(np.concatenate([sd, sd], axis=1)), q)
+    return out_v, np.degrees(out_q).reshape(-1, 2, 2)
+
+
+@dataclass(frozen=True)
+class PairMap:
+    """The best two-pose plan over the test-pose grid (case iv of Table 4): (n, n) arrays indexed
+    [q1*, q2*] of O_t of the single optimum (``O_t1``; the infimum where none) and of the best pair
+    (``O_t2``), both [l1 = 1, |F| = 1, times sigma^2], and the pair's poses (n, n, 2, 2) [deg]."""
+    link_ratio: float
+    force_deg: float
+    step_deg: float
+    O_t1: np.ndarray
+    O_t2: np.ndarray
+    poses_deg: np.ndarray
+
+    @property
+    def axis(self) -> np.ndarray:
+        return grid_axis(self.step_deg)
+
+    @property
+    def gain(self) -> np.ndarray:
+        """How much a designed pair beats the single optimum measured twice (O_t1 / 2, eq. 17): 1 - O_t2 /
+        (O_t1 / 2), as a fraction; 0 where A_t = 0."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.O_t1 > 0, 1 - self.O_t2 / (self.O_t1 / 2), 0.0)
+
+
+def pair_map(b: float, force_deg: float, step_deg: float, pool_step_deg: float = 3.0, progress=None) -> PairMap:
+    """:class:`PairMap` for the grid of step_deg (every symmetry class once)."""
+    h = int(round(360.0 / step_deg)) // 2
+    reps, cells, cls = class_members(step_deg, force_deg, 0, h)
+    single = solve_cells(b, force_deg, reps)
+    ot2, poses = best_pairs(b, force_deg, reps, single.pose_deg, pool_step_deg)
+    zero = single.status == AT_ZERO
+    ot2[zero] = 0.0
+    if progress:
+        progress(len(reps), len(reps))
+    n = 2 * h
+    O1, O2 = np.empty(n * n), np.empty(n * n)
+    P = np.empty((n * n, 2, 2))
+    O1[cells], O2[cells], P[cells] = single.ot[cls], ot2[cls], poses[cls]
+    return PairMap(float(b), float(force_deg), float(step_deg), O1.reshape(n, n), O2.reshape(n, n),
+                   P.reshape(n, n, 2, 2))
+
+
+PAIR_ARRAYS = ("link_ratio", "force_deg", "step_deg", "q1t_deg", "q2t_deg", "O_t1", "O_t2", "gain", "poses_deg")
+
+
+def save_pair_map(path, pm: PairMap) -> None:
+    save_arrays(path, {"link_ratio": np.float64(pm.link_ratio), "force_deg": np.float64(pm.force_deg),
+                       "step_deg": np.float64(pm.step_deg), "q1t_deg": pm.axis, "q2t_deg": pm.axis,
+                       "O_t1": pm.O_t1, "O_t2": pm.O_t2, "gain": pm.gain, "poses_deg": pm.poses_deg})
+
+
+def load_pair_map(path) -> PairMap:
+    z = load_arrays(path, PAIR_ARRAYS)
+    return PairMap(float(z["link_ratio"]), float(z["force_deg"]), float(z["step_deg"]), z["O_t1"], z["O_t2"],
+                   z["poses_deg"])
+
+
+def pair_frame(pm: PairMap):
+    """The pair map as rows: test pose, O_t of the single optimum and of the best pair, the gain, the poses."""
+    import pandas as pd
+
+    Q1, Q2 = np.meshgrid(pm.axis, pm.axis, indexing="ij")
+    P = pm.poses_deg.reshape(-1, 4)
+    return pd.DataFrame({"link_ratio": pm.link_ratio, "force_deg": pm.force_deg, "q1t_deg": Q1.ravel(),
+                         "q2t_deg": Q2.ravel(), "O_t_single": pm.O_t1.ravel(), "O_t_pair": pm.O_t2.ravel(),
+                         "gain": pm.gain.ravel(), "q1a_deg": P[:, 0], "q2a_deg": P[:, 1], "q1b_deg": P[:, 2],
+                         "q2b_deg": P[:, 3]})

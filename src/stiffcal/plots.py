@@ -222,6 +222,21 @@ def fig_optimal_poses(mp, figure: int):
         return fig
 
 
+def fig_map_pairs(pm):
+    """Where a second, designed pose pays: 1 - O_t(best pair) / (O_t(single optimum) / 2) [%] over the
+    test-pose plane of a :class:`stiffcal.maps.PairMap` (case iv of Table 4 against case i), with contours."""
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(5.8, 4.4))
+        G = 100 * np.clip(pm.gain, 0, None).T
+        mesh = ax.pcolormesh(pm.axis, pm.axis, G, shading="gouraud", cmap="magma_r", vmin=0, vmax=max(G.max(), 1e-9),
+                             rasterized=True)
+        cs = ax.contour(pm.axis, pm.axis, G, levels=[1, 5, 10, 20], colors="k", linewidths=0.6)
+        ax.clabel(cs, fmt="%g %%", fontsize=7)
+        fig.colorbar(mesh, ax=ax, label="gain of the best pair over the single optimum twice [%]")
+        _map_axes(ax, f"Best plan of two poses against repeating the single optimum, b = {pm.link_ratio:.2f}")
+        return fig
+
+
 def fig_residuals(features: dict[str, np.ndarray], resid: np.ndarray, sigma: float, title: str):
     """Residuals of the nominal fit [m] against pose, force magnitude, force direction and joint torque
     (one panel per feature; x and y components; the +-2 sigma band of the noise)."""

@@ -101,3 +101,40 @@ def brute_force_cell_ld(b: float, force: np.ndarray, qt_deg, step_deg: float = 2
                          options=dict(xatol=1e-11, fatol=1e-17, maxiter=20000, maxfev=40000))
         best = min(best, float(r.fun))
     return best
+
+
+def brute_force_pair(b: float, force: np.ndarray, qt_deg, step_deg: float = 6.0, polish: int = 8) -> float:
+    """min O_t / sigma^2 over plans of two measurement poses (l1 = 1): every pair of poses of a step_deg grid
+    over the whole joint space, then Nelder-Mead in the four joint angles from the ``polish`` best pairs;
+    eq. 16 by a plain solve on the stacked observation matrices."""
+    robot, S = _setup(b, force, qt_deg)
+    g = np.arange(-180.0, 180.0, step_deg) + step_deg / 3
+    Q = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
+    A = observation_matrix(robot.jacobian(np.radians(Q)), force)
+    M = np.einsum("ndi,ndj->nij", A, A)
+    m = np.stack([M[:, 0, 0], M[:, 0, 1], M[:, 1, 1]], -1)
+    best = []
+    for i in range(len(Q)):                      # row i against every j >= i
+        t = m[i] + m[i:]
+        det = t[:, 0] * t[:, 2] - t[:, 1] ** 2
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v = np.where(det > 1e-12 * t[:, 0] * t[:, 2], (S[0, 0] * t[:, 2] - 2 * S[0, 1] * t[:, 1] + S[1, 1] * t[:, 0]) / det,
+                         np.inf)
+        k = np.argsort(v)[:2]
+        best += [(v[j], i, i + j) for j in k]
+    best.sort()
+
+    def plan_ot(x):
+        Ap = observation_matrix(robot.jacobian(np.radians(x.reshape(2, 2))), force).reshape(4, 2)
+        Mp = Ap.T @ Ap
+        if np.linalg.cond(Mp) > 1e12:
+            return np.inf
+        return float(np.trace(np.linalg.solve(Mp, S)))
+
+    out = best[0][0]
+    for _, i, j in best[:polish]:
+        with np.errstate(invalid="ignore", over="ignore"):
+            r = minimize(plan_ot, np.concatenate([Q[i], Q[j]]), method="Nelder-Mead",
+                         options=dict(xatol=1e-9, fatol=1e-15, maxiter=20000, maxfev=40000))
+        out = min(out, float(r.fun))
+    return out

@@ -30,6 +30,7 @@ def map_report_inputs(wildcards):
     figs = {f"fig{n}": f"{FIGURES}/fig{n}.png" for n in sorted(MAP_FIGURES)}
     if 7 in MAP_FIGURES:
         figs["fig6"] = f"{FIGURES}/fig6.png"
+        figs["fig_map_pairs"] = f"{FIGURES}/fig_map_pairs.png"
     return {"map_statistics": f"{TABLES}/map_statistics.csv", **figs}
 
 # Measured data sets (config `measured_data`), by name.

@@ -94,3 +94,37 @@ rule fig_map_poses:
         ENV
     script:
         "../scripts/fig_map_poses.py"
+
+
+rule map_pairs:
+    output:
+        npz=f"{MAPS}/{{study}}/pairs.npz",
+        csv=f"{MAPS}/{{study}}/pairs.csv",
+    log:
+        f"{LOGS}/maps/{{study}}/pairs.log",
+    benchmark:
+        f"benchmarks/out/maps/{{study}}/pairs.tsv",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        ENV
+    script:
+        "../scripts/map_pairs.py"
+
+
+rule fig_map_pairs:
+    input:
+        pairs=lambda wc: f"{MAPS}/{MAP_FIGURES[7]}/pairs.npz",
+    output:
+        png=f"{FIGURES}/fig_map_pairs.png",
+        svg=f"{FIGURES}/fig_map_pairs.svg",
+    log:
+        f"{LOGS}/fig_map_pairs.log",
+    benchmark:
+        "benchmarks/out/fig_map_pairs.tsv"
+    conda:
+        ENV
+    script:
+        "../scripts/fig_map_pairs.py"
