@@ -50,7 +50,7 @@ def factor(S: np.ndarray) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         r12 = np.where(r11 > 0, S[:, 1] / r11, 0.0)
     r22 = np.sqrt(np.maximum(S[:, 2] - r12 * r12, 0.0))
-    R = np.zeros((len(S), 2, 2))
+    R = np.zeros((len(S), 2, 2), S.dtype)
     R[:, 0, 0], R[:, 0, 1], R[:, 1, 1] = r11, r12, r22
     return R
 
@@ -71,21 +71,6 @@ def objective(R: np.ndarray, b: float, x, c, s):
     q2 = d * d + s2
     with np.errstate(divide="ignore", invalid="ignore"):
         return q1 * q2 / (b**4 * x * x * s2 * s2)
-
-
-def _q_parts(S, b, x, c):
-    """Q1, Q2 and their first and second derivatives in x and c (polynomial forms, S (..., 3))."""
-    s11, s12, s22 = S[..., 0], S[..., 1], S[..., 2]
-    e = 1 + b * b + 2 * b * c
-    q1 = s11 * b * b - 2 * s12 * b * (b + c) * x + s22 * e * x * x
-    q1x = -2 * s12 * b * (b + c) + 2 * s22 * e * x
-    q1c = -2 * s12 * b * x + 2 * s22 * b * x * x
-    q1xx = 2 * s22 * e
-    q1xc = -2 * s12 * b + 4 * s22 * b * x
-    q2 = b * b * (x - 1) ** 2 + 1 - 2 * b * c * (x - 1)
-    q2x = 2 * b * b * (x - 1) - 2 * b * c
-    q2c = -2 * b * (x - 1)
-    return q1, q1x, q1c, q1xx, q1xc, q2, q2x, q2c
 
 
 def _line_parts(r00, r01, r10, r11, b, x, c, s):

@@ -31,6 +31,7 @@ def map_report_inputs(wildcards):
     if 7 in MAP_FIGURES:
         figs["fig6"] = f"{FIGURES}/fig6.png"
         figs["fig_map_pairs"] = f"{FIGURES}/fig_map_pairs.png"
+        figs["map_pairs_table"] = f"{MAPS}/{MAP_FIGURES[7]}/pairs.csv"   # results for users, rebuilt with the report
     return {"map_statistics": f"{TABLES}/map_statistics.csv", **figs}
 
 # Measured data sets (config `measured_data`), by name.
