@@ -1,5 +1,5 @@
 """Maps over test poses (Figures 6-10): for every test pose of a planar 2R arm, the globally optimal single
-measurement pose for O_t (eq. 16, m = 1) and the accuracy gain chi (eq. 27).
+measurement pose for O_t (eq. 16, m = 1) and the accuracy gain chi (eq. 27), each cell certified.
 
 Reduction
 ---------
@@ -9,72 +9,111 @@ l^2 |F|), so a map depends only on b = l2 / l1 and the force direction phi; we w
 
     O_t = sigma^2 tr(M(q)^-1 S)                                                       (eq. 16, m = 1)
 
-is linear in S: the map value at a test pose is h(S) = min_q <M(q)^-1, S>, the lower support function of
-one point set {M(q)^-1} that every cell shares. With A = J diag(tau) (tau = J^T F, the joint torques),
-M = diag(tau) J^T J diag(tau) depends on q only through c = cos q2 and x = tau1 / tau2 (rotating the arm
-turns the force relative to it, and mirroring about the force line leaves M unchanged), and
+is linear in S, so a cell's optimum is tr(S) times the optimum for S / tr S: a point of a 2-D family (the
+disc of normalised S; its boundary holds the rank-one S). With A = J diag(tau) (tau = J^T F), M depends on
+q only through c = cos q2 and x = tau1 / tau2 = tan(theta) (rotating the arm turns the force relative to
+it; mirroring about the force line leaves M unchanged), and
 
-    O_t / sigma^2 = Q1(x, c) Q2(x, c) / (b^4 x^2 (1 - c^2)^2),
-    Q1 = s11 b^2 - 2 s12 b (b + c) x + s22 (1 + b^2 + 2 b c) x^2,
-    Q2 = b^2 (x - 1)^2 + 1 - 2 b c (x - 1).
+    O_t / sigma^2 = Q1 Q2 / (b^4 x^2 (1 - c^2)^2),
+    Q1 = s11 b^2 - 2 s12 b (b + c) x + s22 (1 + b^2 + 2 b c) x^2,   Q2 = b^2 (x - 1)^2 + 1 - 2 b c (x - 1).
 
-Every (x, c) in R x (-1, 1) is reached by four measurement poses (two with the force reversed, and
-their mirror images); we report the one with q2 in [0, 180] and q1 in (-90, 90] (the rule of Table 2).
+Every (x, c) in R x (-1, 1) is reached by four measurement poses (two with the force reversed, and their
+mirror images); we report the one with q2 in [0, 180] and q1 in (-90, 90] (the rule of Table 2). The edges
+x = 0, x = +-inf, c = +-1 are the singular poses (M singular); for S positive definite O_t -> inf there.
 
-Why every cell is the global optimum (the guarantee)
------------------------------------------------------
-The boundary of the (x, c) domain (x = 0, x = +-inf, c = +-1) is exactly where M is singular, and there
-O_t -> inf whenever S is positive definite. So the global minimum is an interior stationary point: a
-common root of E1 = x dP/dx - 2P and E2 = (1 - c^2) dP/dc + 4cP, P = Q1 Q2. Their resultant in c is, up
-to constants, x (bx - b - 1)(bx - b + 1) q4(x) q12(x) (derived symbolically by
-``tools/derive_map_polynomials.py``; the linear factors are the singular poses). So the x of every
-stationary point is a real root of q12 or q4, and its c is a root in (-1, 1) of the quadratic E1(x, .).
-We compute all of these roots (companion-matrix eigenvalues, every root's real part kept as a candidate)
-and take the smallest O_t over the finitely many candidates: no starting point, no grid, nothing to get
-stuck in. In exact arithmetic the candidate set contains the global minimiser.
+The candidate, and why each cell is the global optimum (the certificate)
+-------------------------------------------------------------------------
+1. The exact method. Stationary points solve E1 = x dP/dx - 2P = 0 and E2 = (1 - c^2) dP/dc + 4cP = 0
+   (P = Q1 Q2); their resultant in c is -64 b^6 x (bx - b - 1)(bx - b + 1) q4(x) q12(x) (derived
+   symbolically, ``tools/derive_map_polynomials.py``). So the x of every stationary point is a real root
+   of q12 or q4, or (b +- 1)/b; its c is a root of the quadratic E1(x, .). For fixed x, O_t is strictly
+   log-convex in c on (-1, 1) (Q1, Q2 are linear in c and nonnegative at c = +-1, so (log O_t)'' >=
+   4(1 + c^2)/(1 - c^2)^2 - 2/(1 - |c|)^2 > 0), hence the minimum over any line x = const is its unique
+   c-stationary point. The real roots are isolated exactly, strip by strip of theta (32 strips), by
+   Descartes' rule of signs with bisection (Collins-Akritas), with a rounding bound on every coefficient
+   so that a sign is only used when it is certain, and refined by safeguarded Newton steps; an interval
+   that stays unresolved below 1e-11 rad (1e-7 rad where signs are uncertain) is evaluated at its ends and
+   middle, which is exact to second order at a stationary point. The smallest value over all candidates
+   of a strip is its minimum (the values at non-stationary candidates are values of O_t, so never below
+   it). No starting point, no grid.
+2. The lookup and the hull bound. Doing 1 for all 32 strips of every cell is slow; a table over the
+   disc of normalised S (about 1,000 nodes on rings, finer where the map's cells approach the rank-one
+   boundary; triangles between neighbouring rings) stores, by the exact method, each node's
+   optimum in each half theta > 0, theta < 0 and its exact minimum over every strip. For a cell, the
+   corners' optima evaluated at its own S give a candidate value u (an achieved O_t, so an upper bound).
+   The minimum of O_t over a strip is a minimum of functions linear in S, hence concave in S: at the
+   cell it is at least the barycentric combination of the corners' strip minima (the hull bound). Every
+   strip whose bound exceeds u is certified empty of better points; the exact method runs on the rest
+   (1-2 strips for 98 % of the cells). The optimum is then the smallest candidate, and c is recomputed
+   in gamma = q2 next to singular poses (where cos loses precision).
+3. Precision. Next to the rank-one boundary (test poses within a few degrees of a straight or folded
+   arm) the polynomials' roots cluster and their coefficients, computed from S, lose digits: where the
+   isolation does not resolve in double precision, the cell is solved again in long double (80-bit) from
+   its test pose. A cell that still does not resolve is reported with status "uncertified" (its value
+   is the best of the candidates found and of damped Newton runs from the table's optima and a grid):
+   on the default maps 0-132 cells of 129,600, next to both a folded arm and the force through joint 1.
+4. Rank-deficient test information (det S = 0 exactly; the status "closed_form" or "no_optimum"):
+   - the test arm straight or folded (q2* = 0, +-180): S = t^2 w w^T, w = ((1 + b c*)^2, b^2), t = the
+     force component across the arm. For any plan, w^T M^-1 w = min{|y|^2 : A^T y = w} >= 1 because
+     tau_j (J_j . y) = w_j with |tau_j| <= |J_j|, |J_1| <= 1 + b and |J_2| = b. So O_t >= t^2 sigma^2,
+     approached by measuring with the arm in the same shape and the force across it, which is singular
+     (it cannot identify k1 and k2). By the report's rule (a plan that cannot identify every compliance
+     counts as infinitely bad) the optimum is the best non-singular pose, which exists only when equality
+     holds at one: for a folded test arm with b < 1, at cos q2 = 1 - 2b with the force perpendicular to
+     link 2 (x = (1 - b)/b); it is reported. Elsewhere on these rows no non-singular pose attains t^2
+     (every one is beaten by one closer to the singular shape): the cell has no optimal pose (NaN, status
+     "no_optimum"), O_t holds the infimum t^2 sigma^2 and chi the supremum, and the figures mark it.
+   - the force through joint 2 (tau2* = 0, S = s11 e1 e1^T): minimising over 1/x in closed form, then
+     over c (3 b c^2 + (1 + b^2) c - b = 0) gives the optimum, non-singular.
+   - the force through joint 1 (tau1* = 0, S = s22 e2 e2^T): the optimum over x is at x = 1 + c/b with
+     O_t = s22 (1 + b^2 + 2bc)/(b^4 (1 - c^2)), smallest at c = -1/b for b > 1 (non-singular) and at
+     c = -b for b <= 1, where x = 0 (tau1 = 0, singular): no optimal pose.
+   - A_t = 0 (the arm along the force line, stretched or folded): every plan gives O_t = 0; chi is
+     infinite and the pose undefined (status "exact_everywhere").
+   The tests compare random cells, half of them next to the singular test poses (down to 1e-3 deg), with
+   an independent brute force in long double (:mod:`stiffcal.reference`).
 
-In floating point, two things are added. (1) When S is nearly rank-deficient, roots come in tight
-clusters and are computed to only ~1e-6, which can cost 1e-5 in O_t (a narrow valley) and can even rank
-two nearly equal minima in the wrong order; so the ``N_POLISH`` best candidates are polished by damped
-Newton steps in joint coordinates, where those valleys are well scaled, and the smallest value wins.
-(2) When S is singular (A_t of rank < 2: the test arm straight or folded, or the force through joint 2)
-the polynomials can vanish identically and the infimum can lie on the boundary; those cases are solved in
-closed form (:func:`_closed_form_candidates`). As a safety net every cell also gets the best point of a
-shared sample of the point set (its convex-hull vertices: a linear function is minimised over a point set
-at a hull vertex), polished where it beats the algebraic candidates. The tests compare random cells,
-half of them next to the singular test poses, with an independent brute force for three link ratios
-(agreement to 1e-6, usually 1e-10), and ``benchmarks/bench_maps.py`` prints the worst excess. Where
-A_t = 0 (the arm stretched or folded along the force line) every plan gives O_t = 0: chi is infinite and
-the pose undefined (NaN).
+Symmetry and jobs
+-----------------
+Cells (q1*, q2*), (q1* + 180, q2*) and, when the grid maps onto itself under it, their mirror images
+about the force line (2 phi - q1*, -q2*) have the same S. Each class is enumerated exactly once, by index
+arithmetic on the grid columns (:func:`class_members`), so a map solves about a quarter of its cells and
+no job ever looks at the whole grid; tiles (the workflow's jobs) are ranges of columns.
 
-Symmetry. Cells (q1*, q2*), (q1* + 180, q2*) and their mirror images about the force line
-(2 phi - q1*, -q2*) have the same S, so a map solves one cell per class (about a quarter of the grid)
-and writes it for every member; tiles of classes are the workflow's jobs.
+Files (the hand-over between jobs; deterministic bytes, written only when complete)
+-----------------------------------------------------------------------------------
+``tiles/<k>.npz``: ``cell`` (M,) int32, the flat grid index i * n + j of every cell of the tile, and per
+cell ``O_t``, ``q1_opt_deg``, ``q2_opt_deg`` (M,) float64 and ``status`` (M,) int8 (:data:`STATUS`).
+``map.npz``: scalars ``link_ratio``, ``force_deg``, ``step_deg``, ``sigma``; axes ``q1t_deg``,
+``q2t_deg`` (n,); and (n, n) arrays indexed [i, j] = (q1*, q2*): ``O_t``, ``chi``, ``q1_opt_deg``,
+``q2_opt_deg``, ``status``. ``map.csv`` holds the same cells as rows (:data:`MAP_COLUMNS`).
+``pairs.npz`` (plans of two poses, :func:`pair_map`): ``link_ratio``, ``force_deg``, ``step_deg``, the axes,
+and (n, n) arrays ``O_t1`` (single optimum), ``O_t2`` (best pair), ``gain`` and (n, n, 2, 2) ``poses_deg``.
 """
 
 from __future__ import annotations
 
+import io
 import time
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
-from ._map_polynomials import Q4, Q12
-from .criteria import chi as chi_of
+from . import _map_solver as solver
 from .errors import InputError
-from .robot import load_robot, planar_jacobian
-from .stiffness import observation_matrix
 
 #: columns of results/maps/<study>/map.csv
 MAP_COLUMNS = ["link_ratio", "force_deg", "q1t_deg", "q2t_deg", "q1_opt_deg", "q2_opt_deg", "O_t", "chi"]
+#: status of a cell (map.npz ``status``): how its optimum is known
+STATUS = {0: "uncertified", 1: "lookup_hull_exact", 2: "exact", 3: "exact_long_double", 4: "closed_form",
+          5: "no_optimum", 6: "exact_everywhere"}
+UNCERTIFIED, HULL, EXACT, EXTENDED, CLOSED, NO_OPTIMUM, AT_ZERO = range(7)
 #: |A_t|^2 below this (l1 = 1, |F| = 1) counts as A_t = 0
 ZERO_TEST = 1e-20
-#: how many of the best algebraic candidates of a cell are polished (:func:`polish`)
-N_POLISH = 3
-#: Moebius shift x = (z + T) / (1 - T z) that keeps the polynomials' leading coefficients away from 0
-_T = np.tan(0.3)
+#: a test pose with |sin q2*| or a joint torque below this (relative) is exactly rank-deficient
+SINGULAR_TOL = 1e-12
 
 
 def force_vector(force_deg: float) -> np.ndarray:
@@ -83,415 +122,409 @@ def force_vector(force_deg: float) -> np.ndarray:
     return np.array([np.cos(phi), np.sin(phi)])
 
 
+def test_observation(b: float, force_deg: float, qt_deg: np.ndarray, dtype=np.float64) -> np.ndarray:
+    """A_t = J diag(J^T F) (eq. 4) of test poses qt_deg (N, 2) [deg] for the arm (1, b) under a unit force at
+    force_deg, in precision dtype: (N, 2, 2) [m^2 N / rad with l1 = 1]."""
+    q = np.radians(np.atleast_2d(np.asarray(qt_deg, dtype)))
+    phi = np.radians(dtype(force_deg))
+    F = np.array([np.cos(phi), np.sin(phi)])
+    c1, s1, c12, s12 = np.cos(q[:, 0]), np.sin(q[:, 0]), np.cos(q.sum(1)), np.sin(q.sum(1))
+    J = np.empty((len(q), 2, 2), dtype)
+    J[:, 0, 0], J[:, 1, 0] = -(s1 + b * s12), c1 + b * c12
+    J[:, 0, 1], J[:, 1, 1] = -b * s12, b * c12
+    tau = np.einsum("ndi,d->ni", J, F)
+    return J * tau[:, None, :]
+
+
+def _info(A: np.ndarray) -> np.ndarray:
+    return np.stack([np.sum(A[:, :, 0] ** 2, 1), np.sum(A[:, :, 0] * A[:, :, 1], 1), np.sum(A[:, :, 1] ** 2, 1)], -1)
+
+
 def test_information(b: float, force_deg: float, qt_deg: np.ndarray) -> np.ndarray:
     """S = A_t^T A_t for test poses qt_deg (N, 2) [deg] of the arm (1, b) under a unit force: (N, 3) as
     (s11, s12, s22) [m^4 N^2 / rad^2 with l1 = 1]."""
-    J = planar_jacobian(np.array([1.0, b]), np.radians(np.atleast_2d(qt_deg)))
-    A = observation_matrix(J, force_vector(force_deg))
-    S = np.einsum("...di,...dj->...ij", A, A)
-    return np.stack([S[:, 0, 0], S[:, 0, 1], S[:, 1, 1]], axis=-1)
+    return _info(test_observation(b, force_deg, qt_deg))
 
 
 def ot_xc(S: np.ndarray, x: np.ndarray, c: np.ndarray, b: float) -> np.ndarray:
     """O_t / sigma^2 of a single measurement pose given by (x, c) (module docstring), broadcast over
-    S (..., 3) and x, c (...); x = tau1 / tau2 must be nonzero."""
+    S (..., 3) and x, c (...); +inf at singular poses (x = 0, +-inf or |c| = 1)."""
     s11, s12, s22 = (S[..., i] for i in range(3))
     with np.errstate(divide="ignore", invalid="ignore"):
-        w = 1.0 / x
-        u = s11 * b * b * w * w - 2 * s12 * b * (b + c) * w + s22 * (1 + b * b + 2 * b * c)  # Q1 / x^2
+        q1 = s11 * b * b - 2 * s12 * b * (b + c) * x + s22 * (1 + b * b + 2 * b * c) * x * x
         q2 = b * b * (x - 1) ** 2 + 1 - 2 * b * c * (x - 1)
-    s2 = 1 - c * c
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # a singular plan (straight arm, or a torque ratio of 0 or inf) is +inf; its limits are handled
-        # by _closed_form_candidates, not by evaluating 0 / 0 in round-off
-        return np.where((s2 > 1e-8) & (np.abs(w) < 1e12) & np.isfinite(x), u * q2 / (b**4 * s2**2), np.inf)
+        v = q1 * q2 / (b**4 * x * x * (1 - c * c) ** 2)
+    return np.where((np.abs(c) < 1) & (x != 0) & np.isfinite(x), v, np.inf)
 
 
-# --- stationary points -------------------------------------------------------------------------------
-
-def _monomials(S: np.ndarray, keys) -> np.ndarray:
-    """(N, K) values of the S monomials s11^i s12^j s22^l for keys (i, j, l)."""
-    e = np.array(keys)
-    return np.prod(S[:, None, :] ** e[None, :, :], axis=-1)
-
-
-def _coefficient_matrix(table: dict, b: float):
-    """(keys, C): C (degree + 1, K) with coefficient k of the x-polynomial = C[k] @ monomials."""
-    keys = sorted({m for row in table.values() for m in row})
-    C = np.zeros((len(table), len(keys)))
-    for k, row in table.items():
-        for m, coeffs in row.items():
-            C[k, keys.index(m)] = np.polynomial.polynomial.polyval(b, coeffs)
-    return keys, C
-
-
-def _moebius_matrix(degree: int) -> np.ndarray:
-    """T (d+1, d+1) with p~ = T @ p: coefficients (lowest first) of (1 - T z)^d p((z + T)/(1 - T z))."""
-    P = np.polynomial.polynomial
-    out = np.zeros((degree + 1, degree + 1))
-    for k in range(degree + 1):
-        term = P.polymul(P.polypow([_T, 1.0], k), P.polypow([1.0, -_T], degree - k))
-        out[: len(term), k] = term
-    return out
-
-
-def polynomial_roots(coeffs: np.ndarray) -> np.ndarray:
-    """Candidate real roots x of polynomials with coefficients (N, d+1) (lowest power first) -> (N, d).
-
-    Every root's real part is returned: a real root computed as a complex pair (two nearly equal roots
-    split by round-off) is kept, and a spurious candidate only costs one evaluation of O_t. The roots are
-    found in z, x = (z + T)/(1 - T z), so a vanishing leading coefficient (a root at infinity) does no
-    harm; companion-matrix eigenvalues, batched. NaN for a polynomial that vanishes identically.
-    """
-    n, d1 = coeffs.shape
-    d = d1 - 1
-    zc = coeffs @ _moebius_matrix(d).T
-    scale = np.abs(zc).max(axis=1, keepdims=True)
-    scale[scale == 0] = 1.0
-    zc = zc / scale
-    lead = zc[:, -1]
-    ok = np.abs(lead) > 1e-13
-    comp = np.zeros((n, d, d))
-    comp[:, 1:, :-1] = np.eye(d - 1)
-    comp[ok, :, -1] = -zc[ok, :-1] / lead[ok, None]
-    z = np.full((n, d), np.nan)
-    z[ok] = np.linalg.eigvals(comp[ok]).real
-    with np.errstate(divide="ignore"):
-        return (z + _T) / (1 - _T * z)
-
-
-def _c_roots_e1(S: np.ndarray, x: np.ndarray, b: float) -> np.ndarray:
-    """Roots c of the quadratic E1(x, c) = x dP/dx - 2P for S (N, 3), x (N, K) -> (N, K, 2), NaN outside
-    (-1, 1) or complex."""
-    s11, s12, s22 = (S[:, i, None] for i in range(3))
-    a1 = s11 * b * b - 2 * s12 * b * b * x + s22 * (1 + b * b) * x * x
-    da1 = -2 * s12 * b * b + 2 * s22 * (1 + b * b) * x
-    b1 = -2 * s12 * b * x + 2 * s22 * b * x * x
-    db1 = -2 * s12 * b + 4 * s22 * b * x
-    a2 = b * b * (x - 1) ** 2 + 1
-    da2 = 2 * b * b * (x - 1)
-    b2 = -2 * b * (x - 1)
-    db2 = -2 * b
-    p = [a1 * a2, a1 * b2 + b1 * a2, b1 * b2]
-    dp = [da1 * a2 + a1 * da2, da1 * b2 + a1 * db2 + db1 * a2 + b1 * da2, db1 * b2 + b1 * db2]
-    e0, e1, e2 = (x * d - 2 * v for d, v in zip(dp, p))
-    with np.errstate(all="ignore"):
-        disc = np.sqrt(e1 * e1 - 4 * e2 * e0)
-        q = -0.5 * (e1 + np.copysign(disc, e1))
-        small = np.abs(e2) <= 1e-14 * (np.abs(e0) + np.abs(e1))
-        r1 = np.where(small, -e0 / e1, q / e2)
-        r2 = np.where(small, np.nan, e0 / q)
-    roots = np.stack([r1, r2], axis=-1)
-    return np.where(np.abs(roots) < 1, roots, np.nan)
-
-
-def _closed_form_candidates(S: np.ndarray, tr: np.ndarray, b: float, force_deg: float, qt_deg: np.ndarray):
-    """Candidates (x, c, value / tr) (N, 2) for the singular test poses (module docstring); S (N, 3) is
-    A_t^T A_t divided by its trace tr (N,).
-
-    1. A_t with a zero second column (tau2* = 0, S = diag(s11, 0)): O_t = s11 Q2 / (b^2 x^2 (1-c^2)^2),
-       minimised in w = 1/x in closed form (w* = b (b + c) / (1 + b^2 + 2bc)) and then in c
-       (3b c^2 + (1 + b^2) c - b = 0). The candidate is evaluated with the cell's own S, so it is always
-       a feasible plan.
-    2. A straight or folded test arm (cos q2* = +-1): S = t^2 w w^T with w = ((1 + b c*)^2, b^2) and
-       t = the force component across the arm. Only the measurement arm in the same shape (c = c*)
-       sees the direction w; its limit O_t = t^2 / t_m^2 is smallest with the force across the arm
-       (t_m = 1): O_t = t^2. The plan is singular (it cannot identify k1 and k2 separately) but identifies
-       exactly the combination that the test pose needs.
-    """
-    n = len(S)
-    c1 = (-(1 + b * b) + np.sqrt((1 + b * b) ** 2 + 12 * b * b)) / (6 * b)
-    x1 = (1 + b * b + 2 * b * c1) / (b * (b + c1))
-    val1 = ot_xc(S, np.full(n, x1), np.full(n, c1), b)
-    ct = np.cos(np.radians(qt_deg[:, 1]))
-    straight = np.abs(np.abs(ct) - 1) < 1e-12
-    across = np.sin(np.radians(force_deg - qt_deg[:, 0]))  # force component across a straight arm
-    val2 = np.where(straight, across**2 / tr.clip(1e-300), np.inf)
-    xs = np.stack([np.full(n, x1), np.where(ct > 0, (1 + b) / b, (b - 1) / b)], axis=1)
-    cs = np.stack([np.full(n, c1), np.sign(ct)], axis=1)
-    return xs, cs, np.stack([val1, val2], axis=1)
-
-
-@dataclass(frozen=True)
-class PointSet:
-    """A shared sample of {M(q)^-1}: (x, c) of the hull vertices and p (V, 3) with O_t = p . S."""
-    x: np.ndarray
-    c: np.ndarray
-    p: np.ndarray
-
-
-def point_set(b: float, n_theta: int = 180, n_c: int = 120) -> PointSet:
-    """The sampled point set (theta = atan x and q2 on open grids that avoid x = 0), reduced to the points
-    that can be a minimiser for some S >= 0 with tr S = 1 (those whose M^-1 has its smallest eigenvalue
-    below the largest eigenvalue of some other point's M^-1) and then to its convex-hull vertices."""
-    th = np.linspace(-np.pi / 2, np.pi / 2, n_theta + 2)[1:-1]
-    cc = np.cos(np.linspace(0, np.pi, n_c + 2)[1:-1])
-    T, C = np.meshgrid(th, cc, indexing="ij")
-    x, c = np.tan(T).ravel(), C.ravel()
-    p = np.stack([ot_xc(np.eye(3)[i], x, c, b) for i in range(3)], axis=-1)
-    keep = np.all(np.isfinite(p), axis=1)
-    x, c, p = x[keep], c[keep], p[keep]
-    # O_t = tr(W S) with W = [[p0, p1 / 2], [p1 / 2, p2]] = M^-1 (scaled): lambda_min(W) <= O_t <= lambda_max(W)
-    mid, rad = (p[:, 0] + p[:, 2]) / 2, np.hypot((p[:, 0] - p[:, 2]) / 2, p[:, 1] / 2)
-    useful = mid - rad <= np.min(mid + rad)
-    x, c, p = x[useful], c[useful], p[useful]
-    from scipy.spatial import ConvexHull  # imported here: jobs that only read maps do not load it
-
-    v = np.unique(ConvexHull(p).vertices)
-    return PointSet(x[v], c[v], p[v])
-
-
-def _sample_candidates(S: np.ndarray, ps: PointSet, chunk: int = 4096):
-    """Best sampled point per cell: (x, c, value) (N,)."""
-    idx = np.empty(len(S), int)
-    for i in range(0, len(S), chunk):
-        idx[i:i + chunk] = np.argmin(S[i:i + chunk] @ ps.p.T, axis=1)
-    return ps.x[idx], ps.c[idx], np.einsum("nk,nk->n", S, ps.p[idx])
-
-
-# --- local polish of ill-conditioned cells -------------------------------------------------------------
-
-def _xc_from_pose(psi: np.ndarray, q2: np.ndarray, b: float):
-    """(x, c) of the measurement pose with elbow q2 [rad] and the force at psi [rad] in the arm frame."""
-    s2, c2 = np.sin(q2), np.cos(q2)
-    f1, f2 = np.cos(psi), np.sin(psi)
-    tau1 = -b * s2 * f1 + (1 + b * c2) * f2
-    tau2 = -b * s2 * f1 + b * c2 * f2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return tau1 / tau2, c2
-
-
-def _pose_from_xc_rad(x: np.ndarray, c: np.ndarray, b: float):
-    """Inverse of :func:`_xc_from_pose`: (psi, q2) [rad] with q2 in [0, pi]. In the arm frame (q1 = 0)
-    J1 = (-b s2, 1 + b c), J2 = (-b s2, b c), and tau1 = x tau2 iff the force is normal to J1 - x J2,
-    written with (cos t, sin t) ~ (1, x) so that x = inf is handled."""
-    q2 = np.arccos(np.clip(c, -1, 1))
+def pose_from_xc(x: np.ndarray, c: np.ndarray, s: np.ndarray, b: float, force_deg: float) -> np.ndarray:
+    """Measurement pose (N, 2) [deg] with torque ratio x, cos q2 = c, sin q2 = s >= 0: q2 in [0, 180],
+    q1 in (-90, 90] (the other copy with the same information is q1 + 180). In the arm frame (q1 = 0)
+    J1 = (-b s, 1 + b c), J2 = (-b s, b c), and tau1 = x tau2 iff the force is normal to J1 - x J2."""
+    q2 = np.arctan2(s, c)
     t = np.arctan(x)
-    d1 = -b * np.sin(q2) * (np.cos(t) - np.sin(t))
+    d1 = -b * s * (np.cos(t) - np.sin(t))
     d2 = (1 + b * c) * np.cos(t) - b * c * np.sin(t)
-    return np.arctan2(d1, -d2), q2
-
-
-def polish(S: np.ndarray, x: np.ndarray, c: np.ndarray, b: float, iters: int = 8, h: float = 1e-6):
-    """Damped Newton steps (central differences) on O_t over the measurement pose (psi, q2), from (x, c),
-    for cells S (N, 3). Returns (x, c, value), never worse than the start.
-
-    Used where the algebraic candidates are ill-conditioned: test poses close to a singular A_t put the
-    optimum in a narrow valley near the straight arm, where a root error of 1e-6 in x costs 1e-4 in O_t.
-    In joint coordinates that valley is well scaled.
-    """
-    def f(p, q):
-        xx, cc = _xc_from_pose(p, q, b)
-        with np.errstate(all="ignore"):
-            v = ot_xc(S, xx, cc, b)
-        return np.where(np.isfinite(v) & (v >= 0), v, np.inf)
-
-    p, q = _pose_from_xc_rad(x, c, b)
-    f0 = f(p, q)
-    with np.errstate(all="ignore"):
-        p, q, f0 = _newton(f, p, q, f0, iters, h)
-    xx, cc = _xc_from_pose(p, q, b)
-    return xx, cc, f0
-
-
-def _newton(f, p, q, f0, iters: int, h: float):
-    """Damped Newton on f(p, q) (vectorised over cells) with a central-difference gradient and Hessian;
-    a gradient step where the Hessian is not positive definite; backtracking keeps only improvements."""
-    for _ in range(iters):
-        fpp, fmm = f(p + h, q), f(p - h, q)
-        fqq, fqm = f(p, q + h), f(p, q - h)
-        fa, fb, fc, fd = f(p + h, q + h), f(p + h, q - h), f(p - h, q + h), f(p - h, q - h)
-        g = np.stack([(fpp - fmm) / (2 * h), (fqq - fqm) / (2 * h)], axis=-1)
-        H11 = (fpp - 2 * f0 + fmm) / h**2
-        H22 = (fqq - 2 * f0 + fqm) / h**2
-        H12 = (fa - fb - fc + fd) / (4 * h * h)
-        det = H11 * H22 - H12**2
-        newton = (H11 > 0) & (det > 0) & np.all(np.isfinite(g), axis=-1)
-        step = np.where(newton[:, None],
-                        -np.stack([H22 * g[:, 0] - H12 * g[:, 1], H11 * g[:, 1] - H12 * g[:, 0]], -1) / det[:, None],
-                        -1e-3 * g / np.maximum(np.abs(g).max(axis=-1, keepdims=True), 1e-300))
-        step = np.nan_to_num(step)
-        norm = np.abs(step).max(axis=-1, keepdims=True)
-        step = step * np.minimum(1.0, 0.1 / np.maximum(norm, 1e-300))
-        improved = np.zeros(len(p), bool)
-        for frac in (1.0, 0.5, 0.25, 0.0625):
-            cand = f(p + frac * step[:, 0], q + frac * step[:, 1])
-            take = (cand < f0) & ~improved
-            p = np.where(take, p + frac * step[:, 0], p)
-            q = np.where(take, q + frac * step[:, 1], q)
-            f0 = np.where(take, cand, f0)
-            improved |= take
-        if not improved.any():
-            break
-    return p, q, f0
-
-
-# --- from (x, c) back to joint angles ----------------------------------------------------------------
-
-def pose_from_xc(x: np.ndarray, c: np.ndarray, b: float, force_deg: float) -> np.ndarray:
-    """Measurement pose (N, 2) [deg] with torque ratio x and cos q2 = c: q2 in [0, 180], q1 in (-90, 90]
-    (the other copy with the same information is q1 + 180). A straight or folded arm (|c| = 1, the
-    limit plans of :func:`_closed_form_candidates`) gets the force across it."""
-    psi, q2 = _pose_from_xc_rad(x, c, b)
-    q1 = np.where(np.abs(c) >= 1, force_deg + 90.0, force_deg - np.degrees(psi))
+    q1 = force_deg - np.degrees(np.arctan2(d1, -d2))
     q1 = (q1 + 90.0) % 180.0 - 90.0
     q1 = np.where(q1 == -90.0, 90.0, q1)
-    return np.stack([q1 + 0.0, np.degrees(q2) + 0.0], axis=-1)
+    return np.stack([q1 + 0.0, np.degrees(q2) + 0.0], axis=-1).astype(float)
 
 
-# --- the map -----------------------------------------------------------------------------------------
+# --- one map cell --------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
 class CellSolution:
-    """Per cell: O_t / sigma^2, the optimal measurement pose [deg], and which candidate won."""
+    """Per cell: O_t / sigma^2 (l1 = 1, |F| = 1; the infimum where no pose attains it), the optimal
+    measurement pose [deg] (NaN where there is none) and the status code (:data:`STATUS`)."""
     ot: np.ndarray
     pose_deg: np.ndarray
-    source: np.ndarray  # 0 algebraic, 1 closed form, 2 hull sample, 3 polished, -1 A_t = 0
+    status: np.ndarray
 
 
-def solve_cells(b: float, force_deg: float, qt_deg: np.ndarray, ps: PointSet | None = None) -> CellSolution:
-    """The exact map for test poses qt_deg (N, 2) [deg] (module docstring)."""
-    qt_deg = np.atleast_2d(np.asarray(qt_deg, float))
-    S = test_information(b, force_deg, qt_deg)
+def _rank_deficient(b: float, force_deg: float, qt: np.ndarray, A: np.ndarray):
+    """Closed forms for exactly rank-deficient S (module docstring, 4): (mask, O_t, x, c, s, status)."""
+    n = len(qt)
+    tr = np.einsum("nij,nij->n", A, A)
+    q = np.radians(qt)
+    F = force_vector(force_deg)
+    s2t = np.sin(q[:, 1])
+    scale = 1 + b
+    row = (np.abs(s2t) <= SINGULAR_TOL) & (tr > ZERO_TEST)
+    c12, s12, c1, s1 = np.cos(q.sum(1)), np.sin(q.sum(1)), np.cos(q[:, 0]), np.sin(q[:, 0])
+    tau = np.stack([-(s1 + b * s12) * F[0] + (c1 + b * c12) * F[1], -b * s12 * F[0] + b * c12 * F[1]], -1)
+    col1 = ~row & (np.abs(tau[:, 0]) <= SINGULAR_TOL * scale) & (tr > ZERO_TEST)
+    col2 = ~row & ~col1 & (np.abs(tau[:, 1]) <= SINGULAR_TOL * scale) & (tr > ZERO_TEST)
+    ot = np.full(n, np.nan)
+    x, c = np.full(n, np.nan), np.full(n, np.nan)
+    status = np.zeros(n, np.int8)
+    # straight or folded test arm: O_t >= t^2, attained by a regular pose only when folded with b < 1
+    t = np.sin(np.radians(force_deg) - q[:, 0])
+    folded = np.cos(q[:, 1]) < 0
+    ot[row] = t[row] ** 2
+    attained = row & folded & (b < 1)
+    x[attained], c[attained] = (1 - b) / b, 1 - 2 * b
+    status[row] = np.where(attained[row], CLOSED, NO_OPTIMUM)
+    # force through joint 2: S = s11 e1 e1^T
+    c_1 = (-(1 + b * b) + np.sqrt((1 + b * b) ** 2 + 12 * b * b)) / (6 * b)
+    s11 = tr
+    ot[col2] = s11[col2] / ((1 - c_1 * c_1) * (1 + b * b + 2 * b * c_1))
+    x[col2], c[col2] = (1 + b * b + 2 * b * c_1) / (b * (b + c_1)), c_1
+    status[col2] = CLOSED
+    # force through joint 1: S = s22 e2 e2^T
+    s22 = tr
+    if b > 1:
+        ot[col1] = s22[col1] / b**2
+        x[col1], c[col1] = 1 - 1 / b**2, -1 / b
+        status[col1] = CLOSED
+    else:
+        ot[col1] = s22[col1] / b**4
+        status[col1] = NO_OPTIMUM
+    mask = row | col1 | col2
+    return mask, ot, x, c, np.sqrt((1 - c) * (1 + c)), status
+
+
+def _fallback(S, R, b, tab):
+    """Best of damped Newton runs from the table's optima and a coarse grid (uncertified cells only)."""
+    th = np.concatenate([np.linspace(-1.5, -0.05, 8), np.linspace(0.05, 1.5, 8)])
+    ga = np.linspace(0.1, np.pi - 0.1, 8)
+    T, G = (a.ravel() for a in np.meshgrid(th, ga, indexing="ij"))
+    starts_t = np.concatenate([np.arctan(tab.x.ravel()), T]) if tab is not None else T
+    starts_g = np.concatenate([np.arctan2(tab.s.ravel(), tab.c.ravel()), G]) if tab is not None else G
     n = len(S)
-    tr = S[:, 0] + S[:, 2]
-    S_unit = S / np.maximum(tr, 1e-300)[:, None]  # O_t is linear in S: solve for tr S = 1
-    xs = []
-    for table in (Q12, Q4):
-        keys, C = _coefficient_matrix(table, b)
-        xs.append(polynomial_roots(_monomials(S_unit, keys) @ C.T))
-    x = np.concatenate(xs, axis=1)
-    x = np.where(np.abs(x) > 1e-12, x, np.nan)
-    c = _c_roots_e1(S_unit, x, b)
-    X = np.repeat(x[:, :, None], 2, axis=2).reshape(n, -1)
-    Cc = c.reshape(n, -1)
-    with np.errstate(all="ignore"):
-        vals = ot_xc(S_unit[:, None, :], X, Cc, b)
-    vals = np.where(np.isfinite(vals) & (vals >= 0), vals, np.inf)
-    cx, cc, cv = _closed_form_candidates(S_unit, tr, b, force_deg, qt_deg)
-    ps = ps or point_set(b)
-    sx, sc, sv = _sample_candidates(S_unit, ps)
-    allx = np.concatenate([X, cx, sx[:, None]], axis=1)
-    allc = np.concatenate([Cc, cc, sc[:, None]], axis=1)
-    allv = np.concatenate([vals, cv, sv[:, None]], axis=1)
-    # Newton polish of the N_POLISH best algebraic candidates (round-off in the roots of a nearly
-    # rank-deficient S costs up to 1e-5 in O_t, enough to rank two minima of nearly equal value in the
-    # wrong order) and, where the sample came out ahead, of the best sampled point
-    k_alg = X.shape[1]
-    rows = np.arange(n)
-    top = np.argpartition(allv[:, :k_alg], N_POLISH - 1, axis=1)[:, :N_POLISH]
-    top = np.take_along_axis(top, np.argsort(np.take_along_axis(allv, top, 1), axis=1, kind="stable"), 1)
-    behind = sv < allv[rows, top[:, 0]]
-    extra = [polish(S_unit, allx[rows, ia], allc[rows, ia], b) for ia in top.T]
-    if behind.any():
-        px, pc, pv = polish(S_unit[behind], sx[behind], sc[behind], b)
-        ex = [np.zeros(n), np.zeros(n), np.full(n, np.inf)]
-        for e, v in zip(ex, (px, pc, pv)):
-            e[behind] = v
-        extra.append(tuple(ex))
-    for px, pc, pv in extra:
-        allx = np.concatenate([allx, px[:, None]], axis=1)
-        allc = np.concatenate([allc, pc[:, None]], axis=1)
-        allv = np.concatenate([allv, pv[:, None]], axis=1)
-    # among (near-)ties prefer the algebraic candidates, then the closed forms: an attained, regular plan
-    best = np.argmax(allv <= allv.min(axis=1, keepdims=True) * (1 + 1e-10), axis=1)
-    n_cf = cx.shape[1]
-    source = np.where(best < k_alg, 0, np.where(best < k_alg + n_cf, 1, np.where(best == k_alg + n_cf, 2, 3)))
-    ot = allv[rows, best] * tr
-    pose = pose_from_xc(allx[rows, best], allc[rows, best], b, force_deg)
-    zero = tr <= ZERO_TEST
-    ot = np.where(zero, 0.0, ot)
-    pose[zero] = np.nan
-    source = np.where(zero, -1, source)
-    return CellSolution(ot, pose, source)
+    vals = solver.objective(R[:, None], b, np.tan(starts_t)[None], np.cos(starts_g)[None], np.sin(starts_g)[None])
+    vals = np.where(np.isfinite(vals), vals, np.inf)
+    best = np.argsort(vals, axis=1)[:, :6]
+    t0, g0 = starts_t[best].ravel(), starts_g[best].ravel()
+    rep = np.repeat(np.arange(n), best.shape[1])
+    t1, g1, v1 = solver.newton(S[rep], R[rep], b, t0, g0, iters=200)
+    v1 = v1.reshape(n, -1)
+    k = np.argmin(v1, axis=1)
+    t1, g1 = t1.reshape(n, -1)[np.arange(n), k], g1.reshape(n, -1)[np.arange(n), k]
+    return v1[np.arange(n), k], np.tan(t1), np.cos(g1), np.sin(g1)
 
+
+#: below this many cells the table costs more than it saves: every strip is searched instead
+TABLE_MIN_CELLS = 2000
+
+
+def solve_cells(b: float, force_deg: float, qt_deg: np.ndarray, tab=None) -> CellSolution:
+    """The certified map for test poses qt_deg (N, 2) [deg] (module docstring); tab: a table for b
+    (by default built for these cells when there are at least TABLE_MIN_CELLS)."""
+    qt = np.atleast_2d(np.asarray(qt_deg, float))
+    A = test_observation(b, force_deg, qt)
+    S = _info(A)
+    tr = S[:, 0] + S[:, 2]
+    zero = tr <= ZERO_TEST
+    special, ot, x, c, s, status = _rank_deficient(b, force_deg, qt, A)
+    status[zero] = AT_ZERO
+    ot[zero] = 0.0
+    reg = np.nonzero(~zero & ~special)[0]
+    if len(reg):
+        Sn, Rn = S[reg] / tr[reg, None], A[reg] / np.sqrt(tr[reg])[:, None, None]
+        if tab is None and len(reg) >= TABLE_MIN_CELLS:
+            tab = solver.build_table(float(b), Sn)
+        sol = solver.solve(Sn, Rn, b, tab)
+        v, xx, cc, ss = sol.value, sol.x, sol.c, sol.s
+        st = np.where(sol.certificate == 1, HULL, EXACT).astype(np.int8)
+        bad = np.nonzero(sol.certificate == 0)[0]
+        if len(bad):
+            AL = test_observation(b, force_deg, qt[reg[bad]], np.longdouble)
+            SL = _info(AL)
+            trL = SL[:, 0] + SL[:, 2]
+            solL = solver.solve(SL / trL[:, None], AL / np.sqrt(trL)[:, None, None], b, tab)
+            v[bad], xx[bad], cc[bad], ss[bad] = (np.asarray(a, float) for a in (solL.value, solL.x, solL.c, solL.s))
+            st[bad] = np.where(solL.certificate == 0, UNCERTIFIED, EXTENDED)
+            left = bad[solL.certificate == 0]
+            if len(left):
+                fv, fx, fc, fs = _fallback(Sn[left], Rn[left], b, tab)
+                better = fv < v[left]
+                v[left] = np.where(better, fv, v[left])
+                xx[left], cc[left], ss[left] = (np.where(better, a, o) for a, o in
+                                                ((fx, xx[left]), (fc, cc[left]), (fs, ss[left])))
+        ot[reg], x[reg], c[reg], s[reg], status[reg] = v * tr[reg], xx, cc, ss, st
+    pose = pose_from_xc(x, c, s, b, force_deg)
+    pose[np.isnan(x)] = np.nan
+    return CellSolution(ot, pose, status)
+
+
+# --- the grid and its symmetry classes -----------------------------------------------------------------
 
 def test_pose_grid(step_deg: float) -> np.ndarray:
-    """The grid of test poses (N, 2) [deg]: q1*, q2* over [-180, 180) with step step_deg, q1* slowest."""
-    g = np.arange(-180.0, 180.0 - 1e-9, step_deg)
+    """The grid of test poses (N, 2) [deg]: q1*, q2* over [-180, 180) with step step_deg, q1* slowest
+    (flat index i * n + j)."""
+    g = grid_axis(step_deg)
     Q1, Q2 = np.meshgrid(g, g, indexing="ij")
     return np.stack([Q1.ravel(), Q2.ravel()], axis=-1)
 
 
-def _wrap(q):
-    return (np.asarray(q) + 180.0) % 360.0 - 180.0
+def grid_axis(step_deg: float) -> np.ndarray:
+    """The n angles -180, -180 + step, ..., 180 - step [deg]."""
+    n = int(round(360.0 / step_deg))
+    return -180.0 + step_deg * np.arange(n)
 
 
-def canonical_test_poses(qt_deg: np.ndarray, force_deg: float) -> np.ndarray:
-    """The representative (N, 2) [deg] of each test pose's symmetry class: the lexicographically smallest
-    of (q1, q2), (q1 + 180, q2) (the force reversed relative to the arm) and their mirror images about
-    the force line (2 phi - q1, -q2). All four have the same S = A_t^T A_t, hence the same map cell."""
-    q1, q2 = qt_deg[:, 0], qt_deg[:, 1]
-    m1 = 2 * force_deg - q1
-    orbit = np.stack([np.stack([q1, q2], -1), np.stack([q1 + 180, q2], -1),
-                      np.stack([m1, -q2], -1), np.stack([m1 + 180, -q2], -1)])
-    orbit = np.round(_wrap(orbit), 9) + 0.0
-    orbit[orbit == 180.0] = -180.0
-    order = np.lexsort((orbit[..., 1], orbit[..., 0]), axis=0)[0]
-    return orbit[order, np.arange(len(qt_deg))]
+def _mirror_shift(step_deg: float, force_deg: float):
+    """m with column i mirrored to (m - i) mod n about the force line, or None when the mirror does not
+    map the grid onto itself (2 phi / step not an integer)."""
+    k = 2 * force_deg / step_deg
+    if abs(k - round(k)) > 1e-9:
+        return None
+    n = int(round(360.0 / step_deg))
+    return int(round((2 * force_deg + 360.0) / step_deg)) % n
 
 
-def map_frame(b: float, force_deg: float, qt_deg: np.ndarray, sigma: float = 1.0, progress=None,
-              chunk: int = 16384) -> pd.DataFrame:
-    """The map over test poses qt_deg (N, 2) [deg] as a table with :data:`MAP_COLUMNS`.
-
-    chi = O_t* / O_t with O_t* = n sigma^2 / m = 2 sigma^2 (eqs. 17, 27), as in the paper's Table 3;
-    inf where A_t = 0. progress(done, total) is called after every chunk of cells.
-    """
-    ps = point_set(b)
-    parts = []
-    for i in range(0, len(qt_deg), chunk):
-        parts.append(solve_cells(b, force_deg, qt_deg[i:i + chunk], ps))
-        if progress:
-            progress(min(i + chunk, len(qt_deg)), len(qt_deg))
-    ot = np.concatenate([p.ot for p in parts]) * sigma**2
-    pose = np.concatenate([p.pose_deg for p in parts])
-    with np.errstate(divide="ignore"):
-        chi = np.where(ot > 0, chi_of(ot, 2, 1, sigma), np.inf)
-    return pd.DataFrame({"link_ratio": b, "force_deg": float(force_deg), "q1t_deg": qt_deg[:, 0],
-                         "q2t_deg": qt_deg[:, 1], "q1_opt_deg": pose[:, 0], "q2_opt_deg": pose[:, 1],
-                         "O_t": ot, "chi": chi})
+def class_counts(step_deg: float, force_deg: float) -> np.ndarray:
+    """Number of symmetry classes whose representative lies in each column i0 = 0 .. n/2 - 1 (q1* in
+    [-180, 0)): the representative is the class member with the smallest column i0 (q1* + 180 folds
+    columns i and i + n/2 together) and, in a column that is its own mirror image, the smaller of j and
+    its mirror row."""
+    n = int(round(360.0 / step_deg))
+    h = n // 2
+    i0 = np.arange(h)
+    m = _mirror_shift(step_deg, force_deg)
+    if m is None:
+        return np.full(h, n)
+    im = (m - i0) % h
+    self_rows = n // 2 + 1 if n % 2 == 0 else (n + 1) // 2
+    return np.where(im > i0, n, np.where(im == i0, self_rows, 0))
 
 
-def symmetry_classes(step_deg: float, force_deg: float):
-    """(grid (N, 2), reps (U, 2), inverse (N,)): the test-pose grid, its class representatives (sorted)
-    and the class of every cell; U is about N / 4."""
-    grid = test_pose_grid(step_deg)
-    canon = canonical_test_poses(grid, force_deg)
-    key = np.round((canon + 180.0) * 1e6).astype(np.int64)
-    _, first, inverse = np.unique(key[:, 0] * (1 << 31) + key[:, 1], return_index=True, return_inverse=True)
-    return grid, canon[first], inverse.ravel()
+def class_members(step_deg: float, force_deg: float, i_lo: int, i_hi: int):
+    """The symmetry classes represented in columns i_lo .. i_hi - 1 of the half grid: (reps (U, 2) [deg],
+    cells (M,) flat indices i * n + j of all member cells, cls (M,) the class of each member)."""
+    n = int(round(360.0 / step_deg))
+    h = n // 2
+    m = _mirror_shift(step_deg, force_deg)
+    i0 = np.arange(i_lo, i_hi)
+    j = np.arange(n)
+    ii, Jr = (a.ravel() for a in np.meshgrid(i0, j, indexing="ij"))
+    if m is None:
+        keep = np.ones(len(ii), bool)
+        im, jm = ii, Jr
+    else:
+        im, jm = (m - ii) % h, (-Jr) % n
+        keep = (im > ii) | ((im == ii) & (Jr <= jm))
+    ii, Jr, im, jm = ii[keep], Jr[keep], im[keep], jm[keep]
+    U = len(ii)
+    members = [ii * n + Jr, (ii + h) * n + Jr]
+    if m is not None:
+        # mirror images: column (m - i) mod n; with q1 + 180 both of (m - i) and (m - i) + n/2 appear
+        mi = (m - ii) % n
+        members += [mi * n + jm, ((mi + h) % n) * n + jm]
+    cells = np.concatenate(members)
+    cls = np.tile(np.arange(U), len(members))
+    # a class has fewer than four distinct members when a mirror image coincides with the cell itself
+    key = cells.astype(np.int64) * (U + 1) + cls
+    _, first = np.unique(key, return_index=True)
+    first = np.sort(first)
+    axis = grid_axis(step_deg)
+    return np.stack([axis[ii], axis[Jr]], -1), cells[first].astype(np.int32), cls[first]
+
+
+def tile_ranges(step_deg: float, force_deg: float, tile_cells: int) -> list[tuple[int, int]]:
+    """Column ranges [i_lo, i_hi) of the tiles: consecutive columns with at most tile_cells classes each
+    (at least one column)."""
+    counts = class_counts(step_deg, force_deg)
+    ranges, lo, acc = [], 0, 0
+    for i, k in enumerate(counts):
+        if acc and acc + k > tile_cells:
+            ranges.append((lo, i))
+            lo, acc = i, 0
+        acc += k
+    ranges.append((lo, len(counts)))
+    return ranges
 
 
 def n_tiles(step_deg: float, force_deg: float, tile_cells: int) -> int:
-    """Jobs per map: tiles of at most tile_cells symmetry classes."""
-    return int(np.ceil(len(symmetry_classes(step_deg, force_deg)[1]) / tile_cells))
+    """Jobs per map: tiles of at most tile_cells symmetry classes (whole columns)."""
+    return len(tile_ranges(step_deg, force_deg, tile_cells))
+
+
+# --- maps as arrays, tiles, files -----------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class MapArrays:
+    """A whole map: b, phi [deg], grid step [deg], sigma, and (n, n) arrays indexed [i, j] = (q1*, q2*)
+    of O_t [m^2 with l1 = 1, |F| = 1, times sigma^2], chi, the optimal pose [deg] and the status."""
+    link_ratio: float
+    force_deg: float
+    step_deg: float
+    sigma: float
+    O_t: np.ndarray
+    q1_opt_deg: np.ndarray
+    q2_opt_deg: np.ndarray
+    status: np.ndarray
+
+    @property
+    def axis(self) -> np.ndarray:
+        return grid_axis(self.step_deg)
+
+    @property
+    def chi(self) -> np.ndarray:
+        """chi = O_t* / O_t with O_t* = n sigma^2 / m = 2 sigma^2 (eqs. 17, 27, as in Table 3); inf where
+        A_t = 0."""
+        with np.errstate(divide="ignore"):
+            return np.where(self.O_t > 0, 2 * self.sigma**2 / self.O_t, np.inf)
+
+    def subgrid(self, step_deg: float) -> "MapArrays":
+        """The map on a coarser grid whose step is a multiple of this one's (same cells, no solving)."""
+        k = step_deg / self.step_deg
+        if abs(k - round(k)) > 1e-9 or round(k) < 1:
+            raise ValueError(f"a {step_deg} deg grid is not a subgrid of the {self.step_deg} deg map")
+        k = int(round(k))
+        return MapArrays(self.link_ratio, self.force_deg, float(step_deg), self.sigma,
+                         *(a[::k, ::k] for a in (self.O_t, self.q1_opt_deg, self.q2_opt_deg, self.status)))
+
+
+def solve_tile(b: float, force_deg: float, step_deg: float, i_lo: int, i_hi: int, sigma: float = 1.0,
+               progress=None, chunk: int = 32768, tab=None) -> dict:
+    """The cells of the classes represented in columns [i_lo, i_hi): a dict of the tile file's arrays
+    (module docstring): each class solved once, written for every member."""
+    reps, cells, cls = class_members(step_deg, force_deg, i_lo, i_hi)
+    ot, pose, status = np.empty(len(reps)), np.empty((len(reps), 2)), np.empty(len(reps), np.int8)
+    for k in range(0, len(reps), chunk):
+        sol = solve_cells(b, force_deg, reps[k:k + chunk], tab)
+        ot[k:k + chunk], pose[k:k + chunk], status[k:k + chunk] = sol.ot, sol.pose_deg, sol.status
+        if progress:
+            progress(min(k + chunk, len(reps)), len(reps))
+    return {"cell": cells, "O_t": ot[cls] * sigma**2, "q1_opt_deg": pose[cls, 0], "q2_opt_deg": pose[cls, 1],
+            "status": status[cls]}
 
 
 def map_tile(b: float, force_deg: float, step_deg: float, tile_cells: int, tile: int, sigma: float = 1.0,
-             progress=None) -> pd.DataFrame:
-    """Tile ``tile`` of the step_deg map: classes tile * tile_cells ... (tile + 1) * tile_cells - 1 (in
-    the order of :func:`symmetry_classes`), each solved once and written for every member cell."""
-    grid, reps, inverse = symmetry_classes(step_deg, force_deg)
-    lo, hi = tile * tile_cells, min((tile + 1) * tile_cells, len(reps))
-    if not 0 <= lo < hi:
-        raise ValueError(f"tile {tile} is out of range: the map has {n_tiles(step_deg, force_deg, tile_cells)}")
-    solved = map_frame(b, force_deg, reps[lo:hi], sigma, progress)
-    mine = (inverse >= lo) & (inverse < hi)
-    out = solved.iloc[inverse[mine] - lo].reset_index(drop=True)
-    out["q1t_deg"], out["q2t_deg"] = grid[mine, 0], grid[mine, 1]
-    return out
+             progress=None) -> dict:
+    """Tile ``tile`` of the step_deg map (:func:`tile_ranges`), as the arrays of a tile file."""
+    ranges = tile_ranges(step_deg, force_deg, tile_cells)
+    if not 0 <= tile < len(ranges):
+        raise ValueError(f"tile {tile} is out of range: the map has {len(ranges)}")
+    return solve_tile(b, force_deg, step_deg, *ranges[tile], sigma, progress)
 
 
-def merge_tiles(frames: list[pd.DataFrame], step_deg: float) -> pd.DataFrame:
-    """The whole map from its tiles, sorted by (q1*, q2*); raises ValueError when cells are missing or
-    repeated."""
-    df = pd.concat(frames, ignore_index=True).sort_values(["q1t_deg", "q2t_deg"], kind="stable")
-    expected = len(test_pose_grid(step_deg))
-    if len(df) != expected or df.duplicated(["q1t_deg", "q2t_deg"]).any():
-        raise ValueError(f"the map tiles hold {len(df)} cells ({df.duplicated(['q1t_deg', 'q2t_deg']).sum()} "
-                         f"repeated); the {step_deg} deg grid has {expected}")
-    return df.reset_index(drop=True)[MAP_COLUMNS]
+def merge_tiles(tiles: list[dict], b: float, force_deg: float, step_deg: float, sigma: float = 1.0) -> MapArrays:
+    """The whole map from its tiles; ValueError when cells are missing or repeated."""
+    n = int(round(360.0 / step_deg))
+    cells = np.concatenate([t["cell"] for t in tiles])
+    count = np.bincount(cells, minlength=n * n)
+    if len(count) != n * n or count.min() != 1 or count.max() != 1:
+        raise ValueError(f"the map tiles hold {len(cells)} cells ({int((count > 1).sum())} repeated, "
+                         f"{int((count == 0).sum())} missing); the {step_deg} deg grid has {n * n}")
+    out = {}
+    for k, dtype in (("O_t", float), ("q1_opt_deg", float), ("q2_opt_deg", float), ("status", np.int8)):
+        a = np.empty(n * n, dtype)
+        a[cells] = np.concatenate([t[k] for t in tiles])
+        out[k] = a.reshape(n, n)
+    return MapArrays(float(b), float(force_deg), float(step_deg), float(sigma), **out)
+
+
+def solve_map(b: float, force_deg: float, step_deg: float, sigma: float = 1.0, progress=None) -> MapArrays:
+    """A whole map in one call (every class once)."""
+    h = int(round(360.0 / step_deg)) // 2
+    tile = solve_tile(b, force_deg, step_deg, 0, h, sigma, progress)
+    return merge_tiles([tile], b, force_deg, step_deg, sigma)
+
+
+def save_arrays(path, arrays: dict) -> None:
+    """Write arrays as an .npz file with fixed member timestamps (byte-identical reruns), via a temporary
+    file renamed on completion (no partial output)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
+        for name in sorted(arrays):
+            buf = io.BytesIO()
+            a = np.asarray(arrays[name])
+            np.lib.format.write_array(buf, a if a.flags.c_contiguous else a.copy(order="C"), allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            zf.writestr(info, buf.getvalue(), compresslevel=1)
+    tmp.replace(path)
+
+
+def load_arrays(path, required) -> dict:
+    """Read an .npz file written by :func:`save_arrays`; InputError naming the file and the array when it is
+    not one or an array is missing."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [k for k in required if k not in z.files]
+            if missing:
+                raise InputError(f"expected the arrays {', '.join(required)}; missing {', '.join(missing)}",
+                                 source=str(path))
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        raise InputError(f"expected a map file (.npz, see stiffcal.maps), could not read it: {err}",
+                         source=str(path)) from None
+
+
+TILE_ARRAYS = ("cell", "O_t", "q1_opt_deg", "q2_opt_deg", "status")
+MAP_ARRAYS = ("link_ratio", "force_deg", "step_deg", "sigma", "q1t_deg", "q2t_deg", "O_t", "chi",
+              "q1_opt_deg", "q2_opt_deg", "status")
+
+
+def save_map(path, mp: MapArrays) -> None:
+    save_arrays(path, {"link_ratio": np.float64(mp.link_ratio), "force_deg": np.float64(mp.force_deg),
+                       "step_deg": np.float64(mp.step_deg), "sigma": np.float64(mp.sigma),
+                       "q1t_deg": mp.axis, "q2t_deg": mp.axis, "O_t": mp.O_t, "chi": mp.chi,
+                       "q1_opt_deg": mp.q1_opt_deg, "q2_opt_deg": mp.q2_opt_deg, "status": mp.status})
+
+
+def load_map(path) -> MapArrays:
+    z = load_arrays(path, MAP_ARRAYS)
+    n = len(z["q1t_deg"])
+    if any(z[k].shape != (n, n) for k in ("O_t", "q1_opt_deg", "q2_opt_deg", "status")):
+        raise InputError(f"expected ({n}, {n}) arrays for the {n} grid angles", source=str(path))
+    return MapArrays(float(z["link_ratio"]), float(z["force_deg"]), float(z["step_deg"]), float(z["sigma"]),
+                     z["O_t"], z["q1_opt_deg"], z["q2_opt_deg"], z["status"])
+
+
+def map_frame(mp: MapArrays):
+    """The map as a table with :data:`MAP_COLUMNS`, rows sorted by (q1*, q2*)."""
+    import pandas as pd
+
+    Q1, Q2 = np.meshgrid(mp.axis, mp.axis, indexing="ij")
+    return pd.DataFrame({"link_ratio": mp.link_ratio, "force_deg": mp.force_deg, "q1t_deg": Q1.ravel(),
+                         "q2t_deg": Q2.ravel(), "q1_opt_deg": mp.q1_opt_deg.ravel(),
+                         "q2_opt_deg": mp.q2_opt_deg.ravel(), "O_t": mp.O_t.ravel(), "chi": mp.chi.ravel()})
 
 
 def log_progress(label: str):
@@ -507,7 +540,8 @@ def log_progress(label: str):
 
 # --- studies and statistics --------------------------------------------------------------------------
 
-MAP_DEFAULTS = {"step_deg": 1.0, "force_deg": -90.0, "tile_cells": 8192, "statistics_steps_deg": [10, 5, 2, 1]}
+MAP_DEFAULTS = {"step_deg": 1.0, "force_deg": -90.0, "tile_cells": 65536, "statistics_steps_deg": [10, 5, 2, 1, 0.5],
+                "pairs_step_deg": 6.0}
 
 
 @dataclass(frozen=True)
@@ -541,6 +575,7 @@ def map_studies(config: dict, root=".", source: str = "config") -> list[MapStudy
     _check_step(float(m["step_deg"]), source, "maps.step_deg")
     for i, s in enumerate(m["statistics_steps_deg"]):
         _check_step(float(s), source, f"maps.statistics_steps_deg[{i}]")
+    _check_step(float(m["pairs_step_deg"]), source, "maps.pairs_step_deg")
     out, names, figures = [], set(), set()
     for i, s in enumerate(m["studies"]):
         field = f"maps.studies[{i}]"
@@ -552,6 +587,8 @@ def map_studies(config: dict, root=".", source: str = "config") -> list[MapStudy
         names.add(s["name"])
         figures.add(s["figure"])
         if "robot" in s:
+            from .robot import load_robot
+
             robot = load_robot(Path(root) / s["robot"])
             if robot.kind != "planar" or robot.n_joints != 2:
                 raise InputError(f"expected a planar robot with 2 joints for a map, got {robot.kind} with "
@@ -576,39 +613,49 @@ def rank_deficient(b: float, force_deg: float, qt_deg: np.ndarray, rtol: float =
 WHITE_CHI, DARK_CHI = 10.0, 1.25
 
 
-def chi_statistics(df: pd.DataFrame) -> dict[str, float]:
-    """The statistics that the paper quotes for Figure 6, computed from a map table (:data:`MAP_COLUMNS`).
+def chi_statistics(mp: MapArrays) -> dict[str, float]:
+    """The statistics that the paper quotes for Figure 6, computed from a map.
 
     ``mean`` is over every cell with A_t != 0 (chi = 2 sigma^2 / O_t there, eq. 27 with eq. 17, the
-    convention of the paper's Table 3); ``mean_regular`` leaves out the rank-deficient test poses, where
-    measuring at the test pose is impossible (O_t* is really infinite). Near the test poses with A_t = 0,
-    chi grows like 1 / r^2 (r the distance in the test-pose plane), so the mean over the continuum is
-    infinite and any grid mean grows like log(1 / step): the median and the harmonic mean do not.
-    ``white`` / ``dark`` are the fractions of the plane with 1/chi <= 0.1 and 1/chi >= 0.8.
+    convention of the paper's Table 3; on the straight or folded rows O_t is the infimum, chi its
+    supremum); ``mean_regular`` leaves out the rank-deficient test poses, where measuring at the test pose
+    is impossible (O_t* is really infinite). Near the test poses with A_t = 0, chi grows like 1 / r^2
+    (r the distance in the test-pose plane), so the mean over the continuum is infinite and any grid mean
+    grows like log(1 / step): the median and the harmonic mean do not. ``white`` / ``dark`` are the
+    fractions of the plane with 1/chi <= 0.1 and 1/chi >= 0.8; ``cells_no_optimum`` counts the cells
+    without an optimal pose (module docstring, 4) and ``cells_uncertified`` those without a certificate.
     """
-    chi = df["chi"].to_numpy(float)
-    b, phi = float(df["link_ratio"].iloc[0]), float(df["force_deg"].iloc[0])
+    chi = mp.chi.ravel()
     finite = np.isfinite(chi)
-    regular = ~rank_deficient(b, phi, df[["q1t_deg", "q2t_deg"]].to_numpy(float))
+    regular = ~rank_deficient(mp.link_ratio, mp.force_deg, test_pose_grid(mp.step_deg))
+    status = mp.status.ravel()
     return {"cells": float(len(chi)), "cells_At_zero": float((~finite).sum()),
             "cells_rank_deficient": float((~regular).sum()),
+            "cells_no_optimum": float((status == NO_OPTIMUM).sum()),
+            "cells_uncertified": float((status == UNCERTIFIED).sum()),
             "mean": float(chi[finite].mean()), "mean_regular": float(chi[regular].mean()),
             "median": float(np.median(chi[finite])), "harmonic_mean": float(1.0 / np.mean(1.0 / chi)),
             "p99": float(np.percentile(chi[finite], 99)), "max_regular": float(chi[regular].max()),
             "min": float(chi.min()), "white": float(np.mean(chi >= WHITE_CHI)), "dark": float(np.mean(chi <= DARK_CHI))}
 
 
-def statistics_table(maps_by_study: dict[str, pd.DataFrame], studies: list[MapStudy], steps_deg,
-                     paper: dict) -> pd.DataFrame:
-    """Rows (study, grid_deg, statistic, ours, paper, note): every study's map statistics, and for the
-    paper's arm (the study of Figure 7) the mean chi on each grid of steps_deg, beside the paper's."""
+def statistics_table(maps_by_study: dict[str, MapArrays], studies: list[MapStudy], steps_deg, paper: dict):
+    """Rows (study, link_ratio, grid_deg, statistic, ours, paper): every study's map statistics, and for
+    the paper's arm (the study of Figure 7) the mean chi on each grid of steps_deg, beside the paper's.
+    Grids whose step is a multiple of the map's are its subgrids; others are solved."""
+    import pandas as pd
+
     rows = []
     for st in studies:
-        grids = {st.step_deg: maps_by_study[st.name]}
+        mp = maps_by_study[st.name]
+        grids = {st.step_deg: mp}
         if st.figure == 7:
-            for step in steps_deg:
+            for step in map(float, steps_deg):
                 if step not in grids:
-                    grids[float(step)] = map_frame(st.link_ratio, st.force_deg, test_pose_grid(step))
+                    try:
+                        grids[step] = mp.subgrid(step)
+                    except ValueError:
+                        grids[step] = solve_map(st.link_ratio, st.force_deg, step, mp.sigma)
         for step in sorted(grids, reverse=True):
             stats = chi_statistics(grids[step])
             keys = stats if step == st.step_deg else ("mean", "mean_regular", "median", "harmonic_mean")
@@ -617,3 +664,214 @@ def statistics_table(maps_by_study: dict[str, pd.DataFrame], studies: list[MapSt
                 rows.append({"study": st.name, "link_ratio": st.link_ratio, "grid_deg": step, "statistic": k,
                              "ours": stats[k], "paper": p if p is not None else np.nan})
     return pd.DataFrame(rows)
+
+
+# --- plans of two poses (case iv of Table 4) over the test poses -----------------------------------------
+
+def pose_pool(step_deg: float) -> np.ndarray:
+    """Measurement poses (K, 2) [deg] that hold every information matrix once (q1 in [-90, 90), q2 in
+    [0, 180]; the other copies are q1 + 180 and the mirror image), singular ones included: one pose of a
+    pair may be singular when the other makes up for it."""
+    g1 = np.arange(-90.0, 90.0 - 1e-9, step_deg)
+    g2 = np.arange(0.0, 180.0 + 1e-9, step_deg)
+    Q1, Q2 = np.meshgrid(g1, g2, indexing="ij")
+    return np.stack([Q1.ravel(), Q2.ravel()], axis=-1)
+
+
+def _pair_ot(S: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """tr(S M^-1) for S, M (..., 3) as (11, 12, 22); +inf where M is (numerically) singular."""
+    det = M[..., 0] * M[..., 2] - M[..., 1] ** 2
+    num = S[..., 0] * M[..., 2] - 2 * S[..., 1] * M[..., 1] + S[..., 2] * M[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = num / det
+    return np.where(det > 1e-12 * M[..., 0] * M[..., 2] + 1e-300, v, np.inf)
+
+
+def _pair_polish(b, force_deg, S, q, iters: int = 20, h: float = 1e-5):
+    """Damped Newton steps (central differences) on log O_t of two-pose plans q (N, 4) [rad], vectorised
+    over the cells S (N, 3); never worse than the start. Returns (q, value)."""
+    def f(qq):
+        A = test_observation(b, force_deg, np.degrees(qq.reshape(-1, 2))).reshape(len(qq), 2, 2, 2)
+        with np.errstate(all="ignore"):
+            v = _pair_ot(S, _info(A[:, 0]) + _info(A[:, 1]))
+            return np.where(np.isfinite(v) & (v > 0), np.log(v), np.inf)
+
+    f0 = f(q)
+    eye = np.eye(4) * h
+    act = np.isfinite(f0)
+    for _ in range(iters):
+        fp = np.stack([f(q + e) for e in eye], 1)
+        fm = np.stack([f(q - e) for e in eye], 1)
+        H = np.empty((len(q), 4, 4))
+        with np.errstate(all="ignore"):
+            g = (fp - fm) / (2 * h)
+            for i in range(4):
+                H[:, i, i] = (fp[:, i] - 2 * f0 + fm[:, i]) / h**2
+                for j in range(i + 1, 4):
+                    H[:, i, j] = H[:, j, i] = (f(q + eye[i] + eye[j]) - fp[:, i] - fp[:, j] + f0) / h**2
+            w, V = np.linalg.eigh(np.nan_to_num(H))
+            step = -np.einsum("nij,nj,nkj,nk->ni", V, 1 / np.maximum(np.abs(w), 1e-3), V, np.nan_to_num(g))
+        step *= np.minimum(1.0, 0.1 / np.maximum(np.abs(step).max(axis=1, keepdims=True), 1e-300))
+        improved = np.zeros(len(q), bool)
+        for frac in (1.0, 0.5, 0.25, 0.0625):
+            cand = f(q + frac * step)
+            take = (cand < f0 - 1e-15) & ~improved & act
+            q = np.where(take[:, None], q + frac * step, q)
+            f0 = np.where(take, cand, f0)
+            improved |= take
+        act = improved
+        if not act.any():
+            break
+    return q, np.exp(f0)
+
+
+def _partner_values(S: np.ndarray, Ma: np.ndarray, MP: np.ndarray) -> np.ndarray:
+    """tr(S (Ma + MP_k)^-1) for cells S, Ma (n, 3) and every pool pose MP (K, 3): (n, K)."""
+    m0 = Ma[:, 0, None] + MP[None, :, 0]
+    m1 = Ma[:, 1, None] + MP[None, :, 1]
+    m2 = Ma[:, 2, None] + MP[None, :, 2]
+    det = m0 * m2 - m1 * m1
+    num = S[:, 0, None] * m2 - 2 * S[:, 1, None] * m1 + S[:, 2, None] * m0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v = num / det
+    return np.where(det > 1e-12 * m0 * m2 + 1e-300, v, np.inf)
+
+
+def _coarse_pairs(S: np.ndarray, MC: np.ndarray, keep: int) -> np.ndarray:
+    """The keep best unordered pairs (n, keep, 2) of the coarse pool MC (K, 3) for cells S (n, 3), by
+    evaluating every pair."""
+    K = len(MC)
+    i, j = np.triu_indices(K)
+    best_v = np.full((len(S), keep), np.inf)
+    best_p = np.zeros((len(S), keep), int)
+    for lo in range(0, len(i), 8192):
+        sl = slice(lo, lo + 8192)
+        v = _partner_values(S, np.zeros_like(S), MC[i[sl]] + MC[j[sl]])
+        k = np.argpartition(v, keep - 1, axis=1)[:, :keep]          # this chunk's best, then merged
+        allv = np.concatenate([best_v, np.take_along_axis(v, k, 1)], axis=1)
+        allp = np.concatenate([best_p, k + lo], axis=1)
+        k = np.argsort(allv, axis=1, kind="stable")[:, :keep]
+        best_v, best_p = np.take_along_axis(allv, k, 1), np.take_along_axis(allp, k, 1)
+    return np.stack([i[best_p], j[best_p]], axis=-1)
+
+
+def best_pairs(b: float, force_deg: float, qt_deg: np.ndarray, single_deg: np.ndarray, pool_step_deg: float = 3.0,
+               coarse_step_deg: float = 12.0, starts: int = 3, chunk: int = 128):
+    """The best plan of two measurement poses for test poses qt_deg (N, 2) [deg] (O_t / sigma^2, l1 = 1,
+    |F| = 1). Every pair of a coarse pool (:func:`pose_pool`, coarse_step_deg) is evaluated; from the
+    ``starts`` best, and from the single optimum single_deg (N, 2) (NaN where there is none) with its best
+    partner, each pose is replaced in turn by its best partner on the finer pool until nothing changes,
+    and damped Newton steps polish the result in the continuum; the single optimum measured twice (plan
+    (i), O_t1 / 2) is the fallback, so the result is never above it. Returns (O_t (N,), poses (N, 2, 2)
+    [deg]). A search of a 4-D problem, not a certificate: ``tests/test_maps.py`` and the benchmark check
+    sampled cells against a brute force over all pairs."""
+    qt = np.atleast_2d(np.asarray(qt_deg, float))
+    S = test_information(b, force_deg, qt)
+    pool, coarse = pose_pool(pool_step_deg), pose_pool(coarse_step_deg)
+    MP = _info(test_observation(b, force_deg, pool))
+    MC = _info(test_observation(b, force_deg, coarse))
+    # a coarse pose's nearest pose of the fine pool
+    near = np.argmin(np.abs(np.angle(np.exp(1j * np.radians(coarse[:, None, :] - pool[None, :, :])))).sum(-1), axis=1)
+    out_v = np.full(len(qt), np.inf)
+    out_q = np.zeros((len(qt), 4))
+    sd_all = np.atleast_2d(np.asarray(single_deg, float))
+    for lo in range(0, len(qt), chunk):
+        Sc, sd = S[lo:lo + chunk], sd_all[lo:lo + chunk]
+        n = len(Sc)
+        ok = np.all(np.isfinite(sd), axis=1)
+        sd = np.where(ok[:, None], sd, 0.0)
+        Ms = _info(test_observation(b, force_deg, sd))
+        first = near[_coarse_pairs(Sc, MC, starts)]                       # (n, starts, 2) fine-pool indices
+        a_all = np.concatenate([first[:, :, 0].T.ravel(), np.full(n, -1)])
+        b_all = np.concatenate([first[:, :, 1].T.ravel(), np.argmin(_partner_values(Sc, Ms, MP), axis=1)])
+        rows = np.tile(np.arange(n), starts + 1)
+        Sr = Sc[rows]
+        Ma = np.where((a_all >= 0)[:, None], MP[a_all], Ms[rows])
+        for _ in range(10):                      # exchange on the fine pool (the single optimum stays put)
+            b_new = np.argmin(_partner_values(Sr, Ma, MP), axis=1)
+            a_new = np.where(a_all >= 0, np.argmin(_partner_values(Sr, MP[b_new], MP), axis=1), -1)
+            if np.array_equal(a_new, a_all) and np.array_equal(b_new, b_all):
+                break
+            a_all, b_all = a_new, b_new
+            Ma = np.where((a_all >= 0)[:, None], MP[a_all], Ms[rows])
+        qa = np.where((a_all >= 0)[:, None], pool[a_all], sd[rows])
+        q, v = _pair_polish(b, force_deg, Sr, np.radians(np.concatenate([qa, pool[b_all]], axis=1)))
+        v = np.where((a_all >= 0) | ok[rows], v, np.inf)
+        v, q = v.reshape(starts + 1, n), q.reshape(starts + 1, n, 4)
+        k = np.argmin(v, axis=0)
+        v, q = v[k, np.arange(n)], q[k, np.arange(n)]
+        # the single optimum measured twice (plan (i)): a stationary point of the pair problem
+        v1 = np.where(ok, _pair_ot(Sc, 2 * Ms), np.inf)
+        rep = v1 < v
+        out_v[lo:lo + chunk] = np.where(rep, v1, v)
+        out_q[lo:lo + chunk] = np.where(rep[:, None], np.radians(np.concatenate([sd, sd], axis=1)), q)
+    return out_v, np.degrees(out_q).reshape(-1, 2, 2)
+
+
+@dataclass(frozen=True)
+class PairMap:
+    """The best two-pose plan over the test-pose grid (case iv of Table 4): (n, n) arrays indexed
+    [q1*, q2*] of O_t of the single optimum (``O_t1``; the infimum where none) and of the best pair
+    (``O_t2``), both [l1 = 1, |F| = 1, times sigma^2], and the pair's poses (n, n, 2, 2) [deg]."""
+    link_ratio: float
+    force_deg: float
+    step_deg: float
+    O_t1: np.ndarray
+    O_t2: np.ndarray
+    poses_deg: np.ndarray
+
+    @property
+    def axis(self) -> np.ndarray:
+        return grid_axis(self.step_deg)
+
+    @property
+    def gain(self) -> np.ndarray:
+        """How much a designed pair beats the single optimum measured twice (O_t1 / 2, eq. 17): 1 - O_t2 /
+        (O_t1 / 2), as a fraction; 0 where A_t = 0."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(self.O_t1 > 0, 1 - self.O_t2 / (self.O_t1 / 2), 0.0)
+
+
+def pair_map(b: float, force_deg: float, step_deg: float, pool_step_deg: float = 3.0, progress=None) -> PairMap:
+    """:class:`PairMap` for the grid of step_deg (every symmetry class once)."""
+    h = int(round(360.0 / step_deg)) // 2
+    reps, cells, cls = class_members(step_deg, force_deg, 0, h)
+    single = solve_cells(b, force_deg, reps)
+    ot2, poses = best_pairs(b, force_deg, reps, single.pose_deg, pool_step_deg)
+    zero = single.status == AT_ZERO
+    ot2[zero] = 0.0
+    if progress:
+        progress(len(reps), len(reps))
+    n = 2 * h
+    O1, O2 = np.empty(n * n), np.empty(n * n)
+    P = np.empty((n * n, 2, 2))
+    O1[cells], O2[cells], P[cells] = single.ot[cls], ot2[cls], poses[cls]
+    return PairMap(float(b), float(force_deg), float(step_deg), O1.reshape(n, n), O2.reshape(n, n),
+                   P.reshape(n, n, 2, 2))
+
+
+PAIR_ARRAYS = ("link_ratio", "force_deg", "step_deg", "q1t_deg", "q2t_deg", "O_t1", "O_t2", "gain", "poses_deg")
+
+
+def save_pair_map(path, pm: PairMap) -> None:
+    save_arrays(path, {"link_ratio": np.float64(pm.link_ratio), "force_deg": np.float64(pm.force_deg),
+                       "step_deg": np.float64(pm.step_deg), "q1t_deg": pm.axis, "q2t_deg": pm.axis,
+                       "O_t1": pm.O_t1, "O_t2": pm.O_t2, "gain": pm.gain, "poses_deg": pm.poses_deg})
+
+
+def load_pair_map(path) -> PairMap:
+    z = load_arrays(path, PAIR_ARRAYS)
+    return PairMap(float(z["link_ratio"]), float(z["force_deg"]), float(z["step_deg"]), z["O_t1"], z["O_t2"],
+                   z["poses_deg"])
+
+
+def pair_frame(pm: PairMap):
+    """The pair map as rows: test pose, O_t of the single optimum and of the best pair, the gain, the poses."""
+    import pandas as pd
+
+    Q1, Q2 = np.meshgrid(pm.axis, pm.axis, indexing="ij")
+    P = pm.poses_deg.reshape(-1, 4)
+    return pd.DataFrame({"link_ratio": pm.link_ratio, "force_deg": pm.force_deg, "q1t_deg": Q1.ravel(),
+                         "q2t_deg": Q2.ravel(), "O_t_single": pm.O_t1.ravel(), "O_t_pair": pm.O_t2.ravel(),
+                         "gain": pm.gain.ravel(), "q1a_deg": P[:, 0], "q2a_deg": P[:, 1], "q1b_deg": P[:, 2],
+                         "q2b_deg": P[:, 3]})

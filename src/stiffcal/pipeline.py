@@ -57,14 +57,21 @@ def table3(p: dict, robot: str, table2_csv: str, out_csv: str) -> None:
 
 
 def comparison(p: dict, robot: str, table2_csv: str, table3_csv: str, table4_csv: str, table5_csv: str,
-               printed_yaml: str, out_csv: str, statistics_csv: str | None = None) -> None:
+               printed_yaml: str, out_csv: str, figure6_map_npz: str | None = None) -> None:
     """Every result number the paper prints (Tables 2-5 and its text) beside ours, with a status and a
-    reason; the Figure 6 numbers of the text need the map statistics (``statistics_csv``). p = the study's
-    test_pose_deg, force_N, sigma_m and seed."""
-    from . import reproduction
+    reason. p = the study's test_pose_deg, force_N, sigma_m, seed and ``figure6`` (the map study of Figure 7
+    and statistics_steps_deg, or None): the Figure 6 numbers of the text are that map's statistics
+    (``figure6_map_npz``; computed here from that one map, so that editing another map does not rerun this)."""
+    from . import maps, reproduction
 
-    study = _study(p, robot)
-    stats = _read(statistics_csv) if statistics_csv else None
+    study = _study({k: v for k, v in p.items() if k != "figure6"}, robot)
+    stats = None
+    if figure6_map_npz and p.get("figure6"):
+        f6 = dict(p["figure6"])
+        steps = f6.pop("statistics_steps_deg")
+        st = _map_study(f6)
+        printed = {k: float(v) for k, v in reproduction.load_printed(printed_yaml).get("figure6", {}).items()}
+        stats = maps.statistics_table({st.name: maps.load_map(figure6_map_npz)}, [st], steps, printed)
     cmp = reproduction.comparison_table(study, *(_read(f) for f in (table2_csv, table3_csv, table4_csv, table5_csv)),
                                         reproduction.load_printed(printed_yaml), stats, seed=int(p["seed"]))
     s = reproduction.summary(cmp)
@@ -219,29 +226,38 @@ def _map_study(p: dict):
     return MapStudy(**p)
 
 
-def map_tile(p: dict, tile: int, out_csv: str) -> None:
-    """One job of a map (Figures 6-10): the symmetry classes of tile ``tile``, every member cell written;
-    p = name, link_ratio, figure, step_deg, force_deg, tile_cells."""
+def map_tile(p: dict, tile: int, out_npz: str) -> None:
+    """One job of a map (Figures 6-10): the symmetry classes of tile ``tile``, every member cell written to a
+    tile file (binary, layout in :mod:`stiffcal.maps`); p = name, link_ratio, figure, step_deg, force_deg,
+    tile_cells."""
+    import numpy as np
+
     from . import maps
 
     st = _map_study(p)
     _log(f"map {st.name} (b = {st.link_ratio:.4g}, step {st.step_deg:g} deg): tile {tile + 1} of {st.n_tiles}")
-    df = maps.map_tile(st.link_ratio, st.force_deg, st.step_deg, st.tile_cells, tile,
-                       progress=maps.log_progress(f"map {st.name} tile {tile + 1}"))
-    _write(df, out_csv)
+    arrays = maps.map_tile(st.link_ratio, st.force_deg, st.step_deg, st.tile_cells, tile,
+                           progress=maps.log_progress(f"map {st.name} tile {tile + 1}"))
+    counts = np.bincount(arrays["status"], minlength=len(maps.STATUS))
+    _log(f"map {st.name} tile {tile + 1}: "
+         + ", ".join(f"{maps.STATUS[k]} {c}" for k, c in enumerate(counts) if c))
+    maps.save_arrays(out_npz, arrays)
 
 
-def map_merge(p: dict, tile_csvs: list[str], out_csv: str) -> None:
-    """results/maps/<study>/map.csv from its tiles (checked complete); p = the map study."""
+def map_merge(p: dict, tile_npzs: list[str], out_npz: str, out_csv: str) -> None:
+    """results/maps/<study>/map.npz (for the other jobs) and map.csv (for users) from its tiles, checked
+    complete; p = the map study."""
     from . import maps
 
     st = _map_study(p)
-    df = maps.merge_tiles([_read(c) for c in tile_csvs], st.step_deg)
-    _log(f"map {st.name}: {len(df)} cells, O_t in [{df.O_t.min():.4g}, {df.O_t.max():.4g}]")
-    _write(df, out_csv)
+    tiles = [maps.load_arrays(f, maps.TILE_ARRAYS) for f in tile_npzs]
+    mp = maps.merge_tiles(tiles, st.link_ratio, st.force_deg, st.step_deg)
+    _log(f"map {st.name}: {mp.O_t.size} cells, O_t in [{mp.O_t.min():.4g}, {mp.O_t.max():.4g}]")
+    maps.save_map(out_npz, mp)
+    _write(maps.map_frame(mp), out_csv)
 
 
-def map_statistics(p: dict, map_csvs: dict, printed_yaml: str, out_csv: str) -> None:
+def map_statistics(p: dict, map_npzs: dict, printed_yaml: str, out_csv: str) -> None:
     """The statistics the paper quotes for Figure 6, ours beside theirs, and their grid dependence;
     p = studies (the map studies), statistics_steps_deg."""
     from . import maps, reproduction
@@ -249,21 +265,44 @@ def map_statistics(p: dict, map_csvs: dict, printed_yaml: str, out_csv: str) -> 
     studies = [_map_study(s) for s in p["studies"]]
     steps = [float(s) for s in p["statistics_steps_deg"]]
     printed = {k: float(v) for k, v in reproduction.load_printed(printed_yaml).get("figure6", {}).items()}
-    df = maps.statistics_table({n: _read(c) for n, c in map_csvs.items()}, studies, steps, printed)
+    df = maps.statistics_table({n: maps.load_map(f) for n, f in map_npzs.items()}, studies, steps, printed)
     for _, r in df[df.statistic == "mean"].iterrows():
         _log(f"map {r.study}: mean chi {r.ours:.4g} on the {r.grid_deg:g} deg grid (paper: {r.paper})")
     _write(df, out_csv)
 
 
-def map_figures(maps_by_figure: dict, out_pngs: dict) -> None:
-    """Figure 6 (1/chi, from the map of Figure 7) and Figures 7-10 (optimal poses) in one job.
-    maps_by_figure: figure number -> map CSV; out_pngs: 'fig<k>' -> PNG path (the SVG beside it)."""
-    from . import plots
+def map_pairs(p: dict, out_npz: str, out_csv: str) -> None:
+    """The best plan of two poses (case iv of Table 4) over the test poses of one map study, on the grid of
+    ``maps.pairs_step_deg``: results/maps/<study>/pairs.npz and pairs.csv; p = the map study and
+    pairs_step_deg."""
+    import numpy as np
 
-    frames = {int(k): _read(v) for k, v in maps_by_figure.items()}
+    from . import maps
+
+    st = _map_study({k: v for k, v in p.items() if k != "pairs_step_deg"})
+    step = float(p["pairs_step_deg"])
+    _log(f"map {st.name} (b = {st.link_ratio:.4g}): best plans of two poses on the {step:g} deg grid")
+    pm = maps.pair_map(st.link_ratio, st.force_deg, step)
+    g = pm.gain
+    _log(f"map {st.name}: a designed pair beats the single optimum measured twice by up to {100 * g.max():.1f} %; "
+         f"by more than 1 % on {100 * np.mean(g > 0.01):.0f} % of the test poses")
+    maps.save_pair_map(out_npz, pm)
+    _write(maps.pair_frame(pm), out_csv)
+
+
+def map_figures(maps_by_figure: dict, out_pngs: dict, pairs_npz: str | None = None) -> None:
+    """Figure 6 (1/chi, from the map of Figure 7), Figures 7-10 (optimal poses) and, with ``pairs_npz``, the
+    map of the best two-pose plans, in one job. maps_by_figure: figure number -> map.npz; out_pngs: 'fig<k>'
+    (and 'fig_map_pairs') -> PNG path (the SVG beside it)."""
+    from . import maps, plots
+
+    frames = {int(k): maps.load_map(v) for k, v in maps_by_figure.items()}
     for name, png in out_pngs.items():
-        k = int(name.removeprefix("fig"))
-        fig = plots.fig6_inverse_chi(frames[7]) if k == 6 else plots.fig_optimal_poses(frames[k], k)
+        if name == "fig_map_pairs":
+            fig = plots.fig_map_pairs(maps.load_pair_map(pairs_npz))
+        else:
+            k = int(name.removeprefix("fig"))
+            fig = plots.fig6_inverse_chi(frames[7]) if k == 6 else plots.fig_optimal_poses(frames[k], k)
         plots.save(fig, Path(png).with_suffix(""))
 
 
@@ -328,12 +367,14 @@ REPORT_RULES = {
     "validation": "validation", "fig3": "paper_figures", "fig4": "paper_figures", "fig5": "chi_map + paper_figures",
     "fig_design": "approximate_design + paper_figures", "fig_ot_versus_m": "ot_versus_m + paper_figures",
     "map_statistics": "map_tile + map_merge + map_statistics", "fig6": "map_tile + map_merge + map_figures",
-    "fig_map": "map_tile + map_merge + map_figures", "discrepancy": "discrepancy", "discriminate": "discriminate",
+    "fig_map": "map_tile + map_merge + map_figures", "fig_map_pairs": "map_pairs + map_figures",
+    "discrepancy": "discrepancy", "discriminate": "discriminate",
     "study_design": "study_design", "study_plans": "study_design + study_plan + study_summary",
     "fig_study_plan": "study_plan + study_summary", "fig_study_versus_m": "study_plan + study_summary"}
 REPORT_TABLES = ("table2", "table3", "table4", "table5", "design", "certificate", "ot_versus_m", "comparison",
                  "validation", "map_statistics")
-REPORT_FIGURES = ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m", "fig6", "fig7", "fig8", "fig9", "fig10")
+REPORT_FIGURES = ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m", "fig6", "fig7", "fig8", "fig9", "fig10",
+                  "fig_map_pairs")
 STUDY_PARTS = ("studycert", "studyplans", "studym", "studyfigplan", "studyfigm")
 
 

@@ -166,13 +166,6 @@ def fig_ot_versus_m(df: pd.DataFrame):
         return fig
 
 
-def _map_grid(df: pd.DataFrame, column: str):
-    """(q1*, q2*, Z (n2, n1)) of a map table sorted by (q1t_deg, q2t_deg)."""
-    q1 = np.unique(df["q1t_deg"])
-    q2 = np.unique(df["q2t_deg"])
-    return q1, q2, df[column].to_numpy(float).reshape(len(q1), len(q2)).T
-
-
 def _map_axes(ax, title: str):
     ax.set_xlabel("test pose q1* [deg]")
     ax.set_ylabel("test pose q2* [deg]")
@@ -181,31 +174,71 @@ def _map_axes(ax, title: str):
     ax.set_title(title)
 
 
-def fig6_inverse_chi(df: pd.DataFrame):
-    """Figure 6: 1/chi over the test-pose plane (dark: little to gain over measuring at the test pose;
-    white: large gain). Cells with A_t = 0 (chi infinite) are white."""
+#: colour of the map cells without an optimal pose (a grey that none of the map colour maps contains)
+NO_POSE_COLOUR = "#9a9a9a"
+
+
+def _mark_no_pose(ax, mp, mask: np.ndarray) -> None:
+    """Draw the cells of mask (n, n) in NO_POSE_COLOUR (Figures 7-10: no optimal measurement pose)."""
+    from matplotlib.colors import ListedColormap
+
+    if mask.any():
+        ax.pcolormesh(mp.axis, mp.axis, np.where(mask, 1.0, np.nan).T, shading="auto",
+                      cmap=ListedColormap([NO_POSE_COLOUR]), vmin=0, vmax=1, rasterized=True)
+
+
+def fig6_inverse_chi(mp):
+    """Figure 6: 1/chi over the test-pose plane of a map (:class:`stiffcal.maps.MapArrays`) (dark: little
+    to gain over measuring at the test pose; white: large gain). Cells with A_t = 0 (chi infinite) are
+    white; on the rows where the test arm is straight or folded chi is its supremum (module docstring of
+    :mod:`stiffcal.maps`)."""
     with plt.rc_context(STYLE):
-        q1, q2, Z = _map_grid(df, "chi")
         fig, ax = plt.subplots(figsize=(5.6, 4.4))
-        mesh = ax.pcolormesh(q1, q2, 1.0 / Z, shading="auto", cmap="gray_r", vmin=0, vmax=1, rasterized=True)
+        mesh = ax.pcolormesh(mp.axis, mp.axis, (1.0 / mp.chi).T, shading="auto", cmap="gray_r", vmin=0, vmax=1,
+                             rasterized=True)
         fig.colorbar(mesh, ax=ax, label="1 / χ")
-        _map_axes(ax, f"Maximum accuracy improvement, b = l2/l1 = {df['link_ratio'].iloc[0]:.2f}")
+        _map_axes(ax, f"Maximum accuracy improvement, b = l2/l1 = {mp.link_ratio:.2f}")
         return fig
 
 
-def fig_optimal_poses(df: pd.DataFrame, figure: int):
-    """Figures 7-10: the optimal measurement pose (q1, q2) for every test pose (q1 is defined modulo 180
-    deg, so its colour map is cyclic)."""
+def fig_optimal_poses(mp, figure: int):
+    """Figures 7-10: the optimal measurement pose (q1, q2) for every test pose of a map (q1 is defined
+    modulo 180 deg, so its colour map is cyclic). Cells without an optimal pose (the infimum of O_t is
+    reached only by a singular pose, or A_t = 0) are grey and named in the legend."""
+    from matplotlib.patches import Patch
+
     with plt.rc_context(STYLE):
-        fig, axes = plt.subplots(1, 2, figsize=(9.6, 4.0), layout="constrained")
-        for ax, col, label, (lo, hi), cmap in zip(axes, ("q1_opt_deg", "q2_opt_deg"), ("q1", "q2"),
-                                                  ((-90, 90), (0, 180)), ("twilight", "viridis")):
-            q1, q2, Z = _map_grid(df, col)
-            mesh = ax.pcolormesh(q1, q2, Z, shading="auto", cmap=cmap, vmin=lo, vmax=hi, rasterized=True)
+        fig, axes = plt.subplots(1, 2, figsize=(9.6, 4.3), layout="constrained")
+        no_pose = np.isnan(mp.q1_opt_deg)
+        for ax, Z, label, (lo, hi), cmap in zip(axes, (mp.q1_opt_deg, mp.q2_opt_deg), ("q1", "q2"),
+                                               ((-90, 90), (0, 180)), ("twilight", "viridis")):
+            mesh = ax.pcolormesh(mp.axis, mp.axis, Z.T, shading="auto", cmap=cmap, vmin=lo, vmax=hi, rasterized=True)
+            _mark_no_pose(ax, mp, no_pose)
             fig.colorbar(mesh, ax=ax, label=f"optimal {label} [deg]")
             _map_axes(ax, f"Optimal measurement {label}")
-        fig.suptitle(f"Figure {figure}: optimal measurement pose, b = l2/l1 = {df['link_ratio'].iloc[0]:.2f}, "
-                     f"φ = {df['force_deg'].iloc[0]:g} deg")
+        if no_pose.any():
+            rows = sorted({f"{v:g}" for v in mp.axis[np.nonzero(no_pose.all(axis=0) | (no_pose.sum(axis=0) > 2))[0]]})
+            where = f" (rows q2* = {', '.join(rows)} deg)" if rows else ""
+            fig.legend(handles=[Patch(color=NO_POSE_COLOUR, label="no optimal pose: only a singular measurement "
+                                      f"pose reaches the infimum of O_t{where}")],
+                       loc="lower center", bbox_to_anchor=(0.5, -0.07), frameon=False)
+        fig.suptitle(f"Figure {figure}: optimal measurement pose, b = l2/l1 = {mp.link_ratio:.2f}, "
+                     f"φ = {mp.force_deg:g} deg")
+        return fig
+
+
+def fig_map_pairs(pm):
+    """Where a second, designed pose pays: 1 - O_t(best pair) / (O_t(single optimum) / 2) [%] over the
+    test-pose plane of a :class:`stiffcal.maps.PairMap` (case iv of Table 4 against case i), with contours."""
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(5.8, 4.4))
+        G = 100 * np.clip(pm.gain, 0, None).T
+        mesh = ax.pcolormesh(pm.axis, pm.axis, G, shading="gouraud", cmap="magma_r", vmin=0, vmax=max(G.max(), 1e-9),
+                             rasterized=True)
+        cs = ax.contour(pm.axis, pm.axis, G, levels=[1, 5, 10, 20], colors="k", linewidths=0.6)
+        ax.clabel(cs, fmt="%g %%", fontsize=7)
+        fig.colorbar(mesh, ax=ax, label="gain of the best pair over the single optimum twice [%]")
+        _map_axes(ax, f"Best plan of two poses against repeating the single optimum, b = {pm.link_ratio:.2f}")
         return fig
 
 

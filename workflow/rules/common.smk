@@ -69,6 +69,7 @@ def map_figure_outputs():
     figs = {f"fig{n}": f"{FIGURES}/fig{n}.png" for n in sorted(MAP_FIGURES)}
     if 7 in MAP_FIGURES:
         figs["fig6"] = f"{FIGURES}/fig6.png"
+        figs["fig_map_pairs"] = f"{FIGURES}/fig_map_pairs.png"
     return figs
 
 
@@ -127,7 +128,9 @@ def all_outputs(wildcards):
             for ext in ("png", "svg")]
     out += list(map_figure_outputs().values())
     out += ["results/maps/fig5_chi.csv", "results/design/approximate_design.json", "results/maps/design_phi.csv"]
-    out += [f"{MAPS}/{name}/map.csv" for name in MAP_STUDIES]
+    out += [f"{MAPS}/{name}/map.{ext}" for name in MAP_STUDIES for ext in ("csv", "npz")]
+    if 7 in MAP_FIGURES:
+        out += [f"{MAPS}/{MAP_FIGURES[7]}/pairs.{ext}" for ext in ("csv", "npz")]
     for name in MEASURED:
         out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg",
                                                              "plan.json", "plan.png", "plan.svg")]

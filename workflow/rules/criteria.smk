@@ -44,11 +44,13 @@ rule paper_comparison:
         table4=f"{TABLES}/table4.csv",
         table5=f"{TABLES}/table5.csv",
         printed=PRINTED,
-        statistics=lambda wc: [p for k, p in map_report_inputs(wc).items() if k == "map_statistics"],
+        figure6_map=[f"{MAPS}/{MAP_FIGURES[7]}/map.npz"] if 7 in MAP_FIGURES else [],
     output:
         csv=f"{TABLES}/paper_comparison.csv",
     params:
-        study={**study_params(*POSE_FORCE), "seed": SEED},
+        study={**study_params(*POSE_FORCE), "seed": SEED,
+               "figure6": {**map_params(MAP_FIGURES[7]), "statistics_steps_deg": MAP_SETTINGS["statistics_steps_deg"]}
+               if 7 in MAP_FIGURES else None},
         code=code_version("comparison"),
     log:
         f"{LOGS}/paper_comparison.log",

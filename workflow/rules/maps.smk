@@ -1,5 +1,6 @@
 # Maps over test poses (Figures 6-10). Each map is split into tiles of `maps.tile_cells` symmetry classes,
 # one job each, so that `--cores N` or the SLURM profile (workflow/profiles/slurm) runs them in parallel.
+# Tiles and maps are handed over as binary .npz files (layout in src/stiffcal/maps.py); map.csv is for users.
 
 
 wildcard_constraints:
@@ -9,7 +10,7 @@ wildcard_constraints:
 
 rule map_tile:
     output:
-        csv=temp(f"{MAPS}/{{study}}/tiles/{{tile}}.csv"),
+        npz=temp(f"{MAPS}/{{study}}/tiles/{{tile}}.npz"),
     params:
         map=lambda wc: map_params(wc.study),
         code=code_version("map_tile"),
@@ -27,8 +28,9 @@ rule map_tile:
 
 rule map_merge:
     input:
-        tiles=lambda wc: expand(f"{MAPS}/{wc.study}/tiles/{{tile}}.csv", tile=range(MAP_STUDIES[wc.study].n_tiles)),
+        tiles=lambda wc: expand(f"{MAPS}/{wc.study}/tiles/{{tile}}.npz", tile=range(MAP_STUDIES[wc.study].n_tiles)),
     output:
+        npz=f"{MAPS}/{{study}}/map.npz",
         csv=f"{MAPS}/{{study}}/map.csv",
     params:
         map=lambda wc: map_params(wc.study),
@@ -46,7 +48,7 @@ rule map_merge:
 
 rule map_statistics:
     input:
-        maps=expand(f"{MAPS}/{{study}}/map.csv", study=MAP_STUDIES),
+        maps=expand(f"{MAPS}/{{study}}/map.npz", study=MAP_STUDIES),
         printed=PRINTED,
     output:
         csv=f"{TABLES}/map_statistics.csv",
@@ -65,9 +67,29 @@ rule map_statistics:
         "../scripts/map_statistics.py"
 
 
+rule map_pairs:
+    output:
+        npz=f"{MAPS}/{{study}}/pairs.npz",
+        csv=f"{MAPS}/{{study}}/pairs.csv",
+    params:
+        map=lambda wc: {**map_params(wc.study), "pairs_step_deg": MAP_SETTINGS["pairs_step_deg"]},
+        code=code_version("map_pairs"),
+    log:
+        f"{LOGS}/maps/{{study}}/pairs.log",
+    threads: 1
+    resources:
+        mem_mb=2000,
+        runtime=30,
+    conda:
+        ENV
+    script:
+        "../scripts/map_pairs.py"
+
+
 rule map_figures:
     input:
-        **{f"fig{k}": f"{MAPS}/{name}/map.csv" for k, name in MAP_FIGURES.items()},
+        **{f"fig{k}": f"{MAPS}/{name}/map.npz" for k, name in MAP_FIGURES.items()},
+        pairs=[f"{MAPS}/{MAP_FIGURES[7]}/pairs.npz"] if 7 in MAP_FIGURES else [],
     output:
         **{f"{name}_{ext}": f"{FIGURES}/{name}.{ext}" for name in map_figure_outputs() for ext in ("png", "svg")},
     params:
