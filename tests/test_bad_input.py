@@ -25,6 +25,7 @@ PLANAR = {"name": "arm", "kind": "planar", "links_m": [0.6, 0.4], "joint_limits_
 SPATIAL = {"name": "rrr", "kind": "spatial", "dh_convention": "modified",
            "dh": [{"a_m": 0.0, "alpha_deg": 0, "d_m": 0.4}, {"a_m": 0.1, "alpha_deg": -90, "d_m": 0.0},
                   {"a_m": 0.5, "alpha_deg": 0, "d_m": 0.0}], "tool_m": [0.45, 0.0, 0.0]}
+DEFAULT_CONFIG = yaml.safe_load((Path(__file__).resolve().parents[1] / "config/config.yaml").read_text())
 DESIGN_ARGS = {"planar": ["--test-pose-deg", "60,30", "--force-N", "0,-1"],
                "spatial": ["--test-pose-deg", "30,-40,60", "--force-N", "100,50,-200"]}
 
@@ -161,7 +162,7 @@ def _config_error(root, tmp_path, edit) -> str:
     (lambda c: c["maps"].update(step_deg=0.7), "field 'maps.step_deg': expected a step that divides 180"),
     (lambda c: c["measured_data"][0].update(force_N=[0, -300, 5]), "field 'measured_data[0].force_N': expected 2"),
     (lambda c: c["measured_data"].append(copy.deepcopy(c["measured_data"][0])),
-     "field 'measured_data[1].name': expected unique names"),
+     f"field 'measured_data[{len(DEFAULT_CONFIG['measured_data'])}].name': expected unique names"),
     (lambda c: c["study"].update(test_pose_deg=[60, 30, 10]), "field 'study.test_pose_deg': expected 2 joint angles"),
     (lambda c: c["study"].update(robot="config/robots/kuka_kr210_r2700.yaml", test_pose_deg=[20, -60, 110, 30, 45, -20],
                                  force_N=[500, -300, -800]), "field 'study.robot': expected a robot with 2 joints"),

@@ -297,4 +297,4 @@ def test_the_workflow_lists_the_urdf_as_an_input_of_its_robot(root):
     assert robot_inputs(KUKA_URDF) == ["config/robots/kuka_kr210_r2700.urdf"]
     assert robot_inputs(KUKA_DH) == [] and robot_inputs("no/such/robot.yaml") == []
     rules = (root / "workflow/rules/studies.smk").read_text() + (root / "workflow/rules/discrepancy.smk").read_text()
-    assert rules.count("urdf=lambda wc: robot_inputs(") == 4
+    assert rules.count("urdf=lambda wc: robot_inputs(") == 5  # design, plans, summary; discrepancy, discriminate

@@ -150,7 +150,9 @@ REPORT = {"report_html": 1, "report_pdf": 1}
      {"map_tile": 2, "map_merge": 1, "map_statistics": 1, "map_figures": 1, **REPORT}),
     ("the test pose", lambda c: c["study"].update(test_pose_deg=[50, 40]),
      {"table2": 1, "table3": 1, "validation": 1, "chi_map": 1, "approximate_design": 1, "plans_table": 2,
-      "ot_versus_m": 1, "paper_comparison": 1, "paper_figures": 1, "discrepancy": 1, **REPORT}),
+      "ot_versus_m": 1, "paper_comparison": 1, "paper_figures": 1,
+      # both measured data sets are of the paper's arm: their gain and their compound plans use the test pose
+      "discrepancy": 2, "discriminate": 2, **REPORT}),
     ("the Monte Carlo samples", lambda c: c["monte_carlo"].update(samples=600), {"validation": 1, **REPORT}),
 ])
 def test_dry_run_after_a_config_edit_lists_exactly_the_affected_jobs(built, what, edit, expected):
@@ -172,7 +174,7 @@ def test_dry_run_after_a_measured_data_edit(built):
     lines[1] = lines[1].replace(",", ", ", 1)  # same numbers, another file
     data.write_text("".join(lines))
     try:
-        assert _dry_run_jobs(built) == {"discrepancy": 1, **REPORT}
+        assert _dry_run_jobs(built) == {"discrepancy": 1, "discriminate": 1, **REPORT}
     finally:
         data.write_bytes(before)
         os.utime(data, ns=(stat.st_atime_ns, stat.st_mtime_ns))
@@ -181,13 +183,15 @@ def test_dry_run_after_a_measured_data_edit(built):
 
 def test_dry_run_after_a_library_edit_reruns_the_jobs_that_use_it(built, root, tmp_path):
     """A copy of the package with one comment added to plots.py, first on PYTHONPATH: the figure jobs, the
-    discrepancy job (it draws the residuals) and the report rerun; no table or map job."""
+    discrepancy and discriminate jobs of both measured data sets (they draw the residuals and the plans) and the
+    report rerun; no table or map job."""
     pkg = tmp_path / "pkg"
     shutil.copytree(root / "src/stiffcal", pkg / "stiffcal")
     plots = pkg / "stiffcal/plots.py"
     plots.write_text(plots.read_text() + "\n# an edit\n")
     jobs = _dry_run_jobs(built, {"PYTHONPATH": str(pkg)})
-    assert jobs == {"paper_figures": 1, "map_figures": 1, "study_summary": 2, "discrepancy": 1, **REPORT}
+    assert jobs == {"paper_figures": 1, "map_figures": 1, "study_summary": 2, "discrepancy": 2, "discriminate": 2,
+                    **REPORT}
 
 
 def test_slurm_profile_dry_run(root, tmp_path):
@@ -329,12 +333,13 @@ def test_a_changed_intermediate_stops_the_run_and_a_deleted_one_is_rebuilt(built
 
 
 def test_a_truncated_map_is_refused(built):
-    """A map cut in half gave statistics from half the cells without a word."""
-    m = built / "results/maps/b0.2/map.csv"
+    """A map cut in half gave statistics from half the cells without a word. The jobs read map.npz (map.csv
+    is for users; the archive verifies it)."""
+    m = built / "results/maps/b0.2/map.npz"
     good = m.read_bytes()
     m.write_bytes(good[: len(good) // 2])
     res = _snakemake(built)
-    assert res.returncode != 0 and "results/maps/b0.2/map.csv: changed after rule map_merge wrote it" in res.stderr
+    assert res.returncode != 0 and "results/maps/b0.2/map.npz: changed after rule map_merge wrote it" in res.stderr
     m.unlink()
     res = _snakemake(built)
     assert res.returncode == 0, res.stderr[-3000:]

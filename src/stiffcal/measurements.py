@@ -310,7 +310,7 @@ def _check_units(columns, source: str) -> None:
 
 
 #: magnitudes no measurement of a robot reaches (a value beyond is a corrupted cell, not a measurement)
-_MAX_ABS = {"q": 3600.0, "f": 1e7, "d": 100.0}
+_MAX_ABS = {"q": 3600.0, "f": 1e7, "d": 100.0, "m": 1e7, "r": 10.0}
 
 
 def _numbers(df, cols: list[str], source: str) -> np.ndarray:
