@@ -6,6 +6,11 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 TSTAMP := $(VENV)/.installed-test
 CORES  ?= 2
+# one BLAS thread per process: the matrices are small (tens of columns), and threads only cost CPU time on a
+# shared machine; the workflow's jobs run side by side instead (override by setting these variables)
+export OPENBLAS_NUM_THREADS ?= 1
+export OMP_NUM_THREADS ?= 1
+export MKL_NUM_THREADS ?= 1
 
 .PHONY: install report test archive lint bench derive clean
 

@@ -3,7 +3,11 @@
 # Config: config/config.yaml, or instead one complete `--configfile FILE` (never merged with it); `--config
 # KEY=VALUE` overrides either. Keys: docs/contracts.md; what reruns after an edit: docs/workflow.md.
 # Everything in the config is checked here, before any job runs (stiffcal.config).
+import os as _os
 import sys as _sys
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # every job: one BLAS thread (small
+    _os.environ.setdefault(_var, "1")  # matrices; jobs run side by side instead); set one to override
 
 from snakemake.utils import min_version
 

@@ -1,12 +1,16 @@
 """Shared fixtures: the paper's arm and study (l1 = 0.6 m, l2 = 0.4 m, q* = (60, 30) deg, F = (0, -1) N)."""
 
+import os
 from pathlib import Path
 
-import numpy as np
-import pytest
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # before numpy is imported: small
+    os.environ.setdefault(_var, "1")  # matrices, a shared machine (as the Makefile and the CLI do)
 
-from stiffcal.robot import load_robot
-from stiffcal.study import load_config, study_from_config
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from stiffcal.robot import load_robot  # noqa: E402
+from stiffcal.study import load_config, study_from_config  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -93,8 +93,8 @@ def results(paper_study, paper_config, root):
     cfg = copy.deepcopy(paper_config)  # a coarse map of the paper's arm, for the Figure 6 numbers
     cfg["maps"].update(step_deg=15.0, statistics_steps_deg=[30.0, 15.0])
     study7 = [s for s in maps.map_studies(cfg, root) if s.figure == 7]
-    frame = maps.map_frame(study7[0].link_ratio, study7[0].force_deg, maps.test_pose_grid(15.0))
-    stats = maps.statistics_table({study7[0].name: frame}, study7, [30.0, 15.0],
+    mp = maps.solve_map(study7[0].link_ratio, study7[0].force_deg, 15.0)
+    stats = maps.statistics_table({study7[0].name: mp}, study7, [30.0, 15.0],
                                   {k: float(v) for k, v in printed["figure6"].items()})
     cmp = reproduction.comparison_table(paper_study, t2, t3, t4, t5, printed, stats, seed=0)
     return {"t2": t2.set_index("criterion"), "t3": t3.set_index("row"), "t4": t4.set_index("plan"),

@@ -18,8 +18,11 @@ import os
 import re
 import sys
 
-from . import __version__
-from .errors import MAX_MESSAGE, InputError
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # before numpy is imported: the
+    os.environ.setdefault(_var, "1")  # matrices are small, and threads only cost CPU time (set one to override)
+
+from . import __version__  # noqa: E402
+from .errors import MAX_MESSAGE, InputError  # noqa: E402
 
 #: a value that starts with '-' but is a number or a comma-separated list of numbers
 _NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
