@@ -108,8 +108,8 @@ from .errors import InputError
 MAP_COLUMNS = ["link_ratio", "force_deg", "q1t_deg", "q2t_deg", "q1_opt_deg", "q2_opt_deg", "O_t", "chi"]
 #: status of a cell (map.npz ``status``): how its optimum is known
 STATUS = {0: "uncertified", 1: "lookup_hull_exact", 2: "exact", 3: "exact_long_double", 4: "closed_form",
-          5: "no_optimum", 6: "exact_everywhere"}
-UNCERTIFIED, HULL, EXACT, EXTENDED, CLOSED, NO_OPTIMUM, AT_ZERO = range(7)
+          5: "no_optimum", 6: "exact_everywhere", 7: "exact_arbitrary_precision"}
+UNCERTIFIED, HULL, EXACT, EXTENDED, CLOSED, NO_OPTIMUM, AT_ZERO, ARBITRARY = range(8)
 #: |A_t|^2 below this (l1 = 1, |F| = 1) counts as A_t = 0
 ZERO_TEST = 1e-20
 #: a test pose with |sin q2*| or a joint torque below this (relative) is exactly rank-deficient
@@ -275,7 +275,15 @@ def solve_cells(b: float, force_deg: float, qt_deg: np.ndarray, tab=None) -> Cel
             solL = solver.solve(SL / trL[:, None], AL / np.sqrt(trL)[:, None, None], b, tab)
             v[bad], xx[bad], cc[bad], ss[bad] = (np.asarray(a, float) for a in (solL.value, solL.x, solL.c, solL.s))
             st[bad] = np.where(solL.certificate == 0, UNCERTIFIED, EXTENDED)
-            left = bad[solL.certificate == 0]
+            hard = solL.certificate == 0
+            left = bad[hard]
+            if len(left):
+                SLn, RLn = (SL / trL[:, None])[hard], (AL / np.sqrt(trL)[:, None, None])[hard]
+                ex = solver.certify_exact(SLn, RLn, b)
+                ok = ex.certified
+                v[left[ok]], xx[left[ok]], cc[left[ok]], ss[left[ok]] = ex.value[ok], ex.x[ok], ex.c[ok], ex.s[ok]
+                st[left[ok]] = ARBITRARY
+                left = left[~ok]
             if len(left):
                 fv, fx, fc, fs = _fallback(Sn[left], Rn[left], b, tab)
                 better = fv < v[left]
