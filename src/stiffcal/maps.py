@@ -46,12 +46,24 @@ The candidate, and why each cell is the global optimum (the certificate)
    strip whose bound exceeds u is certified empty of better points; the exact method runs on the rest
    (1-2 strips for 98 % of the cells). The optimum is then the smallest candidate, and c is recomputed
    in gamma = q2 next to singular poses (where cos loses precision).
-3. Precision. Next to the rank-one boundary (test poses within a few degrees of a straight or folded
-   arm) the polynomials' roots cluster and their coefficients, computed from S, lose digits: where the
-   isolation does not resolve in double precision, the cell is solved again in long double (80-bit) from
-   its test pose. A cell that still does not resolve is reported with status "uncertified" (its value
-   is the best of the candidates found and of damped Newton runs from the table's optima and a grid):
-   on the default maps 0-132 cells of 129,600, next to both a folded arm and the force through joint 1.
+3. Precision. Next to the rank-one boundary (test poses within a few degrees of a straight or folded arm, or
+   of the force through joint 1) the polynomials' roots cluster and their coefficients, computed from S,
+   lose digits: where the isolation does not resolve in double precision, the cell is solved again in long
+   double (80-bit) from its test pose. The few cells that still do not resolve (at 1 degree 0, 12, 16 and
+   132 of 129,600 for b = 0.2, 0.5, 0.67, 0.9; about 1 ms a symmetry class) are solved exactly (status
+   "exact_arbitrary_precision", :func:`stiffcal._map_solver.certify_exact`): their S (computed in long
+   double from the test pose) and b are the fractions they store, so q12 and q4 get exact integer
+   coefficients, and FLINT's certified root isolation (python-flint) encloses every real root in a ball of
+   128 bits. At each root x, and at x = (b +- 1)/b, the line minimiser c0 (long double) is a candidate,
+   and a lower bound follows from strong convexity: at fixed x,
+       (log O_t)'' >= 4 (1 + c^2)/(1 - c^2)^2 - 2/(1 - |c|)^2 = 2/(1 + |c|)^2 >= 1/2   (the bound of 1),
+   so for any c0,  min_c log O_t(x, c) >= log O_t(x, c0) - (d log O_t / dc (x, c0))^2,  evaluated in
+   ball arithmetic over the root's whole ball. Every stationary point has its x among the roots, and for
+   det S > 0 (checked exactly) O_t -> inf at every edge, so the smallest bound is below the global minimum;
+   the cell is certified when the value at its reported pose (rounded to doubles, bounded above in ball
+   arithmetic) is within 1e-9 of it (in practice below 1e-30). A cell the exact method cannot certify
+   (none on the default maps at 1 and 0.5 degrees) would be reported "uncertified", with the best of damped
+   Newton runs from the table's optima and a grid.
 4. Rank-deficient test information (det S = 0 exactly; the status "closed_form" or "no_optimum"):
    - the test arm straight or folded (q2* = 0, +-180): S = t^2 w w^T, w = ((1 + b c*)^2, b^2), t = the
      force component across the arm. For any plan, w^T M^-1 w = min{|y|^2 : A^T y = w} >= 1 because
@@ -71,7 +83,8 @@ The candidate, and why each cell is the global optimum (the certificate)
    - A_t = 0 (the arm along the force line, stretched or folded): every plan gives O_t = 0; chi is
      infinite and the pose undefined (status "exact_everywhere").
    The tests compare random cells, half of them next to the singular test poses (down to 1e-3 deg), with
-   an independent brute force in long double (:mod:`stiffcal.reference`).
+   an independent brute force in long double, and the cells certified by the exact method of 3 with one
+   whose best pose is valued in 128-bit ball arithmetic (:mod:`stiffcal.reference`).
 
 Symmetry and jobs
 -----------------

@@ -281,19 +281,64 @@ def ot_long_double(b: float, force: np.ndarray, qt_deg, q_deg) -> np.ndarray:
     return np.where(det != 0, out, np.inf)
 
 
-def brute_force_cell_ld(b: float, force: np.ndarray, qt_deg, step_deg: float = 2.0, polish: int = 6) -> float:
-    """min O_t / sigma^2 over one measurement pose: every pose of a step_deg grid over the whole joint space,
-    then Nelder-Mead from the ``polish`` best grid poses, all evaluated by :func:`ot_long_double`."""
+def _brute_force_ld(b: float, force: np.ndarray, qt_deg, step_deg: float, polish: int):
+    """(min O_t / sigma^2, argmin pose [deg]) of :func:`brute_force_cell_ld`."""
     g = np.arange(-180.0, 180.0, step_deg) + step_deg / 3   # off the singular lines q2 = 0, 180
     Q = np.stack(np.meshgrid(g, g, indexing="ij"), -1).reshape(-1, 2)
     vals = ot_long_double(b, force, qt_deg, Q).astype(float)
-    best = float(vals.min())
+    k = int(np.argmin(vals))
+    best, pose = float(vals[k]), Q[k]
     for i in np.argsort(vals)[:polish]:
         with np.errstate(invalid="ignore", over="ignore"):
             r = minimize(lambda q: float(ot_long_double(b, force, qt_deg, q)[0]), Q[i], method="Nelder-Mead",
                          options=dict(xatol=1e-11, fatol=1e-17, maxiter=20000, maxfev=40000))
-        best = min(best, float(r.fun))
-    return best
+        if r.fun < best:
+            best, pose = float(r.fun), r.x
+    return best, pose
+
+
+def brute_force_cell_ld(b: float, force: np.ndarray, qt_deg, step_deg: float = 2.0, polish: int = 6) -> float:
+    """min O_t / sigma^2 over one measurement pose: every pose of a step_deg grid over the whole joint space,
+    then Nelder-Mead from the ``polish`` best grid poses, all evaluated by :func:`ot_long_double`."""
+    return _brute_force_ld(b, force, qt_deg, step_deg, polish)[0]
+
+
+def ot_ball(b: float, force: np.ndarray, qt_deg, q_deg, prec: int = 128):
+    """O_t / sigma^2 = ||A_t A^-1||_F^2 (eq. 16, one measurement pose q_deg (2,) [deg], test pose qt_deg (2,);
+    l1 = 1, unit force) in ball arithmetic of prec bits (python-flint's arb), from the angles as the
+    doubles they are: an enclosure of the exact value (an arb ball). Plain 2 x 2 algebra on J diag(J^T F)."""
+    import flint
+
+    old = flint.ctx.prec
+    flint.ctx.prec = prec
+    try:
+        pi = flint.arb.pi()
+        B = flint.arb(float(b))
+        F = [flint.arb(float(v)) for v in force]
+
+        def observation(q):
+            q1, q2 = (flint.arb(float(v)) * pi / 180 for v in q)
+            J = [[-(q1.sin() + B * (q1 + q2).sin()), -B * (q1 + q2).sin()],
+                 [q1.cos() + B * (q1 + q2).cos(), B * (q1 + q2).cos()]]
+            tau = [J[0][j] * F[0] + J[1][j] * F[1] for j in range(2)]
+            return [[J[i][j] * tau[j] for j in range(2)] for i in range(2)]
+
+        At, A = observation(qt_deg), observation(q_deg)
+        det = A[0][0] * A[1][1] - A[0][1] * A[1][0]
+        inv = [[A[1][1] / det, -A[0][1] / det], [-A[1][0] / det, A[0][0] / det]]
+        G = [[At[i][0] * inv[0][j] + At[i][1] * inv[1][j] for j in range(2)] for i in range(2)]
+        return sum(G[i][j] * G[i][j] for i in range(2) for j in range(2))
+    finally:
+        flint.ctx.prec = old
+
+
+def brute_force_cell_hp(b: float, force: np.ndarray, qt_deg, step_deg: float = 1.0, polish: int = 8) -> float:
+    """min O_t / sigma^2 over one measurement pose, for cells where precision matters: a dense step_deg grid
+    over the whole joint space and Nelder-Mead from the ``polish`` best grid poses in long double
+    (:func:`brute_force_cell_ld`), then the best pose's value in 128-bit ball arithmetic (:func:`ot_ball`;
+    its upper end, so the result is an attained value: never below the true minimum)."""
+    _, pose = _brute_force_ld(b, force, qt_deg, step_deg, polish)
+    return float(ot_ball(b, force, qt_deg, pose).upper())
 
 
 def brute_force_pair(b: float, force: np.ndarray, qt_deg, step_deg: float = 6.0, polish: int = 8) -> float:
