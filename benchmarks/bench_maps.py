@@ -63,8 +63,9 @@ def baseline_solve(b, step):
     return base.map_frame(b, PHI, reps), inverse
 
 
-def handover_new(mp, tmp, n_reads):
-    """Tiles written and read back, merged, map.npz and map.csv written, map.npz read by n_reads jobs."""
+def handover_new(mp, tmp, n_reads, parts=None):
+    """Tiles written and read back, merged, map.npz and map.csv written, map.npz read by n_reads jobs;
+    parts (a dict) receives the CPU of writing map.csv and the files' sizes [MB]."""
     h = len(mp.axis) // 2
     reps, cells, cls = maps.class_members(mp.step_deg, mp.force_deg, 0, h)
     tile = {"cell": cells, "O_t": mp.O_t.ravel()[cells], "q1_opt_deg": mp.q1_opt_deg.ravel()[cells],
@@ -73,7 +74,9 @@ def handover_new(mp, tmp, n_reads):
     merged = maps.merge_tiles([maps.load_arrays(tmp / "t.npz", maps.TILE_ARRAYS)], mp.link_ratio, mp.force_deg,
                               mp.step_deg)
     maps.save_map(tmp / "map.npz", merged)
-    write_csv(maps.map_frame(merged), tmp / "map.csv")
+    t_csv, _ = cpu(lambda: write_csv(maps.map_frame(merged), tmp / "map.csv"))
+    if parts is not None:
+        parts.update(csv=t_csv, **{f: (tmp / f).stat().st_size / 1e6 for f in ("map.csv", "map.npz")})
     for _ in range(n_reads):
         maps.load_map(tmp / "map.npz")
 
@@ -159,11 +162,13 @@ def main(n_cells: int, skip_half: bool, n_pairs: int = 30) -> None:
         for bh in LINK_RATIOS:
             solver.polynomials.cache_clear()
             t_new, mp = cpu(new_map, bh, 0.5)
+            parts = {}
             with tempfile.TemporaryDirectory() as tmp:
-                t_hand, _ = cpu(handover_new, mp, Path(tmp), 3)
+                t_hand, _ = cpu(handover_new, mp, Path(tmp), 3, parts)
             counts = np.bincount(mp.status.ravel(), minlength=len(maps.STATUS))
             uncertified += int(counts[maps.UNCERTIFIED])
-            print(f"  b = {bh:.3f}: solving {t_new:6.3f} s, hand-over {t_hand:6.3f} s, together {t_new + t_hand:6.3f} s"
+            print(f"  b = {bh:.3f}: solving {t_new:6.3f} s, hand-over {t_hand:6.3f} s (map.csv {parts['csv']:.2f} s, "
+                  f"{parts['map.csv']:.0f} MB; map.npz {parts['map.npz']:.0f} MB), together {t_new + t_hand:6.3f} s"
                   + (f"   (baseline solver {t_old:.3f} s, {t_old / t_new:.1f}x)" if bh == LINK_RATIOS[0] else ""))
             print("    cells by status: " + ", ".join(f"{maps.STATUS[k]} {c}" for k, c in enumerate(counts) if c))
         print(f"  uncertified cells: {uncertified} (target: none)")

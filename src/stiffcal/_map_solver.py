@@ -863,7 +863,7 @@ def certify_exact(S: np.ndarray, R: np.ndarray, b: float, tol: float = 1e-9) -> 
     flint.ctx.prec = EXACT_PREC
     try:
         B = flint.arb(flint.fmpq(*bf))
-        special = [(B + 1) / B, (B - 1) / B]
+        special = [X for X in ((B + 1) / B, (B - 1) / B) if not X.is_zero()]     # x = 0 is no pose (b = 1)
         for k in range(n):
             (a, d), (_, _), (e, f) = fr[k]
             det = flint.fmpq(a, d) * flint.fmpq(e, f) - flint.fmpq(*fr[k][1]) ** 2
@@ -886,6 +886,9 @@ def certify_exact(S: np.ndarray, R: np.ndarray, b: float, tol: float = 1e-9) -> 
         low_ball = [None] * n
         Sb = [[flint.arb(flint.fmpq(*f)) for f in row] for row in fr]
         for i, (k, X) in enumerate(zip(cell, balls)):
+            if not np.isfinite(c[i]):
+                valid[k] = False
+                continue
             c0 = flint.arb(flint.fmpq(*_fraction(c[i])))
             log_o, d = _ball_log_ot(Sb[k], B, X, c0)
             lb = log_o - d * d
@@ -897,7 +900,8 @@ def certify_exact(S: np.ndarray, R: np.ndarray, b: float, tol: float = 1e-9) -> 
                 low_ball[k] = lb
         # the best point of each cell, rounded to doubles, and its value bounded above in ball arithmetic
         order = np.lexsort((v, cell))
-        first = order[np.searchsorted(cell[order], np.arange(n))] if len(cell) else np.zeros(n, int)
+        first = order[np.minimum(np.searchsorted(cell[order], np.arange(n)), max(len(order) - 1, 0))] \
+            if len(cell) else np.zeros(n, int)
         out_x, out_c = np.full(n, np.nan), np.full(n, np.nan)
         out_s, value = np.full(n, np.nan), np.full(n, np.inf)
         certified = np.zeros(n, bool)
