@@ -865,8 +865,8 @@ def certify_exact(S: np.ndarray, R: np.ndarray, b: float, tol: float = 1e-9) -> 
         B = flint.arb(flint.fmpq(*bf))
         special = [X for X in ((B + 1) / B, (B - 1) / B) if not X.is_zero()]     # x = 0 is no pose (b = 1)
         for k in range(n):
-            (a, d), (_, _), (e, f) = fr[k]
-            det = flint.fmpq(a, d) * flint.fmpq(e, f) - flint.fmpq(*fr[k][1]) ** 2
+            s11, s12, s22 = (flint.fmpq(*f) for f in fr[k])
+            det = s11 * s22 - s12 * s12
             roots = [_real_roots(integer_coefficients(t, fr[k], bf)) for t in (Q12, Q4)]
             # the minimum is attained at a stationary point only for S positive definite (O_t -> inf at
             # every edge); q12 or q4 vanishing identically would make every x a candidate
