@@ -416,7 +416,12 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
         q[:, :, free] = zs.reshape(len(zs), m, -1)
         v = plan_loss(problem, q) / f0
         k = z.size
-        return float(v[0]), (v[1:k + 1] - v[k + 1:]) / (2 * POLISH_STEP_RAD)
+        up, down = v[1:k + 1], v[k + 1:]
+        with np.errstate(invalid="ignore"):  # a step onto a singular plan (loss inf): one-sided differences
+            g = np.where(np.isfinite(up) & np.isfinite(down), (up - down) / (2 * POLISH_STEP_RAD),
+                         np.where(np.isfinite(up), (up - v[0]) / POLISH_STEP_RAD,
+                                  np.where(np.isfinite(down), (v[0] - down) / POLISH_STEP_RAD, 0.0)))
+        return float(v[0]), np.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0)
 
     bounds = [(None, None) if _is_full_turn(*lims[j]) else tuple(lims[j]) for j in np.flatnonzero(free)] * m
     res = minimize(f_and_gradient, z0, jac=True, method="L-BFGS-B", bounds=bounds,
