@@ -69,3 +69,16 @@ if __name__ == "__main__":
     print(f"  position and Jacobian, Pinocchio per pose:      {t_pin:.3f} s  (Pinocchio / stiffcal: "
           f"{t_pin / t_jac:.2f} against the Jacobian alone, {t_pin / t_both:.2f} against both)")
     print(f"  largest difference from Pinocchio: {err:.1e} m (m/rad)")
+
+    # the same plans from both files: the design of every M of the KUKA study (test pose, force, sigma of
+    # config/config.yaml's kuka study), poses compared as printed
+    from stiffcal.api import design  # noqa: E402
+
+    print("M-pose plans from the DH file and from the URDF (stiffcal.design, test pose 20,-60,110,30,45,-20 deg, "
+          "force 500,-300,-800 N, sigma 10 um):")
+    for m in range(2, 9):
+        a, b = (design(r, test_pose_deg=[20, -60, 110, 30, 45, -20], force_N=[500, -300, -800], sigma=1e-5,
+                       experiments=m, progress=False) for r in (dh, urdf))
+        dq = np.abs(np.asarray(a.poses_deg) - np.asarray(b.poses_deg)).max()
+        print(f"  M = {m}: largest pose difference {dq:.1e} deg, O_t {a.O_t:.6e} / {b.O_t:.6e} m^2 "
+              f"(relative difference {abs(a.O_t / b.O_t - 1):.1e}), gap to the bound {a.gap:.2%}")

@@ -150,32 +150,35 @@ def test_urdf_chain_matches_pinocchio_pose_by_pose(tmp_path, rng):
             np.testing.assert_allclose(J_ours, oMb.rotation.T @ J[:, cols], atol=1e-12)
 
 
-def _design(root, robot, capsys, *extra):
+def _design(root, robot, capsys, *extra, experiments="6"):
     assert main(["design", "--robot", str(root / robot), "--test-pose-deg", TEST_POSE, "--force-N", FORCE,
-                 "--sigma", "1e-5", "--experiments", "6", "--quiet", *extra]) == 0
+                 "--sigma", "1e-5", "--experiments", experiments, "--quiet", *extra]) == 0
     return json.loads(capsys.readouterr().out)
 
 
 def test_kuka_urdf_and_dh_files_give_the_same_plans(root, kuka, capsys):
-    """``stiffcal design ... --experiments 6`` on the URDF and on the DH file: the same problem (each plan has
-    the same O_t on either robot, to 1e-9), plans of the same quality (O_t within 0.5 %, both within their
-    certified gap) and the same certified bound (0.2 %). The poses themselves differ: this optimum is flat, and
-    the exchange and polish follow round-off differences of 1e-16 in the Jacobian to other, equally good plans."""
+    """``stiffcal design ... --experiments M`` on the URDF and on the DH file of the KUKA: the same plans (every
+    pose to 0.01 deg, as printed: the same copy of the mirror and wrist-flip symmetries), the same O_t (each
+    plan evaluated on the other file's robot too, to 1e-9) and the same certified bound (1e-5). The two
+    files' Jacobians differ by round-off (1e-16), which the approximate design's support and the exchange
+    follow; the rounding of information classes, the converged polish and the symmetry copies remove it."""
     from stiffcal.study import Study
     from stiffcal.tables import plan_summary
 
-    a, b = _design(root, KUKA_DH, capsys), _design(root, KUKA_URDF, capsys)
-    assert b["joint_names"] == ["a1", "a2", "a3", "a4", "a5", "a6"] and a["joint_names"] == list("123456")
     studies = [Study("s", r, np.radians([20, -60, 110, 30, 45, -20]), np.array([500.0, -300, -800]), 1e-5, ("ot",),
                      1.0, 1.0) for r in kuka]
-    for plan in (a["poses_deg"], b["poses_deg"]):
-        ot = [float(plan_summary(s, np.array(plan))["O_t"]) for s in studies]
-        assert ot[0] == pytest.approx(ot[1], rel=1e-9)
-    assert b["O_t"] == pytest.approx(a["O_t"], rel=5e-3)
-    assert b["lower_bound"] == pytest.approx(a["lower_bound"], rel=2e-3)
-    for r in (a, b):
-        assert r["lower_bound"] <= r["O_t"] and r["gap"] < 0.15
-        assert not kuka[0].outside_limits(np.radians(r["poses_deg"])).any()
+    for m in ("6",):
+        a, b = _design(root, KUKA_DH, capsys, experiments=m), _design(root, KUKA_URDF, capsys, experiments=m)
+        assert b["joint_names"] == ["a1", "a2", "a3", "a4", "a5", "a6"] and a["joint_names"] == list("123456")
+        np.testing.assert_allclose(b["poses_deg"], a["poses_deg"], atol=1e-2)
+        for plan in (a["poses_deg"], b["poses_deg"]):
+            ot = [float(plan_summary(s, np.array(plan))["O_t"]) for s in studies]
+            assert ot[0] == pytest.approx(ot[1], rel=1e-9)
+        assert b["O_t"] == pytest.approx(a["O_t"], rel=1e-9)
+        assert b["lower_bound"] == pytest.approx(a["lower_bound"], rel=1e-5)
+        for r in (a, b):
+            assert r["lower_bound"] <= r["O_t"] and r["gap"] < 0.01
+            assert not kuka[0].outside_limits(np.radians(r["poses_deg"])).any()
 
 
 def test_named_joints_name_every_column(tmp_path, capsys):

@@ -214,7 +214,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     from . import criteria
     from .certificate import approximate_design
     from .design import optimal_single_pose
-    from .plans import optimise_plan, round_design
+    from .plans import design_starts, optimise_plan
     from .study import Study, check_sensing, check_test_inputs
     from .tables import plan_summary
 
@@ -258,7 +258,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         else:
             bar.set_description(f"plan of {m} poses")
             prob = study.problem(criterion, m)
-            starts = [round_design(approx, m)] + ([np.repeat(single[None], m, 0)] if single is not None else [])
+            starts = design_starts(prob, approx, m) + ([np.repeat(single[None], m, 0)] if single is not None else [])
             poses = optimise_plan(prob, starts=starts, seed=seed).poses_deg
             optimal_set, degenerate = np.zeros((0, robot.n_joints)), False
             bar.update()

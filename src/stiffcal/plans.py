@@ -9,8 +9,8 @@ candidate is scored in closed form from quantities of the pool computed once (:f
 the adjugate formula for up to 3 parameters, the Woodbury identity with the pool's quadratic forms
 beyond), a few vector operations per step for the whole pool, with exactly the values (and so the plans)
 of a general inverse of every candidate's information matrix. The same engine serves any linear model
-(:func:`fedorov_exchange`). Every exchanged plan is then ranked, and the ``n_polish`` best are polished in
-the continuum (L-BFGS-B on all M n angles). Starts: the rounding of the optimal
+(:func:`fedorov_exchange`). Every exchanged plan is then polished in the continuum (L-BFGS-B on all M n angles, the gradient by
+central differences of the whole plan batch in one evaluation). Starts: the rounding of the optimal
 approximate design (:mod:`stiffcal.certificate`), the best single pose repeated (plan (i)), and
 ``n_starts`` random plans drawn from the pool with the given seed, so the result is deterministic for a
 seed. The certificate bounds how far the result can be from the true optimum; the tests compare it with
@@ -26,7 +26,7 @@ plans equal up to symmetry print identically. Joint limits break the symmetry: t
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import minimize
@@ -59,13 +59,46 @@ def symmetric_copies(robot, pose_deg: np.ndarray, force: np.ndarray) -> np.ndarr
     return wrap_deg(np.concatenate([base, turned]))
 
 
-def canonical_plan(problem: Problem, plan_deg: np.ndarray) -> np.ndarray:
-    """Each pose replaced by its representative symmetric copy (planar arms without limits only), poses
-    sorted (by q1, then q2, ...)."""
+def information_symmetries(problem: Problem, n_probe: int = 16, rtol: float = 1e-9) -> np.ndarray:
+    """The joint-space symmetries of a spatial arm's problem: maps q -> s * q + c (signs s, offsets c [deg],
+    returned as (k, 2, n), the identity first) under which every pose carries the same information, so that
+    plans differing by them have the same O_t. Tried: q_1 kept or mirrored through the vertical plane of the
+    force (s_1 = -1, c_1 = 2 phi, phi the force's azimuth about the base z axis), and every other joint
+    kept, negated, turned by a half turn or both, which covers the mirror of an arm symmetric about its
+    plane and the wrist flip (q4 + 180, -q5, q6 + 180) of a spherical wrist. A map is kept when the per-pose
+    information of ``n_probe`` random poses agrees to ``rtol``. Planar arms: :func:`symmetric_copies`."""
+    from itertools import product
+
+    robot, force = problem.robot, np.asarray(problem.force, float)
+    identity = np.array([[np.ones(robot.n_joints), np.zeros(robot.n_joints)]])
+    if robot.kind == "planar" or force.shape != (3,):
+        return identity
+    phi = np.degrees(np.arctan2(force[1], force[0]))
+    first = [(1.0, 0.0), (-1.0, 2 * phi)]
+    rest = [(1.0, 0.0), (-1.0, 0.0), (1.0, 180.0), (-1.0, 180.0)]
+    maps = np.array([np.array(c).T for c in product(first, *[rest] * (robot.n_joints - 1))])  # (K, 2, n)
+    q = np.random.default_rng(0).uniform(-180.0, 180.0, (n_probe, robot.n_joints))
+    info = pose_information(_plan_A(problem, np.radians(q)))
+    copies = q * maps[:, None, 0] + maps[:, None, 1]  # (K, n_probe, n)
+    same = np.abs(pose_information(_plan_A(problem, np.radians(copies))) - info) <= rtol * np.abs(info).max()
+    return maps[same.all(axis=(1, 2, 3))]
+
+
+def canonical_plan(problem: Problem, plan_deg: np.ndarray, symmetries: np.ndarray | None = None) -> np.ndarray:
+    """Each pose replaced by its representative copy (:func:`stiffcal.design.representative`) among its
+    symmetric copies within the joint limits (planar arms without limits: the half-turn and mirror copies;
+    spatial arms: :func:`information_symmetries`, or ``symmetries`` when given), poses sorted (by q1, then
+    q2, ...)."""
     robot = problem.robot
     plan = into_limits(robot, np.atleast_2d(plan_deg))
     if has_planar_symmetry(robot, problem):
         plan = np.array([representative(into_limits(robot, symmetric_copies(robot, p, problem.force))) for p in plan])
+    elif robot.kind != "planar":
+        maps = information_symmetries(problem) if symmetries is None else symmetries
+        if len(maps) > 1:
+            copies = into_limits(robot, plan[:, None] * maps[:, 0] + maps[:, 1])  # (m, K, n)
+            inside = ~robot.outside_limits(np.radians(copies)).any(axis=-1)
+            plan = np.array([representative(c[ok]) for c, ok in zip(copies, inside)])
     order = np.lexsort(plan.T[::-1])
     return plan[order]
 
@@ -347,8 +380,16 @@ def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.nd
     return plan, best
 
 
-def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None):
-    """L-BFGS-B on the free joint angles of every pose of plan (m, n) [rad]. Returns (plan, loss)."""
+#: step of the central differences in the polish [rad]: truncation ~ h^2, round-off ~ 1e-16 / h
+POLISH_STEP_RAD = 1e-6
+#: the early stop of the first polish of every exchanged plan, and how many of them are polished to the end
+ROUGH_POLISH = dict(maxiter=300, ftol=1e-12, gtol=1e-8)
+N_FINISH = 4
+
+
+def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, rough: bool = False):
+    """L-BFGS-B on the free joint angles of every pose of plan (m, n) [rad]. Returns (plan, loss).
+    rough: stop early (:data:`ROUGH_POLISH`), to rank plans before the full polish of the best."""
     m, n = plan.shape
     free = np.ones(n, bool) if free is None else np.asarray(free, bool)
     lims = problem.robot.joint_limits_rad
@@ -363,12 +404,31 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None):
 
     z0 = plan[:, free].ravel()
     f0 = f(z0)
-    if not np.isfinite(f0):
+    if not np.isfinite(f0) or f0 <= 0:
         return plan, f0
+    steps = POLISH_STEP_RAD * np.vstack([np.eye(z0.size), -np.eye(z0.size)])
+
+    def f_and_gradient(z):
+        """The loss relative to the start's (so that gtol does not depend on the unit of sigma; O_t ~
+        sigma^2) and its central-difference gradient, all 2 m n + 1 plans evaluated in one batch."""
+        zs = np.vstack([z, z + steps])
+        q = np.broadcast_to(plan, (len(zs), m, n)).copy()
+        q[:, :, free] = zs.reshape(len(zs), m, -1)
+        v = plan_loss(problem, q) / f0
+        k = z.size
+        up, down = v[1:k + 1], v[k + 1:]
+        with np.errstate(invalid="ignore"):  # a step onto a singular plan (loss inf): one-sided differences
+            g = np.where(np.isfinite(up) & np.isfinite(down), (up - down) / (2 * POLISH_STEP_RAD),
+                         np.where(np.isfinite(up), (up - v[0]) / POLISH_STEP_RAD,
+                                  np.where(np.isfinite(down), (v[0] - down) / POLISH_STEP_RAD, 0.0)))
+        return float(v[0]), np.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0)
+
     bounds = [(None, None) if _is_full_turn(*lims[j]) else tuple(lims[j]) for j in np.flatnonzero(free)] * m
-    res = minimize(f, z0, method="L-BFGS-B", bounds=bounds, options=dict(maxiter=2000, ftol=1e-15, gtol=1e-11))
-    if np.isfinite(res.fun) and res.fun <= f0:
-        return full(res.x), float(res.fun)
+    res = minimize(f_and_gradient, z0, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options=ROUGH_POLISH if rough else dict(maxiter=2000, ftol=1e-15, gtol=1e-9))
+    loss = f(res.x)
+    if np.isfinite(loss) and loss <= f0:
+        return full(res.x), loss
     return plan, f0
 
 
@@ -399,9 +459,53 @@ def round_design(design: ApproximateDesign, m: int) -> np.ndarray:
     return np.repeat(design.support_deg, counts, axis=0)
 
 
+def information_classes(problem: Problem, design: ApproximateDesign, tol: float = 2e-2) -> ApproximateDesign:
+    """The approximate design with its support points merged by their information: points whose per-pose
+    information matrices agree to ``tol`` (relative to the largest) are one class, with the summed weight,
+    represented by its heaviest member. Returns an :class:`ApproximateDesign` (support (k', n) [deg]).
+
+    The design's Fisher information, and so O_t, is a function of the class weights alone; the way the
+    iterations split a class's weight among near-copies of a pose, or among symmetric copies with equal
+    information (a mirror through the plane of the force), follows round-off. Rounding the classes gives
+    starts that do not (Pukelsheim, *Optimal Design of Experiments*, 1993, sec. 12.5: rounding acts on the
+    design measure, which copies with equal information share).
+    """
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    P = vech(pose_information(_plan_A(problem, np.radians(design.support_deg))))
+    P = P / max(float(np.linalg.norm(P, axis=1).max()), 1e-300)
+    pairs = cKDTree(P).query_pairs(tol, output_type="ndarray").reshape(-1, 2)
+    k = len(P)
+    n_cls, label = connected_components(coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(k, k)),
+                                        directed=False)
+    weights = np.bincount(label, design.weights, n_cls)
+    heaviest = [int(np.flatnonzero(label == c)[np.argmax(design.weights[label == c])]) for c in range(n_cls)]
+    return replace(design, support_deg=design.support_deg[heaviest], weights=weights)
+
+
+def apportion(design: ApproximateDesign, m: int) -> np.ndarray:
+    """Largest-remainder (Hamilton) rounding of an approximate design to m poses [deg]: floor(m w_i) copies
+    of each support point, and one more for the largest remainders m w_i - floor(m w_i)."""
+    x = m * np.asarray(design.weights, float)
+    counts = np.floor(x).astype(int)
+    counts[np.argsort(-(x - counts), kind="stable")[:m - int(counts.sum())]] += 1
+    return np.repeat(design.support_deg, counts, axis=0)
+
+
+def design_starts(problem: Problem, design: ApproximateDesign, m: int) -> list[np.ndarray]:
+    """Starting plans of m poses [deg] from an approximate design: its efficient rounding
+    (:func:`round_design`) and the largest-remainder rounding of its information classes
+    (:func:`information_classes`, :func:`apportion`), which does not depend on how round-off split the
+    weights; the exchange keeps the better of the two (a URDF and the DH table of the same arm then reach
+    plans of the same O_t)."""
+    return [round_design(design, m), apportion(information_classes(problem, design), m)]
+
+
 def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.ndarray | None = None,
                   starts: list[np.ndarray] | None = None, n_starts: int = 16, seed: int = 0,
-                  pool_step_deg: float | None = None, canonical: bool = True, n_polish: int = 4,
+                  pool_step_deg: float | None = None, canonical: bool = True, n_polish: int | None = None,
                   scores=None) -> PlanResult:
     """Globally optimise the m-pose plan of ``problem`` (module docstring).
 
@@ -409,7 +513,8 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
     polish may move (default all; plans (ii)-(iii) fix some); starts: extra starting plans [deg];
     canonical: report each pose as its representative symmetric copy (False keeps the poses as found,
     e.g. when some joints are held fixed, which the symmetric copies would change); n_polish: how many
-    of the best exchanged plans are polished in the continuum; scores: the candidate scoring of the exchange
+    of the best exchanged plans are polished in the continuum (default all: the pool's ranking of the
+    exchanged plans does not predict the polished ones well, and follows round-off); scores: the candidate scoring of the exchange
     step for O_t and A (default :func:`exchange_scores`; see :func:`exchange`).
     """
     m = problem.m
@@ -421,14 +526,18 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
     inits += [pool[rng.choice(len(pool), m, replace=len(pool) < m)] for _ in range(n_starts)]
     forms = pool_forms(pool_A) if problem.criterion in L_OPTIMAL else None
     exchanged = [exchange(problem, init, pool, pool_A, forms=forms, scores=scores) for init in inits]
-    order = np.argsort([v for _, v in exchanged], kind="stable")[:n_polish]
-    results = [polish(problem, exchanged[i][0], free)[::-1] for i in order]
+    order = np.argsort([v for _, v in exchanged], kind="stable")[:n_polish or len(exchanged)]
+    rough = [polish(problem, exchanged[i][0], free, rough=True) for i in order]
+    finish = np.argsort([v for _, v in rough], kind="stable")[:N_FINISH]
+    results = [polish(problem, rough[i][0], free)[::-1] for i in finish]
     vals = np.array([r[0] for r in results])
     best_i = int(np.argmin(vals))
     best_val, best_plan = results[best_i]
+    symmetries = information_symmetries(problem) if canonical else None
+
     def canon_of(plan):
         if canonical:
-            return canonical_plan(problem, np.degrees(plan))
+            return canonical_plan(problem, np.degrees(plan), symmetries)
         q = into_limits(problem.robot, np.degrees(plan))
         return q[np.lexsort(q.T[::-1])]
 

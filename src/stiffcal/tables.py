@@ -200,7 +200,7 @@ def plan_variants(study: Study, m: int, seed: int, design=None, single_deg=None)
     """
     from .certificate import approximate_design, default_pool_step
     from .design import joint_grids
-    from .plans import optimise_plan, round_design
+    from .plans import design_starts, optimise_plan
 
     n = study.robot.n_joints
     single = single_ot_pose(study) if single_deg is None else np.asarray(single_deg, float)
@@ -221,7 +221,7 @@ def plan_variants(study: Study, m: int, seed: int, design=None, single_deg=None)
     out["iii"] = optimise_plan(prob, pool=pool_iii, free=~free_first, starts=[repeat], seed=seed,
                                canonical=False).poses_deg
     design = design or approximate_design(prob)
-    out["iv"] = optimise_plan(prob, starts=[round_design(design, m), repeat], seed=seed).poses_deg
+    out["iv"] = optimise_plan(prob, starts=[*design_starts(prob, design, m), repeat], seed=seed).poses_deg
     return out
 
 
@@ -264,9 +264,10 @@ def best_plan_row(study: Study, m: int, seed: int, design, extra_starts=()) -> d
     """The best m-pose plan for O_t (plan (iv)) with its criteria and the certified bound, as one row:
     m, O_t (eq. 16), rms_m = sqrt(O_t) (the RMS compensation error at the test pose, in the unit of sigma),
     chi (eq. 27), lower_bound, gap, E_dk1.. (eq. 11), within_limits, poses_deg. Any robot."""
-    from .plans import optimise_plan, round_design
+    from .plans import design_starts, optimise_plan
 
-    plan = optimise_plan(study.problem("ot", m), starts=[round_design(design, m), *extra_starts], seed=seed)
+    prob = study.problem("ot", m)
+    plan = optimise_plan(prob, starts=[*design_starts(prob, design, m), *extra_starts], seed=seed)
     summ = plan_summary(study, plan.poses_deg)
     bound = design.lower_bound(m, study.sigma)
     row = {"m": m, "O_t": plan.loss, "rms_m": float(np.sqrt(plan.loss)), "chi": float(summ["chi"]),
