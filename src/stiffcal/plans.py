@@ -78,31 +78,32 @@ def _plan_A(problem: Problem, q: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------
 # Scoring every candidate of a pool at once for an L-optimality criterion (O_t, eq. 16; A-optimality)
 
-def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int, norm: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def _inverse_traces(S, G, dim: int, norm: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """``(trace(S^-1 G), ||S^-1||_F)`` for batches of symmetric dim x dim matrices given by their upper
-    triangles S, G (..., dim(dim+1)/2): the adjugate formula ``S^-1 = adj(S) / det(S)`` for dim <= 3,
-    ``numpy.linalg.inv`` beyond (which raises ``LinAlgError`` for an exactly singular S). A singular S gives
-    inf or nan. ``norm=False`` skips the norm (None) where it is not needed."""
+    triangles, component first: S (dim(dim+1)/2, ...), G the same or (dim(dim+1)/2,) for one G (so each
+    component of a batch is one contiguous vector): the adjugate formula ``S^-1 = adj(S) / det(S)`` for
+    dim <= 3, ``numpy.linalg.inv`` beyond (which raises ``LinAlgError`` for an exactly singular S). A singular
+    S gives inf or nan. ``norm=False`` skips the norm (None) where it is not needed."""
     if dim == 1:
-        return G[..., 0] / S[..., 0], 1.0 / np.abs(S[..., 0]) if norm else None
+        return G[0] / S[0], 1.0 / np.abs(S[0]) if norm else None
     if dim == 2:
-        a, b, c = S[..., 0], S[..., 1], S[..., 2]
+        a, b, c = S[0], S[1], S[2]
         det = a * c - b * b
-        num = G[..., 0] * c - 2.0 * G[..., 1] * b + G[..., 2] * a
+        num = G[0] * c - 2.0 * G[1] * b + G[2] * a
         return num / det, np.sqrt(a * a + 2 * b * b + c * c) / np.abs(det) if norm else None
     if dim == 3:
-        a, b, c, d, e, f = (S[..., i] for i in range(6))
+        a, b, c, d, e, f = S[:6]
         A11, A12, A13 = d * f - e * e, c * e - b * f, b * e - c * d
         A22, A23, A33 = a * f - c * c, b * c - a * e, a * d - b * b
         det = a * A11 + b * A12 + c * A13
-        num = (G[..., 0] * A11 + G[..., 3] * A22 + G[..., 5] * A33
-               + 2.0 * (G[..., 1] * A12 + G[..., 2] * A13 + G[..., 4] * A23))
+        num = G[0] * A11 + G[3] * A22 + G[5] * A33 + 2.0 * (G[1] * A12 + G[2] * A13 + G[4] * A23)
         if not norm:
             return num / det, None
         return num / det, np.sqrt(A11**2 + A22**2 + A33**2 + 2 * (A12**2 + A13**2 + A23**2)) / np.abs(det)
     iu = np.triu_indices(dim)
 
     def full(v):
+        v = np.moveaxis(np.asarray(v), 0, -1)
         out = np.zeros(v.shape[:-1] + (dim, dim))
         out[(..., *iu)] = v
         out[(..., iu[1], iu[0])] = v
@@ -115,10 +116,11 @@ def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int, norm: bool = True) -
 class PoolForms:
     """A candidate pool prepared once for exchange scoring (:func:`exchange_scores`).
 
-    info: (K, p, p) information matrices ``X_c^T X_c`` of the candidates; vech: (K, p(p+1)/2) their upper
-    triangles; quad: (K q_d, p(p+1)/2) with ``quad @ vech(R)`` the upper triangles (q_d = d(d+1)/2 each) of
-    ``X_c R X_c^T`` for any symmetric R, for the Woodbury identity when p > 3 (else None); d: rows per
-    candidate; max_trace: the largest trace of a candidate's information matrix.
+    info: (K, p, p) information matrices ``X_c^T X_c`` of the candidates; vech: (p(p+1)/2, K) their upper
+    triangles, component first; quad: (p(p+1)/2, q_d K) with ``(vech(R) @ quad).reshape(q_d, K)`` the upper
+    triangles (q_d = d(d+1)/2 entries, component first) of ``X_c R X_c^T`` for any symmetric R, for the
+    Woodbury identity when p > 3 (else None); d: rows per candidate; max_trace: the largest trace of a
+    candidate's information matrix.
     """
 
     info: np.ndarray
@@ -145,10 +147,11 @@ def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> P
         # coefficient of R_ab (a <= b) in (X R X^T)_ij: X_ia X_jb + X_ib X_ja, halved on the diagonal a = b
         coef = X[:, i][:, :, a] * X[:, j][:, :, b] + X[:, i][:, :, b] * X[:, j][:, :, a]
         coef[..., a == b] *= 0.5
-        quad = coef.reshape(-1, len(a))  # (K q_d, q_p)
+        quad = np.ascontiguousarray(np.transpose(coef, (2, 1, 0))).reshape(len(a), -1)  # (q_p, q_d K)
     elif X is not None:
         d = X.shape[-2]
-    return PoolForms(info, vech(info), quad, d, float(np.einsum("kii->k", info).max(initial=0.0)))
+    return PoolForms(info, np.ascontiguousarray(vech(info).T), quad, d,
+                     float(np.einsum("kii->k", info).max(initial=0.0)))
 
 
 def _general_scores(M: np.ndarray, Xt: np.ndarray) -> np.ndarray:
@@ -195,14 +198,16 @@ def _woodbury_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np
     W = Xt.T @ Xt
     RWR = R @ W @ R
     d = forms.d
-    SG = (forms.quad @ np.column_stack([vech(R), vech(RWR)])).reshape(-1, d * (d + 1) // 2, 2)
+    q_d = d * (d + 1) // 2
+    SG = (np.stack([vech(R), vech(RWR)]) @ forms.quad).reshape(2, q_d, -1)
+    S = SG[0] + vech(np.eye(d))[:, None]
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.trace(W @ R) - _inverse_traces(SG[..., 0] + vech(np.eye(d)), SG[..., 1], d, norm=False)[0]
+        return np.trace(W @ R) - _inverse_traces(S, SG[1], d, norm=False)[0]
 
 
 def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
     p = M_rest.shape[-1]
-    Mc = vech(M_rest) + forms.vech
+    Mc = vech(M_rest)[:, None] + forms.vech  # (p(p+1)/2, K)
     w = np.linalg.eigvalsh(M_rest)
     # lambda_min(M_c) >= lambda_min(M_rest) and lambda_max(M_c) <= trace(M_rest) + max trace(P_c): when that
     # ratio clears DIRECT_MIN_RATIO, no candidate is near singular and the check per candidate is skipped
@@ -212,10 +217,11 @@ def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.n
             val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p, norm=not safe)
             if safe:
                 return val
-            trace = Mc[:, [i for i, (r, c) in enumerate(zip(*np.triu_indices(p))) if r == c]].sum(axis=1)
+            r, c = np.triu_indices(p)
+            trace = Mc[r == c].sum(axis=0)
             ok = np.isfinite(val) & (1.0 / (inv_norm * trace) > DIRECT_MIN_RATIO)
         except np.linalg.LinAlgError:  # LU met an exactly singular candidate: all by the general path
-            val, ok = np.zeros(len(Mc)), np.zeros(len(Mc), bool)
+            val, ok = np.zeros(Mc.shape[1]), np.zeros(Mc.shape[1], bool)
     if not ok.all():
         val = np.array(val, float)
         val[~ok] = _general_scores(M_rest[None] + forms.info[~ok], Xt)
@@ -239,24 +245,35 @@ def _exchange_loop(score, value_of, slot_P, slot_X, slot_idx, pool_P, pool_X, ma
     -1 for a starting pose outside the pool) describe the plan and are updated in place;
     ``score(j, M_rest)`` gives the loss of the plan with slot j replaced by every candidate; the best (the
     first of those within a relative 1e-12 of it, so that exact ties such as symmetric copies do not hang
-    on round-off) is taken when it lowers the loss by a relative 1e-12; passes repeat until none does.
-    Returns the loss."""
+    on round-off) is taken when it lowers the loss by a relative 1e-12; the slots are visited in turn
+    (at most ``max_passes`` passes) until m visits in a row change nothing. Returns the loss.
+
+    A slot holding the same pool point as one visited since the last change has the same other poses'
+    information, hence the same scores and no improvement: it is not rescored (so a plan of m poses at k
+    distinct points costs k scorings a pass once it has converged)."""
     m = len(slot_P)
     best = float(value_of(slot_P, slot_X))
-    for _ in range(max_passes):
-        changed = False
-        for j in range(m):
-            vals = score(j, np.delete(slot_P, j, axis=0).sum(axis=0))
-            low = np.min(vals)  # ties (symmetric copies: the same information) go to the first candidate
-            c = int(np.argmax(vals <= low + 1e-12 * abs(low)))
-            if vals[c] < best * (1 - 1e-12) - 1e-300:
-                best = float(vals[c])
-                slot_P[j], slot_idx[j] = pool_P[c], c
-                if slot_X is not None:
-                    slot_X[j] = pool_X[c]
-                changed = True
-        if not changed:
+    unchanged, checked = 0, set()
+    for t in range(max_passes * m):
+        if unchanged == m:
             break
+        j = t % m
+        if slot_idx[j] >= 0 and slot_idx[j] in checked:
+            unchanged += 1
+            continue
+        vals = score(j, np.delete(slot_P, j, axis=0).sum(axis=0))
+        low = np.min(vals)  # ties (symmetric copies: the same information) go to the first candidate
+        c = int(np.argmax(vals <= low + 1e-12 * abs(low)))
+        if vals[c] < best * (1 - 1e-12) - 1e-300:
+            best = float(vals[c])
+            slot_P[j], slot_idx[j] = pool_P[c], c
+            if slot_X is not None:
+                slot_X[j] = pool_X[c]
+            unchanged, checked = 1, {c}
+        else:
+            unchanged += 1
+            if slot_idx[j] >= 0:
+                checked.add(int(slot_idx[j]))
     return best
 
 
@@ -347,8 +364,38 @@ def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.nd
     return plan, best
 
 
+def l_criterion_gradient(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None,
+                         h: float = 1e-5) -> tuple[float, np.ndarray]:
+    """The loss of an L-optimality criterion (O_t, eq. 16, or A) of plan (m, n) [rad] and its gradient with
+    respect to the free joint angles (m, n_free) [per rad].
+
+    With the plan's information ``M = sum_i A_i^T A_i`` and ``loss = s^2 trace(W M^-1)`` (O_t: W = A_t^T A_t,
+    s = sigma; A: W = I, s = 1), ``d loss / d q_ij = -2 s^2 sum((A_i B) * dA_i/dq_ij)`` with
+    ``B = M^-1 W M^-1`` (Magnus & Neudecker, Matrix Differential Calculus, ch. 8), so one evaluation of the
+    observation rows at the m poses and at each pose with one joint moved by +-h (a central difference of
+    the rows, error about h^2) gives the whole gradient, whatever m. The loss is :func:`plan_loss`'s (+inf
+    for a singular plan, with a zero gradient)."""
+    m, n = plan.shape
+    js = np.flatnonzero(np.ones(n, bool) if free is None else free)
+    E = np.zeros((len(js), 1, n))
+    E[np.arange(len(js)), 0, js] = h
+    R = problem.rows(np.concatenate([plan[None], plan + E, plan - E]))  # (1 + 2 f, m, d, p)
+    A = R[0]
+    loss = float(criteria.loss(problem.criterion, A.reshape(-1, A.shape[-1]), m, problem.At, problem.sigma))
+    if not np.isfinite(loss):
+        return loss, np.zeros((m, len(js)))
+    dA = (R[1:1 + len(js)] - R[1 + len(js):]) / (2 * h)
+    W, s2 = (problem.At.T @ problem.At, problem.sigma**2) if problem.criterion == "ot" else (np.eye(A.shape[-1]), 1.0)
+    Minv = np.linalg.inv(np.einsum("mdi,mdj->ij", A, A))
+    AB = A @ (Minv @ W @ Minv)
+    return loss, -2.0 * s2 * np.einsum("fmdp,mdp->mf", dA, AB)
+
+
 def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None):
-    """L-BFGS-B on the free joint angles of every pose of plan (m, n) [rad]. Returns (plan, loss)."""
+    """L-BFGS-B on the free joint angles of every pose of plan (m, n) [rad]. Returns (plan, loss).
+
+    O_t and A use their gradient (:func:`l_criterion_gradient`: one batched evaluation of the rows per step,
+    whatever m); the other criteria a finite-difference gradient (m n + 1 evaluations)."""
     m, n = plan.shape
     free = np.ones(n, bool) if free is None else np.asarray(free, bool)
     lims = problem.robot.joint_limits_rad
@@ -361,12 +408,18 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None):
     def f(z):
         return float(plan_loss(problem, full(z)))
 
+    def fg(z):
+        val, g = l_criterion_gradient(problem, full(z), free)
+        return val, g.ravel()
+
     z0 = plan[:, free].ravel()
     f0 = f(z0)
     if not np.isfinite(f0):
         return plan, f0
     bounds = [(None, None) if _is_full_turn(*lims[j]) else tuple(lims[j]) for j in np.flatnonzero(free)] * m
-    res = minimize(f, z0, method="L-BFGS-B", bounds=bounds, options=dict(maxiter=2000, ftol=1e-15, gtol=1e-11))
+    grad = problem.criterion in L_OPTIMAL
+    res = minimize(fg if grad else f, z0, jac=grad, method="L-BFGS-B", bounds=bounds,
+                   options=dict(maxiter=2000, ftol=1e-15, gtol=1e-11))
     if np.isfinite(res.fun) and res.fun <= f0:
         return full(res.x), float(res.fun)
     return plan, f0
