@@ -9,11 +9,13 @@ candidate is scored in closed form from quantities of the pool computed once (:f
 the adjugate formula for up to 3 parameters, the Woodbury identity with the pool's quadratic forms
 beyond), a few vector operations per step for the whole pool, with exactly the values (and so the plans)
 of a general inverse of every candidate's information matrix. The same engine serves any linear model
-(:func:`fedorov_exchange`). Every exchanged plan is then ranked, and the ``n_polish`` best are polished in
-the continuum (L-BFGS-B on all M n angles). Starts: the rounding of the optimal
-approximate design (:mod:`stiffcal.certificate`), the best single pose repeated (plan (i)), and
-``n_starts`` random plans drawn from the pool with the given seed, so the result is deterministic for a
-seed. The certificate bounds how far the result can be from the true optimum; the tests compare it with
+(:func:`fedorov_exchange`); a slot holding the same point as one already verified since the last change is
+not rescored, so a converged plan of M poses at k distinct points costs k scorings a pass. Every exchanged
+plan is then ranked, and the ``n_polish`` best are polished in the continuum (L-BFGS-B on all M n angles,
+with the gradient of O_t from one batched evaluation of the rows whatever M: :func:`l_criterion_gradient`).
+Starts: the rounding of the optimal approximate design (:mod:`stiffcal.certificate`), the best single pose
+repeated (plan (i)), and ``n_starts`` random plans drawn from the pool with the given seed, so the result
+is deterministic for a seed. The certificate bounds how far the result can be from the true optimum; the tests compare it with
 a brute force.
 
 Symmetric optima
