@@ -173,7 +173,8 @@ def exchange_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.
     """``trace(X_t (M_rest + X_c^T X_c)^-1 X_t^T)`` for every candidate c of a pool (O_t / sigma^2 of
     eq. 16 with the other poses' information M_rest, when X_t = A_t), +inf where that matrix is singular.
 
-    forms: :func:`pool_forms` of the pool (K candidates); M_rest: (p, p); Xt: (d_t, p). Returns (K,).
+    forms: :func:`pool_forms` of the pool (K candidates); M_rest: (p, p), or (S, p, p) for S plans at once
+    (each row as for that M_rest alone); Xt: (d_t, p). Returns (K,) or (S, K).
 
     * p > 3 and M_rest well conditioned (Woodbury): with ``R = M_rest^-1`` and ``W = X_t^T X_t``,
       ``(M_rest + X_c^T X_c)^-1 = R - R X_c^T S_c^-1 X_c R``, ``S_c = I + X_c R X_c^T``, so the score is
@@ -187,41 +188,53 @@ def exchange_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.
       path (:func:`stiffcal.criteria.loss_from_info`, an eigen-decomposition), so singular plans get +inf
       by the same rule as everywhere else and the others are accurate to about 1e-9.
     """
+    M_rest = np.asarray(M_rest, float)
+    if M_rest.ndim == 2:
+        return exchange_scores(forms, M_rest[None], Xt)[0]
     p = M_rest.shape[-1]
-    if p > 3 and forms.quad is not None:
-        w = np.linalg.eigvalsh(M_rest)
-        if w[0] > WOODBURY_MIN_RATIO * w[-1]:
-            return _woodbury_scores(forms, M_rest, Xt)
-    return _direct_scores(forms, M_rest, Xt)
+    w = np.linalg.eigvalsh(M_rest)
+    out = np.empty((len(M_rest), len(forms.info)))
+    woodbury = p > 3 and forms.quad is not None
+    if woodbury:
+        fast = w[:, 0] > WOODBURY_MIN_RATIO * w[:, -1]
+    else:
+        # lambda_min(M_c) >= lambda_min(M_rest), lambda_max(M_c) <= trace(M_rest) + max trace(P_c): where that ratio
+        # clears DIRECT_MIN_RATIO, no candidate is near singular and the adjugate formula serves the whole pool
+        fast = (w[:, 0] > DIRECT_MIN_RATIO * (w.sum(axis=1) + forms.max_trace)) & (p <= 3)
+    G = vech(Xt.T @ Xt)
+    # one M_rest at a time: the pool's temporaries stay in cache (a batch's would not)
+    for i in range(len(M_rest)):
+        if not fast[i]:
+            out[i] = _direct_scores(forms, M_rest[i], Xt)
+        elif woodbury:
+            out[i] = _woodbury_scores(forms, M_rest[i], Xt)
+        else:
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                out[i] = _inverse_traces(vech(M_rest[i])[:, None] + forms.vech, G, p, norm=False)[0]
+    return out
 
 
 def _woodbury_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """The Woodbury path of :func:`exchange_scores` for one M_rest (p, p) -> (K,)."""
     R = np.linalg.inv(M_rest)
     W = Xt.T @ Xt
     RWR = R @ W @ R
     d = forms.d
-    q_d = d * (d + 1) // 2
-    SG = (np.stack([vech(R), vech(RWR)]) @ forms.quad).reshape(2, q_d, -1)
-    S = SG[0] + vech(np.eye(d))[:, None]
+    SG = (np.stack([vech(R), vech(RWR)]) @ forms.quad).reshape(2, d * (d + 1) // 2, -1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.trace(W @ R) - _inverse_traces(S, SG[1], d, norm=False)[0]
+        return np.trace(W @ R) - _inverse_traces(SG[0] + vech(np.eye(d))[:, None], SG[1], d, norm=False)[0]
 
 
 def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """The direct path of :func:`exchange_scores` for one M_rest (p, p) that may leave candidates near
+    singular: each candidate checked, those near singular by the general path. Returns (K,)."""
     p = M_rest.shape[-1]
     Mc = vech(M_rest)[:, None] + forms.vech  # (p(p+1)/2, K)
-    w = np.linalg.eigvalsh(M_rest)
-    # lambda_min(M_c) >= lambda_min(M_rest) and lambda_max(M_c) <= trace(M_rest) + max trace(P_c): when that
-    # ratio clears DIRECT_MIN_RATIO, no candidate is near singular and the check per candidate is skipped
-    safe = w[0] > DIRECT_MIN_RATIO * (w.sum() + forms.max_trace)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         try:
-            val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p, norm=not safe)
-            if safe:
-                return val
+            val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p)
             r, c = np.triu_indices(p)
-            trace = Mc[r == c].sum(axis=0)
-            ok = np.isfinite(val) & (1.0 / (inv_norm * trace) > DIRECT_MIN_RATIO)
+            ok = np.isfinite(val) & (1.0 / (inv_norm * Mc[r == c].sum(axis=0)) > DIRECT_MIN_RATIO)
         except np.linalg.LinAlgError:  # LU met an exactly singular candidate: all by the general path
             val, ok = np.zeros(Mc.shape[1]), np.zeros(Mc.shape[1], bool)
     if not ok.all():
@@ -241,41 +254,54 @@ class ExchangeResult:
     starts: int
 
 
-def _exchange_loop(score, value_of, slot_P, slot_X, slot_idx, pool_P, pool_X, max_passes: int):
-    """Fedorov's exchange on the slots of one plan (the engine of :func:`exchange` and
-    :func:`fedorov_exchange`). slot_P (m, p, p), slot_X (m, d, p) or None and slot_idx (m,) (pool index, or
-    -1 for a starting pose outside the pool) describe the plan and are updated in place;
-    ``score(j, M_rest)`` gives the loss of the plan with slot j replaced by every candidate; the best (the
+def _exchange_loop(score, best, slot_P, slot_idx, pool_P, max_passes: int, slot_X=None, pool_X=None) -> np.ndarray:
+    """Fedorov's exchange of S plans in lockstep (the engine of :func:`exchange_plans` and
+    :func:`fedorov_exchange`). slot_P (S, m, p, p), slot_X (S, m, d, p) or None and slot_idx (S, m) (pool
+    index, or -1 for a starting pose outside the pool) describe the plans and are updated in place; best (S,)
+    are their losses. Each plan visits its slots in turn (at most ``max_passes`` passes) until m visits in
+    a row change nothing; at a visit to slot j, ``score(plans, slots, M_rest)`` gives, for each plan due a
+    scoring (one row each; M_rest (S', p, p) the information of its other poses), the loss with slot j
+    replaced by every candidate, so the plans share one vectorised scoring a step. The best candidate (the
     first of those within a relative 1e-12 of it, so that exact ties such as symmetric copies do not hang
-    on round-off) is taken when it lowers the loss by a relative 1e-12; the slots are visited in turn
-    (at most ``max_passes`` passes) until m visits in a row change nothing. Returns the loss.
+    on round-off) is taken when it lowers the loss by a relative 1e-12. Returns the losses (S,).
 
-    A slot holding the same pool point as one visited since the last change has the same other poses'
+    A slot holding the same pool point as one visited since the plan's last change has the same other poses'
     information, hence the same scores and no improvement: it is not rescored (so a plan of m poses at k
     distinct points costs k scorings a pass once it has converged)."""
-    m = len(slot_P)
-    best = float(value_of(slot_P, slot_X))
-    unchanged, checked = 0, set()
-    for t in range(max_passes * m):
-        if unchanged == m:
+    S, m = slot_idx.shape
+    best = np.array(best, float)
+    t, unchanged, checked = np.zeros(S, int), np.zeros(S, int), [set() for _ in range(S)]
+    end = max_passes * m
+    due = list(range(S))
+    while due:
+        now = []
+        for s in due:
+            while t[s] < end and unchanged[s] < m and slot_idx[s, t[s] % m] in checked[s]:
+                unchanged[s] += 1
+                t[s] += 1
+            if t[s] < end and unchanged[s] < m:
+                now.append(s)
+        if not now:
             break
-        j = t % m
-        if slot_idx[j] >= 0 and slot_idx[j] in checked:
-            unchanged += 1
-            continue
-        vals = score(j, np.delete(slot_P, j, axis=0).sum(axis=0))
-        low = np.min(vals)  # ties (symmetric copies: the same information) go to the first candidate
-        c = int(np.argmax(vals <= low + 1e-12 * abs(low)))
-        if vals[c] < best * (1 - 1e-12) - 1e-300:
-            best = float(vals[c])
-            slot_P[j], slot_idx[j] = pool_P[c], c
-            if slot_X is not None:
-                slot_X[j] = pool_X[c]
-            unchanged, checked = 1, {c}
-        else:
-            unchanged += 1
-            if slot_idx[j] >= 0:
-                checked.add(int(slot_idx[j]))
+        js = t[now] % m
+        keep = np.arange(m) != js[:, None]  # the other slots (a zero term leaves a sum unchanged)
+        M_rest = np.einsum("sm,smij->sij", keep.astype(float), slot_P[now])
+        vals = score(np.array(now), js, M_rest)
+        low = np.min(vals, axis=1, keepdims=True)  # ties (symmetric copies: the same information) go to the first
+        cs = np.argmax(vals <= low + 1e-12 * np.abs(low), axis=1)
+        for v, c, s, j in zip(vals[np.arange(len(now)), cs], cs, now, js):
+            if v < best[s] * (1 - 1e-12) - 1e-300:
+                best[s] = v
+                slot_P[s, j], slot_idx[s, j] = pool_P[c], c
+                if slot_X is not None:
+                    slot_X[s, j] = pool_X[c]
+                unchanged[s], checked[s] = 1, {c}
+            else:
+                unchanged[s] += 1
+                if slot_idx[s, j] >= 0:
+                    checked[s].add(int(slot_idx[s, j]))
+            t[s] += 1
+        due = now
     return best
 
 
@@ -309,61 +335,70 @@ def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: b
         inits.append(np.array(chosen))
     if not inits:
         raise ValueError("fedorov_exchange needs at least one start (starts, n_starts or greedy)")
-    results = []
-    for idx in inits:
-        idx = idx.copy()
-        slot_P = forms.info[idx].copy()
-        val = _exchange_loop(lambda j, M_rest: exchange_scores(forms, M_rest, Xt),
-                             lambda P, _: _general_scores(P.sum(axis=0)[None], Xt)[0],
-                             slot_P, None, idx, forms.info, None, max_passes)
-        results.append((val, np.sort(idx)))
-    best = min(range(len(results)), key=lambda i: results[i][0])
-    return ExchangeResult(results[best][1], float(results[best][0]), len(inits))
+    idx = np.array(inits, int)
+    slot_P = forms.info[idx]
+    vals = _exchange_loop(lambda _, __, M_rest: exchange_scores(forms, M_rest, Xt),
+                          _general_scores(slot_P.sum(axis=1), Xt), slot_P, idx, forms.info, max_passes)
+    best = int(np.argmin(vals))  # the first on ties
+    return ExchangeResult(np.sort(idx[best]), float(vals[best]), len(inits))
 
 
 #: criteria whose exchange step is scored by :func:`exchange_scores` (L-optimality: W = A_t^T A_t or I)
 L_OPTIMAL = ("ot", "a")
 
 
-def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
-             forms: PoolForms | None = None, scores=None):
-    """Fedorov exchange of an m-pose plan (m, n) [rad] over a pool (N, n) with rows pool_A (N, d, n).
+def exchange_plans(problem: Problem, plans: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
+                   forms: PoolForms | None = None, scores=None) -> tuple[np.ndarray, np.ndarray]:
+    """Fedorov exchange of S plans of m poses (S, m, n) [rad] over a pool (N, n) with rows pool_A (N, d, p),
+    in lockstep (:func:`_exchange_loop`; each plan exactly as alone).
 
-    O_t and A-optimality are scored by :func:`exchange_scores` (``scores``: another function of the same
-    signature, e.g. :func:`stiffcal.reference.general_exchange_scores` in the tests; forms: the pool's
-    :func:`pool_forms`, computed here when not given); other criteria from the information matrices
+    O_t and A-optimality are scored by :func:`exchange_scores` (``scores``: another function of its
+    single-M_rest signature, e.g. :func:`stiffcal.reference.general_exchange_scores` in the tests; forms: the
+    pool's :func:`pool_forms`, computed here when not given); other criteria from the information matrices
     ``M_rest + A_c^T A_c`` of every candidate, and G-optimality, which needs the rows themselves, stacks them.
-    Returns the improved plan and its loss.
+    Returns the improved plans (S, m, n) and their losses (S,).
     """
-    m = plan.shape[0]
-    d, n = pool_A.shape[-2:]
+    plans = np.asarray(plans, float)
+    S, m = plans.shape[:2]
+    d, p = pool_A.shape[-2:]
     key = problem.criterion
-    A = _plan_A(problem, plan)  # (m, d, n)
+    A = _plan_A(problem, plans)  # (S, m, d, p)
     slot_P = pose_information(A)
-    idx = np.full(m, -1)
+    idx = np.full((S, m), -1)
     if key in L_OPTIMAL:
         forms = forms or pool_forms(pool_A)
-        Xt, s2 = (problem.At, problem.sigma**2) if key == "ot" else (np.eye(n), 1.0)
-        scores = scores or exchange_scores
+        Xt, s2 = (problem.At, problem.sigma**2) if key == "ot" else (np.eye(p), 1.0)
 
-        def score(j, M_rest):
-            return s2 * scores(forms, M_rest, Xt)
+        def score(_, __, M_rest):
+            if scores is None:
+                return s2 * exchange_scores(forms, M_rest, Xt)
+            return s2 * np.stack([scores(forms, M, Xt) for M in M_rest])
         pool_P = forms.info
     else:
         pool_P = pose_information(pool_A)
 
-        def score(j, M_rest):
-            rows = None
-            if key == "g":
-                others = np.delete(A, j, axis=0)
-                rows = np.concatenate([np.broadcast_to(others.reshape(1, -1, n), (len(pool), (m - 1) * d, n)),
-                                       pool_A], axis=1)
-            return criteria.loss_from_info(key, M_rest[None] + pool_P, m, problem.At, problem.sigma, rows)
+        def score(ss, js, M_rest):
+            out = []
+            for s, j, M in zip(ss, js, M_rest):
+                rows = None
+                if key == "g":
+                    others = np.delete(A[s], j, axis=0)
+                    rows = np.concatenate([np.broadcast_to(others.reshape(1, -1, p), (len(pool), (m - 1) * d, p)),
+                                           pool_A], axis=1)
+                out.append(criteria.loss_from_info(key, M[None] + pool_P, m, problem.At, problem.sigma, rows))
+            return np.stack(out)
 
-    best = _exchange_loop(score, lambda P, X: criteria.loss(key, X.reshape(m * d, n), m, problem.At, problem.sigma),
-                          slot_P, A, idx, pool_P, pool_A, max_passes)
-    plan = np.where((idx >= 0)[:, None], pool[np.maximum(idx, 0)], plan)
-    return plan, best
+    start = [criteria.loss(key, a.reshape(m * d, p), m, problem.At, problem.sigma) for a in A]
+    best = _exchange_loop(score, start, slot_P, idx, pool_P, max_passes, A, pool_A)
+    return np.where((idx >= 0)[..., None], pool[np.maximum(idx, 0)], plans), best
+
+
+def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
+             forms: PoolForms | None = None, scores=None):
+    """Fedorov exchange of one m-pose plan (m, n) [rad] (:func:`exchange_plans`). Returns the improved plan
+    and its loss."""
+    plans, best = exchange_plans(problem, plan[None], pool, pool_A, max_passes, forms, scores)
+    return plans[0], float(best[0])
 
 
 def l_criterion_gradient(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None,
@@ -473,11 +508,14 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
         pool = candidate_pool(problem.robot, pool_step_deg or default_pool_step(problem.robot.n_joints), problem)
     pool_A = _plan_A(problem, pool)
     inits = [np.radians(np.atleast_2d(s)) for s in (starts or [])]
+    for i, init in enumerate(inits):
+        if init.shape != (m, problem.robot.n_joints):
+            raise ValueError(f"starting plan {i} has shape {init.shape}, expected ({m}, {problem.robot.n_joints})")
     inits += [pool[rng.choice(len(pool), m, replace=len(pool) < m)] for _ in range(n_starts)]
     forms = pool_forms(pool_A) if problem.criterion in L_OPTIMAL else None
-    exchanged = [exchange(problem, init, pool, pool_A, forms=forms, scores=scores) for init in inits]
-    order = np.argsort([v for _, v in exchanged], kind="stable")[:n_polish]
-    results = [polish(problem, exchanged[i][0], free)[::-1] for i in order]
+    plans, losses = exchange_plans(problem, np.stack(inits), pool, pool_A, forms=forms, scores=scores)
+    order = np.argsort(losses, kind="stable")[:n_polish]
+    results = [polish(problem, plans[i], free)[::-1] for i in order]
     vals = np.array([r[0] for r in results])
     best_i = int(np.argmin(vals))
     best_val, best_plan = results[best_i]
