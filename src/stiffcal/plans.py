@@ -261,7 +261,8 @@ def _exchange_loop(score, best, slot_P, slot_idx, pool_P, max_passes: int, slot_
     are their losses. Each plan visits its slots in turn (at most ``max_passes`` passes) until m visits in
     a row change nothing; at a visit to slot j, ``score(plans, slots, M_rest)`` gives, for each plan due a
     scoring (one row each; M_rest (S', p, p) the information of its other poses), the loss with slot j
-    replaced by every candidate, so the plans share one vectorised scoring a step. The best candidate (the
+    replaced by every candidate; the plans share each step's bookkeeping (M_rest and the best candidates in
+    vectorised form, not a Python step per plan and slot). The best candidate (the
     first of those within a relative 1e-12 of it, so that exact ties such as symmetric copies do not hang
     on round-off) is taken when it lowers the loss by a relative 1e-12. Returns the losses (S,).
 
