@@ -262,9 +262,9 @@ def _exchange_loop(score, best, slot_P, slot_idx, pool_P, max_passes: int, slot_
     a row change nothing; at a visit to slot j, ``score(plans, slots, M_rest)`` gives, for each plan due a
     scoring (one row each; M_rest (S', p, p) the information of its other poses), the loss with slot j
     replaced by every candidate; the plans share each step's bookkeeping (M_rest and the best candidates in
-    vectorised form, not a Python step per plan and slot). The best candidate (the
-    first of those within a relative 1e-12 of it, so that exact ties such as symmetric copies do not hang
-    on round-off) is taken when it lowers the loss by a relative 1e-12. Returns the losses (S,).
+    vectorised form, not a Python step per plan and slot). The best candidate (the first of those within a
+    relative 1e-12 of it, so that exact ties such as symmetric copies do not hang on round-off) is taken
+    when it lowers the loss by a relative 1e-12. Returns the losses (S,).
 
     A slot holding the same pool point as one visited since the plan's last change has the same other poses'
     information, hence the same scores and no improvement: it is not rescored (so a plan of m poses at k
