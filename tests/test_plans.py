@@ -5,9 +5,9 @@ import pytest
 
 from stiffcal import reproduction, tables
 from stiffcal.certificate import approximate_design, candidate_pool
-from stiffcal.design import Problem, sample_joint_space
-from stiffcal.plans import (canonical_plan, exchange_scores, fedorov_exchange, optimise_plan, pool_forms, round_design,
-                            symmetric_copies)
+from stiffcal.design import Problem, plan_loss, sample_joint_space
+from stiffcal.plans import (canonical_plan, exchange, exchange_scores, fedorov_exchange, l_criterion_gradient,
+                            optimise_plan, polish, pool_forms, round_design, symmetric_copies)
 from stiffcal.reference import general_exchange_scores, reference_exchange
 from stiffcal.robot import load_robot, planar_robot
 from stiffcal.stiffness import information_matrix, observation_matrix, pose_information
@@ -226,6 +226,13 @@ def test_fedorov_exchange_for_a_generic_linear_model(rng):
     again = fedorov_exchange(info, Xt, m, information=True, starts=starts, n_starts=0)
     np.testing.assert_array_equal(again.indices, res.indices)
     assert again.value == pytest.approx(res.value, rel=1e-9)
+    # starts holding a point several times (the exchange then scores each point once a pass) and more points
+    # than the optimum's support: still the plain exchange's plan
+    for start in (np.repeat(starts[0][:2], 4), np.r_[starts[1], starts[1]], rng.choice(K, 12)):
+        got = fedorov_exchange(X, Xt, len(start), starts=[start], n_starts=0)
+        ref = reference_exchange(info, Xt, start)
+        np.testing.assert_array_equal(got.indices, ref[0])
+        assert got.value == pytest.approx(ref[1], rel=1e-10)
     seeded = fedorov_exchange(X, Xt, m, n_starts=8, greedy=True, seed=4)
     assert seeded.value <= res.value * (1 + 1e-9) and seeded.starts == 9
     with pytest.raises(ValueError):
@@ -259,3 +266,59 @@ def test_cli_multi_pose_matches_the_issue(root, capsys, monkeypatch):
     assert 0.1037 <= d3["lower_bound"] <= 0.1039 and len(d3["poses_deg"]) == 3
     assert main([*base, "--experiments", "2", "--criterion", "d"]) == 0
     assert json.loads(capsys.readouterr().out)["lower_bound"] is None
+
+
+def _arm(name, root):
+    if name == "3-link":
+        return planar_robot([0.5, 0.35, 0.15]), F, np.radians([30.0, 40.0, -20.0])
+    return load_robot(root / KUKA), np.array([500.0, -300.0, -800.0]), np.radians([20, -60, 110, 30, 45, -20])
+
+
+@pytest.mark.parametrize("arm", ["3-link", "6-axis"])
+@pytest.mark.parametrize("criterion", ["ot", "a"])
+def test_polish_gradient_is_the_derivative_of_the_loss(arm, criterion, root, rng):
+    """The gradient of O_t and A used by the polish (information-matrix formula with the rows differentiated
+    numerically) against a Richardson-extrapolated central difference of the loss itself (plan_loss), with
+    some joints held fixed."""
+    robot, force, qt = _arm(arm, root)
+    m, n = 5, robot.n_joints
+    prob = Problem(robot, force, criterion, m, qt)
+    q = rng.uniform(-2.0, 2.0, (m, n))
+    free = np.arange(n) != 1
+    loss, g = l_criterion_gradient(prob, q, free)
+    assert loss == pytest.approx(float(plan_loss(prob, q)), rel=1e-12)
+
+    def central(h):
+        out = np.zeros((m, n))
+        for i in range(m):
+            for j in range(n):
+                e = np.zeros((m, n))
+                e[i, j] = h
+                out[i, j] = (plan_loss(prob, q + e) - plan_loss(prob, q - e)) / (2 * h)
+        return out
+    ref = (4 * central(5e-4) - central(1e-3)) / 3
+    np.testing.assert_allclose(g, ref[:, free], rtol=0, atol=1e-7 * np.abs(ref).max())
+
+
+@pytest.mark.parametrize("arm, m", [("paper", 3), ("paper", 8), ("3-link", 4), ("6-axis", 6)])
+def test_polish_is_at_least_as_good_as_the_finite_difference_polish(arm, m, paper_robot, root):
+    """From the same exchanged plan, the polish with the analytic gradient reaches an O_t no worse than
+    L-BFGS-B with scipy's own finite-difference gradient (the polish before issue 16) on the same bounds."""
+    from scipy.optimize import minimize
+
+    if arm == "paper":
+        robot, force, qt = paper_robot, F, QT
+    else:
+        robot, force, qt = _arm(arm, root)
+    prob = Problem(robot, force, "ot", m, qt)
+    pool = candidate_pool(robot, 4.0 if robot.n_joints == 2 else 20.0, prob)
+    gen = np.random.default_rng(0)
+    start, _ = exchange(prob, pool[gen.choice(len(pool), m)], pool, prob.rows(pool))
+    start = start + gen.normal(scale=0.05, size=start.shape)  # off the pool points
+    plan, loss = polish(prob, start)
+    lims = robot.joint_limits_rad
+    bounds = [(None, None) if hi - lo >= 2 * np.pi - 1e-9 else (lo, hi) for lo, hi in lims] * m
+    fd = minimize(lambda z: float(plan_loss(prob, z.reshape(m, -1))), start.ravel(), method="L-BFGS-B", bounds=bounds,
+                  options=dict(maxiter=2000, ftol=1e-15, gtol=1e-11))
+    assert loss == pytest.approx(float(plan_loss(prob, plan)), rel=1e-12)
+    assert loss <= fd.fun * (1 + 1e-9)

@@ -44,6 +44,7 @@ then within 0.1 % of Phi*); otherwise the outputs label the bound as not converg
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -165,15 +166,24 @@ def _info(problem: Problem, q: np.ndarray) -> np.ndarray:
     return pose_information(problem.rows(q))
 
 
+@functools.lru_cache(maxsize=None)
+def _triu(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Row and column indices of the upper triangle of an n x n matrix, row by row, and the weights
+    (1 on the diagonal, 2 off it); computed once per n (:func:`vech` runs in every exchange step)."""
+    i, j = np.triu_indices(n)
+    return i, j, np.where(i == j, 1.0, 2.0)
+
+
 def vech(M: np.ndarray) -> np.ndarray:
     """Upper-triangle entries of symmetric matrices (..., n, n) -> (..., n(n+1)/2), row by row."""
-    return M[(..., *np.triu_indices(M.shape[-1]))]
+    i, j, _ = _triu(M.shape[-1])
+    return M[..., i, j]
 
 
 def _vech2(M: np.ndarray) -> np.ndarray:
     """:func:`vech` with doubled off-diagonal entries, so that ``trace(P B) = vech(P) . _vech2(B)``."""
-    i, j = np.triu_indices(M.shape[-1])
-    return M[..., i, j] * np.where(i == j, 1.0, 2.0)
+    i, j, two = _triu(M.shape[-1])
+    return M[..., i, j] * two
 
 
 def multiplicative(P: np.ndarray, W: np.ndarray, iters: int = 3000, tol: float = 1e-7, w0: np.ndarray | None = None):
@@ -332,9 +342,15 @@ def newton_maximise(fun, robot: Robot, X0: np.ndarray, h: float = 1e-4, max_iter
         radius[idx] = np.where(better, np.maximum(radius[idx], 2 * moved), radius[idx] / 4)
         active[idx[(moved < xtol) | (radius[idx] < 1e-12)]] = False
         idx = np.flatnonzero(active)  # starts that met another one on the way up follow it no further
-        near = np.all(np.abs(angle_diff(X[idx][:, None, :], X[idx][None, :, :])) < 1e-3, axis=-1)
-        active[idx[np.any(np.triu(near, 1), axis=0)]] = False
+        active[idx[_meets_earlier(X[idx], 1e-3)]] = False
     return X, f
+
+
+def _meets_earlier(X: np.ndarray, tol: float) -> np.ndarray:
+    """Indices j of the poses X (k, n) [rad] within ``tol`` (every joint, modulo 2 pi) of some X[i], i < j:
+    the pairs close on the first joint are found first, then checked on all."""
+    i, j = np.nonzero(np.triu(np.abs(angle_diff(X[:, None, 0], X[None, :, 0])) < tol, 1))
+    return np.unique(j[np.all(np.abs(angle_diff(X[i], X[j])) < tol, axis=1)])
 
 
 class PhiSearch:
@@ -400,12 +416,11 @@ class PhiSearch:
         for k in groups:
             idx = np.flatnonzero(self.group == k)
             cand = self.Q[idx[np.argsort(-phi[idx], kind="stable")[:8 * per]]]
-            apart = np.any(np.abs(angle_diff(cand[:, None, :], cand[None, :, :])) > sep, axis=-1)
             mine: list[int] = []
-            for i in range(len(cand)):
+            for i in range(len(cand)):  # greedily, each more than sep from every one taken (on some joint)
                 if len(mine) == per:
                     break
-                if apart[i, mine].all():
+                if np.any(np.abs(angle_diff(cand[i], cand[mine])) > sep, axis=-1).all():
                     mine.append(i)
             chosen.append(cand[mine])
         return np.vstack(chosen)

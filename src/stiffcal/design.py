@@ -319,7 +319,7 @@ def representative(poses_deg: np.ndarray, tie_deg: float = 1e-3) -> np.ndarray:
 
 def angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a - b wrapped to (-pi, pi] [rad], elementwise."""
-    return np.angle(np.exp(1j * (np.asarray(a) - b)))
+    return np.pi - np.mod(np.pi - (np.asarray(a) - b), 2 * np.pi)
 
 
 def dedupe(poses_rad: np.ndarray, tol_rad: float = 1e-4) -> np.ndarray:

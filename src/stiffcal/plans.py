@@ -9,9 +9,12 @@ candidate is scored in closed form from quantities of the pool computed once (:f
 the adjugate formula for up to 3 parameters, the Woodbury identity with the pool's quadratic forms
 beyond), a few vector operations per step for the whole pool, with exactly the values (and so the plans)
 of a general inverse of every candidate's information matrix. The same engine serves any linear model
-(:func:`fedorov_exchange`). Every exchanged plan is then polished in the continuum (L-BFGS-B on all M n angles, the gradient by
-central differences of the whole plan batch in one evaluation). Starts: the rounding of the optimal
-approximate design (:mod:`stiffcal.certificate`), the best single pose repeated (plan (i)), and
+(:func:`fedorov_exchange`); a slot holding the same point as one already verified since the last change is
+not rescored, so a converged plan of M poses at k distinct points costs k scorings a pass. Every exchanged
+plan is then polished in the continuum (L-BFGS-B on all M n angles, with the gradient of O_t from one
+batched evaluation of the rows whatever M: :func:`l_criterion_gradient`), roughly, and the best
+``N_FINISH`` to convergence. Starts: the roundings of the optimal approximate design
+(:func:`design_starts`, :mod:`stiffcal.certificate`), the best single pose repeated (plan (i)), and
 ``n_starts`` random plans drawn from the pool with the given seed, so the result is deterministic for a
 seed. The certificate bounds how far the result can be from the true optimum; the tests compare it with
 a brute force.
@@ -111,31 +114,32 @@ def _plan_A(problem: Problem, q: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------
 # Scoring every candidate of a pool at once for an L-optimality criterion (O_t, eq. 16; A-optimality)
 
-def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int, norm: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def _inverse_traces(S, G, dim: int, norm: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
     """``(trace(S^-1 G), ||S^-1||_F)`` for batches of symmetric dim x dim matrices given by their upper
-    triangles S, G (..., dim(dim+1)/2): the adjugate formula ``S^-1 = adj(S) / det(S)`` for dim <= 3,
-    ``numpy.linalg.inv`` beyond (which raises ``LinAlgError`` for an exactly singular S). A singular S gives
-    inf or nan. ``norm=False`` skips the norm (None) where it is not needed."""
+    triangles, component first: S (dim(dim+1)/2, ...), G the same or (dim(dim+1)/2,) for one G (so each
+    component of a batch is one contiguous vector): the adjugate formula ``S^-1 = adj(S) / det(S)`` for
+    dim <= 3, ``numpy.linalg.inv`` beyond (which raises ``LinAlgError`` for an exactly singular S). A singular
+    S gives inf or nan. ``norm=False`` skips the norm (None) where it is not needed."""
     if dim == 1:
-        return G[..., 0] / S[..., 0], 1.0 / np.abs(S[..., 0]) if norm else None
+        return G[0] / S[0], 1.0 / np.abs(S[0]) if norm else None
     if dim == 2:
-        a, b, c = S[..., 0], S[..., 1], S[..., 2]
+        a, b, c = S[0], S[1], S[2]
         det = a * c - b * b
-        num = G[..., 0] * c - 2.0 * G[..., 1] * b + G[..., 2] * a
+        num = G[0] * c - 2.0 * G[1] * b + G[2] * a
         return num / det, np.sqrt(a * a + 2 * b * b + c * c) / np.abs(det) if norm else None
     if dim == 3:
-        a, b, c, d, e, f = (S[..., i] for i in range(6))
+        a, b, c, d, e, f = S[:6]
         A11, A12, A13 = d * f - e * e, c * e - b * f, b * e - c * d
         A22, A23, A33 = a * f - c * c, b * c - a * e, a * d - b * b
         det = a * A11 + b * A12 + c * A13
-        num = (G[..., 0] * A11 + G[..., 3] * A22 + G[..., 5] * A33
-               + 2.0 * (G[..., 1] * A12 + G[..., 2] * A13 + G[..., 4] * A23))
+        num = G[0] * A11 + G[3] * A22 + G[5] * A33 + 2.0 * (G[1] * A12 + G[2] * A13 + G[4] * A23)
         if not norm:
             return num / det, None
         return num / det, np.sqrt(A11**2 + A22**2 + A33**2 + 2 * (A12**2 + A13**2 + A23**2)) / np.abs(det)
     iu = np.triu_indices(dim)
 
     def full(v):
+        v = np.moveaxis(np.asarray(v), 0, -1)
         out = np.zeros(v.shape[:-1] + (dim, dim))
         out[(..., *iu)] = v
         out[(..., iu[1], iu[0])] = v
@@ -148,10 +152,11 @@ def _inverse_traces(S: np.ndarray, G: np.ndarray, dim: int, norm: bool = True) -
 class PoolForms:
     """A candidate pool prepared once for exchange scoring (:func:`exchange_scores`).
 
-    info: (K, p, p) information matrices ``X_c^T X_c`` of the candidates; vech: (K, p(p+1)/2) their upper
-    triangles; quad: (K q_d, p(p+1)/2) with ``quad @ vech(R)`` the upper triangles (q_d = d(d+1)/2 each) of
-    ``X_c R X_c^T`` for any symmetric R, for the Woodbury identity when p > 3 (else None); d: rows per
-    candidate; max_trace: the largest trace of a candidate's information matrix.
+    info: (K, p, p) information matrices ``X_c^T X_c`` of the candidates; vech: (p(p+1)/2, K) their upper
+    triangles, component first; quad: (p(p+1)/2, q_d K) with ``(vech(R) @ quad).reshape(q_d, K)`` the upper
+    triangles (q_d = d(d+1)/2 entries, component first) of ``X_c R X_c^T`` for any symmetric R, for the
+    Woodbury identity when p > 3 (else None); d: rows per candidate; max_trace: the largest trace of a
+    candidate's information matrix.
     """
 
     info: np.ndarray
@@ -178,10 +183,11 @@ def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> P
         # coefficient of R_ab (a <= b) in (X R X^T)_ij: X_ia X_jb + X_ib X_ja, halved on the diagonal a = b
         coef = X[:, i][:, :, a] * X[:, j][:, :, b] + X[:, i][:, :, b] * X[:, j][:, :, a]
         coef[..., a == b] *= 0.5
-        quad = coef.reshape(-1, len(a))  # (K q_d, q_p)
+        quad = np.ascontiguousarray(np.transpose(coef, (2, 1, 0))).reshape(len(a), -1)  # (q_p, q_d K)
     elif X is not None:
         d = X.shape[-2]
-    return PoolForms(info, vech(info), quad, d, float(np.einsum("kii->k", info).max(initial=0.0)))
+    return PoolForms(info, np.ascontiguousarray(vech(info).T), quad, d,
+                     float(np.einsum("kii->k", info).max(initial=0.0)))
 
 
 def _general_scores(M: np.ndarray, Xt: np.ndarray) -> np.ndarray:
@@ -201,7 +207,8 @@ def exchange_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.
     """``trace(X_t (M_rest + X_c^T X_c)^-1 X_t^T)`` for every candidate c of a pool (O_t / sigma^2 of
     eq. 16 with the other poses' information M_rest, when X_t = A_t), +inf where that matrix is singular.
 
-    forms: :func:`pool_forms` of the pool (K candidates); M_rest: (p, p); Xt: (d_t, p). Returns (K,).
+    forms: :func:`pool_forms` of the pool (K candidates); M_rest: (p, p), or (S, p, p) for S plans at once
+    (each row as for that M_rest alone); Xt: (d_t, p). Returns (K,) or (S, K).
 
     * p > 3 and M_rest well conditioned (Woodbury): with ``R = M_rest^-1`` and ``W = X_t^T X_t``,
       ``(M_rest + X_c^T X_c)^-1 = R - R X_c^T S_c^-1 X_c R``, ``S_c = I + X_c R X_c^T``, so the score is
@@ -215,40 +222,55 @@ def exchange_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.
       path (:func:`stiffcal.criteria.loss_from_info`, an eigen-decomposition), so singular plans get +inf
       by the same rule as everywhere else and the others are accurate to about 1e-9.
     """
+    M_rest = np.asarray(M_rest, float)
+    if M_rest.ndim == 2:
+        return exchange_scores(forms, M_rest[None], Xt)[0]
     p = M_rest.shape[-1]
-    if p > 3 and forms.quad is not None:
-        w = np.linalg.eigvalsh(M_rest)
-        if w[0] > WOODBURY_MIN_RATIO * w[-1]:
-            return _woodbury_scores(forms, M_rest, Xt)
-    return _direct_scores(forms, M_rest, Xt)
+    w = np.linalg.eigvalsh(M_rest)
+    out = np.empty((len(M_rest), len(forms.info)))
+    woodbury = p > 3 and forms.quad is not None
+    if woodbury:
+        fast = w[:, 0] > WOODBURY_MIN_RATIO * w[:, -1]
+    else:
+        # lambda_min(M_c) >= lambda_min(M_rest), lambda_max(M_c) <= trace(M_rest) + max trace(P_c): where that ratio
+        # clears DIRECT_MIN_RATIO, no candidate is near singular and the adjugate formula serves the whole pool
+        fast = (w[:, 0] > DIRECT_MIN_RATIO * (w.sum(axis=1) + forms.max_trace)) & (p <= 3)
+    G = vech(Xt.T @ Xt)
+    # one M_rest at a time: the pool's temporaries stay in cache (a batch's would not)
+    for i in range(len(M_rest)):
+        if not fast[i]:
+            out[i] = _direct_scores(forms, M_rest[i], Xt)
+        elif woodbury:
+            out[i] = _woodbury_scores(forms, M_rest[i], Xt)
+        else:
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                out[i] = _inverse_traces(vech(M_rest[i])[:, None] + forms.vech, G, p, norm=False)[0]
+    return out
 
 
 def _woodbury_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """The Woodbury path of :func:`exchange_scores` for one M_rest (p, p) -> (K,)."""
     R = np.linalg.inv(M_rest)
     W = Xt.T @ Xt
     RWR = R @ W @ R
     d = forms.d
-    SG = (forms.quad @ np.column_stack([vech(R), vech(RWR)])).reshape(-1, d * (d + 1) // 2, 2)
+    SG = (np.stack([vech(R), vech(RWR)]) @ forms.quad).reshape(2, d * (d + 1) // 2, -1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.trace(W @ R) - _inverse_traces(SG[..., 0] + vech(np.eye(d)), SG[..., 1], d, norm=False)[0]
+        return np.trace(W @ R) - _inverse_traces(SG[0] + vech(np.eye(d))[:, None], SG[1], d, norm=False)[0]
 
 
 def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """The direct path of :func:`exchange_scores` for one M_rest (p, p) that may leave candidates near
+    singular: each candidate checked, those near singular by the general path. Returns (K,)."""
     p = M_rest.shape[-1]
-    Mc = vech(M_rest) + forms.vech
-    w = np.linalg.eigvalsh(M_rest)
-    # lambda_min(M_c) >= lambda_min(M_rest) and lambda_max(M_c) <= trace(M_rest) + max trace(P_c): when that
-    # ratio clears DIRECT_MIN_RATIO, no candidate is near singular and the check per candidate is skipped
-    safe = w[0] > DIRECT_MIN_RATIO * (w.sum() + forms.max_trace)
+    Mc = vech(M_rest)[:, None] + forms.vech  # (p(p+1)/2, K)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         try:
-            val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p, norm=not safe)
-            if safe:
-                return val
-            trace = Mc[:, [i for i, (r, c) in enumerate(zip(*np.triu_indices(p))) if r == c]].sum(axis=1)
-            ok = np.isfinite(val) & (1.0 / (inv_norm * trace) > DIRECT_MIN_RATIO)
+            val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p)
+            r, c = np.triu_indices(p)
+            ok = np.isfinite(val) & (1.0 / (inv_norm * Mc[r == c].sum(axis=0)) > DIRECT_MIN_RATIO)
         except np.linalg.LinAlgError:  # LU met an exactly singular candidate: all by the general path
-            val, ok = np.zeros(len(Mc)), np.zeros(len(Mc), bool)
+            val, ok = np.zeros(Mc.shape[1]), np.zeros(Mc.shape[1], bool)
     if not ok.all():
         val = np.array(val, float)
         val[~ok] = _general_scores(M_rest[None] + forms.info[~ok], Xt)
@@ -266,30 +288,55 @@ class ExchangeResult:
     starts: int
 
 
-def _exchange_loop(score, value_of, slot_P, slot_X, slot_idx, pool_P, pool_X, max_passes: int):
-    """Fedorov's exchange on the slots of one plan (the engine of :func:`exchange` and
-    :func:`fedorov_exchange`). slot_P (m, p, p), slot_X (m, d, p) or None and slot_idx (m,) (pool index, or
-    -1 for a starting pose outside the pool) describe the plan and are updated in place;
-    ``score(j, M_rest)`` gives the loss of the plan with slot j replaced by every candidate; the best (the
-    first of those within a relative 1e-12 of it, so that exact ties such as symmetric copies do not hang
-    on round-off) is taken when it lowers the loss by a relative 1e-12; passes repeat until none does.
-    Returns the loss."""
-    m = len(slot_P)
-    best = float(value_of(slot_P, slot_X))
-    for _ in range(max_passes):
-        changed = False
-        for j in range(m):
-            vals = score(j, np.delete(slot_P, j, axis=0).sum(axis=0))
-            low = np.min(vals)  # ties (symmetric copies: the same information) go to the first candidate
-            c = int(np.argmax(vals <= low + 1e-12 * abs(low)))
-            if vals[c] < best * (1 - 1e-12) - 1e-300:
-                best = float(vals[c])
-                slot_P[j], slot_idx[j] = pool_P[c], c
-                if slot_X is not None:
-                    slot_X[j] = pool_X[c]
-                changed = True
-        if not changed:
+def _exchange_loop(score, best, slot_P, slot_idx, pool_P, max_passes: int, slot_X=None, pool_X=None) -> np.ndarray:
+    """Fedorov's exchange of S plans in lockstep (the engine of :func:`exchange_plans` and
+    :func:`fedorov_exchange`). slot_P (S, m, p, p), slot_X (S, m, d, p) or None and slot_idx (S, m) (pool
+    index, or -1 for a starting pose outside the pool) describe the plans and are updated in place; best (S,)
+    are their losses. Each plan visits its slots in turn (at most ``max_passes`` passes) until m visits in
+    a row change nothing; at a visit to slot j, ``score(plans, slots, M_rest)`` gives, for each plan due a
+    scoring (one row each; M_rest (S', p, p) the information of its other poses), the loss with slot j
+    replaced by every candidate; the plans share each step's bookkeeping (M_rest and the best candidates in
+    vectorised form, not a Python step per plan and slot). The best candidate (the first of those within a
+    relative 1e-12 of it, so that exact ties such as symmetric copies do not hang on round-off) is taken
+    when it lowers the loss by a relative 1e-12. Returns the losses (S,).
+
+    A slot holding the same pool point as one visited since the plan's last change has the same other poses'
+    information, hence the same scores and no improvement: it is not rescored (so a plan of m poses at k
+    distinct points costs k scorings a pass once it has converged)."""
+    S, m = slot_idx.shape
+    best = np.array(best, float)
+    t, unchanged, checked = np.zeros(S, int), np.zeros(S, int), [set() for _ in range(S)]
+    end = max_passes * m
+    due = list(range(S))
+    while due:
+        now = []
+        for s in due:
+            while t[s] < end and unchanged[s] < m and slot_idx[s, t[s] % m] in checked[s]:
+                unchanged[s] += 1
+                t[s] += 1
+            if t[s] < end and unchanged[s] < m:
+                now.append(s)
+        if not now:
             break
+        js = t[now] % m
+        keep = np.arange(m) != js[:, None]  # the other slots (a zero term leaves a sum unchanged)
+        M_rest = np.einsum("sm,smij->sij", keep.astype(float), slot_P[now])
+        vals = score(np.array(now), js, M_rest)
+        low = np.min(vals, axis=1, keepdims=True)  # ties (symmetric copies: the same information) go to the first
+        cs = np.argmax(vals <= low + 1e-12 * np.abs(low), axis=1)
+        for v, c, s, j in zip(vals[np.arange(len(now)), cs], cs, now, js):
+            if v < best[s] * (1 - 1e-12) - 1e-300:
+                best[s] = v
+                slot_P[s, j], slot_idx[s, j] = pool_P[c], c
+                if slot_X is not None:
+                    slot_X[s, j] = pool_X[c]
+                unchanged[s], checked[s] = 1, {c}
+            else:
+                unchanged[s] += 1
+                if slot_idx[s, j] >= 0:
+                    checked[s].add(int(slot_idx[s, j]))
+            t[s] += 1
+        due = now
     return best
 
 
@@ -323,64 +370,101 @@ def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: b
         inits.append(np.array(chosen))
     if not inits:
         raise ValueError("fedorov_exchange needs at least one start (starts, n_starts or greedy)")
-    results = []
-    for idx in inits:
-        idx = idx.copy()
-        slot_P = forms.info[idx].copy()
-        val = _exchange_loop(lambda j, M_rest: exchange_scores(forms, M_rest, Xt),
-                             lambda P, _: _general_scores(P.sum(axis=0)[None], Xt)[0],
-                             slot_P, None, idx, forms.info, None, max_passes)
-        results.append((val, np.sort(idx)))
-    best = min(range(len(results)), key=lambda i: results[i][0])
-    return ExchangeResult(results[best][1], float(results[best][0]), len(inits))
+    idx = np.array(inits, int)
+    slot_P = forms.info[idx]
+    vals = _exchange_loop(lambda _, __, M_rest: exchange_scores(forms, M_rest, Xt),
+                          _general_scores(slot_P.sum(axis=1), Xt), slot_P, idx, forms.info, max_passes)
+    best = int(np.argmin(vals))  # the first on ties
+    return ExchangeResult(np.sort(idx[best]), float(vals[best]), len(inits))
 
 
 #: criteria whose exchange step is scored by :func:`exchange_scores` (L-optimality: W = A_t^T A_t or I)
 L_OPTIMAL = ("ot", "a")
 
 
-def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
-             forms: PoolForms | None = None, scores=None):
-    """Fedorov exchange of an m-pose plan (m, n) [rad] over a pool (N, n) with rows pool_A (N, d, n).
+def exchange_plans(problem: Problem, plans: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
+                   forms: PoolForms | None = None, scores=None) -> tuple[np.ndarray, np.ndarray]:
+    """Fedorov exchange of S plans of m poses (S, m, n) [rad] over a pool (N, n) with rows pool_A (N, d, p),
+    in lockstep (:func:`_exchange_loop`; each plan exactly as alone).
 
-    O_t and A-optimality are scored by :func:`exchange_scores` (``scores``: another function of the same
-    signature, e.g. :func:`stiffcal.reference.general_exchange_scores` in the tests; forms: the pool's
-    :func:`pool_forms`, computed here when not given); other criteria from the information matrices
+    O_t and A-optimality are scored by :func:`exchange_scores` (``scores``: another function of its
+    single-M_rest signature, e.g. :func:`stiffcal.reference.general_exchange_scores` in the tests; forms: the
+    pool's :func:`pool_forms`, computed here when not given); other criteria from the information matrices
     ``M_rest + A_c^T A_c`` of every candidate, and G-optimality, which needs the rows themselves, stacks them.
-    Returns the improved plan and its loss.
+    Returns the improved plans (S, m, n) and their losses (S,).
     """
-    m = plan.shape[0]
-    d, n = pool_A.shape[-2:]
+    plans = np.asarray(plans, float)
+    S, m = plans.shape[:2]
+    d, p = pool_A.shape[-2:]
     key = problem.criterion
-    A = _plan_A(problem, plan)  # (m, d, n)
+    A = _plan_A(problem, plans)  # (S, m, d, p)
     slot_P = pose_information(A)
-    idx = np.full(m, -1)
+    idx = np.full((S, m), -1)
     if key in L_OPTIMAL:
         forms = forms or pool_forms(pool_A)
-        Xt, s2 = (problem.At, problem.sigma**2) if key == "ot" else (np.eye(n), 1.0)
-        scores = scores or exchange_scores
+        Xt, s2 = (problem.At, problem.sigma**2) if key == "ot" else (np.eye(p), 1.0)
 
-        def score(j, M_rest):
-            return s2 * scores(forms, M_rest, Xt)
+        def score(_, __, M_rest):
+            if scores is None:
+                return s2 * exchange_scores(forms, M_rest, Xt)
+            return s2 * np.stack([scores(forms, M, Xt) for M in M_rest])
         pool_P = forms.info
     else:
         pool_P = pose_information(pool_A)
 
-        def score(j, M_rest):
-            rows = None
-            if key == "g":
-                others = np.delete(A, j, axis=0)
-                rows = np.concatenate([np.broadcast_to(others.reshape(1, -1, n), (len(pool), (m - 1) * d, n)),
-                                       pool_A], axis=1)
-            return criteria.loss_from_info(key, M_rest[None] + pool_P, m, problem.At, problem.sigma, rows)
+        def score(ss, js, M_rest):
+            out = []
+            for s, j, M in zip(ss, js, M_rest):
+                rows = None
+                if key == "g":
+                    others = np.delete(A[s], j, axis=0)
+                    rows = np.concatenate([np.broadcast_to(others.reshape(1, -1, p), (len(pool), (m - 1) * d, p)),
+                                           pool_A], axis=1)
+                out.append(criteria.loss_from_info(key, M[None] + pool_P, m, problem.At, problem.sigma, rows))
+            return np.stack(out)
 
-    best = _exchange_loop(score, lambda P, X: criteria.loss(key, X.reshape(m * d, n), m, problem.At, problem.sigma),
-                          slot_P, A, idx, pool_P, pool_A, max_passes)
-    plan = np.where((idx >= 0)[:, None], pool[np.maximum(idx, 0)], plan)
-    return plan, best
+    start = [criteria.loss(key, a.reshape(m * d, p), m, problem.At, problem.sigma) for a in A]
+    best = _exchange_loop(score, start, slot_P, idx, pool_P, max_passes, A, pool_A)
+    return np.where((idx >= 0)[..., None], pool[np.maximum(idx, 0)], plans), best
 
 
-#: step of the central differences in the polish [rad]: truncation ~ h^2, round-off ~ 1e-16 / h
+def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
+             forms: PoolForms | None = None, scores=None):
+    """Fedorov exchange of one m-pose plan (m, n) [rad] (:func:`exchange_plans`). Returns the improved plan
+    and its loss."""
+    plans, best = exchange_plans(problem, plan[None], pool, pool_A, max_passes, forms, scores)
+    return plans[0], float(best[0])
+
+
+def l_criterion_gradient(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None,
+                         h: float = 1e-5) -> tuple[float, np.ndarray]:
+    """The loss of an L-optimality criterion (O_t, eq. 16, or A) of plan (m, n) [rad] and its gradient with
+    respect to the free joint angles (m, n_free) [per rad].
+
+    With the plan's information ``M = sum_i A_i^T A_i`` and ``loss = s^2 trace(W M^-1)`` (O_t: W = A_t^T A_t,
+    s = sigma; A: W = I, s = 1), ``d loss / d q_ij = -2 s^2 sum((A_i B) * dA_i/dq_ij)`` with
+    ``B = M^-1 W M^-1`` (Magnus & Neudecker, Matrix Differential Calculus, ch. 8), so one evaluation of the
+    observation rows at the m poses and at each pose with one joint moved by +-h (a central difference of
+    the rows, error about h^2) gives the whole gradient, whatever m. The loss is :func:`plan_loss`'s (+inf
+    for a singular plan, with a zero gradient)."""
+    m, n = plan.shape
+    js = np.flatnonzero(np.ones(n, bool) if free is None else free)
+    E = np.zeros((len(js), 1, n))
+    E[np.arange(len(js)), 0, js] = h
+    R = problem.rows(np.concatenate([plan[None], plan + E, plan - E]))  # (1 + 2 f, m, d, p)
+    A = R[0]
+    loss = float(criteria.loss(problem.criterion, A.reshape(-1, A.shape[-1]), m, problem.At, problem.sigma))
+    if not np.isfinite(loss):
+        return loss, np.zeros((m, len(js)))
+    dA = (R[1:1 + len(js)] - R[1 + len(js):]) / (2 * h)
+    W, s2 = (problem.At.T @ problem.At, problem.sigma**2) if problem.criterion == "ot" else (np.eye(A.shape[-1]), 1.0)
+    Minv = np.linalg.inv(np.einsum("mdi,mdj->ij", A, A))
+    AB = A @ (Minv @ W @ Minv)
+    return loss, -2.0 * s2 * np.einsum("fmdp,mdp->mf", dA, AB)
+
+
+#: step of the central differences in the polish of criteria other than O_t and A [rad]: truncation ~ h^2,
+#: round-off ~ 1e-16 / h
 POLISH_STEP_RAD = 1e-6
 #: the early stop of the first polish of every exchanged plan, and how many of them are polished to the end
 ROUGH_POLISH = dict(maxiter=300, ftol=1e-12, gtol=1e-8)
@@ -389,7 +473,11 @@ N_FINISH = 4
 
 def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, rough: bool = False):
     """L-BFGS-B on the free joint angles of every pose of plan (m, n) [rad]. Returns (plan, loss).
-    rough: stop early (:data:`ROUGH_POLISH`), to rank plans before the full polish of the best."""
+
+    O_t and A use their gradient (:func:`l_criterion_gradient`: one batched evaluation of the rows per step,
+    whatever m); the other criteria central differences of the 2 m n + 1 plans in one batch. The loss is
+    taken relative to the start's, so that the tolerances do not depend on the unit of sigma (O_t ~
+    sigma^2). rough: stop early (:data:`ROUGH_POLISH`), to rank plans before the full polish of the best."""
     m, n = plan.shape
     free = np.ones(n, bool) if free is None else np.asarray(free, bool)
     lims = problem.robot.joint_limits_rad
@@ -408,7 +496,11 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
         return plan, f0
     steps = POLISH_STEP_RAD * np.vstack([np.eye(z0.size), -np.eye(z0.size)])
 
-    def f_and_gradient(z):
+    def analytic(z):
+        val, g = l_criterion_gradient(problem, full(z), free)
+        return val / f0, g.ravel() / f0
+
+    def differences(z):
         """The loss relative to the start's (so that gtol does not depend on the unit of sigma; O_t ~
         sigma^2) and its central-difference gradient, all 2 m n + 1 plans evaluated in one batch."""
         zs = np.vstack([z, z + steps])
@@ -424,8 +516,8 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
         return float(v[0]), np.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0)
 
     bounds = [(None, None) if _is_full_turn(*lims[j]) else tuple(lims[j]) for j in np.flatnonzero(free)] * m
-    res = minimize(f_and_gradient, z0, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options=ROUGH_POLISH if rough else dict(maxiter=2000, ftol=1e-15, gtol=1e-9))
+    res = minimize(analytic if problem.criterion in L_OPTIMAL else differences, z0, jac=True, method="L-BFGS-B",
+                   bounds=bounds, options=ROUGH_POLISH if rough else dict(maxiter=2000, ftol=1e-15, gtol=1e-10))
     loss = f(res.x)
     if np.isfinite(loss) and loss <= f0:
         return full(res.x), loss
@@ -523,11 +615,14 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
         pool = candidate_pool(problem.robot, pool_step_deg or default_pool_step(problem.robot.n_joints), problem)
     pool_A = _plan_A(problem, pool)
     inits = [np.radians(np.atleast_2d(s)) for s in (starts or [])]
+    for i, init in enumerate(inits):
+        if init.shape != (m, problem.robot.n_joints):
+            raise ValueError(f"starting plan {i} has shape {init.shape}, expected ({m}, {problem.robot.n_joints})")
     inits += [pool[rng.choice(len(pool), m, replace=len(pool) < m)] for _ in range(n_starts)]
     forms = pool_forms(pool_A) if problem.criterion in L_OPTIMAL else None
-    exchanged = [exchange(problem, init, pool, pool_A, forms=forms, scores=scores) for init in inits]
-    order = np.argsort([v for _, v in exchanged], kind="stable")[:n_polish or len(exchanged)]
-    rough = [polish(problem, exchanged[i][0], free, rough=True) for i in order]
+    plans, losses = exchange_plans(problem, np.stack(inits), pool, pool_A, forms=forms, scores=scores)
+    order = np.argsort(losses, kind="stable")[:n_polish or len(plans)]
+    rough = [polish(problem, plans[i], free, rough=True) for i in order]
     finish = np.argsort([v for _, v in rough], kind="stable")[:N_FINISH]
     results = [polish(problem, rough[i][0], free)[::-1] for i in finish]
     vals = np.array([r[0] for r in results])
