@@ -54,8 +54,10 @@ def copy_workflow(dest: Path) -> None:
 
 def export_commit(ref: str, dest: Path) -> None:
     """The workflow and src/ of the git commit ``ref`` into ``dest`` (git archive: no checkout)."""
-    archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref, *WORKFLOW, "src"], check=True,
-                             capture_output=True).stdout
+    res = subprocess.run(["git", "-C", str(ROOT), "archive", ref, *WORKFLOW, "src"], capture_output=True)
+    if res.returncode != 0:
+        sys.exit(f"--baseline {ref}: git archive failed: {res.stderr.decode(errors='replace').strip()}")
+    archive = res.stdout
     subprocess.run(["tar", "-x", "-C", str(dest)], input=archive, check=True)
     shutil.rmtree(dest / "paper" / "build", ignore_errors=True)
 
@@ -88,6 +90,9 @@ def main() -> int:
     ap.add_argument("--configfile", help="a config replacing config/config.yaml (default: the default pipeline)")
     ap.add_argument("--keep", help="run in this directory (created) and keep it")
     args = ap.parse_args()
+    if args.baseline and subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--verify", "--quiet",
+                                         f"{args.baseline}^{{commit}}"], capture_output=True).returncode != 0:
+        sys.exit(f"--baseline {args.baseline}: not a commit of {ROOT}")
     wd = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="stiffcal-bench-"))
     wd.mkdir(parents=True, exist_ok=True)
     copy_workflow(wd)
