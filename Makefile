@@ -48,12 +48,14 @@ lint: $(TSTAMP)
 	$(BIN)/snakemake --lint
 	$(BIN)/ruff check src tests benchmarks tools workflow/scripts
 
+# the whole pipeline beside the commit before issue 16's cuts of its CPU (both run from scratch: about 3 minutes)
+PIPELINE_BASELINE ?= 863eed4
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plans.py
 	$(BIN)/python benchmarks/bench_maps.py
 	$(BIN)/python benchmarks/bench_spatial.py
 	$(BIN)/python benchmarks/bench_urdf.py
-	$(BIN)/python benchmarks/bench_pipeline.py
+	$(BIN)/python benchmarks/bench_pipeline.py --baseline $(PIPELINE_BASELINE)
 
 # Regenerate src/stiffcal/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.
 derive: $(STAMP)

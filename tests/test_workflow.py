@@ -145,7 +145,9 @@ REPORT = {"report_html": 1, "report_pdf": 1}
 
 @pytest.mark.parametrize("what,edit,expected", [
     ("one design study's force", lambda c: c["studies"][1].update(force_N=[100, 50, -150]),
-     {"study_design": 1, "study_plan": 2, "study_summary": 1, **REPORT}),
+     {"study_design": 1, "study_plans": 1, "study_summary": 1, **REPORT}),
+    ("one design study's M values", lambda c: c["studies"][1].update(m_values=[1, 2, 3]),
+     {"study_plans": 1, "study_summary": 1, **REPORT}),
     ("one map's ratio", lambda c: c["maps"]["studies"][1].update(link_ratio=0.25),
      {"map_tile": 2, "map_merge": 1, "map_statistics": 1, "map_figures": 1, **REPORT}),
     ("the test pose", lambda c: c["study"].update(test_pose_deg=[50, 40]),

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import re
 from functools import lru_cache
 from pathlib import Path
 
@@ -51,6 +52,12 @@ def imported_modules(node: ast.AST) -> set[str]:
     return {m for m in out if _is_module(m)}
 
 
+@lru_cache(maxsize=None)
+def _module_imports(module: str) -> frozenset[str]:
+    """The ``stiffcal`` modules that ``module`` imports anywhere (parsed once per Snakefile parse)."""
+    return frozenset(imported_modules(_source(module)[1]))
+
+
 def module_closure(modules) -> set[str]:
     """``modules`` and every ``stiffcal`` module they import, transitively."""
     seen: set[str] = set()
@@ -59,7 +66,7 @@ def module_closure(modules) -> set[str]:
         m = todo.pop()
         if m not in seen:
             seen.add(m)
-            todo += imported_modules(_source(m)[1])
+            todo += _module_imports(m)
     return seen
 
 
@@ -75,10 +82,23 @@ def _definitions(tree: ast.Module) -> dict[str, ast.AST]:
     return out
 
 
+@lru_cache(maxsize=None)
+def _pipeline_definitions() -> dict[str, ast.AST]:
+    return _definitions(_source("pipeline")[1])
+
+
+@lru_cache(maxsize=None)
+def _definition_uses(name: str) -> tuple[frozenset[str], frozenset[str]]:
+    """(pipeline definitions that the definition ``name`` refers to, stiffcal modules it imports)."""
+    defs = _pipeline_definitions()
+    node = defs[name]
+    refs = frozenset(n.id for n in ast.walk(node) if isinstance(n, ast.Name) and n.id in defs)
+    return refs, frozenset(imported_modules(node))
+
+
 def step_closure(steps) -> tuple[list[str], set[str]]:
     """(pipeline definitions used, stiffcal modules imported) by the pipeline functions ``steps``."""
-    text, tree = _source("pipeline")
-    defs = _definitions(tree)
+    defs = _pipeline_definitions()
     missing = [s for s in steps if s not in defs]
     if missing:
         raise KeyError(f"stiffcal.pipeline has no step {missing[0]!r}")
@@ -90,20 +110,38 @@ def step_closure(steps) -> tuple[list[str], set[str]]:
         if name in used:
             continue
         used.add(name)
-        node = defs[name]
-        modules |= imported_modules(node)
-        todo += [n.id for n in ast.walk(node) if isinstance(n, ast.Name) and n.id in defs and n.id not in used]
+        refs, imported = _definition_uses(name)
+        modules |= imported
+        todo += [n for n in refs if n not in used]
     return sorted(used), module_closure(modules)
 
 
+@lru_cache(maxsize=None)
+def _segment(name: str) -> str:
+    """The source text of the pipeline definition ``name`` (what ``ast.get_source_segment`` gives)."""
+    text = _source("pipeline")[0]
+    node = _pipeline_definitions()[name]
+    lines = _lines(text)
+    first, last = node.lineno - 1, node.end_lineno - 1
+    if first == last:
+        return lines[first].encode()[node.col_offset:node.end_col_offset].decode()
+    return "".join([lines[first].encode()[node.col_offset:].decode(), *lines[first + 1:last],
+                    lines[last].encode()[:node.end_col_offset].decode()])
+
+
+@lru_cache(maxsize=None)
+def _lines(text: str) -> list[str]:
+    """``text`` split after every line end (``\\r\\n``, ``\\r`` or ``\\n``, as Python's parser counts lines)."""
+    return re.findall(r"[^\r\n]*(?:\r\n|\r|\n)|[^\r\n]+$", text)
+
+
+@lru_cache(maxsize=None)
 def code_version(*steps: str) -> str:
     """12 hex digits of SHA-256 over the code that the pipeline functions ``steps`` run (module docstring)."""
-    text, tree = _source("pipeline")
-    defs = _definitions(tree)
     used, modules = step_closure(steps)
     h = hashlib.sha256()
     for name in used:
-        h.update(f"pipeline.{name}\0{ast.get_source_segment(text, defs[name])}\0".encode())
+        h.update(f"pipeline.{name}\0{_segment(name)}\0".encode())
     for m in sorted(modules):
         h.update(f"{m}\0{_source(m)[0]}\0".encode())
     return h.hexdigest()[:12]

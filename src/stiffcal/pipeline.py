@@ -103,10 +103,14 @@ def chi_map(p: dict, robot: str, out_csv: str) -> None:
 
 
 def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str, out_certificate_csv: str,
-                       out_phi_csv: str | None = None, name: str | None = None) -> None:
+                       out_phi_csv: str | None = None, name: str | None = None,
+                       out_pool_npy: str | None = None) -> None:
     """The optimal approximate design for O_t and its certificate (one run serves every m), for the paper's
     study (p = test_pose_deg, force_N, sigma_m, pool_step_deg; also the phi map of the design figure) or,
-    with ``name``, for the design study of that name (p = its entry)."""
+    with ``name``, for the design study of that name (p = its entry). ``out_pool_npy``: also the candidate pool
+    of the plans (:func:`stiffcal.certificate.candidate_pool` at the default step, the pool
+    :func:`stiffcal.plans.optimise_plan` builds), for the study's plans job (:func:`study_plans`), which then
+    does not build it again."""
     import json
 
     from . import tables
@@ -114,6 +118,8 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
     from .integrity import atomic_write
 
     study = _study(p, robot)
+    if out_pool_npy:
+        _save_pool(out_pool_npy, study)
     _log(f"approximate design for {name or 'the paper study'} ({study.robot.n_joints} joints): multiplicative "
          "algorithm, polish, equivalence-theorem bound")
     d = compute(study.problem("ot"), pool_step_deg=p.get("pool_step_deg"))
@@ -129,6 +135,37 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
                                        "iterations": d.iterations}, indent=1) + "\n")
 
 
+def _save_pool(path: str, study) -> None:
+    """The candidate pool of the study's plans (N, n) [rad] as one .npy file (exact float64)."""
+    import io
+
+    import numpy as np
+
+    from .certificate import candidate_pool, default_pool_step
+    from .integrity import atomic_write
+
+    robot = study.robot
+    buf = io.BytesIO()
+    np.save(buf, candidate_pool(robot, default_pool_step(robot.n_joints), study.problem("ot")), allow_pickle=False)
+    atomic_write(path, buf.getvalue())
+
+
+def _pool(path: str, n_joints: int):
+    """The candidate pool written by :func:`_save_pool`; InputError naming the file when it is not one."""
+    import numpy as np
+
+    from .errors import InputError
+
+    try:
+        pool = np.load(path, allow_pickle=False)
+    except (OSError, ValueError) as err:
+        raise InputError(f"expected a candidate pool (.npy), could not read it: {err}", source=path) from None
+    if pool.ndim != 2 or pool.shape[1] != n_joints or not np.isfinite(pool).all():
+        raise InputError(f"expected a candidate pool of finite poses (N, {n_joints}), got shape {pool.shape}",
+                         source=path)
+    return pool
+
+
 def _design(path: str):
     import json
 
@@ -141,31 +178,38 @@ def _design(path: str):
                              d["phi_lower"], d["iterations"])
 
 
-def study_plan(p: dict, robot: str, m: int, seed: int, design_json: str, out_csv: str) -> None:
-    """One row of a design study: the best m-pose plan, its O_t, chi, bound and gap; p = the study's entry."""
+def study_plans(p: dict, robot: str, m_values: list[int], seed: int, design_json: str, pool_npy: str,
+                out_csv: str) -> None:
+    """A design study's best plan for every M of ``m_values``, one row each (sorted by M): its O_t, chi, bound,
+    gap and poses (:func:`stiffcal.tables.best_plan_row`); p = the study's entry. One job for every M: the
+    design and the candidate pool (pool_npy, written by the study's design job) are read once."""
     import pandas as pd
 
     from . import tables
 
     study = _study(p, robot)
-    _log(f"{p['name']}: best plan of {m} poses")
-    row = tables.best_plan_row(study, m, seed, _design(design_json))
-    _log(f"{p['name']}: m = {m}, O_t = {row['O_t']:.6g} (RMS {row['rms_m']:.4g}), bound {row['lower_bound']:.6g}, "
-         f"gap {100 * row['gap']:.2f} %, within limits: {row['within_limits']}")
-    _write(pd.DataFrame([row]), out_csv)
+    design = _design(design_json)
+    pool = _pool(pool_npy, study.robot.n_joints)
+    rows = []
+    for m in sorted(int(m) for m in m_values):
+        _log(f"{p['name']}: best plan of {m} poses")
+        row = tables.best_plan_row(study, m, seed, design, pool=pool)
+        _log(f"{p['name']}: m = {m}, O_t = {row['O_t']:.6g} (RMS {row['rms_m']:.4g}), bound "
+             f"{row['lower_bound']:.6g}, gap {100 * row['gap']:.2f} %, within limits: {row['within_limits']}")
+        rows.append(row)
+    _write(pd.DataFrame(rows), out_csv)
 
 
-def study_summary(p: dict, robot: str, plan_csvs: list[str], out_versus_m_csv: str, out_plans_csv: str,
+def study_summary(p: dict, robot: str, plans_csv: str, out_versus_m_csv: str, out_plans_csv: str,
                   out_plan_png: str, out_versus_m_png: str) -> None:
     """A design study's best plans of every M: versus_m.csv (one row per M: O_t, RMS, chi, bound, gap,
     E[dk_i^2], within limits), plans.csv (long form: plan, m, pose, q1_deg..qn_deg), the plan of ``draw_m``
-    drawn in 3-D and O_t and chi against M. p = the study's entry with draw_m."""
-    import pandas as pd
-
+    drawn in 3-D and O_t and chi against M. p = the study's entry with draw_m; plans_csv: the rows of
+    :func:`study_plans`."""
     from . import plots, tables
 
     study = _study(p, robot)
-    df = pd.concat([_read(c) for c in plan_csvs]).sort_values("m", kind="stable").reset_index(drop=True)
+    df = _read(plans_csv)
     plans = {("best", int(r.m)): tables.parse_plan(r.poses_deg) for r in df.itertuples()}
     m = int(p["draw_m"])
     fig_plan = plots.fig_study_plan(study, plans[("best", m)], m)
@@ -229,28 +273,40 @@ def _map_study(p: dict):
 def map_tile(p: dict, tile: int, out_npz: str) -> None:
     """One job of a map (Figures 6-10): the symmetry classes of tile ``tile``, every member cell written to a
     tile file (binary, layout in :mod:`stiffcal.maps`); p = name, link_ratio, figure, step_deg, force_deg,
-    tile_cells."""
+    tile_cells. Used when the map has more than one tile (:func:`map_merge` computes a map of one tile)."""
+    from . import maps
+
+    maps.save_arrays(out_npz, _map_tile_arrays(_map_study(p), tile))
+
+
+def _map_tile_arrays(st, tile: int) -> dict:
+    """The arrays of tile ``tile`` of the map study ``st`` (:func:`stiffcal.maps.map_tile`), logged."""
     import numpy as np
 
     from . import maps
 
-    st = _map_study(p)
     _log(f"map {st.name} (b = {st.link_ratio:.4g}, step {st.step_deg:g} deg): tile {tile + 1} of {st.n_tiles}")
     arrays = maps.map_tile(st.link_ratio, st.force_deg, st.step_deg, st.tile_cells, tile,
                            progress=maps.log_progress(f"map {st.name} tile {tile + 1}"))
     counts = np.bincount(arrays["status"], minlength=len(maps.STATUS))
     _log(f"map {st.name} tile {tile + 1}: "
          + ", ".join(f"{maps.STATUS[k]} {c}" for k, c in enumerate(counts) if c))
-    maps.save_arrays(out_npz, arrays)
+    return arrays
 
 
 def map_merge(p: dict, tile_npzs: list[str], out_npz: str, out_csv: str) -> None:
     """results/maps/<study>/map.npz (for the other jobs) and map.csv (for users) from its tiles, checked
-    complete; p = the map study."""
+    complete; p = the map study. A map of one tile is computed here (``tile_npzs`` empty): one job instead of
+    a tile job, its tile file and this job."""
     from . import maps
 
     st = _map_study(p)
-    tiles = [maps.load_arrays(f, maps.TILE_ARRAYS) for f in tile_npzs]
+    if tile_npzs:
+        tiles = [maps.load_arrays(f, maps.TILE_ARRAYS) for f in tile_npzs]
+    elif st.n_tiles == 1:
+        tiles = [_map_tile_arrays(st, 0)]
+    else:
+        raise ValueError(f"map {st.name} has {st.n_tiles} tiles and none was given")
     mp = maps.merge_tiles(tiles, st.link_ratio, st.force_deg, st.step_deg)
     _log(f"map {st.name}: {mp.O_t.size} cells, O_t in [{mp.O_t.min():.4g}, {mp.O_t.max():.4g}]")
     maps.save_map(out_npz, mp)
@@ -369,8 +425,8 @@ REPORT_RULES = {
     "map_statistics": "map_tile + map_merge + map_statistics", "fig6": "map_tile + map_merge + map_figures",
     "fig_map": "map_tile + map_merge + map_figures", "fig_map_pairs": "map_pairs + map_figures",
     "discrepancy": "discrepancy", "discriminate": "discriminate",
-    "study_design": "study_design", "study_plans": "study_design + study_plan + study_summary",
-    "fig_study_plan": "study_plan + study_summary", "fig_study_versus_m": "study_plan + study_summary"}
+    "study_design": "study_design", "study_plans": "study_design + study_plans + study_summary",
+    "fig_study_plan": "study_plans + study_summary", "fig_study_versus_m": "study_plans + study_summary"}
 REPORT_TABLES = ("table2", "table3", "table4", "table5", "design", "certificate", "ot_versus_m", "comparison",
                  "validation", "map_statistics")
 REPORT_FIGURES = ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m", "fig6", "fig7", "fig8", "fig9", "fig10",
@@ -472,6 +528,8 @@ def run(snakemake, step, *args) -> None:
     from . import integrity
     from .errors import InputError
 
+    import os
+
     before_step = time.process_time()
     integrity.watch_parent()
     log = Path(snakemake.log[0]) if snakemake.log else None
@@ -493,3 +551,9 @@ def run(snakemake, step, *args) -> None:
                       f"(traceback in {log})", file=sys.stderr)
                 sys.exit(1)
             print(cpu_line(snakemake.rule, dict(snakemake.wildcards.items()), before_step), flush=True)
+    # The job is complete: its outputs are written (atomically) and recorded, its log closed. End the process
+    # here, without the interpreter's teardown (freeing every module and object it loaded: 0.05-0.2 s of CPU a
+    # job, a tenth of the whole pipeline's start-ups); nothing runs after the step in a Snakemake script.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(0)

@@ -22,11 +22,39 @@ FLOAT_FORMAT = "%.10g"
 
 def write_csv(df: pd.DataFrame, path: str | Path) -> None:
     """Write a table deterministically (fixed float format, no index, '\\n' line ends) and atomically (a
-    temporary file moved into place when complete)."""
+    temporary file moved into place when complete). Tables of float64 and int64 columns only (the maps, 10^5
+    rows and more) are formatted by :func:`_numeric_csv`, byte for byte what ``DataFrame.to_csv`` writes, three
+    times faster; any other table by pandas."""
     from .integrity import atomic_path
 
+    text = _numeric_csv(df)
     with atomic_path(path) as tmp:
-        df.to_csv(tmp, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        if text is None:
+            df.to_csv(tmp, index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+        else:
+            tmp.write_text(text, encoding="utf-8")
+
+
+def _numeric_csv(df: pd.DataFrame) -> str | None:
+    """``df.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator='\\n')`` as text for a table whose
+    columns are all float64 or int64 and whose column names need no quoting (NaN as an empty field, as pandas
+    writes it), one %-format per column; None for any other table."""
+    names = [str(c) for c in df.columns]
+    if not names or not df.columns.is_unique or any(set(c) & set(',"\n\r') for c in names):
+        return None
+    cols = []
+    for c in df.columns:
+        a = df[c].to_numpy()
+        if a.dtype == np.float64:
+            s = ((FLOAT_FORMAT + "\n") * len(a) % tuple(a.tolist())).split("\n")[:-1]
+            for i in np.flatnonzero(np.isnan(a)).tolist():
+                s[i] = ""
+        elif a.dtype == np.int64:
+            s = ("%d\n" * len(a) % tuple(a.tolist())).split("\n")[:-1]
+        else:
+            return None
+        cols.append(s)
+    return ",".join(names) + "\n" + "".join(",".join(r) + "\n" for r in zip(*cols))
 
 
 def _pose_cols(robot) -> list[str]:
@@ -260,14 +288,15 @@ def certificate_table(design, sigma: float) -> pd.DataFrame:
                           "converged": design.converged}])
 
 
-def best_plan_row(study: Study, m: int, seed: int, design, extra_starts=()) -> dict:
+def best_plan_row(study: Study, m: int, seed: int, design, extra_starts=(), pool=None) -> dict:
     """The best m-pose plan for O_t (plan (iv)) with its criteria and the certified bound, as one row:
     m, O_t (eq. 16), rms_m = sqrt(O_t) (the RMS compensation error at the test pose, in the unit of sigma),
-    chi (eq. 27), lower_bound, gap, E_dk1.. (eq. 11), within_limits, poses_deg. Any robot."""
+    chi (eq. 27), lower_bound, gap, E_dk1.. (eq. 11), within_limits, poses_deg. Any robot. pool: the candidate
+    poses (N, n) [rad] of the exchange (default: :func:`stiffcal.plans.optimise_plan`'s own)."""
     from .plans import design_starts, optimise_plan
 
     prob = study.problem("ot", m)
-    plan = optimise_plan(prob, starts=[*design_starts(prob, design, m), *extra_starts], seed=seed)
+    plan = optimise_plan(prob, pool=pool, starts=[*design_starts(prob, design, m), *extra_starts], seed=seed)
     summ = plan_summary(study, plan.poses_deg)
     bound = design.lower_bound(m, study.sigma)
     row = {"m": m, "O_t": plan.loss, "rms_m": float(np.sqrt(plan.loss)), "chi": float(summ["chi"]),

@@ -56,6 +56,13 @@ def map_params(name):
     return _dc.asdict(MAP_STUDIES[name])
 
 
+def map_tiles(name):
+    """The tile files of a map study, one per `map_tile` job; none for a map of one tile (its `map_merge` job
+    computes it)."""
+    n = MAP_STUDIES[name].n_tiles
+    return [f"{MAPS}/{name}/tiles/{tile}.npz" for tile in range(n)] if n > 1 else []
+
+
 def map_report_inputs(wildcards):
     """The map statistics and Figures 6-10, when the config has map studies."""
     if not MAP_STUDIES:
@@ -134,9 +141,9 @@ def all_outputs(wildcards):
     for name in MEASURED:
         out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg",
                                                              "plan.json", "plan.png", "plan.svg")]
-    for name, entry in STUDIES.items():
-        out += [f"{STUDY_DIR}/{name}/{f}" for f in ("approximate_design.json", "approximate_design.csv")]
-        out += [f"{STUDY_DIR}/{name}/plans/m{m}.csv" for m in entry["m_values"]]
+    for name in STUDIES:
+        out += [f"{STUDY_DIR}/{name}/{f}" for f in ("approximate_design.json", "approximate_design.csv", "pool.npy",
+                                                    "best_plans.csv")]
         out += [f"{FIGURES}/studies/{name}/{f}.png" for f in ("plan", "versus_m")]
     return sorted(set(out))
 

@@ -26,9 +26,11 @@ rule map_tile:
         "../scripts/map_tile.py"
 
 
+# A map of one tile (the default: 1-degree maps have fewer symmetry classes than `maps.tile_cells`) is computed
+# by its map_merge job itself: no tile job, no tile file, one start-up.
 rule map_merge:
     input:
-        tiles=lambda wc: expand(f"{MAPS}/{wc.study}/tiles/{{tile}}.npz", tile=range(MAP_STUDIES[wc.study].n_tiles)),
+        tiles=lambda wc: map_tiles(wc.study),
     output:
         npz=f"{MAPS}/{{study}}/map.npz",
         csv=f"{MAPS}/{{study}}/map.csv",

@@ -1,7 +1,8 @@
 # Design studies (config `studies`): any robot file, planar n-link or spatial. Per study: the optimal
-# approximate design with its certificate, the best plan for every M of `m_values` (one job each), and one
-# job that collects the plans (versus_m.csv: O_t, chi, bound per M; plans.csv: the poses, one row each) and draws the plan in 3-D and O_t and chi
-# against M. Adding a robot is adding its YAML file and an entry.
+# approximate design with its certificate and the candidate pool of its plans (pool.npy), one job for the best
+# plan of every M of `m_values` (best_plans.csv: it reads the design and the pool once), and one job that
+# collects the plans (versus_m.csv: O_t, chi, bound per M; plans.csv: the poses, one row each) and draws the
+# plan in 3-D and O_t and chi against M. Adding a robot is adding its YAML file and an entry.
 
 
 rule study_design:
@@ -12,6 +13,7 @@ rule study_design:
         json=f"{STUDY_DIR}/{{name}}/approximate_design.json",
         support=f"{STUDY_DIR}/{{name}}/approximate_design.csv",
         certificate=f"{STUDY_DIR}/{{name}}/certificate.csv",
+        pool=f"{STUDY_DIR}/{{name}}/pool.npy",
     params:
         study=study_entry,
         code=code_version("approximate_design"),
@@ -23,30 +25,32 @@ rule study_design:
         "../scripts/study_design.py"
 
 
-rule study_plan:
+rule study_plans:
     input:
         robot=lambda wc: STUDIES[wc.name]["robot"],
         urdf=lambda wc: robot_inputs(STUDIES[wc.name]["robot"]),
         design=rules.study_design.output.json,
+        pool=rules.study_design.output.pool,
     output:
-        csv=f"{STUDY_DIR}/{{name}}/plans/m{{m}}.csv",
+        csv=f"{STUDY_DIR}/{{name}}/best_plans.csv",
     params:
         study=study_entry,
+        m_values=lambda wc: STUDIES[wc.name]["m_values"],
         seed=SEED,
-        code=code_version("study_plan"),
+        code=code_version("study_plans"),
     log:
-        f"{LOGS}/studies/{{name}}/plan_m{{m}}.log",
+        f"{LOGS}/studies/{{name}}/plans.log",
     conda:
         ENV
     script:
-        "../scripts/study_plan.py"
+        "../scripts/study_plans.py"
 
 
 rule study_summary:
     input:
         robot=lambda wc: STUDIES[wc.name]["robot"],
         urdf=lambda wc: robot_inputs(STUDIES[wc.name]["robot"]),
-        csvs=lambda wc: expand(f"{STUDY_DIR}/{wc.name}/plans/m{{m}}.csv", m=STUDIES[wc.name]["m_values"]),
+        plans=rules.study_plans.output.csv,
     output:
         versus_m=f"{STUDY_DIR}/{{name}}/versus_m.csv",
         plans=f"{STUDY_DIR}/{{name}}/plans.csv",

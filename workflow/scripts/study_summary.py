@@ -2,5 +2,5 @@
 from stiffcal import pipeline
 
 i, o = snakemake.input, snakemake.output
-pipeline.run(snakemake, pipeline.study_summary, snakemake.params.study, i.robot, list(i.csvs), o.versus_m, o.plans,
+pipeline.run(snakemake, pipeline.study_summary, snakemake.params.study, i.robot, i.plans, o.versus_m, o.plans,
              o.plan_png, o.versus_m_png)
