@@ -973,12 +973,13 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     ranked = sorted(chosen, key=lambda c: (drop_p(c), CAUSES.index(c)))
     indistinct = sorted({c for S in alternatives for c in S} - set(chosen), key=CAUSES.index)
     if sel.unexplained:
-        cause, p_value = "unexplained", sel.adjusted["lack_of_fit"]
+        cause, p_value, p_of = "unexplained", sel.adjusted["lack_of_fit"], ["lack_of_fit"]
     elif ranked:
         cause = ranked[0]
-        p_value = sel.adjusted_p({cause, *[c for c in indistinct]}) if indistinct else sel.adjusted[cause]
+        p_of = [cause, *indistinct]
+        p_value = sel.adjusted_p(p_of) if indistinct else sel.adjusted[cause]
     else:
-        cause, p_value = "none", (sel.adjusted_p(testable) if testable else 1.0)
+        cause, p_value, p_of = "none", (sel.adjusted_p(testable) if testable else 1.0), list(testable)
 
     sigma = float(np.sqrt(noise.s2))
     t = stats.t.isf(0.025, noise.df)
@@ -1001,7 +1002,9 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
                  "adjusted_p_value": sel.adjusted.get(c), "significant": c in sel.declared} for c in CAUSES}
     out = {"cause": cause, "causes": ranked, "indistinguishable_from": indistinct,
            "equivalent_combinations": [sorted(S, key=CAUSES.index) for S in alternatives],
-           "p_value": p_value, "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
+           "p_value": p_value, "p_value_of": p_of,
+           "p_value_statement": p_value_statement(cause, p_of, p_value, sel.adjusted, alpha),
+           "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
            "nominal": nominal, "tests": tests,
            "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
            "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
@@ -1021,6 +1024,31 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
         resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
         out["residual_structure"] = residual_structure(robot, m, resid)
     return out
+
+
+def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dict, alpha: float) -> str:
+    """What the verdict's ``p_value`` is about, in one sentence: the closed-testing adjusted p-value of the
+    intersection "none of ``p_of`` is needed" (the lack of fit for ``unexplained``; every testable cause for
+    ``none``). With several causes in ``p_of`` the data need at least one of them, and each one's own adjusted
+    p-value (``adjusted``, cause -> p) may be large: which one cannot be told apart."""
+    p = f"{p_value:.2g}"
+    if cause == "unexplained":
+        return (f"adjusted p = {p} of 'nothing outside the catalogue is present' (the lack of fit): something the "
+                "catalogue does not describe is left")
+    if cause == "none":
+        return (f"adjusted p = {p} of 'none of the catalogue's causes is needed' (not rejected at alpha = "
+                f"{alpha:g})" if p_of else "no cause of the catalogue can be tested on these data")
+    own = ", ".join(f"{c} {adjusted[c]:.2g}" for c in p_of if adjusted.get(c) is not None)
+    if len(p_of) == 1:
+        text = f"adjusted p = {p} of '{cause} is not needed'"
+        return text + ("" if p_value <= alpha else f": {cause} is the smallest combination that explains the data, "
+                       f"but it is not needed on its own at alpha = {alpha:g}")
+    alone = [c for c in p_of if adjusted.get(c) is not None and adjusted[c] <= alpha]
+    text = (f"the data need at least one of {{{', '.join(p_of)}}} (adjusted p = {p} of 'none of them is needed'); "
+            f"which one cannot be told apart (each one's own adjusted p: {own})")
+    if not alone:
+        text += f"; none of them is needed on its own at alpha = {alpha:g}"
+    return text
 
 
 def _finite(obj, notes: list[str], path: str = ""):
