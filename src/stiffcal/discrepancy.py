@@ -1150,16 +1150,23 @@ def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe:
                   "; measure another quantity, e.g. the position of an intermediate joint")
         return (f"for this robot every {seen} sees {a} and {b} (with the joint compliances) through the same "
                 f"directions, so no choice of poses or forces separates them{advice}")
-    wider, X = (b, A) if nested == (a,) else (a, B)
+    wider = b if nested == (a,) else a
+    # where the predictions differ most, under the loads the lab applies (the data's forces and moments)
+    data_loads = load_of(meas)[rng.integers(0, meas.n_rows, n_probe)]
+    _, X0, A, B = _nested(robot, a, b, q, data_loads, ob)
+    X = A if wider == b else B
     Y = np.hstack([X0, B if X is A else A])  # the larger model; X: the other cause's regressors
     P = (Y - np.hstack([X0, X]) @ np.linalg.lstsq(np.hstack([X0, X]), Y, rcond=None)[0])
     per_pose = np.linalg.norm(P.reshape(n_probe, -1, P.shape[1]), axis=(1, 2))
     i = int(np.argmax(per_pose))
-    fi = f[i, : robot.task_dim]
-    u = fi / np.linalg.norm(fi)
+    fi = data_loads[i, : robot.task_dim]
+    u = fi / np.linalg.norm(fi) if np.any(fi) else fi
     where = (f"at {np.degrees(np.arctan2(u[1], u[0])):.0f} deg" if len(u) == 2 else
              f"along ({', '.join(f'{c:.2f}' for c in u)})")
-    pose = (f"a measurement at q = {np.round(np.degrees(q[i]), 1).tolist()} deg with the force {where} "
+    load = f"the force of {np.linalg.norm(fi):.4g} N {where}"
+    if meas.has_moment:
+        load += f" and the moment ({', '.join(f'{c:.4g}' for c in data_loads[i, robot.task_dim:])}) N m"
+    pose = (f"a measurement at q = {np.round(np.degrees(q[i]), 1).tolist()} deg with {load} (one of the data's loads) "
             f"would{' show ' + wider + ' if it is the cause' if nested else ''} (it is where their predictions "
             "differ most)")
     if not nested:
