@@ -482,3 +482,21 @@ def test_truth_is_the_verdicts_combination_not_the_one_with_most_parameters():
     assert rss[("joint_coupling",)] < rss[("measurement_offset",)]  # the rival the smallest RSS would have chosen
     assert out["verdict"]["significant_on_its_own"] == []
     assert any(n.startswith("no cause is needed on its own") for n in out["notes"])
+
+
+def test_power_bound_holds_for_the_plan_itself(lab3):
+    """The certified power bound is at least the plan's own predicted power. The 3-link case printed power
+    0.43801 beside a bound of 0.43790: the lack of fit was within 1e-11 of its bound (efficiency 1), but the bound
+    used the unmerged plan's denominator degrees of freedom while merging repeated points adds pure error (384
+    -> 386). The bound now uses the most denominator and fewest numerator degrees of freedom of any M-point plan;
+    checked here against scipy's noncentral F at the plan's own degrees of freedom."""
+    from scipy import stats
+
+    robot, meas, verdict, res, out = lab3
+    plan, cert = out["plan"], out["plan"]["certificate"]
+    pair = [t for t in plan["tests"] if t["truth"] == cert["pair"]["truth"] and t["rival"] == cert["pair"]["rival"]][0]
+    assert pair["t_criterion_m2"] <= cert["bound_m2"] * (1 + 1e-9)
+    at_bound = stats.ncf.sf(stats.f.isf(pair["level"], pair["df_num"], pair["df_den"]), pair["df_num"],
+                            pair["df_den"], cert["bound_m2"] / out["sigma_m"] ** 2)
+    assert pair["power"] <= at_bound + 1e-12 and at_bound <= cert["power_bound"] + 1e-12
+    assert plan["power"] <= cert["power_bound"]

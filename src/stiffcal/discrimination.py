@@ -866,7 +866,8 @@ class TCertificate:
     """The equivalence-theorem bound on the T-criterion (module docstring): delta [m^2], the plan's smallest
     lack of fit over the design pairs; bound [m^2], no plan of the same size can exceed it; efficiency =
     delta / bound; pair: the (truth, rival) whose bound is smallest; power_bound: the power of that pair's
-    F-test at the bound (no plan of M points does better); where_deg (k, n), where_load (k, d): the local
+    F-test at the bound with the fewest numerator and most denominator degrees of freedom any plan of M points
+    can have (:func:`_df_extremes`; no plan of M points does better); where_deg (k, n), where_load (k, d): the local
     maxima of psi over the joint space and the loads (the first is the maximum), where an optimal design puts
     its points (Atkinson & Fedorov 1975, Theorem 1)."""
     delta: float
@@ -942,9 +943,26 @@ def t_certificate(crit: Criterion, rm: RivalModels, pool: Pool, q: np.ndarray, f
     delta = float(deltas.min())
     J = rm.models[pr[1]]
     test = [p for p in plan_power(rm, q, force, R, pr[0], mm) if p.rival == J.causes][0]
-    power_bound = f_power(bound / rm.sigma**2, test.df_num, test.df_den, test.level)
+    df_num, df_den = _df_extremes(rm, rm.models[pr[0]], J, m, R, mm)
+    power_bound = f_power(bound / rm.sigma**2, df_num, df_den, test.level)
     return TCertificate(delta, float(bound), float(delta / bound) if bound > 0 else 1.0, pr, power_bound,
                         np.degrees(pose), pool.loads[li])
+
+
+def _df_extremes(rm: RivalModels, truth: Rival, rival: Rival, m: int, repeats: int, mm) -> tuple[int, int]:
+    """The fewest numerator and the most denominator degrees of freedom the separating F-test can have after
+    the old data and ANY plan of m points, each measured ``repeats`` times (the power at a given noncentrality
+    falls with the first and grows with the second, so the power bound uses these): new rows never lower
+    rank([X_j, X_0]) - rank(X_j) (the null space of [X_j, X_0] only shrinks), so at least the old data's (and 1,
+    for a test to exist); pure error gains at most r (m R - 1) (every point the same), a residual estimate at
+    most the new rows (the union's rank never falls)."""
+    Xj, X0 = rm.old_rows(rival.causes), rm.old_rows(truth.causes)
+    nu1 = max(D.fit(np.hstack([Xj, X0]), np.zeros(len(Xj))).rank - D.fit(Xj, np.zeros(len(Xj))).rank, 1)
+    r = mm.rows(rm.robot)
+    if rm.pure_error:
+        return nu1, rm.noise_df + r * (m * repeats - 1)
+    Xo = rm.old_rows(D.CAUSES)
+    return nu1, len(Xo) + m * r * repeats - D.fit(Xo, np.zeros(len(Xo))).rank
 
 
 def ot_lower_bound(crit: Criterion, rm: RivalModels, pool: Pool, q: np.ndarray, force: np.ndarray, measurement=None,
