@@ -547,3 +547,24 @@ def test_verdict_p_value_names_the_set_it_is_about(which, lab3_verdict, ur10_ver
     html = _verdict_sentence(v)
     assert "at least one of" in html and "cannot be told apart" in html
     assert "none of them is needed on its own" in html
+
+
+def test_gain_statistic_left_out_has_a_note():
+    """A statistic of the gain that cannot be computed is null with a note saying why (the contract): on the
+    UR10 loading-bar data the plans of 4 poses under one test load cannot identify the extended model. Checked
+    independently: the information matrix of the nominal plan under the extended model, built here from
+    model_columns, is singular (rank below its columns)."""
+    robot = load_robot(LAB / "ur10.yaml")
+    meas = read_measurements(LAB / "ur10_bar.csv", robot)
+    load = np.array([0.0, 0.0, -300.0])
+    v = D.analyse(robot, meas, 0.01, test_pose=np.radians([10, -60, 80, -100, -90, 0]), test_force=load)
+    g = v["gain"]
+    assert g["nominal_plan_under_extended_rms_m"] is None
+    X = D.model_columns(robot, np.radians(g["nominal_plan_deg"]), np.tile(load, (len(g["nominal_plan_deg"]), 1)),
+                        v["extended"]["causes"])
+    A = X.reshape(-1, X.shape[-1])
+    norm = np.linalg.norm(A, axis=0)
+    assert np.linalg.matrix_rank(A / np.where(norm > 0, norm, 1.0)) < A.shape[1]
+    assert any(n.startswith("gain.nominal_plan_under_extended_rms_m is left out") for n in v["notes"])
+    assert g["optimal_plan_extended_rms_m"] is not None or any(
+        n.startswith("gain.optimal_plan_extended_rms_m is left out") for n in v["notes"])

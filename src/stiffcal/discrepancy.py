@@ -1018,6 +1018,14 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     if out["gain"] is not None and out["gain"]["loco_ratio"] is None:
         notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
                      "configurations (and a nonzero error of the extended model); it is left out")
+    for key, what in (("optimal_plan_extended_rms_m", "the O_t-optimal plan for the extended model"),
+                      ("nominal_plan_under_extended_rms_m", "the nominal model's optimal plan")):
+        if out["gain"] is not None and key in out["gain"] and not np.isfinite(out["gain"][key]):
+            out["gain"][key] = None
+            notes.append(f"gain.{key} is left out: {what} ({len(out['gain']['nominal_plan_deg'])} poses under the "
+                         "test load, measuring what the data measured) does not identify every parameter of the "
+                         f"extended model ({', '.join(ext)}): its information matrix is singular, so its O_t is "
+                         "infinite")
     out = _finite(out, out["notes"])
     if sel.unexplained:
         f = sel.fits[chosen]
@@ -1249,8 +1257,7 @@ def _gain(robot, meas, des, causes, s2, test_pose, test_force, observed: Observe
         out.update({"optimal_plan_extended_deg": plan.round(3).tolist(),
                     "optimal_plan_extended_rms_m": float(np.sqrt(s2 * ot_ext)),
                     "nominal_plan_deg": plan_nom.round(3).tolist(),
-                    "nominal_plan_under_extended_rms_m": float(np.sqrt(s2 * ot_nom_plan))
-                    if np.isfinite(ot_nom_plan) else None})
+                    "nominal_plan_under_extended_rms_m": float(np.sqrt(s2 * ot_nom_plan))})
     return out
 
 
