@@ -500,19 +500,19 @@ def test_resolutions_decide_the_replicate_groups_in_the_reader_and_the_cli(tmp_p
 
 # --- a new user's lab logs (tests/data/lab: made by make_3r.py and make_ur10.py beside them) -----------------
 
-LAB = Path(__file__).parent / "data" / "lab"
+LAB_DIR = Path(__file__).parent / "data" / "lab"
 
 
 @pytest.fixture(scope="module")
 def lab3_verdict():
-    robot = load_robot(LAB / "lab_3r.yaml")
-    return D.analyse(robot, read_measurements(LAB / "lab_3r_coupling.csv", robot), 0.01, gain=False)
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    return D.analyse(robot, read_measurements(LAB_DIR / "lab_3r_coupling.csv", robot), 0.01, gain=False)
 
 
 @pytest.fixture(scope="module")
 def ur10_verdict():
-    robot = load_robot(LAB / "ur10.yaml")
-    return D.analyse(robot, read_measurements(LAB / "ur10_bar.csv", robot), 0.01, gain=False)
+    robot = load_robot(LAB_DIR / "ur10.yaml")
+    return D.analyse(robot, read_measurements(LAB_DIR / "ur10_bar.csv", robot), 0.01, gain=False)
 
 
 def _verdict_sentence(v: dict) -> str:
@@ -554,8 +554,8 @@ def test_gain_statistic_left_out_has_a_note():
     UR10 loading-bar data the plans of 4 poses under one test load cannot identify the extended model. Checked
     independently: the information matrix of the nominal plan under the extended model, built here from
     model_columns, is singular (rank below its columns)."""
-    robot = load_robot(LAB / "ur10.yaml")
-    meas = read_measurements(LAB / "ur10_bar.csv", robot)
+    robot = load_robot(LAB_DIR / "ur10.yaml")
+    meas = read_measurements(LAB_DIR / "ur10_bar.csv", robot)
     load = np.array([0.0, 0.0, -300.0])
     v = D.analyse(robot, meas, 0.01, test_pose=np.radians([10, -60, 80, -100, -90, 0]), test_force=load)
     g = v["gain"]
