@@ -973,12 +973,13 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     ranked = sorted(chosen, key=lambda c: (drop_p(c), CAUSES.index(c)))
     indistinct = sorted({c for S in alternatives for c in S} - set(chosen), key=CAUSES.index)
     if sel.unexplained:
-        cause, p_value = "unexplained", sel.adjusted["lack_of_fit"]
+        cause, p_value, p_of = "unexplained", sel.adjusted["lack_of_fit"], ["lack_of_fit"]
     elif ranked:
         cause = ranked[0]
-        p_value = sel.adjusted_p({cause, *[c for c in indistinct]}) if indistinct else sel.adjusted[cause]
+        p_of = [cause, *indistinct]
+        p_value = sel.adjusted_p(p_of) if indistinct else sel.adjusted[cause]
     else:
-        cause, p_value = "none", (sel.adjusted_p(testable) if testable else 1.0)
+        cause, p_value, p_of = "none", (sel.adjusted_p(testable) if testable else 1.0), list(testable)
 
     sigma = float(np.sqrt(noise.s2))
     t = stats.t.isf(0.025, noise.df)
@@ -1001,7 +1002,9 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
                  "adjusted_p_value": sel.adjusted.get(c), "significant": c in sel.declared} for c in CAUSES}
     out = {"cause": cause, "causes": ranked, "indistinguishable_from": indistinct,
            "equivalent_combinations": [sorted(S, key=CAUSES.index) for S in alternatives],
-           "p_value": p_value, "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
+           "p_value": p_value, "p_value_of": p_of,
+           "p_value_statement": p_value_statement(cause, p_of, p_value, sel.adjusted, alpha),
+           "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
            "nominal": nominal, "tests": tests,
            "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
            "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
@@ -1015,12 +1018,45 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     if out["gain"] is not None and out["gain"]["loco_ratio"] is None:
         notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
                      "configurations (and a nonzero error of the extended model); it is left out")
+    for key, what in (("optimal_plan_extended_rms_m", "the O_t-optimal plan for the extended model"),
+                      ("nominal_plan_under_extended_rms_m", "the nominal model's optimal plan")):
+        if out["gain"] is not None and key in out["gain"] and not np.isfinite(out["gain"][key]):
+            out["gain"][key] = None
+            notes.append(f"gain.{key} is left out: {what} ({len(out['gain']['nominal_plan_deg'])} poses under the "
+                         "test load, measuring what the data measured) does not identify every parameter of the "
+                         f"extended model ({', '.join(ext)}): its information matrix is singular, so its O_t is "
+                         "infinite")
     out = _finite(out, out["notes"])
     if sel.unexplained:
         f = sel.fits[chosen]
         resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
         out["residual_structure"] = residual_structure(robot, m, resid)
     return out
+
+
+def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dict, alpha: float) -> str:
+    """What the verdict's ``p_value`` is about, in one sentence: the closed-testing adjusted p-value of the
+    intersection "none of ``p_of`` is needed" (the lack of fit for ``unexplained``; every testable cause for
+    ``none``). With several causes in ``p_of`` the data need at least one of them, and each one's own adjusted
+    p-value (``adjusted``, cause -> p) may be large: which one cannot be told apart."""
+    p = f"{p_value:.2g}"
+    if cause == "unexplained":
+        return (f"adjusted p = {p} of 'nothing outside the catalogue is present' (the lack of fit): something the "
+                "catalogue does not describe is left")
+    if cause == "none":
+        return (f"adjusted p = {p} of 'none of the catalogue's causes is needed' (not rejected at alpha = "
+                f"{alpha:g})" if p_of else "no cause of the catalogue can be tested on these data")
+    own = ", ".join(f"{c} {adjusted[c]:.2g}" for c in p_of if adjusted.get(c) is not None)
+    if len(p_of) == 1:
+        text = f"adjusted p = {p} of '{cause} is not needed'"
+        return text + ("" if p_value <= alpha else f": {cause} is the smallest combination that explains the data, "
+                       f"but it is not needed on its own at alpha = {alpha:g}")
+    alone = [c for c in p_of if adjusted.get(c) is not None and adjusted[c] <= alpha]
+    text = (f"the data need at least one of {{{', '.join(p_of)}}} (adjusted p = {p} of 'none of them is needed'); "
+            f"which one cannot be told apart (each one's own adjusted p: {own})")
+    if not alone:
+        text += f"; none of them is needed on its own at alpha = {alpha:g}"
+    return text
 
 
 def _finite(obj, notes: list[str], path: str = ""):
@@ -1122,16 +1158,23 @@ def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe:
                   "; measure another quantity, e.g. the position of an intermediate joint")
         return (f"for this robot every {seen} sees {a} and {b} (with the joint compliances) through the same "
                 f"directions, so no choice of poses or forces separates them{advice}")
-    wider, X = (b, A) if nested == (a,) else (a, B)
+    wider = b if nested == (a,) else a
+    # where the predictions differ most, under the loads the lab applies (the data's forces and moments)
+    data_loads = load_of(meas)[rng.integers(0, meas.n_rows, n_probe)]
+    _, X0, A, B = _nested(robot, a, b, q, data_loads, ob)
+    X = A if wider == b else B
     Y = np.hstack([X0, B if X is A else A])  # the larger model; X: the other cause's regressors
     P = (Y - np.hstack([X0, X]) @ np.linalg.lstsq(np.hstack([X0, X]), Y, rcond=None)[0])
     per_pose = np.linalg.norm(P.reshape(n_probe, -1, P.shape[1]), axis=(1, 2))
     i = int(np.argmax(per_pose))
-    fi = f[i, : robot.task_dim]
-    u = fi / np.linalg.norm(fi)
+    fi = data_loads[i, : robot.task_dim]
+    u = fi / np.linalg.norm(fi) if np.any(fi) else fi
     where = (f"at {np.degrees(np.arctan2(u[1], u[0])):.0f} deg" if len(u) == 2 else
              f"along ({', '.join(f'{c:.2f}' for c in u)})")
-    pose = (f"a measurement at q = {np.round(np.degrees(q[i]), 1).tolist()} deg with the force {where} "
+    load = f"the force of {np.linalg.norm(fi):.4g} N {where}"
+    if meas.has_moment:
+        load += f" and the moment ({', '.join(f'{c:.4g}' for c in data_loads[i, robot.task_dim:])}) N m"
+    pose = (f"a measurement at q = {np.round(np.degrees(q[i]), 1).tolist()} deg with {load} (one of the data's loads) "
             f"would{' show ' + wider + ' if it is the cause' if nested else ''} (it is where their predictions "
             "differ most)")
     if not nested:
@@ -1214,8 +1257,7 @@ def _gain(robot, meas, des, causes, s2, test_pose, test_force, observed: Observe
         out.update({"optimal_plan_extended_deg": plan.round(3).tolist(),
                     "optimal_plan_extended_rms_m": float(np.sqrt(s2 * ot_ext)),
                     "nominal_plan_deg": plan_nom.round(3).tolist(),
-                    "nominal_plan_under_extended_rms_m": float(np.sqrt(s2 * ot_nom_plan))
-                    if np.isfinite(ot_nom_plan) else None})
+                    "nominal_plan_under_extended_rms_m": float(np.sqrt(s2 * ot_nom_plan))})
     return out
 
 

@@ -6,8 +6,9 @@ model y = X_S(x) beta_S + e of the displacement at a design point x = (pose, loa
 the next M design points.
 
 T-optimality (Atkinson & Fedorov 1975, *Biometrika* 62(1), 57-70; several rivals: Atkinson & Fedorov
-1975, *Biometrika* 62(2), 289-303). The rival models are fitted to the data; the best-fitting one (the
-smallest residual sum of squares) is taken as the truth, with its fitted mean mu(x) = X_0(x) beta_0. The
+1975, *Biometrika* 62(2), 289-303). The rival models are fitted to the data; the verdict's own combination
+(the closed test's choice: fewest causes, then fewest parameters; the smallest residual sum of squares would
+reward the rival with the most parameters) is taken as the truth, with its fitted mean mu(x) = X_0(x) beta_0. The
 lack of fit of rival j after the old data and the new plan x_1..x_M (each measured R times) is
 
     Delta_j = min_theta [ sum_old |mu - X_j theta|^2 + R sum_i |mu(x_i) - X_j(x_i) theta|^2 ],
@@ -119,20 +120,36 @@ class PositionModel:
 
 @dataclass(frozen=True)
 class LoadSet:
-    """The loads a lab can apply: forces (L, d) [N]; kind: 'hanging', 'directions', 'forces' or 'data';
-    spec: the text it was read from."""
+    """The loads a lab can apply: forces (L, d) [N], or wrenches (L, d + d_m) [N, N m] (force, then the moment
+    about the tool point: the data's loads when they have moments, a loading bar); kind: 'hanging',
+    'directions', 'forces' or 'data'; spec: the text it was read from; d: the force components."""
 
     forces: np.ndarray
     kind: str
     spec: str
+    d: int | None = None
+
+    @property
+    def force_part(self) -> np.ndarray:
+        """(L, d) [N]: the forces."""
+        return self.forces[:, : self.d or self.forces.shape[1]]
+
+    @property
+    def moments(self) -> np.ndarray | None:
+        """(L, d_m) [N m]: the moments about the tool point, or None for pure forces."""
+        d = self.d or self.forces.shape[1]
+        return self.forces[:, d:] if self.forces.shape[1] > d else None
 
     def describe(self) -> str:
-        mags = sorted({round(float(np.linalg.norm(f)), 2) for f in self.forces})
-        return {"hanging": f"hanging weights of {', '.join(f'{m:g}' for m in mags)} N",
+        mags = sorted({round(float(np.linalg.norm(f)), 2) for f in self.force_part})
+        text = {"hanging": f"hanging weights of {', '.join(f'{m:g}' for m in mags)} N",
                 "directions": f"{len(self.forces)} pushes ({', '.join(f'{m:g}' for m in mags)} N in several "
                               "directions)",
                 "forces": f"{len(self.forces)} given forces",
                 "data": f"the {len(self.forces)} loads of the data"}[self.kind]
+        if self.moments is not None and np.any(self.moments):
+            text += " (each a force and a moment about the tool point, as the data's loading bar applies them)"
+        return text
 
 
 def sphere_directions(count: int) -> np.ndarray:
@@ -155,7 +172,7 @@ def _numbers(text: str, what: str, field_name: str) -> np.ndarray:
 
 
 def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, resolution_N: float = 0.5,
-             field_name: str = "--loads") -> LoadSet:
+             field_name: str = "--loads", moment_resolution_Nm: float = 0.05) -> LoadSet:
     """Parse a load set (d = 2 or 3 force components):
 
     - ``hanging:M1,M2,...``: hanging weights, forces of M_k newtons along gravity (-y for a planar arm in its
@@ -163,7 +180,9 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
     - ``directions:K:M1,M2,...``: K directions (equally spaced in the plane for a planar arm, quasi-uniform on
       the sphere for a spatial one), each at every magnitude [N];
     - ``forces:FX,FY[,FZ];...``: the given forces [N];
-    - None or ``data``: the distinct loads of the data (``data_forces`` (N, d), merged within ``resolution_N``).
+    - None or ``data``: the distinct loads of the data (``data_forces`` (N, d), or the wrenches (N, d + d_m)
+      when the data have moments, merged within ``resolution_N`` and ``moment_resolution_Nm``): a loading bar's
+      moments stay with their forces.
 
     Raises :class:`InputError` naming ``field_name`` for anything else, a magnitude that is not > 0, or a
     zero force."""
@@ -174,7 +193,8 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
             raise InputError("expected loads (the data have none)", field=field_name)
         from .measurements import cluster
 
-        labels = cluster(data_forces, np.full(d, resolution_N))
+        width = data_forces.shape[1]
+        labels = cluster(data_forces, np.r_[np.full(d, resolution_N), np.full(width - d, moment_resolution_Nm)])
         if labels.max() + 1 > MAX_DATA_LOADS:
             raise InputError(f"expected the loads the lab can apply: the data have {labels.max() + 1} distinct loads "
                              f"(more than {MAX_DATA_LOADS} to plan over); give them as 'hanging:M1,M2', "
@@ -212,7 +232,7 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
     else:
         raise InputError(f"expected 'hanging:M1,M2', 'directions:K:M1,M2', 'forces:FX,FY;...' or 'data', got {text!r}",
                          field=field_name)
-    return LoadSet(np.asarray(forces, float), kind, text)
+    return LoadSet(np.asarray(forces, float), kind, text, d)
 
 
 # --- candidate pool ---------------------------------------------------------------------------------------
@@ -326,7 +346,7 @@ class Rival:
 
 @dataclass(frozen=True)
 class RivalModels:
-    """The rivals of one verdict. models[0] is the truth (the best-fitting); extended: the verdict's
+    """The rivals of one verdict. models[0] is the truth (the verdict's combination); extended: the verdict's
     combination (the extended model, for O_t); old: the measurements the analysis used (blunders left out);
     weights (N_old,): the analysis's row weights (1 without a variance model); sigma [m] and noise_df: the
     verdict's noise; pure_error: whether the noise comes from replicates (then new replicates add to its
@@ -353,7 +373,7 @@ class RivalModels:
 
     def old_rows(self, causes) -> np.ndarray:
         """(N_old d, p): the weighted stacked regressors of the old data for nominal + causes."""
-        X = D.model_columns(self.robot, self.old.q, self.old.force, causes)
+        X = D.model_columns(self.robot, self.old.q, D.load_of(self.old), causes)
         return D._stack(X * self.weights[:, None, None])
 
     def old_mean(self, model: Rival | None = None) -> np.ndarray:
@@ -370,7 +390,10 @@ def rivals_from_verdict(robot: Robot, meas: Measurements, verdict: dict,
                         combinations: list | None = None) -> RivalModels:
     """The rival models of ``verdict`` (from :func:`stiffcal.discrepancy.analyse` on ``meas``): its
     combination and every equivalent combination (or the given ``combinations``), each fitted to the rows
-    the analysis used, weighted as it weighted them; the best-fitting first."""
+    the analysis used, weighted as it weighted them. The first (the truth of a T-optimal plan) is the
+    verdict's own combination, chosen by the closed test for the fewest causes and parameters: the smallest
+    residual sum of squares would reward the rival with the most parameters (on clean data, after a false
+    alarm, 15 coupling terms of a 6-axis arm fit the noise best). Given ``combinations``: in their order."""
     keep = ~np.isin(meas.rows, verdict["outlier_rows"])
     old = meas.subset(keep)
     vm = D.variance_model(robot, old) if verdict["nominal"]["noise_varies"] else None
@@ -382,11 +405,11 @@ def rivals_from_verdict(robot: Robot, meas: Measurements, verdict: dict,
     y = (old.dp * w[:, None]).ravel()
     models = []
     for S in combos:
-        X = D._stack(D.model_columns(robot, old.q, old.force, S) * w[:, None, None])
+        X = D._stack(D.model_columns(robot, old.q, D.load_of(old), S) * w[:, None, None])
         f = D.fit(X, y)
         k = max(len([c for c in testable if c not in S]) + lof, 1)
         models.append(Rival(S, f.beta, f.rss, k))
-    order = sorted(range(len(models)), key=lambda i: (models[i].rss, i))
+    order = range(len(models))  # the verdict's combination first, then its equivalents as the verdict lists them
     pure = verdict["nominal"]["sigma_source"].startswith("replicates")
     return RivalModels(robot, old, w, tuple(models[i] for i in order), _combination(verdict["causes"]),
                        float(verdict["nominal"]["sigma_m"]), int(verdict["nominal"]["sigma_df"]), pure,
@@ -782,8 +805,18 @@ def separability(rm: RivalModels, pool: Pool, measurement=None, probe: int = 512
     return out
 
 
+def unsupported_causes(verdict: dict) -> list[str]:
+    """The verdict's cause and its indistinguishable alternatives when none of them is significant on its own
+    (each one's closed-testing adjusted p above alpha), else []: the verdict then rests on the intersection
+    "none of them is needed" alone (docs/measured-data.md, ``p_value_of``)."""
+    named = [c for c in [*verdict["causes"], *verdict["indistinguishable_from"]] if c in verdict["tests"]]
+    if not named or verdict["cause"] in ("none", "unexplained"):
+        return []
+    return [] if any(verdict["tests"][c]["significant"] for c in named) else named
+
+
 def design_pairs(rm: RivalModels, seps: list[Separability], truth: str = "best") -> list[tuple[int, int]]:
-    """The (truth, rival) pairs a plan is designed for: the best-fitting model against every rival it can
+    """The (truth, rival) pairs a plan is designed for: the verdict's combination against every rival it can
     separate (``truth="best"``, T-optimality), or every separable ordered pair (``truth="each"``: each model in
     turn as the truth, the maximin criterion of Atkinson & Fedorov 1975b)."""
     if truth not in ("best", "each"):
@@ -833,7 +866,8 @@ class TCertificate:
     """The equivalence-theorem bound on the T-criterion (module docstring): delta [m^2], the plan's smallest
     lack of fit over the design pairs; bound [m^2], no plan of the same size can exceed it; efficiency =
     delta / bound; pair: the (truth, rival) whose bound is smallest; power_bound: the power of that pair's
-    F-test at the bound (no plan of M points does better); where_deg (k, n), where_load (k, d): the local
+    F-test at the bound with the fewest numerator and most denominator degrees of freedom any plan of M points
+    can have (:func:`_df_extremes`; no plan of M points does better); where_deg (k, n), where_load (k, d): the local
     maxima of psi over the joint space and the loads (the first is the maximum), where an optimal design puts
     its points (Atkinson & Fedorov 1975, Theorem 1)."""
     delta: float
@@ -909,9 +943,26 @@ def t_certificate(crit: Criterion, rm: RivalModels, pool: Pool, q: np.ndarray, f
     delta = float(deltas.min())
     J = rm.models[pr[1]]
     test = [p for p in plan_power(rm, q, force, R, pr[0], mm) if p.rival == J.causes][0]
-    power_bound = f_power(bound / rm.sigma**2, test.df_num, test.df_den, test.level)
+    df_num, df_den = _df_extremes(rm, rm.models[pr[0]], J, m, R, mm)
+    power_bound = f_power(bound / rm.sigma**2, df_num, df_den, test.level)
     return TCertificate(delta, float(bound), float(delta / bound) if bound > 0 else 1.0, pr, power_bound,
                         np.degrees(pose), pool.loads[li])
+
+
+def _df_extremes(rm: RivalModels, truth: Rival, rival: Rival, m: int, repeats: int, mm) -> tuple[int, int]:
+    """The fewest numerator and the most denominator degrees of freedom the separating F-test can have after
+    the old data and ANY plan of m points, each measured ``repeats`` times (the power at a given noncentrality
+    falls with the first and grows with the second, so the power bound uses these): new rows never lower
+    rank([X_j, X_0]) - rank(X_j) (the null space of [X_j, X_0] only shrinks), so at least the old data's (and 1,
+    for a test to exist); pure error gains at most r (m R - 1) (every point the same), a residual estimate at
+    most the new rows (the union's rank never falls)."""
+    Xj, X0 = rm.old_rows(rival.causes), rm.old_rows(truth.causes)
+    nu1 = max(D.fit(np.hstack([Xj, X0]), np.zeros(len(Xj))).rank - D.fit(Xj, np.zeros(len(Xj))).rank, 1)
+    r = mm.rows(rm.robot)
+    if rm.pure_error:
+        return nu1, rm.noise_df + r * (m * repeats - 1)
+    Xo = rm.old_rows(D.CAUSES)
+    return nu1, len(Xo) + m * r * repeats - D.fit(Xo, np.zeros(len(Xo))).rank
 
 
 def ot_lower_bound(crit: Criterion, rm: RivalModels, pool: Pool, q: np.ndarray, force: np.ndarray, measurement=None,
@@ -1038,9 +1089,18 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
         raise InputError(f"expected repeats >= 1, got {repeats}", field="--repeats")
     if not 0 <= weight <= 1:
         raise InputError(f"expected a weight in [0, 1], got {weight}", field="--weight")
-    if loads.forces.shape[1] != robot.task_dim:
-        raise InputError(f"expected loads of {robot.task_dim} components for robot {robot.name}, got "
-                         f"{loads.forces.shape[1]}", field="--loads")
+    wrench_dim = robot.task_dim + D.moment_dim(robot)
+    if loads.forces.shape[1] not in (robot.task_dim, wrench_dim):
+        raise InputError(f"expected loads of {robot.task_dim} components (forces) or {wrench_dim} (force and moment) "
+                         f"for robot {robot.name}, got {loads.forces.shape[1]}", field="--loads")
+    notes = []
+    if meas.has_moment and loads.moments is None:
+        if loads.kind == "data":  # the data's loads are wrenches (a loading bar): keep their moments
+            loads = load_set("data", robot.task_dim, D.load_of(meas), meas.resolutions[1],
+                             moment_resolution_Nm=meas.resolutions[2])
+        else:
+            notes.append(f"the data's loads carry moments (a loading bar) but the loads given ({loads.spec}) are "
+                         "pure forces: the plan applies them without a moment")
     if verdict is None:
         verdict = D.analyse(robot, meas, alpha, gain=False)
     rm = rivals_from_verdict(robot, meas, verdict)
@@ -1048,10 +1108,16 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
                      {c for mdl in rm.models for c in mdl.causes})
     seps = separability(rm, pool, measurement)
     pairs = design_pairs(rm, seps, truth)
-    notes = []
     if verdict["cause"] == "unexplained":
         notes.append("the verdict is 'unexplained': something outside the catalogue is left, and the plan "
                      "separates the catalogue's combinations only")
+    alone = unsupported_causes(verdict)
+    if alone:
+        notes.append(f"no cause is needed on its own: the data need at least one of {{{', '.join(alone)}}} "
+                     f"(adjusted p = {verdict['p_value']:.2g} of 'none of them is needed'), but none of them is "
+                     "significant on its own at alpha (a false alarm of the global test looks like this); the "
+                     f"plan takes {rm.truth.label} as the truth with its fitted parameters, and its predicted power "
+                     "holds only if that combination is real")
     if len(rm.models) == 1:
         what = rm.truth.label if rm.truth.causes else "no cause (the nominal model)"
         notes.append(f"no rival combination: the data single out {what}; nothing to discriminate")
@@ -1124,6 +1190,8 @@ def model_mean(robot: Robot, model: Rival, q: np.ndarray, force: np.ndarray) -> 
     a nonlinear joint law or backlash, which the simulator models by other laws, by the model's regressors."""
     if not set(model.causes) <= set(PHYSICAL):
         return D.model_columns(robot, q, force, model.causes) @ model.beta
+    d = robot.task_dim
+    moment = force[:, d:] if force.shape[1] > d else None
     n = robot.n_joints
     k = np.zeros(n)
     k[robot.params] = model.beta[: robot.n_params]
@@ -1137,7 +1205,7 @@ def model_mean(robot: Robot, model: Rival, q: np.ndarray, force: np.ndarray) -> 
             C[np.triu_indices(n, 1)] = b
             b = C + C.T
         fields[PHYSICAL[c]] = b
-    return physics(robot, Truth(k, **fields), q, force)
+    return physics(robot, Truth(k, **fields), q, force[:, :d], moment=moment)
 
 
 @dataclass(frozen=True)
@@ -1156,6 +1224,11 @@ class SeparationRate:
     predicted: float
 
 
+def _widen(load: np.ndarray, width: int) -> np.ndarray:
+    """Loads (N, w) padded with zero moments to (N, width)."""
+    return np.hstack([load, np.zeros((len(load), width - load.shape[1]))])
+
+
 def simulate_separation(rm: RivalModels, q: np.ndarray, force: np.ndarray, repeats: int = 1, truth: int = 0,
                         repetitions: int = 100, seed: int = 0) -> list[SeparationRate]:
     """Measure the plan q (M, n) [rad], force (M, d) [N] on simulated truth: ``rm.models[truth]`` with its
@@ -1166,7 +1239,8 @@ def simulate_separation(rm: RivalModels, q: np.ndarray, force: np.ndarray, repea
     robot, old = rm.robot, rm.old
     T = rm.models[truth]
     qn, fn = np.repeat(q, repeats, axis=0), np.repeat(force, repeats, axis=0)
-    q_all, f_all = np.vstack([old.q, qn]), np.vstack([old.force, fn])
+    width = max(D.load_of(old).shape[1], fn.shape[1])
+    q_all, f_all = np.vstack([old.q, qn]), np.vstack([_widen(D.load_of(old), width), _widen(fn, width)])
     mean = model_mean(robot, T, q_all, f_all)
     sig = np.concatenate([rm.sigma / rm.weights, np.full(len(qn), rm.sigma)])
     rng = np.random.default_rng(seed)
@@ -1175,8 +1249,11 @@ def simulate_separation(rm: RivalModels, q: np.ndarray, force: np.ndarray, repea
     named = 0
     for _ in range(repetitions):
         dp = mean + rng.normal(size=mean.shape) * sig[:, None]
-        meas = Measurements.from_arrays(q_all, f_all, dp, angle_resolution_deg=old.resolutions[0],
-                                        force_resolution_N=old.resolutions[1])
+        d = robot.task_dim
+        meas = Measurements.from_arrays(q_all, f_all[:, :d], dp, angle_resolution_deg=old.resolutions[0],
+                                        force_resolution_N=old.resolutions[1],
+                                        moment=f_all[:, d:] if width > d else None,
+                                        moment_resolution_Nm=old.resolutions[2])
         v = D.analyse(robot, meas, rm.alpha, gain=False)
         listed = [set(c) for c in [v["causes"], *v["equivalent_combinations"]]]
         told = any(set(T.causes) <= c for c in listed)  # the truth named, perhaps beside a false alarm
@@ -1195,16 +1272,24 @@ def _tests(powers) -> list[dict]:
              "df_num": p.df_num, "df_den": p.df_den, "level": p.level, "power": p.power} for p in powers]
 
 
+def _split(load: np.ndarray, d: int):
+    """Forces (k, d) [N] and moments (k, d_m) [N m] (None for pure forces) of loads (k, w), rounded for JSON."""
+    load = np.round(np.atleast_2d(load), 4) + 0.0
+    return load[:, :d].tolist(), (load[:, d:].tolist() if load.shape[1] > d else None)
+
+
 def _session_json(s: Session, res: Discrimination) -> dict:
-    out = {"poses_deg": (np.round(s.poses_deg, 4) + 0.0).tolist(), "forces_N": (np.round(s.forces_N, 4) + 0.0).tolist(),
+    forces, moments = _split(s.forces_N, res.rivals.robot.task_dim)
+    out = {"poses_deg": (np.round(s.poses_deg, 4) + 0.0).tolist(), "forces_N": forces, "moments_Nm": moments,
            "repeats": s.repeats, "t_criterion_m2": float(s.deltas.min()) if len(s.deltas) else None,
            "power": s.power(res.pairs, res.rivals.models) if res.pairs else None, "tests": _tests(s.powers),
            "O_t_m2": s.o_t, "O_t_rms_m": None if s.o_t is None else float(np.sqrt(s.o_t))}
     points: dict = {}  # the distinct points in plan order, with how often each is measured
-    for pose, f in zip(out["poses_deg"], out["forces_N"]):
-        key = (tuple(pose), tuple(f))
+    for pose, f, mo in zip(out["poses_deg"], forces, moments or [None] * len(forces)):
+        key = (tuple(pose), tuple(f), None if mo is None else tuple(mo))
         points[key] = points.get(key, 0) + s.repeats
-    out["points"] = [{"pose_deg": list(p), "force_N": list(f), "count": c} for (p, f), c in points.items()]
+    out["points"] = [{"pose_deg": list(p), "force_N": list(f), "moment_Nm": None if mo is None else list(mo),
+                      "count": c} for (p, f, mo), c in points.items()]
     return out
 
 
@@ -1216,9 +1301,12 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
     out = {"robot": rm.robot.source, "data": data, "alpha": rm.alpha, "sigma_m": rm.sigma, "noise_df": rm.noise_df,
            "experiments": res.m, "repeats": res.repeats, "truth_mode": res.truth,
            "loads": {"kind": res.loads.kind, "spec": res.loads.spec, "description": res.loads.describe(),
-                     "forces_N": (np.round(res.loads.forces, 4) + 0.0).tolist()},
+                     "forces_N": _split(res.loads.forces, rm.robot.task_dim)[0],
+                     "moments_Nm": _split(res.loads.forces, rm.robot.task_dim)[1]},
            "verdict": {"cause": rm.verdict["cause"], "causes": rm.verdict["causes"],
-                       "equivalent_combinations": rm.verdict["equivalent_combinations"]},
+                       "equivalent_combinations": rm.verdict["equivalent_combinations"],
+                       "p_value": rm.verdict["p_value"], "p_value_of": rm.verdict.get("p_value_of"),
+                       "significant_on_its_own": [c for c, t in rm.verdict["tests"].items() if t["significant"]]},
            "models": [{"causes": list(m.causes), "role": "truth" if i == 0 else "rival", "rss_m2": m.rss,
                        "parameters": m.beta.tolist(), "bonferroni_share": m.multiplicity}
                       for i, m in enumerate(models)],
@@ -1235,7 +1323,8 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
             "bound_m2": c.bound, "efficiency": c.efficiency, "power_bound": c.power_bound,
             "pair": {"truth": names[c.pair[0]], "rival": names[c.pair[1]]},
             "psi_max_at_deg": np.round(c.where_deg[0], 4).tolist(),
-            "psi_max_load_N": np.round(c.where_load[0], 4).tolist()}}
+            "psi_max_load_N": _split(c.where_load[0], rm.robot.task_dim)[0][0],
+            "psi_max_moment_Nm": (_split(c.where_load[0], rm.robot.task_dim)[1] or [None])[0]}}
     if res.ot_plan is not None:
         out["ot_plan"] = _session_json(res.ot_plan, res) | {"lower_bound_m2": res.ot_bound}
     if res.compound is not None:
@@ -1266,7 +1355,8 @@ def run(robot: Robot, data_path: str, out_dir: str, experiments: int, loads: str
     meas = M.read_measurements(data_path, robot,
                                M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None else angle_resolution_deg,
                                M.FORCE_RESOLUTION_N if force_resolution_N is None else force_resolution_N)
-    ls = load_set(loads, robot.task_dim, meas.force, meas.resolutions[1])
+    ls = load_set(loads, robot.task_dim, D.load_of(meas), meas.resolutions[1],
+                  moment_resolution_Nm=meas.resolutions[2])
     res = discriminate(robot, meas, experiments, ls, repeats=repeats, weight=weight, truth=truth, test_pose=test_pose,
                        test_force=test_force, alpha=alpha, effort=effort, seed=seed)
     out = to_json(res, str(data_path))
