@@ -181,6 +181,24 @@ def test_dry_run_after_a_measured_data_edit(built):
     assert _dry_run_jobs(built) == {}
 
 
+
+def test_report_renders_a_measured_data_entry_without_optional_keys(built, tmp_path):
+    """``synthetic`` (and every other optional key) left out of a measured-data entry: the report renders, the
+    entry unlabelled (a copy of the built tree; only the report is redrawn)."""
+    wd = tmp_path / "wd"
+    shutil.copytree(built, wd, symlinks=True)
+
+    def bare(c):
+        c["measured_data"][1] = {k: c["measured_data"][1][k] for k in ("name", "data", "robot")}
+
+    _edit_config(wd, bare)
+    res = _snakemake(wd, "--rerun-triggers", "mtime", "--forcerun", "report_html", "paper/build/report.html")
+    assert res.returncode == 0, res.stderr[-3000:]
+    html = (wd / "paper/build/report.html").read_text()
+    assert "Measured data: synthetic-paper-2r-hanging</h2>" in html
+    assert "Measured data: synthetic-paper-2r <span class=\"synthetic\">(SYNTHETIC data)</span></h2>" in html
+
+
 def test_dry_run_after_a_library_edit_reruns_the_jobs_that_use_it(built, root, tmp_path):
     """A copy of the package with one comment added to plots.py, first on PYTHONPATH: the figure jobs, the
     discrepancy and discriminate jobs of both measured data sets (they draw the residuals and the plans) and the
