@@ -14,6 +14,8 @@ from __future__ import annotations
 import copy
 from pathlib import Path
 
+import numpy as np
+
 from .errors import InputError
 
 DEFAULT = "config/config.yaml"
@@ -105,7 +107,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
     from .maps import map_studies
     from .observation import moment_dim
     from .robot import load_robot
-    from .study import design_studies, study_from_config
+    from .study import check_load_bends, design_studies, study_from_config
     from .validation import validate
 
     validate(config, "config", source)
@@ -152,3 +154,4 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
                                  f"{entry['robot']}, got {len(moment)}", source=source, field=mfield)
             if not any(force) and not any(moment or []):
                 raise InputError("expected a nonzero force at the test pose", source=source, field=field)
+            check_load_bends(data_robot, study.test_pose, np.r_[force, moment or []], field, source)
