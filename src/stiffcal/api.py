@@ -82,9 +82,31 @@ def whole_number(value, field: str, low: int, high: int) -> int:
 
 
 def _json_number(x: float):
-    """JSON has no inf: an infinite value (unidentifiable) is written as the string 'inf'."""
+    """JSON has no inf: an infinite value (unidentifiable) is written as the string 'inf' ('-inf'); an undefined
+    one (NaN, e.g. inf / inf) as null; -0.0 as 0.0."""
     x = float(x)
-    return x if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+    if math.isnan(x):
+        return None
+    return x + 0.0 if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+
+
+def json_safe(obj):
+    """``obj`` (dicts, lists, tuples, numpy arrays and scalars) with every float made strict JSON by
+    :func:`_json_number`: what every JSON the project writes goes through (``json.dumps(..., allow_nan=False)``
+    then holds)."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_safe(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return _json_number(obj)
+    return obj
 
 
 @dataclass(frozen=True)
@@ -135,9 +157,10 @@ class DesignResult:
     orientation_length_m: float = 0.0
 
     def to_dict(self) -> dict:
-        """The JSON object of ``stiffcal design`` (inf as the string 'inf', poses rounded to 1e-6 deg)."""
+        """The JSON object of ``stiffcal design``, strict JSON (:func:`json_safe`: inf as the string 'inf' in
+        every field, poses rounded to 1e-6 deg)."""
         d = self.approximate_design
-        return {
+        return json_safe({
             "criterion": self.criterion, "criterion_label": self.criterion_label, "robot": self.robot,
             "joint_names": list(self.joint_names), "experiments": self.experiments,
             "poses_deg": [[round(float(a), 6) + 0.0 for a in p] for p in self.poses_deg],
@@ -156,7 +179,7 @@ class DesignResult:
             "moment_Nm": None if self.moment_Nm is None else self.moment_Nm.tolist(),
             "targets": list(self.targets), "orientation": self.orientation, "sigma_rad": self.sigma_rad,
             "test_target": self.test_target, "orientation_length_m": self.orientation_length_m,
-        }
+        })
 
 
 def _robot(robot) -> Robot:

@@ -126,7 +126,7 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
         _write(phi, out_phi_csv)
     atomic_write(out_json, json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
                                        "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
-                                       "iterations": d.iterations}, indent=1) + "\n")
+                                       "iterations": d.iterations}, indent=1, allow_nan=False) + "\n")
 
 
 def _design(path: str):

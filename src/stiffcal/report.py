@@ -95,7 +95,7 @@ def add_toc(html: str, marker: str = "<!-- toc -->") -> str:
 
 def config_hash(config: dict) -> str:
     """SHA-256 (first 12 hex digits) of the config, canonicalised as sorted JSON."""
-    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:12]
+    return hashlib.sha256(json.dumps(config, sort_keys=True, allow_nan=False).encode()).hexdigest()[:12]
 
 
 def git_commit(root: str | Path = ".") -> str:
