@@ -298,3 +298,26 @@ def test_the_workflow_lists_the_urdf_as_an_input_of_its_robot(root):
     assert robot_inputs(KUKA_DH) == [] and robot_inputs("no/such/robot.yaml") == []
     rules = (root / "workflow/rules/studies.smk").read_text() + (root / "workflow/rules/discrepancy.smk").read_text()
     assert rules.count("urdf=lambda wc: robot_inputs(") == 5  # design, plans, summary; discrepancy, discriminate
+
+
+def test_a_continuous_joint_has_no_limits(root):
+    """The UR5 of example-robot-data with its shoulder pan (and wrist 3) made continuous: those joints take any
+    angle (a test pose of 200 deg is accepted; it was refused as outside [-180, 180]), a revolute joint keeps
+    the URDF's limits."""
+    import xml.etree.ElementTree as ET
+
+    from stiffcal.api import design
+    from stiffcal.study import check_test_inputs
+
+    robot = load_robot(root / "tests/data/urdf/ur5_cont.yaml")
+    kinds = {j.get("name"): j.get("type") for j in ET.parse(root / "tests/data/urdf/ur5_cont.urdf").iter("joint")
+             if j.get("type")}
+    expected = [kinds[name] != "continuous" for name in robot.joint_names]
+    assert expected.count(False) >= 1 and robot.limited.tolist() == expected
+    q = np.radians([200, -60, 90, -120, -90, 0])
+    assert robot.outside_limits(q).tolist() == [False] * 6
+    check_test_inputs(robot, np.degrees(q), np.array([0, 0, -50.0]), "test_pose_deg", "force_N")
+    lift = robot.joint_names.index("shoulder_lift_joint")
+    assert robot.limited[lift] and robot.outside_limits(np.where(np.arange(6) == lift, np.radians(400), q))[lift]
+    with pytest.raises(InputError, match="shoulder_lift_joint within the joint limits"):
+        design(robot, [0, 400, 90, -120, -90, 0], [0, 0, -50], experiments=2)

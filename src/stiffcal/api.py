@@ -197,7 +197,7 @@ def _with_limits(robot: Robot, joint_limits_deg) -> Robot:
         if not -MAX_JOINT_ANGLE_DEG <= lo < hi <= MAX_JOINT_ANGLE_DEG:
             raise InputError(f"expected -{MAX_JOINT_ANGLE_DEG:g} <= lower < upper <= {MAX_JOINT_ANGLE_DEG:g} deg, got "
                              f"[{lo:g}, {hi:g}]", field=f"joint_limits_deg[{j}]")
-    return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True)
+    return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True, unlimited_joints=())
 
 
 def _stages(progress, total: int):

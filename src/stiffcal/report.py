@@ -206,7 +206,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
                                   "source": robot.reference, "dh": dh, "convention": robot.convention,
                                   "tool_m": None if robot.tool_m is None else robot.tool_m.tolist(),
                                   "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
-                                  "has_limits": robot.has_joint_limits,
+                                  "has_limits": robot.has_joint_limits, "limited": robot.limited.tolist(),
                                   "inert": [robot.joint_names[j] for j in range(robot.n_joints)
                                             if j not in prob.params],
                                   "joint_keys": robot.joint_columns(""), "joint_names": list(robot.joint_names),

@@ -43,12 +43,14 @@ _MAX_LISTED = 12
 class UrdfArm:
     """What :func:`read_chain` returns: names (n,) of the moving joints, base to tip; chain
     (:class:`stiffcal.robot.Chain`, base frame to tip frame); limits_rad (n, 2) [rad] (continuous joints:
-    [-pi, pi]); has_limits: some joint is revolute (limited)."""
+    [-pi, pi], a full turn); has_limits: some joint is revolute (limited); unlimited: indices of the continuous
+    joints, which have no limits."""
 
     names: tuple[str, ...]
     chain: Chain
     limits_rad: np.ndarray
     has_limits: bool
+    unlimited: tuple[int, ...] = ()
 
 
 def _listing(names) -> str:
@@ -204,7 +206,8 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
             C = C @ rot
     chain = Chain(np.array(placements), np.array(chain_axes), C @ model.frames[t].placement.homogeneous)
     lim = np.array([limits.get(name, (-np.pi, np.pi)) for name in moving], float)
-    return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving))
+    return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving),
+                   tuple(i for i, name in enumerate(moving) if name not in limits))
 
 
 def _moving(names: list[str], joints, source: str) -> list[str]:
