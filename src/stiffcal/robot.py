@@ -28,13 +28,14 @@ Conventions
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, short_repr
 from .validation import read_yaml, validate
 
 
@@ -490,6 +491,9 @@ def load_robot(path: str | Path) -> Robot:
     joints, a field of another kind, a URDF that cannot be read or has no chain from ``base_frame`` to
     ``tip_frame`` (:func:`stiffcal.urdf.read_chain`), or a tool point that no joint can move.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"expected the path of a robot file (a str or a path), got {type(path).__name__} "
+                         f"{short_repr(path)}", field="path")
     src = str(path)
     doc = read_yaml(path)
     if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
