@@ -179,7 +179,8 @@ def test_design_json_writes_every_infinity_as_a_string(root, capsys, monkeypatch
     res = stiffcal.design(root / "config/robots/paper_2r.yaml", [60, 30], [0, -1])
     odd = dataclasses.replace(res, O_t_star=float("inf"), chi=float("inf"), lower_bound=float("inf"),
                               gap=float("nan"), poses_deg=np.array([[-0.0, 45.0]]),
-                              approximate_design={**res.approximate_design, "equivalence_gap": float("inf")})
+                              approximate_design={**res.approximate_design, "equivalence_gap": float("inf"),
+                                                  "support_deg": np.array([[-1e-9, 30.0]])})
     monkeypatch.setattr(stiffcal.api, "design", lambda *a, **k: odd)
     monkeypatch.chdir(root)
     code, out, _ = run(PAPER, capsys)

@@ -321,3 +321,47 @@ def test_a_continuous_joint_has_no_limits(root):
     assert robot.limited[lift] and robot.outside_limits(np.where(np.arange(6) == lift, np.radians(400), q))[lift]
     with pytest.raises(InputError, match="shoulder_lift_joint within the joint limits"):
         design(robot, [0, 400, 90, -120, -90, 0], [0, 0, -50], experiments=2)
+
+
+def test_an_unknown_tip_frame_lists_every_link_the_closest_first(root, tmp_path):
+    """A misspelt tip frame: the message lists every link of the URDF (it cut the list at 12, hiding the one the
+    user meant), the closest names first."""
+    import re
+    import shutil
+    import xml.etree.ElementTree as ET
+
+    shutil.copy(root / "tests/data/urdf/franka_panda.urdf", tmp_path / "panda.urdf")
+    text = (root / "tests/data/urdf/franka_panda.yaml").read_text().replace("franka_panda.urdf", "panda.urdf")
+    (tmp_path / "p.yaml").write_text(text.replace("tip_frame: panda_hand_tcp", "tip_frame: panda_hand_tpc"))
+    with pytest.raises(InputError) as err:
+        load_robot(tmp_path / "p.yaml")
+    assert err.value.field == "tip_frame"
+    listed = re.search(r"closest names first: (.*)$", err.value.message).group(1).split(", ")
+    links = [link.get("name") for link in ET.parse(tmp_path / "panda.urdf").getroot().iter("link")]
+    assert len(links) > 12 and sorted(listed) == sorted(links)
+    assert listed[0] == "panda_hand_tcp"
+
+
+def test_the_report_counts_the_identifiable_compliances(root, tmp_path):
+    """The Franka Panda with the tool point on joint 7's axis: that compliance cannot be identified, so a single
+    pose gives 3 equations for 6 compliances, as the design says (it said 7 in the report)."""
+    import re
+
+    import jinja2
+
+    import stiffcal
+    from stiffcal.report import TEMPLATE_DIR, fmt, robot_summary
+    from stiffcal.study import study_from_entry
+
+    entry = {"name": "panda", "robot": "tests/data/urdf/franka_panda.yaml", "test_pose_deg": [0, -30, 0, -120, 0, 90, 45],
+             "force_N": [20, 0, -30], "sigma_m": 1e-5}
+    r = robot_summary(study_from_entry(entry, root))
+    assert (r["n"], r["n_params"], r["inert"]) == (7, 6, ["panda_joint7"])
+    with pytest.raises(InputError, match="1 give 3 equations for 6 compliances"):
+        stiffcal.design(root / entry["robot"], entry["test_pose_deg"], entry["force_N"])
+    template = (TEMPLATE_DIR / "report.html.j2").read_text()
+    sentence = re.search(r"A single pose gives .*?;", template, re.S).group(0)
+    env = jinja2.Environment(undefined=jinja2.StrictUndefined)
+    env.filters["num"] = fmt
+    text = " ".join(env.from_string(sentence).render(r=r).split())
+    assert text.startswith("A single pose gives 3 equations for 6 compliances (of the 7 joints, panda_joint7 is left out")

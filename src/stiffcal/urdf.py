@@ -36,7 +36,8 @@ MAX_URDF_BYTES = 10_000_000
 #: Pinocchio joint types (``JointModel.shortname()``) of revolute joints with limits, and of continuous ones
 REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 CONTINUOUS = ("JointModelRUBX", "JointModelRUBY", "JointModelRUBZ", "JointModelRevoluteUnboundedUnaligned")
-_MAX_LISTED = 12
+#: names listed in a message at most (the message itself is capped at errors.MAX_MESSAGE characters)
+_MAX_LISTED = 40
 
 
 @dataclass(frozen=True)
@@ -53,8 +54,14 @@ class UrdfArm:
     unlimited: tuple[int, ...] = ()
 
 
-def _listing(names) -> str:
-    names = list(names)
+def _listing(names, near: str | None = None) -> str:
+    """``names`` for a message, the ones closest to ``near`` (the name given, by :mod:`difflib`) first."""
+    import difflib
+
+    names = list(dict.fromkeys(names))
+    if near is not None:
+        close = difflib.get_close_matches(near, names, n=len(names), cutoff=0.5)
+        names = close + [n for n in names if n not in close]
     more = f", ... ({len(names) - _MAX_LISTED} more)" if len(names) > _MAX_LISTED else ""
     return ", ".join(names[:_MAX_LISTED]) + more
 
@@ -115,8 +122,8 @@ def _frame(model, name: str, source: str, field: str) -> int:
     found = [i for i, f in enumerate(model.frames) if f.name == name]
     if not found:
         links = [f.name for f in model.frames if str(f.type).endswith("BODY")]
-        raise InputError(f"the URDF has no link or frame {name!r}; its links: {_listing(links)}", source=source,
-                         field=field)
+        raise InputError(f"the URDF has no link or frame {name!r}; its links, the closest names first: "
+                         f"{_listing(links, name)}", source=source, field=field)
     body = [i for i in found if str(model.frames[i].type).endswith("BODY")]
     return (body or found)[0]
 
@@ -216,7 +223,7 @@ def _moving(names: list[str], joints, source: str) -> list[str]:
         return list(names)
     for i, name in enumerate(joints):
         if name not in names:
-            raise InputError(f"joint {name!r} is not in the chain; its joints, base to tip: {_listing(names)}",
+            raise InputError(f"joint {name!r} is not in the chain; its joints, base to tip: {', '.join(names)}",
                              source=source, field=f"joints[{i}]")
         if name in joints[:i]:
             raise InputError(f"joint {name!r} is listed twice", source=source, field=f"joints[{i}]")
