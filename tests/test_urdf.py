@@ -353,8 +353,8 @@ def test_the_report_counts_the_identifiable_compliances(root, tmp_path):
     from stiffcal.report import TEMPLATE_DIR, fmt, robot_summary
     from stiffcal.study import study_from_entry
 
-    entry = {"name": "panda", "robot": "tests/data/urdf/franka_panda.yaml", "test_pose_deg": [0, -30, 0, -120, 0, 90, 45],
-             "force_N": [20, 0, -30], "sigma_m": 1e-5}
+    entry = {"name": "panda", "robot": "tests/data/urdf/franka_panda.yaml", "force_N": [20, 0, -30], "sigma_m": 1e-5,
+             "test_pose_deg": [0, -30, 0, -120, 0, 90, 45]}
     r = robot_summary(study_from_entry(entry, root))
     assert (r["n"], r["n_params"], r["inert"]) == (7, 6, ["panda_joint7"])
     with pytest.raises(InputError, match="1 give 3 equations for 6 compliances"):
@@ -364,4 +364,5 @@ def test_the_report_counts_the_identifiable_compliances(root, tmp_path):
     env = jinja2.Environment(undefined=jinja2.StrictUndefined)
     env.filters["num"] = fmt
     text = " ".join(env.from_string(sentence).render(r=r).split())
-    assert text.startswith("A single pose gives 3 equations for 6 compliances (of the 7 joints, panda_joint7 is left out")
+    assert text.startswith("A single pose gives 3 equations for 6 compliances (of the 7 joints, panda_joint7 is "
+                           "left out")
