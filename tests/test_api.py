@@ -16,6 +16,7 @@ from stiffcal.cli import main
 from stiffcal.errors import InputError
 
 PAPER_ROBOT = "config/robots/paper_2r.yaml"
+DATA = "data/synthetic_paper_2r.csv"
 
 
 def test_import_exposes_the_api_lazily():
@@ -67,6 +68,21 @@ def test_joint_limits_argument_restricts_the_poses(root):
     ({"criterion": "x"}, "criterion"),
     ({"seed": -1}, "seed"),
     ({"joint_limits_deg": [[0, 10]]}, "joint_limits_deg"),
+    ({"joint_limits_deg": [[0, 10], [True, 20]]}, "joint_limits_deg[1][0]"),
+    # a flat list of numbers: nested lists, bools and scalars are refused (they were accepted silently)
+    ({"test_pose_deg": [[60, 30]]}, "test_pose_deg[0]"),
+    ({"test_pose_deg": [[60], [30]]}, "test_pose_deg[0]"),
+    ({"test_pose_deg": [True, 30]}, "test_pose_deg[0]"),
+    ({"test_pose_deg": 60}, "test_pose_deg"),
+    ({"test_pose_deg": {"q1": 60, "q2": 30}}, "test_pose_deg"),
+    ({"force_N": [0, "-1"]}, "force_N[1]"),
+    ({"force_N": [False, -1]}, "force_N[0]"),
+    ({"sigma": True}, "sigma"),
+    ({"sigma": [1.0]}, "sigma"),
+    ({"orientation": "no"}, "orientation"),
+    ({"targets": 5}, "targets"),
+    ({"targets": ["tool", 5]}, "targets"),
+    ({"test_target": None}, "test_target"),
 ])
 def test_bad_arguments_name_the_argument(root, kwargs, field):
     args = {"test_pose_deg": [60, 30], "force_N": [0, -1], **kwargs}
@@ -122,3 +138,28 @@ def test_wheel_installs_into_a_clean_venv_and_designs_from_a_robot_file(root, tm
     assert out["joints"] == ["a1", "a2", "a3", "a4", "a5", "a6"]
     cli = subprocess.run([str(env_dir / "bin" / "stiffcal"), "--version"], capture_output=True, text=True, env=env)
     assert cli.returncode == 0 and cli.stdout.strip() == f"stiffcal {stiffcal.__version__}"
+
+
+@pytest.mark.parametrize("call,field", [
+    (lambda r, df: stiffcal.analyse_measurements(r, df), "data"),      # a DataFrame instead of the CSV's path
+    (lambda r, df: stiffcal.analyse_measurements(r, None), "data"),
+    (lambda r, df: stiffcal.analyse_measurements(r, DATA, out=5), "out"),
+    (lambda r, df: stiffcal.analyse_measurements(None, DATA), "robot"),
+    (lambda r, df: stiffcal.analyse_measurements(r, DATA, test_pose_deg=[[60, 30]], force_N=[0, -1]),
+     "test_pose_deg[0]"),
+    (lambda r, df: stiffcal.plan_discrimination(r, df, 4), "data"),
+    (lambda r, df: stiffcal.plan_discrimination(r, DATA, 4, loads=[300]), "loads"),
+    (lambda r, df: stiffcal.load_robot(5), "path"),
+    (lambda r, df: stiffcal.load_robot(None), "path"),
+    (lambda r, df: stiffcal.design(None, [60, 30], [0, -1]), "robot"),
+    (lambda r, df: stiffcal.design(5, [60, 30], [0, -1]), "robot"),
+])
+def test_api_misuse_names_the_argument(root, monkeypatch, call, field):
+    """Wrong types give an InputError naming the argument (they were TypeErrors or AttributeErrors)."""
+    import pandas as pd
+
+    monkeypatch.chdir(root)
+    robot = stiffcal.load_robot(PAPER_ROBOT)
+    with pytest.raises(InputError) as err:
+        call(robot, pd.read_csv(DATA))
+    assert err.value.field == field

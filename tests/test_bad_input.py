@@ -197,6 +197,45 @@ def test_config_reads_yaml_1_2_numbers(root, tmp_path):
     assert cfg["studies"][0]["sigma_m"] == 1e-5
 
 
+
+def _schema_keys_missing(doc, schema, where="") -> list[str]:
+    """Every optional key of the config schema that ``doc`` lacks (a map study's robot / link_ratio aside)."""
+    if isinstance(doc, list):
+        return [k for i, item in enumerate(doc) for k in _schema_keys_missing(item, schema.get("items", {}),
+                                                                              f"{where}[{i}]")]
+    if not isinstance(doc, dict) or "properties" not in schema:
+        return []
+    either = {k for alt in schema.get("oneOf", []) for k in alt.get("required", [])}
+    return [f"{where}.{k}" for k in schema["properties"] if k not in doc and k not in either] + [
+        k for key, sub in schema["properties"].items() if key in doc
+        for k in _schema_keys_missing(doc[key], sub, f"{where}.{key}")]
+
+
+def test_config_loader_fills_every_documented_default(root, tmp_path):
+    """A measured-data entry without ``synthetic`` (documented optional, default false) and a study without
+    its optional keys: the loaded config has every key, with the documented default."""
+    from stiffcal.validation import load_schema
+
+    cfg = yaml.safe_load((root / "config/config.yaml").read_text())
+    for entry in cfg["measured_data"]:
+        for key in ("synthetic", "alpha", "discriminate", "force_N"):
+            entry.pop(key, None)
+    cfg.pop("plans")
+    cfg["studies"][0].pop("m_values")
+    cfg["studies"][0].pop("draw_m")
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump(cfg))
+    _, loaded = workflow_config([str(tmp_path / "c.yaml")], root=root)
+    assert _schema_keys_missing(loaded, load_schema("config")) == []
+    entry = loaded["measured_data"][0]
+    assert entry["synthetic"] is False and entry["alpha"] == 0.01 and entry["sigma_m"] is None
+    assert entry["force_N"] == cfg["study"]["force_N"] and entry["moment_Nm"] is None
+    assert entry["discriminate"] == {"experiments": 6, "loads": None, "repeats": 1, "weight": 0.5, "truth": "best",
+                                     "seed": 0}
+    assert loaded["plans"] == {"m_max": 10, "pool_step_deg": None}
+    assert loaded["studies"][0]["m_values"] == [2, 3, 4, 5, 6, 7, 8] and loaded["studies"][0]["draw_m"] == 8
+    assert loaded["study"]["moment_Nm"] is None and loaded["study"]["targets"] == ["tool"]
+
+
 # --- seeded fuzz: robot files and command-line values ------------------------------------------------------
 
 BAD_NUMBERS = ["x", "", None, [1], {"a": 1}, True, -0.4, 0, 1e5, ".nan", ".inf", "-.inf", "1e400", "1,2"]

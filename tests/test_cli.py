@@ -136,3 +136,56 @@ def test_progress_bar_on_a_terminal_and_quiet(root):
     assert code == 0 and "stages" in err
     code, err = stderr_on_tty(["--quiet"])
     assert code == 0 and err == ""
+
+
+def _strict_json(text: str):
+    """Parse as strict JSON: the bare tokens Infinity, -Infinity and NaN are refused."""
+    def refuse(token):
+        raise ValueError(f"not JSON: {token}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_every_json_writer_is_strict(root):
+    """Every json.dump / json.dumps call of the package, the workflow scripts and the tools refuses NaN and
+    infinity (allow_nan=False): an infinite value must be written as the string 'inf', never as a bare
+    Infinity token that JSON parsers reject."""
+    import ast
+
+    calls = []
+    for path in [*(root / "src/stiffcal").rglob("*.py"), *(root / "workflow").rglob("*.py"),
+                 *(root / "tools").rglob("*.py")]:
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr in
+                    ("dump", "dumps") and isinstance(node.func.value, ast.Name) and node.func.value.id == "json"):
+                strict = any(k.arg == "allow_nan" and isinstance(k.value, ast.Constant) and k.value.value is False
+                             for k in node.keywords)
+                calls.append((f"{path.relative_to(root)}:{node.lineno}", strict))
+    assert len(calls) >= 6  # cli, api, discrepancy, discrimination, pipeline, archive, report
+    assert [c for c, strict in calls if not strict] == []
+
+
+def test_design_json_writes_every_infinity_as_a_string(root, capsys, monkeypatch):
+    """O_t* infinite (the test pose alone cannot identify the compliances; the Franka Panda case of the user
+    test), a gap of inf / inf, an infinite equivalence gap and -0.0 angles: the CLI prints strict JSON with "inf",
+    null for the undefined gap and 0.0."""
+    import dataclasses
+
+    import numpy as np
+
+    import stiffcal
+    import stiffcal.api
+
+    res = stiffcal.design(root / "config/robots/paper_2r.yaml", [60, 30], [0, -1])
+    odd = dataclasses.replace(res, O_t_star=float("inf"), chi=float("inf"), lower_bound=float("inf"),
+                              gap=float("nan"), poses_deg=np.array([[-0.0, 45.0]]),
+                              approximate_design={**res.approximate_design, "equivalence_gap": float("inf"),
+                                                  "support_deg": np.array([[-1e-9, 30.0]])})
+    monkeypatch.setattr(stiffcal.api, "design", lambda *a, **k: odd)
+    monkeypatch.chdir(root)
+    code, out, _ = run(PAPER, capsys)
+    d = _strict_json(out)
+    assert code == 0 and d["O_t_star"] == d["chi"] == d["lower_bound"] == "inf" and d["gap"] is None
+    assert d["approximate_design"]["equivalence_gap"] == "inf"
+    assert d["poses_deg"] == [[0.0, 45.0]] and "-0.0" not in out
+    assert _strict_json(json.dumps(odd.to_dict(), allow_nan=False)) == d

@@ -301,3 +301,71 @@ def test_the_workflow_lists_the_urdf_as_an_input_of_its_robot(root):
     assert robot_inputs(KUKA_DH) == [] and robot_inputs("no/such/robot.yaml") == []
     rules = (root / "workflow/rules/studies.smk").read_text() + (root / "workflow/rules/discrepancy.smk").read_text()
     assert rules.count("urdf=lambda wc: robot_inputs(") == 5  # design, plans, summary; discrepancy, discriminate
+
+
+def test_a_continuous_joint_has_no_limits(root):
+    """The UR5 of example-robot-data with its shoulder pan (and wrist 3) made continuous: those joints take any
+    angle (a test pose of 200 deg is accepted; it was refused as outside [-180, 180]), a revolute joint keeps
+    the URDF's limits."""
+    import xml.etree.ElementTree as ET
+
+    from stiffcal.api import design
+    from stiffcal.study import check_test_inputs
+
+    robot = load_robot(root / "tests/data/urdf/ur5_cont.yaml")
+    kinds = {j.get("name"): j.get("type") for j in ET.parse(root / "tests/data/urdf/ur5_cont.urdf").iter("joint")
+             if j.get("type")}
+    expected = [kinds[name] != "continuous" for name in robot.joint_names]
+    assert expected.count(False) >= 1 and robot.limited.tolist() == expected
+    q = np.radians([200, -60, 90, -120, -90, 0])
+    assert robot.outside_limits(q).tolist() == [False] * 6
+    check_test_inputs(robot, np.degrees(q), np.array([0, 0, -50.0]), "test_pose_deg", "force_N")
+    lift = robot.joint_names.index("shoulder_lift_joint")
+    assert robot.limited[lift] and robot.outside_limits(np.where(np.arange(6) == lift, np.radians(400), q))[lift]
+    with pytest.raises(InputError, match="shoulder_lift_joint within the joint limits"):
+        design(robot, [0, 400, 90, -120, -90, 0], [0, 0, -50], experiments=2)
+
+
+def test_an_unknown_tip_frame_lists_every_link_the_closest_first(root, tmp_path):
+    """A misspelt tip frame: the message lists every link of the URDF (it cut the list at 12, hiding the one the
+    user meant), the closest names first."""
+    import re
+    import shutil
+    import xml.etree.ElementTree as ET
+
+    shutil.copy(root / "tests/data/urdf/franka_panda.urdf", tmp_path / "panda.urdf")
+    text = (root / "tests/data/urdf/franka_panda.yaml").read_text().replace("franka_panda.urdf", "panda.urdf")
+    (tmp_path / "p.yaml").write_text(text.replace("tip_frame: panda_hand_tcp", "tip_frame: panda_hand_tpc"))
+    with pytest.raises(InputError) as err:
+        load_robot(tmp_path / "p.yaml")
+    assert err.value.field == "tip_frame"
+    listed = re.search(r"closest names first: (.*)$", err.value.message).group(1).split(", ")
+    links = [link.get("name") for link in ET.parse(tmp_path / "panda.urdf").getroot().iter("link")]
+    assert len(links) > 12 and sorted(listed) == sorted(links)
+    assert listed[0] == "panda_hand_tcp"
+
+
+def test_the_report_counts_the_identifiable_compliances(root, tmp_path):
+    """The Franka Panda with the tool point on joint 7's axis: that compliance cannot be identified, so a single
+    pose gives 3 equations for 6 compliances, as the design says (it said 7 in the report)."""
+    import re
+
+    import jinja2
+
+    import stiffcal
+    from stiffcal.report import TEMPLATE_DIR, fmt, robot_summary
+    from stiffcal.study import study_from_entry
+
+    entry = {"name": "panda", "robot": "tests/data/urdf/franka_panda.yaml", "force_N": [20, 0, -30], "sigma_m": 1e-5,
+             "test_pose_deg": [0, -30, 0, -120, 0, 90, 45]}
+    r = robot_summary(study_from_entry(entry, root))
+    assert (r["n"], r["n_params"], r["inert"]) == (7, 6, ["panda_joint7"])
+    with pytest.raises(InputError, match="1 give 3 equations for 6 compliances"):
+        stiffcal.design(root / entry["robot"], entry["test_pose_deg"], entry["force_N"])
+    template = (TEMPLATE_DIR / "report.html.j2").read_text()
+    sentence = re.search(r"A single pose gives .*?;", template, re.S).group(0)
+    env = jinja2.Environment(undefined=jinja2.StrictUndefined)
+    env.filters["num"] = fmt
+    text = " ".join(env.from_string(sentence).render(r=r).split())
+    assert text.startswith("A single pose gives 3 equations for 6 compliances (of the 7 joints, panda_joint7 is "
+                           "left out")

@@ -156,6 +156,10 @@ REPORT = {"report_html": 1, "report_pdf": 1}
       # both measured data sets are of the paper's arm: their gain and their compound plans use the test pose
       "discrepancy": 2, "discriminate": 2, **REPORT}),
     ("the Monte Carlo samples", lambda c: c["monte_carlo"].update(samples=600), {"validation": 1, **REPORT}),
+    # the map grid: every map (one tile each on a 15-degree grid of 200 cells per tile), its figures and
+    # statistics and the comparison (the Figure-6 numbers of the text), not the pairs (their own pairs_step_deg)
+    ("the map step", lambda c: c["maps"].update(step_deg=15.0),
+     {"map_tile": 4, "map_merge": 4, "map_statistics": 1, "map_figures": 1, "paper_comparison": 1, **REPORT}),
 ])
 def test_dry_run_after_a_config_edit_lists_exactly_the_affected_jobs(built, what, edit, expected):
     assert _dry_run_jobs(built) == {}
@@ -181,6 +185,24 @@ def test_dry_run_after_a_measured_data_edit(built):
         data.write_bytes(before)
         os.utime(data, ns=(stat.st_atime_ns, stat.st_mtime_ns))
     assert _dry_run_jobs(built) == {}
+
+
+
+def test_report_renders_a_measured_data_entry_without_optional_keys(built, tmp_path):
+    """``synthetic`` (and every other optional key) left out of a measured-data entry: the report renders, the
+    entry unlabelled (a copy of the built tree; only the report is redrawn)."""
+    wd = tmp_path / "wd"
+    shutil.copytree(built, wd, symlinks=True)
+
+    def bare(c):
+        c["measured_data"][1] = {k: c["measured_data"][1][k] for k in ("name", "data", "robot")}
+
+    _edit_config(wd, bare)
+    res = _snakemake(wd, "--rerun-triggers", "mtime", "--forcerun", "report_html", "paper/build/report.html")
+    assert res.returncode == 0, res.stderr[-3000:]
+    html = (wd / "paper/build/report.html").read_text()
+    assert "Measured data: synthetic-paper-2r-hanging</h2>" in html
+    assert "Measured data: synthetic-paper-2r <span class=\"synthetic\">(SYNTHETIC data)</span></h2>" in html
 
 
 def test_dry_run_after_a_library_edit_reruns_the_jobs_that_use_it(built, root, tmp_path):

@@ -204,6 +204,8 @@ def test_cli_design_takes_a_wrench_targets_and_orientation(root, tmp_path, capsy
     ({"orientation": True}, "study.sigma_rad", "expected the orientation noise sigma_rad > 0"),
     ({"test_target": "C"}, "study.test_target", "expected a target of robot"),
     ({"force_N": [0, 0], "moment_Nm": [0]}, "study.force_N", "expected a nonzero force or moment"),
+    ({"test_pose_deg": [0, 0], "force_N": [1, 0]}, "study.force_N", "produces no joint torque"),
+    ({"test_pose_deg": [0, 0], "force_N": [-3, 0], "moment_Nm": [0]}, "study.force_N", "produces no joint torque"),
 ])
 def test_study_entries_with_bad_loads_or_measurements_are_refused(entry, field, message, root):
     base = {"name": "x", "robot": PAPER, "test_pose_deg": [60, 30], "force_N": [0, -1]}
@@ -224,3 +226,73 @@ def test_robot_file_targets_are_checked(tmp_path, root):
     robot = load_robot(p)
     assert robot.target_names == ("tool", "A", "B")
     np.testing.assert_array_equal(robot.target_point("A"), [0.1, 0.02, 0.0])
+
+
+UPRIGHT_3R = """name: upright-3r
+kind: spatial
+dh_convention: standard
+dh:
+  - {a_m: 0.0, alpha_deg: 90, d_m: 0.4}
+  - {a_m: 0.5, alpha_deg: 0, d_m: 0.0, offset_deg: 90}
+  - {a_m: 0.4, alpha_deg: 0, d_m: 0.0}
+"""
+
+
+@pytest.mark.parametrize("robot,pose,load", [
+    (PAPER, "0,0", ["--force-N", "1,0"]),                    # a force along the straight arm
+    (PAPER, "90,0", ["--force-N", "0,-2"]),
+    (PAPER, "0,0", ["--wrench", "1,0,0"]),
+    ("upright", "0,0,0", ["--force-N", "0,0,-100"]),        # a spatial arm pointing up, a vertical force
+    ("upright", "40,0,0", ["--wrench", "0,0,-100,0,0,0"]),
+])
+@pytest.mark.parametrize("experiments", ["1", "3"])
+def test_a_load_without_torque_at_the_test_pose_is_refused(robot, pose, load, experiments, tmp_path, capsys, root):
+    """tau = J^T F = 0 at the test pose: nothing deflects there and O_t is 0 for every plan; one message naming the
+    option, exit 2 (it was a singular-matrix crash), and the API and a config study refuse it the same way."""
+    if robot == "upright":
+        robot = tmp_path / "upright.yaml"
+        robot.write_text(UPRIGHT_3R)
+    else:
+        robot = root / robot
+    code = main(["design", "--robot", str(robot), "--test-pose-deg", pose, *load, "--experiments", experiments,
+                 "--quiet"])
+    out = capsys.readouterr()
+    assert code == 2 and out.out == ""
+    assert out.err.startswith(f"stiffcal design: error: field '{load[0]}': expected a load that bends the arm")
+    assert "O_t is 0 for every plan" in out.err and len(out.err.splitlines()) == 1
+    key = "force_N" if load[0] == "--force-N" else "wrench"
+    with pytest.raises(InputError, match="produces no joint torque") as err:
+        stiffcal.design(robot, [float(a) for a in pose.split(",")], **{key: [float(v) for v in load[1].split(",")]},
+                        experiments=int(experiments))
+    assert err.value.field == key
+
+
+def test_a_force_along_the_straight_arm_with_a_moment_has_a_certified_answer(root):
+    """The force along the straight test arm plus a moment bends it (tau = (mz, mz)): a well-posed problem whose
+    information matrices are singular in places (it was a singular-matrix crash in the approximate design). The
+    single optimal pose is compared with a brute force over a 0.5-degree grid of O_t (eq. 16) written here from
+    the 2R kinematics, and lies above the certified bound."""
+    l1, l2, (fx, fy, mz) = 0.6, 0.4, (1.0, 0.0, 0.1)
+
+    def rows(q1, q2):  # (..., 2, 2): column j = d(tool)/d(theta_j) * tau_j, tau = J_W^T W
+        s1, c1, s12, c12 = np.sin(q1), np.cos(q1), np.sin(q1 + q2), np.cos(q1 + q2)
+        J = np.stack([np.stack([-l1 * s1 - l2 * s12, -l2 * s12], -1), np.stack([l1 * c1 + l2 * c12, l2 * c12], -1)],
+                     -2)
+        tau = np.einsum("...ij,...i->...j", J, np.broadcast_to([fx, fy], J.shape[:-1])) + mz
+        return J * tau[..., None, :]
+
+    At = rows(0.0, 0.0)
+    g = np.radians(np.arange(-180, 180, 0.5))
+    A = rows(*np.meshgrid(g, g, indexing="ij"))
+    M = np.einsum("...ki,...kj->...ij", A, A)
+    det = np.linalg.det(M)
+    ok = np.abs(det) > 1e-12
+    Minv = np.linalg.inv(np.where(ok[..., None, None], M, np.eye(2)))
+    ot = np.where(ok, np.einsum("ij,...jk,ik->...", At, Minv, At), np.inf)
+    brute = float(ot.min())
+    res = stiffcal.design(root / PAPER, [0, 0], wrench=[fx, fy, mz])
+    assert res.O_t <= brute * (1 + 1e-9)
+    assert brute <= res.O_t * (1 + 1e-3)
+    assert res.lower_bound <= res.O_t * (1 + 1e-9) and res.approximate_design["converged"]
+    A1 = rows(*np.radians(res.poses_deg[0]))
+    assert res.O_t == pytest.approx(float(np.trace(At @ np.linalg.inv(A1.T @ A1) @ At.T)), rel=1e-9)

@@ -16,6 +16,7 @@ expected; the ``stiffcal`` command is a thin layer over these functions and prin
 from __future__ import annotations
 
 import math
+import os
 import shutil
 import tempfile
 from dataclasses import dataclass, field, replace
@@ -23,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, short_repr
 from .robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
 
 __all__ = ["DesignResult", "design", "analyse_measurements", "load_robot", "float_list"]
@@ -34,20 +35,33 @@ MAX_MAGNITUDE = 1e100
 MIN_SIGMA = 1e-100
 
 
+def _is_number(v) -> bool:
+    """A real number: int, float or a numpy one; a bool is not a number here."""
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_))
+
+
 def float_list(value, field: str, size: int | None = None, limit: float = MAX_MAGNITUDE) -> np.ndarray:
-    """A finite float vector from a list, an array or a comma-separated string, every |value| <= ``limit``;
-    InputError naming ``field``."""
+    """A finite float vector from a flat list or tuple of numbers, a 1-D numeric array or a comma-separated
+    string, every |value| <= ``limit``; a nested list, a bool, a string element or anything else is refused
+    with an InputError naming ``field``."""
     if isinstance(value, str):
         parts = value.split(",")
         try:
             vals = [float(v) for v in parts]
         except ValueError:
-            raise InputError(f"expected comma-separated numbers, got {value!r}", field=field) from None
+            raise InputError(f"expected comma-separated numbers, got {short_repr(value)}", field=field) from None
     else:
-        try:
-            vals = [float(v) for v in np.atleast_1d(np.asarray(value, dtype=object)).ravel()]
-        except (TypeError, ValueError):
-            raise InputError(f"expected a list of numbers, got {value!r}", field=field) from None
+        if isinstance(value, np.ndarray) and value.ndim == 1:
+            value = value.tolist()
+        if not isinstance(value, (list, tuple)):
+            raise InputError(f"expected a flat list of numbers, got {type(value).__name__} {short_repr(value)}",
+                             field=field)
+        for i, v in enumerate(value):
+            if not _is_number(v):
+                what = "a nested list" if isinstance(v, (list, tuple, np.ndarray)) else type(v).__name__
+                raise InputError(f"expected a flat list of numbers (one per component), got {what} "
+                                 f"{short_repr(v)}", field=f"{field}[{i}]")
+        vals = [float(v) for v in value]
     arr = np.array(vals, float)
     if arr.size == 0:
         raise InputError("expected at least one number, got none", field=field)
@@ -61,8 +75,11 @@ def float_list(value, field: str, size: int | None = None, limit: float = MAX_MA
 
 
 def positive_number(value, field: str, low: float = MIN_SIGMA, high: float = MAX_MAGNITUDE) -> float:
-    """A finite number in [low, high]; InputError naming ``field``."""
+    """A finite number (or a string that reads as one: the command line's) in [low, high]; a bool is refused;
+    InputError naming ``field``."""
     try:
+        if not (_is_number(value) or isinstance(value, str)):
+            raise TypeError
         x = float(value)
     except (TypeError, ValueError):
         raise InputError(f"expected a number, got {value!r}", field=field) from None
@@ -82,9 +99,31 @@ def whole_number(value, field: str, low: int, high: int) -> int:
 
 
 def _json_number(x: float):
-    """JSON has no inf: an infinite value (unidentifiable) is written as the string 'inf'."""
+    """JSON has no inf: an infinite value (unidentifiable) is written as the string 'inf' ('-inf'); an undefined
+    one (NaN, e.g. inf / inf) as null; -0.0 as 0.0."""
     x = float(x)
-    return x if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+    if math.isnan(x):
+        return None
+    return x + 0.0 if math.isfinite(x) else ("inf" if x > 0 else "-inf")
+
+
+def json_safe(obj):
+    """``obj`` (dicts, lists, tuples, numpy arrays and scalars) with every float made strict JSON by
+    :func:`_json_number`: what every JSON the project writes goes through (``json.dumps(..., allow_nan=False)``
+    then holds)."""
+    if isinstance(obj, dict):
+        return {k: json_safe(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [json_safe(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return json_safe(obj.tolist())
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        return _json_number(obj)
+    return obj
 
 
 @dataclass(frozen=True)
@@ -135,9 +174,10 @@ class DesignResult:
     orientation_length_m: float = 0.0
 
     def to_dict(self) -> dict:
-        """The JSON object of ``stiffcal design`` (inf as the string 'inf', poses rounded to 1e-6 deg)."""
+        """The JSON object of ``stiffcal design``, strict JSON (:func:`json_safe`: inf as the string 'inf' in
+        every field, poses rounded to 1e-6 deg)."""
         d = self.approximate_design
-        return {
+        return json_safe({
             "criterion": self.criterion, "criterion_label": self.criterion_label, "robot": self.robot,
             "joint_names": list(self.joint_names), "experiments": self.experiments,
             "poses_deg": [[round(float(a), 6) + 0.0 for a in p] for p in self.poses_deg],
@@ -156,25 +196,49 @@ class DesignResult:
             "moment_Nm": None if self.moment_Nm is None else self.moment_Nm.tolist(),
             "targets": list(self.targets), "orientation": self.orientation, "sigma_rad": self.sigma_rad,
             "test_target": self.test_target, "orientation_length_m": self.orientation_length_m,
-        }
+        })
 
 
 def _robot(robot) -> Robot:
-    return robot if isinstance(robot, Robot) else load_robot(robot)
+    """A Robot, or the one read from a robot file's path; InputError naming the argument ``robot``."""
+    if isinstance(robot, Robot):
+        return robot
+    if not isinstance(robot, (str, os.PathLike)):
+        raise InputError(f"expected a Robot (stiffcal.load_robot) or the path of a robot file, got "
+                         f"{type(robot).__name__} {short_repr(robot)}", field="robot")
+    return load_robot(robot)
+
+
+def _path(value, field: str, what: str) -> str | os.PathLike:
+    """A file or directory path (str or os.PathLike); InputError naming ``field``."""
+    if not isinstance(value, (str, os.PathLike)):
+        hint = (" (write the table with df.to_csv(path, index=False) and give the path)"
+                if type(value).__name__ == "DataFrame" else "")
+        raise InputError(f"expected the path of {what} (a str or a path), got {type(value).__name__}{hint}",
+                         field=field)
+    return value
+
+
+def _flag(value, field: str) -> bool:
+    """True or False (not a string: bool('no') is True); InputError naming ``field``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise InputError(f"expected True or False, got {short_repr(value)}", field=field)
+    return bool(value)
 
 
 def _with_limits(robot: Robot, joint_limits_deg) -> Robot:
     """``robot`` with its joint limits replaced by ``joint_limits_deg`` (n, 2) [deg], checked."""
-    lim = float_list(joint_limits_deg, "joint_limits_deg")
-    if lim.size != 2 * robot.n_joints:
-        raise InputError(f"expected {robot.n_joints} [lower, upper] pairs (one per joint), got {lim.size} numbers",
-                         field="joint_limits_deg")
-    lim = lim.reshape(-1, 2)
+    if isinstance(joint_limits_deg, np.ndarray):
+        joint_limits_deg = list(joint_limits_deg)
+    if not isinstance(joint_limits_deg, (list, tuple)) or len(joint_limits_deg) != robot.n_joints:
+        raise InputError(f"expected {robot.n_joints} [lower, upper] pairs (one per joint), got "
+                         f"{short_repr(joint_limits_deg)}", field="joint_limits_deg")
+    lim = np.array([float_list(p, f"joint_limits_deg[{j}]", 2) for j, p in enumerate(joint_limits_deg)])
     for j, (lo, hi) in enumerate(lim):
         if not -MAX_JOINT_ANGLE_DEG <= lo < hi <= MAX_JOINT_ANGLE_DEG:
             raise InputError(f"expected -{MAX_JOINT_ANGLE_DEG:g} <= lower < upper <= {MAX_JOINT_ANGLE_DEG:g} deg, got "
                              f"[{lo:g}, {hi:g}]", field=f"joint_limits_deg[{j}]")
-    return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True)
+    return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True, unlimited_joints=())
 
 
 def _stages(progress, total: int):
@@ -230,9 +294,11 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     sigma = positive_number(sigma, "sigma")
     sigma_rad = None if sigma_rad is None else positive_number(sigma_rad, "sigma_rad")
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
+    if not isinstance(test_target, str):
+        raise InputError(f"expected a target's name, got {short_repr(test_target)}", field="test_target")
     sensing, test_target, length = check_sensing(
-        robot, [TOOL_TARGET] if targets is None else _names(targets, "targets"), orientation, sigma, sigma_rad,
-        test_target, positive_number(orientation_length_m, "orientation_length_m", 0.0), "", None)
+        robot, [TOOL_TARGET] if targets is None else _names(targets, "targets"), _flag(orientation, "orientation"),
+        sigma, sigma_rad, test_target, positive_number(orientation_length_m, "orientation_length_m", 0.0), "", None)
     study = Study(robot.name, robot, np.radians(q_t), force, sigma, (criterion,), 1.0, 1.0, moment, sensing,
                   test_target, length)
     base = study.problem(criterion)
@@ -287,8 +353,12 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
 
 def _names(value, field: str) -> list[str]:
     """A list of names from a list or a comma-separated string; InputError naming ``field``."""
-    names = value.split(",") if isinstance(value, str) else list(value)
-    names = [str(v).strip() for v in names]
+    if isinstance(value, str):
+        value = value.split(",")
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        raise InputError(f"expected a list of names (strings) or comma-separated names, got {short_repr(value)}",
+                         field=field)
+    names = [v.strip() for v in value]
     if not names or not all(names):
         raise InputError(f"expected comma-separated names, got {value!r}", field=field)
     return names
@@ -348,6 +418,9 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     from . import measurements as M
 
     robot = _robot(robot)
+    data = _path(data, "data", "a measured-data CSV")
+    if out is not None:
+        out = _path(out, "out", "an output directory")
     alpha = positive_number(alpha, "alpha", 1e-12, 1 - 1e-12)
     res = _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm)
     if (sigma_m is None) != (sigma_rad is None):
@@ -427,6 +500,11 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     from . import measurements as M
 
     robot = _robot(robot)
+    data = _path(data, "data", "a measured-data CSV")
+    if out is not None:
+        out = _path(out, "out", "an output directory")
+    if loads is not None and not isinstance(loads, str):
+        raise InputError(f"expected a load set such as 'hanging:100,300', got {short_repr(loads)}", field="loads")
     experiments = whole_number(experiments, "experiments", 1, 10_000)
     repeats = whole_number(repeats, "repeats", 1, 1000)
     seed = whole_number(seed, "seed", 0, 2**32 - 1)

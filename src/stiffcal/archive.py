@@ -87,7 +87,7 @@ def write_archive(out: str | Path, files: list[Path], prov: dict, root: str | Pa
     top = out.name.removesuffix(".tar.gz")
     epoch = int(prov.get("source_date_epoch", 0))
     members = {p.as_posix(): (root / p).read_bytes() for p in files}
-    members[PROVENANCE] = (json.dumps(prov, indent=1, sort_keys=True) + "\n").encode()
+    members[PROVENANCE] = (json.dumps(prov, indent=1, sort_keys=True, allow_nan=False) + "\n").encode()
     members[SUMS] = "".join(f"{_sha256(data)}  {name}\n" for name, data in sorted(members.items())).encode()
     buf = io.BytesIO()
     with tarfile.open(fileobj=buf, mode="w", format=tarfile.PAX_FORMAT) as tar:

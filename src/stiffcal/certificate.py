@@ -259,7 +259,11 @@ def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, 
         while mu < 1e10 and not accepted:
             step = np.zeros(k)
             K = np.block([[H + mu * D, one], [one.T, np.zeros((1, 1))]])
-            step[F] = np.linalg.solve(K, np.append(phi[F], 0.0))[:len(F)]
+            try:
+                step[F] = np.linalg.solve(K, np.append(phi[F], 0.0))[:len(F)]
+            except np.linalg.LinAlgError:  # poses that add nothing make H singular: damp more
+                mu *= 100
+                continue
             for a in 0.5 ** np.arange(6):
                 trial = np.where(drop, 0.0, np.maximum(w + a * step, 0.0))
                 trial /= trial.sum()

@@ -209,7 +209,9 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 1
     try:
-        print(json.dumps(out, indent=2))
+        from .api import json_safe
+
+        print(json.dumps(json_safe(out), indent=2, allow_nan=False))
         sys.stdout.flush()
     except BrokenPipeError:  # the reader went away (`| head`): no traceback, the usual exit status
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())

@@ -11,7 +11,10 @@ that can identify every compliance, and the measured-data CSVs (read as the disc
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
+
+import numpy as np
 
 from .errors import InputError
 
@@ -47,7 +50,55 @@ def workflow_config(configfiles, overrides: dict | None = None, root: str | Path
         if top in overrides:
             raise err.renamed(source="--config") from None
         raise
-    return source, config
+    return source, fill_defaults(config)
+
+
+def fill_defaults(config: dict) -> dict:
+    """``config`` (checked by :func:`check_config`) with every optional key of the schema filled in, in place and
+    returned, so that rules and the report's template never meet a missing key: the schema's ``default``,
+    the documented derived defaults (``measured_data[].force_N`` and ``moment_Nm``: the study's;
+    ``studies[].draw_m``: the largest of ``m_values``; ``plans`` and ``measured_data[].discriminate``: every
+    default), and None for a key whose documented default is "none" (``moment_Nm``, ``sigma_rad``, a
+    ``sigma_m`` estimated from the data, ``plans.pool_step_deg``, ``discriminate.loads``, ``maps``), an empty list
+    for ``studies`` and ``measured_data``. A map study's
+    ``robot`` / ``link_ratio`` (one of the two) are left as written."""
+    from .validation import load_schema
+
+    schema = load_schema("config")
+    _fill(config, schema)
+    study = config["study"]
+    for entry in config.get("studies") or []:
+        if entry["draw_m"] is None:
+            entry["draw_m"] = max(entry["m_values"])
+    for entry in config.get("measured_data") or []:
+        for key in ("force_N", "moment_Nm"):
+            if entry[key] is None:
+                entry[key] = copy.deepcopy(study[key])
+    return config
+
+
+def _fill(doc, schema: dict) -> None:
+    """Fill the defaults of ``schema`` (an object's ``properties``, recursively through arrays) into ``doc``."""
+    if isinstance(doc, list) and "items" in schema:
+        for item in doc:
+            _fill(item, schema["items"])
+        return
+    if not isinstance(doc, dict) or "properties" not in schema:
+        return
+    alternatives = {k for alt in schema.get("oneOf", []) for k in alt.get("required", [])}
+    for key, sub in schema["properties"].items():
+        if key not in doc and key not in schema.get("required", []) and key not in alternatives:
+            if "default" in sub:
+                doc[key] = copy.deepcopy(sub["default"])
+            elif sub.get("type") == "object" and not sub.get("required"):
+                doc[key] = {}
+            elif sub.get("type") == "array" and sub["items"].get("type") == "object":
+                doc[key] = []  # no design studies, no measured data
+            else:
+                doc[key] = None
+        if key in doc:
+            _fill(doc[key], sub)
+
 
 
 def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) -> None:
@@ -56,7 +107,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
     from .maps import map_studies
     from .observation import moment_dim
     from .robot import load_robot
-    from .study import design_studies, study_from_config
+    from .study import check_load_bends, design_studies, study_from_config
     from .validation import validate
 
     validate(config, "config", source)
@@ -103,3 +154,4 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
                                  f"{entry['robot']}, got {len(moment)}", source=source, field=mfield)
             if not any(force) and not any(moment or []):
                 raise InputError("expected a nonzero force at the test pose", source=source, field=field)
+            check_load_bends(data_robot, study.test_pose, np.r_[force, moment or []], field, source)

@@ -132,7 +132,7 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
         _write(phi, out_phi_csv)
     atomic_write(out_json, json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
                                        "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
-                                       "iterations": d.iterations}, indent=1) + "\n")
+                                       "iterations": d.iterations}, indent=1, allow_nan=False) + "\n")
 
 
 def _save_pool(path: str, study) -> None:
@@ -329,18 +329,17 @@ def map_statistics(p: dict, map_npzs: dict, printed_yaml: str, out_csv: str) -> 
 
 def map_pairs(p: dict, out_npz: str, out_csv: str) -> None:
     """The best plan of two poses (case iv of Table 4) over the test poses of one map study, on the grid of
-    ``maps.pairs_step_deg``: results/maps/<study>/pairs.npz and pairs.csv; p = the map study and
-    pairs_step_deg."""
+    ``maps.pairs_step_deg``: results/maps/<study>/pairs.npz and pairs.csv; p = name, link_ratio, force_deg and
+    pairs_step_deg of the map study (what the pairs depend on)."""
     import numpy as np
 
     from . import maps
 
-    st = _map_study({k: v for k, v in p.items() if k != "pairs_step_deg"})
-    step = float(p["pairs_step_deg"])
-    _log(f"map {st.name} (b = {st.link_ratio:.4g}): best plans of two poses on the {step:g} deg grid")
-    pm = maps.pair_map(st.link_ratio, st.force_deg, step)
+    name, b, step = p["name"], float(p["link_ratio"]), float(p["pairs_step_deg"])
+    _log(f"map {name} (b = {b:.4g}): best plans of two poses on the {step:g} deg grid")
+    pm = maps.pair_map(b, float(p["force_deg"]), step)
     g = pm.gain
-    _log(f"map {st.name}: a designed pair beats the single optimum measured twice by up to {100 * g.max():.1f} %; "
+    _log(f"map {name}: a designed pair beats the single optimum measured twice by up to {100 * g.max():.1f} %; "
          f"by more than 1 % on {100 * np.mean(g > 0.01):.0f} % of the test poses")
     maps.save_pair_map(out_npz, pm)
     _write(maps.pair_frame(pm), out_csv)

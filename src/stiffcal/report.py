@@ -95,7 +95,7 @@ def add_toc(html: str, marker: str = "<!-- toc -->") -> str:
 
 def config_hash(config: dict) -> str:
     """SHA-256 (first 12 hex digits) of the config, canonicalised as sorted JSON."""
-    return hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:12]
+    return hashlib.sha256(json.dumps(config, sort_keys=True, allow_nan=False).encode()).hexdigest()[:12]
 
 
 def git_commit(root: str | Path = ".") -> str:
@@ -185,11 +185,11 @@ def comparison_index(records: list[dict], printed: dict) -> dict:
     return out
 
 
-def study_context(study, entry: dict, paths: dict) -> dict:
-    """What the report shows of one design study: the robot (kind, joints, source, DH table), test pose,
-    force, sigma, the certificate, the plans against M and the two figures (embedded)."""
+def robot_summary(study) -> dict:
+    """The robot of a design study as its report section shows it: name, kind, joints n, identifiable compliances
+    n_params (joints whose axis passes through every measured point are left out: ``inert``), equations per pose
+    d, source, DH table, tool, limits (``limited``: per joint; a continuous joint has none), joint names, URDF."""
     import numpy as np
-    import pandas as pd
 
     robot = study.robot
     prob = study.problem("ot")
@@ -197,20 +197,28 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     if robot.dh is not None:
         dh = [{"a_m": r[0], "alpha_deg": float(np.degrees(r[1])), "d_m": r[2], "offset_deg": float(np.degrees(r[3]))}
               for r in robot.dh]
+    return {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "n_params": prob.n_params,
+            "d": prob.rows_per_pose, "source": robot.reference, "dh": dh, "convention": robot.convention,
+            "tool_m": None if robot.tool_m is None else robot.tool_m.tolist(),
+            "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
+            "has_limits": robot.has_joint_limits, "limited": robot.limited.tolist(),
+            "inert": [robot.joint_names[j] for j in range(robot.n_joints) if j not in prob.params],
+            "joint_keys": robot.joint_columns(""), "joint_names": list(robot.joint_names), "urdf": robot.urdf}
+
+
+def study_context(study, entry: dict, paths: dict) -> dict:
+    """What the report shows of one design study: the robot (:func:`robot_summary`), test pose, force, sigma, the
+    certificate, the plans against M and the two figures (embedded)."""
+    import numpy as np
+    import pandas as pd
+
+    robot = study.robot
     versus_m = pd.read_csv(paths["studym"], keep_default_na=False, na_values=[""])
     long = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
     cols = robot.joint_columns("q", "_deg")
     poses = {int(m): g[cols].to_numpy(float).tolist() for m, g in long.groupby("m", sort=True)}
     return {
-        "entry": entry, "robot": {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "d": prob.rows_per_pose,
-                                  "source": robot.reference, "dh": dh, "convention": robot.convention,
-                                  "tool_m": None if robot.tool_m is None else robot.tool_m.tolist(),
-                                  "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
-                                  "has_limits": robot.has_joint_limits,
-                                  "inert": [robot.joint_names[j] for j in range(robot.n_joints)
-                                            if j not in prob.params],
-                                  "joint_keys": robot.joint_columns(""), "joint_names": list(robot.joint_names),
-                                  "urdf": robot.urdf},
+        "entry": entry, "robot": robot_summary(study),
         "test_pose_deg": np.degrees(study.test_pose).round(6).tolist(), "force_N": study.force.tolist(),
         "sigma": study.sigma, "micro": study.sigma < 1e-2,
         "certificate": pd.read_csv(paths["studycert"]).to_dict("records")[0],

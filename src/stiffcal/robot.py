@@ -28,13 +28,14 @@ Conventions
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, short_repr
 from .validation import read_yaml, validate
 
 
@@ -207,6 +208,7 @@ class Robot:
     chain: Chain | None = None
     urdf: str = ""
     targets: dict = field(default_factory=dict)
+    unlimited_joints: tuple[int, ...] = ()
 
     def __post_init__(self):
         if not self.joint_names:
@@ -247,11 +249,20 @@ class Robot:
         """Straight segments of the drawn arm (:meth:`link_points`): n links, plus the tool for a spatial arm."""
         return self.n_joints + (self.kind != "planar")
 
+    @property
+    def limited(self) -> np.ndarray:
+        """(n,) bool: the joints that have limits (a file without limits has none; a URDF's continuous joints,
+        ``unlimited_joints``, turn endlessly and have none either)."""
+        out = np.full(self.n_joints, bool(self.has_joint_limits))
+        out[list(self.unlimited_joints)] = False
+        return out
+
     def outside_limits(self, q: np.ndarray) -> np.ndarray:
-        """(..., n) [rad] -> (..., n) bool: angles outside the joint limits (all False without limits)."""
+        """(..., n) [rad] -> (..., n) bool: angles outside the joint limits (always False for a joint without
+        limits, :attr:`limited`)."""
         lo, hi = self.joint_limits_rad.T
         q = np.asarray(q, float)
-        return ((q < lo - 1e-9) | (q > hi + 1e-9)) & self.has_joint_limits
+        return ((q < lo - 1e-9) | (q > hi + 1e-9)) & self.limited
 
     @property
     def task_dim(self) -> int:
@@ -410,13 +421,15 @@ def spatial_robot(dh_rows, tool_m=(0.0, 0.0, 0.0), name: str = "spatial", joint_
 
 
 def chain_robot(chain: Chain, tool_m, joint_limits_rad, joint_names, name: str = "urdf", compliances=None,
-                source: str = "<memory>", reference: str = "", urdf: str = "", has_joint_limits: bool = True) -> Robot:
+                source: str = "<memory>", reference: str = "", urdf: str = "", has_joint_limits: bool = True,
+                unlimited_joints: tuple[int, ...] = ()) -> Robot:
     """Build a URDF arm (``kind: urdf``) in memory from its :class:`Chain` (:func:`stiffcal.urdf.read_chain`).
-    tool_m: (3,) [m] the measured point in the tip frame; joint_limits_rad: (n, 2)."""
+    tool_m: (3,) [m] the measured point in the tip frame; joint_limits_rad: (n, 2) (a full turn [-pi, pi] for
+    the joints of ``unlimited_joints``, continuous joints, which have no limits)."""
     robot = Robot(name, "urdf", np.zeros(len(chain.axes)), np.asarray(joint_limits_rad, float),
                   None if compliances is None else np.asarray(compliances, float), source, has_joint_limits,
                   tool_m=np.asarray(tool_m, float), reference=reference, joint_names=tuple(joint_names), chain=chain,
-                  urdf=urdf)
+                  urdf=urdf, unlimited_joints=tuple(int(j) for j in unlimited_joints))
     return _with_geometry(robot, "check base_frame, tip_frame, the joints and tool_m")
 
 
@@ -478,6 +491,9 @@ def load_robot(path: str | Path) -> Robot:
     joints, a field of another kind, a URDF that cannot be read or has no chain from ``base_frame`` to
     ``tip_frame`` (:func:`stiffcal.urdf.read_chain`), or a tool point that no joint can move.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise InputError(f"expected the path of a robot file (a str or a path), got {type(path).__name__} "
+                         f"{short_repr(path)}", field="path")
     src = str(path)
     doc = read_yaml(path)
     if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
@@ -550,4 +566,4 @@ def _load_urdf(doc: dict, src: str) -> Robot:
                          source=src, field="compliances_rad_per_Nm")
     names = check_joint_names(arm.names, len(arm.names), str(urdf), "joint names")
     return chain_robot(arm.chain, doc.get("tool_m", [0.0, 0.0, 0.0]), arm.limits_rad, names, doc["name"], comp, src,
-                       doc.get("source", ""), str(doc["urdf"]), arm.has_limits)
+                       doc.get("source", ""), str(doc["urdf"]), arm.has_limits, arm.unlimited)

@@ -128,7 +128,28 @@ def check_test_inputs(robot: Robot, q_deg, force: np.ndarray, pose_field: str, f
         lo, hi = np.degrees(robot.joint_limits_rad[j])
         raise InputError(f"expected {robot.joint_columns('q')[j]} within the joint limits [{lo:g}, {hi:g}] deg of "
                          f"{robot.source}, got {q_deg[j]:g}", source=source, field=f"{pose_field}[{j}]")
+    check_load_bends(robot, np.radians(q_deg), force if moment is None else np.r_[force, moment], force_field, source)
     return q_deg
+
+
+#: a joint torque below this fraction of |load| times the arm's reach is zero (rounding of sines and cosines)
+ZERO_TORQUE = 1e-12
+
+
+def check_load_bends(robot: Robot, q: np.ndarray, load: np.ndarray, field: str, source: str | None = None) -> None:
+    """Refuse a load that produces no joint torque at the test pose q (n,) [rad]: ``tau = J_W^T W`` (eqs. 2-4;
+    ``load`` the force (d,) or the wrench [N, N m]) is 0, e.g. a force along the straight arm. Nothing deflects
+    there, A_t = 0 and O_t (eq. 16) is 0 for every plan: the problem has no answer. Raises :class:`InputError`
+    naming ``source`` and ``field``."""
+    from .observation import as_wrench, tool_twists, torques
+
+    tau = torques(robot, q, load)
+    scale = np.linalg.norm(as_wrench(robot, load)) * max(1.0, float(np.abs(tool_twists(robot, q)[0]).max()))
+    if np.all(np.abs(tau) <= ZERO_TORQUE * scale):
+        raise InputError("expected a load that bends the arm at the test pose, but it produces no joint torque there "
+                         "(tau = J^T F = 0: its line of action passes through every joint axis, e.g. a force along "
+                         "the straight arm), so nothing deflects at the test pose and O_t is 0 for every plan; "
+                         "change the force direction or the test pose", source=source, field=field)
 
 
 #: defaults of an entry of config ``studies`` (design studies for any robot)

@@ -36,23 +36,32 @@ MAX_URDF_BYTES = 10_000_000
 #: Pinocchio joint types (``JointModel.shortname()``) of revolute joints with limits, and of continuous ones
 REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 CONTINUOUS = ("JointModelRUBX", "JointModelRUBY", "JointModelRUBZ", "JointModelRevoluteUnboundedUnaligned")
-_MAX_LISTED = 12
+#: names listed in a message at most (the message itself is capped at errors.MAX_MESSAGE characters)
+_MAX_LISTED = 40
 
 
 @dataclass(frozen=True)
 class UrdfArm:
     """What :func:`read_chain` returns: names (n,) of the moving joints, base to tip; chain
     (:class:`stiffcal.robot.Chain`, base frame to tip frame); limits_rad (n, 2) [rad] (continuous joints:
-    [-pi, pi]); has_limits: some joint is revolute (limited)."""
+    [-pi, pi], a full turn); has_limits: some joint is revolute (limited); unlimited: indices of the continuous
+    joints, which have no limits."""
 
     names: tuple[str, ...]
     chain: Chain
     limits_rad: np.ndarray
     has_limits: bool
+    unlimited: tuple[int, ...] = ()
 
 
-def _listing(names) -> str:
-    names = list(names)
+def _listing(names, near: str | None = None) -> str:
+    """``names`` for a message, the ones closest to ``near`` (the name given, by :mod:`difflib`) first."""
+    import difflib
+
+    names = list(dict.fromkeys(names))
+    if near is not None:
+        close = difflib.get_close_matches(near, names, n=len(names), cutoff=0.5)
+        names = close + [n for n in names if n not in close]
     more = f", ... ({len(names) - _MAX_LISTED} more)" if len(names) > _MAX_LISTED else ""
     return ", ".join(names[:_MAX_LISTED]) + more
 
@@ -113,8 +122,8 @@ def _frame(model, name: str, source: str, field: str) -> int:
     found = [i for i, f in enumerate(model.frames) if f.name == name]
     if not found:
         links = [f.name for f in model.frames if str(f.type).endswith("BODY")]
-        raise InputError(f"the URDF has no link or frame {name!r}; its links: {_listing(links)}", source=source,
-                         field=field)
+        raise InputError(f"the URDF has no link or frame {name!r}; its links, the closest names first: "
+                         f"{_listing(links, name)}", source=source, field=field)
     body = [i for i in found if str(model.frames[i].type).endswith("BODY")]
     return (body or found)[0]
 
@@ -204,7 +213,8 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
             C = C @ rot
     chain = Chain(np.array(placements), np.array(chain_axes), C @ model.frames[t].placement.homogeneous)
     lim = np.array([limits.get(name, (-np.pi, np.pi)) for name in moving], float)
-    return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving))
+    return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving),
+                   tuple(i for i, name in enumerate(moving) if name not in limits))
 
 
 def _moving(names: list[str], joints, source: str) -> list[str]:
@@ -213,7 +223,7 @@ def _moving(names: list[str], joints, source: str) -> list[str]:
         return list(names)
     for i, name in enumerate(joints):
         if name not in names:
-            raise InputError(f"joint {name!r} is not in the chain; its joints, base to tip: {_listing(names)}",
+            raise InputError(f"joint {name!r} is not in the chain; its joints, base to tip: {', '.join(names)}",
                              source=source, field=f"joints[{i}]")
         if name in joints[:i]:
             raise InputError(f"joint {name!r} is listed twice", source=source, field=f"joints[{i}]")

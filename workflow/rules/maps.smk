@@ -74,7 +74,9 @@ rule map_pairs:
         npz=f"{MAPS}/{{study}}/pairs.npz",
         csv=f"{MAPS}/{{study}}/pairs.csv",
     params:
-        map=lambda wc: {**map_params(wc.study), "pairs_step_deg": MAP_SETTINGS["pairs_step_deg"]},
+        # only what changes the pairs (not the single-pose grid step_deg or tile_cells)
+        map=lambda wc: {**{k: map_params(wc.study)[k] for k in ("name", "link_ratio", "force_deg")},
+                        "pairs_step_deg": MAP_SETTINGS["pairs_step_deg"]},
         code=code_version("map_pairs"),
     log:
         f"{LOGS}/maps/{{study}}/pairs.log",
