@@ -246,7 +246,8 @@ MIMIC = PRISMATIC.replace('type="prismatic"', 'type="revolute"').replace(
 
 @pytest.mark.parametrize("body, urdf, field, message", [
     ("base_frame: base_link\n", None, "<top level>", "tip_frame"),
-    (GOOD.replace("tool0", "tool9"), None, "tip_frame", "no link or frame 'tool9'; its links: base_link"),
+    (GOOD.replace("tool0", "tool9"), None, "tip_frame",
+     "no link or frame 'tool9'; its links, the closest names first: tool0, base_link"),
     (GOOD.replace("base_link", "link_3").replace("tool0", "link_1"), None, "base_frame", "is not on the path"),
     (GOOD + "joints: [a1, a3, a4, a5, a6]\n", None, "fixed_joints_deg.a2",
      "held at 0 deg (the default), outside its limits [-140, -5]"),
