@@ -156,10 +156,11 @@ REPORT = {"report_html": 1, "report_pdf": 1}
       # both measured data sets are of the paper's arm: their gain and their compound plans use the test pose
       "discrepancy": 2, "discriminate": 2, **REPORT}),
     ("the Monte Carlo samples", lambda c: c["monte_carlo"].update(samples=600), {"validation": 1, **REPORT}),
-    # the map grid: every map (one tile each on a 15-degree grid of 200 cells per tile), its figures and
-    # statistics and the comparison (the Figure-6 numbers of the text), not the pairs (their own pairs_step_deg)
+    # the map grid: every map (one tile each on a 15-degree grid, computed in its map_merge job), its figures
+    # and statistics and the comparison (the Figure-6 numbers of the text), not the pairs (their own
+    # pairs_step_deg)
     ("the map step", lambda c: c["maps"].update(step_deg=15.0),
-     {"map_tile": 4, "map_merge": 4, "map_statistics": 1, "map_figures": 1, "paper_comparison": 1, **REPORT}),
+     {"map_merge": 4, "map_statistics": 1, "map_figures": 1, "paper_comparison": 1, **REPORT}),
 ])
 def test_dry_run_after_a_config_edit_lists_exactly_the_affected_jobs(built, what, edit, expected):
     assert _dry_run_jobs(built) == {}
