@@ -407,17 +407,78 @@ def test_too_few_equations_and_singular_plans_are_refused(tmp_path):
         D.check_identifiable(robot, read_measurements(p, robot))
     two = planar_robot([0.6, 0.4])
     p.write_text("q1_deg,q2_deg,fx_N,fy_N,dx_m,dy_m\n0,0,100,0,1e-4,2e-4\n0,0,200,0,1e-4,2e-4\n")  # force along the arm
-    with pytest.raises(InputError, match="rank 0"):
+    with pytest.raises(InputError, match="rank 0.*no compliance is left"):
         D.check_identifiable(two, read_measurements(p, two))
 
 
-def test_a_vertical_axis_under_hanging_weights_is_named(root):
+def test_a_joint_the_loads_never_turn_is_left_out_with_a_note(root):
+    """Hanging weights never turn the KR 210's vertical axis 1: the analysis leaves k1 out with a note (it used
+    to refuse the data) and still names the hidden coupling of joints 2-3, fits the other compliances to their
+    simulated values and computes the gain."""
     robot = load_robot(root / "config/robots/kuka_kr210_r2700.yaml")
     rng = np.random.default_rng(0)
     log = T.lab_log(robot, T.Protocol("hanging"), rng, 20)
-    meas = Measurements.from_arrays(log.q, log.force, T.measure(robot, T.Truth(robot.compliances), log, rng))
-    with pytest.raises(InputError, match="joint 1 never"):
-        D.check_identifiable(robot, meas)
+    C = np.zeros((6, 6))
+    C[1, 2] = C[2, 1] = 0.5 * robot.compliances[1]
+    meas = Measurements.from_arrays(log.q, log.force, T.measure(robot, T.Truth(robot.compliances, C), log, rng))
+    assert list(D.check_identifiable(robot, meas)) == [0]
+    v = D.analyse(robot, meas, 0.01, test_pose=np.radians([10, -60, 80, 0, 30, 0]), test_force=np.array([0, 0, -300.0]))
+    nom = v["nominal"]
+    assert nom["not_identifiable_joints"] == [1] and nom["k_joints"] == [2, 3, 4, 5, 6]
+    assert nom["k_names"] == [robot.joint_columns("k")[j - 1] for j in nom["k_joints"]]
+    assert any(n.startswith("joint 1 never deflects") and "left out of the analysis" in n for n in v["notes"])
+    assert v["causes"] == ["joint_coupling"]
+    k_ext = np.array(v["extended"]["k"])
+    assert np.all(np.abs(k_ext - robot.compliances[1:]) <= 2 * np.array(v["extended"]["k_ci95"]))
+    assert v["gain"]["loco_ratio"] > 1 and v["gain"]["test_pose_rms_extended_m"] > 0
+    json.dumps(v, allow_nan=False)
+
+
+def _hanging_rows_of_ur10_bar(tmp_path) -> Path:
+    """The UR10 loading-bar file without its pushes: hanging weights (and their bar's moment) only."""
+    lines = (LAB_DIR / "ur10_bar.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    fx, fy = head.index("fx_N"), head.index("fy_N")
+    keep = [ln for ln in lines[1:] if float(ln.split(",")[fx]) == 0 and float(ln.split(",")[fy]) == 0]
+    path = tmp_path / "ur10_hanging.csv"
+    path.write_text("\n".join([lines[0], *keep]) + "\n")
+    return path
+
+
+def test_ur10_hanging_weights_analyse_and_plan_without_joint_1(tmp_path, capsys):
+    """The user's UR10 file with hanging weights only: `stiffcal discrepancy` (which refused it: rank 4 of 5) gives a
+    verdict without shoulder_pan_joint whose compliances match make_ur10.py's k_true, and `stiffcal discriminate`
+    plans on the same data, k1 null in its models."""
+    data = _hanging_rows_of_ur10_bar(tmp_path)
+    robot = str(LAB_DIR / "ur10.yaml")
+    assert main(["discrepancy", "--robot", robot, "--data", str(data), "--out", str(tmp_path / "v")]) == 0
+    v = json.loads((tmp_path / "v/verdict.json").read_text())
+    nom = v["nominal"]
+    assert nom["not_identifiable_joints"] == [1, 6] and nom["k_joints"] == [2, 3, 4, 5]
+    k_true = np.array([1.9e-6, 4.3e-6, 1.1e-5, 0.9e-5])  # tests/data/lab/make_ur10.py, joints 2-5
+    assert np.all(np.abs(np.array(nom["k"]) - k_true) <= 2 * np.array(nom["k_ci95"]))
+    assert any("shoulder_pan_joint (joint 1) never deflects" in n for n in v["notes"])
+    assert main(["discriminate", "--robot", robot, "--data", str(data), "--experiments", "4",
+                 "--out", str(tmp_path / "p")]) == 0
+    plan = json.loads((tmp_path / "p/plan.json").read_text())
+    assert all(m["parameters"][0] is None and None not in m["parameters"][1:] for m in plan["models"])
+    assert any("shoulder_pan_joint" in n and "null" in n for n in plan["notes"])
+    capsys.readouterr()
+
+
+def test_joints_acting_in_a_fixed_combination_are_refused_naming_them(paper_robot):
+    """A straight 2-link arm (q2 = 0 in every row) under forces across it: joints 1 and 2 deflect the tool point
+    along the same direction with the fixed ratio ((l1 + l2) / l2)^2, so only that combination is identified; the
+    loss of rank is not one joint's column, and the data are refused naming both joints."""
+    rng = np.random.default_rng(3)
+    q = np.column_stack([rng.uniform(-3, 3, 12), np.zeros(12)])
+    u = np.column_stack([-np.sin(q[:, 0]), np.cos(q[:, 0])])  # across the straight arm
+    f = 300.0 * u * rng.choice([-1.0, 1.0], (12, 1))
+    dp = T.simulate(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), q, f, SIGMA, rng)
+    X = D.nominal_columns(paper_robot, q, f).reshape(-1, 2)
+    assert np.linalg.matrix_rank(X / np.linalg.norm(X, axis=0), 1e-9) == 1  # independent: numpy's rank
+    with pytest.raises(InputError, match="joints 1, 2 act only in a fixed combination"):
+        D.analyse(paper_robot, Measurements.from_arrays(q, f, dp))
 
 
 def test_every_row_one_configuration_and_one_load_is_refused(paper_robot, rng):

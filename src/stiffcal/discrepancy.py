@@ -443,8 +443,16 @@ def _spans_within(a: np.ndarray, b: np.ndarray) -> bool:
     return fit(b, np.zeros(len(b))).rank == fit(np.hstack([b, a]), np.zeros(len(b))).rank
 
 
-def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | None = None) -> None:
-    """Enough equations for the compliances and a nonsingular plan, or one clear error."""
+def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | None = None) -> np.ndarray:
+    """The joints whose compliance these data cannot identify because they never deflect a measured quantity
+    under the data's loads (their column of the observation matrix, eq. 4, is zero in every row: a vertical
+    axis under hanging weights), as indices (k,) int into the robot's joints (empty when every compliance is
+    identifiable). The analysis leaves them out of the model (:func:`reduced`), as ``stiffcal design`` leaves
+    out a joint whose axis passes through the measured point.
+
+    Raises :class:`InputError` when there are fewer equations than compliances, when no compliance is left,
+    or when the information matrix of the remaining compliances is singular for another reason (joints whose
+    compliances act only in a fixed combination: they are named)."""
     ob = observed or Observed.of(robot, meas)
     params = ob.model_params(robot)
     n, d, N = len(params), ob.rows_per(robot), meas.n_rows
@@ -453,31 +461,61 @@ def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | No
                          f"({N} loaded measurements of {d} coordinates)", source=meas.source)
     X = _stack(nominal_columns(robot, meas.q, load_of(meas), ob))
     f = fit(X, observations(meas, ob).ravel())
-    if f.rank < n:
-        scale = np.linalg.norm(X, axis=0)
-        unloaded = [robot.joint_names[int(params[j])] for j in np.flatnonzero(scale <= RANK_RTOL * scale.max())]
-        if unloaded:
-            which = (f"joint{'s' if len(unloaded) > 1 else ''} {', '.join(map(str, unloaded))} never "
-                     "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
-        else:
-            v = np.linalg.svd(X / np.where(scale > 0, scale, 1.0))[2][-1]
-            joints = [robot.joint_names[int(params[j])] for j in np.flatnonzero(np.abs(v) > 0.1)]
-            which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
-        raise InputError(f"the measurement plan cannot identify the {n} joint compliances: its information "
-                         f"matrix has rank {f.rank}; {which}; measure other poses or load directions",
-                         source=meas.source)
+    if f.rank == n:
+        return np.zeros(0, int)
+    scale = np.linalg.norm(X, axis=0)
+    zero = scale <= RANK_RTOL * scale.max() if scale.max() > 0 else np.ones(n, bool)
+    names = [robot.joint_names[int(j)] for j in params[zero]]
+    unloaded = (f"joint{'s' if len(names) > 1 else ''} {', '.join(map(str, names))} never "
+                "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
+    refuse = (f"the measurement plan cannot identify the {n} joint compliances: its information matrix has rank "
+              f"{f.rank}; ")
+    if zero.all():
+        raise InputError(f"{refuse}{unloaded}, so no compliance is left to identify; measure other poses or load "
+                         "directions", source=meas.source)
+    if f.rank < n - int(zero.sum()):
+        rest = np.flatnonzero(~zero)
+        Xr = X[:, rest] / scale[rest]
+        v = np.linalg.svd(Xr)[2][-1]
+        joints = [robot.joint_names[int(params[rest[j]])] for j in np.flatnonzero(np.abs(v) > 0.1)]
+        which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
+        raise InputError(f"{refuse}{which}{'; ' + unloaded if names else ''}; measure other poses or load "
+                         "directions", source=meas.source)
+    return params[zero]
 
 
-def check_testable(robot: Robot, meas: Measurements) -> None:
+def reduced(robot: Robot, observed: Observed, dropped) -> Observed:
+    """``observed`` with the joints ``dropped`` (:func:`check_identifiable`) left out of the model's
+    parameters (the nominal columns and the verdict's ``k``; the catalogue's columns are unchanged)."""
+    dropped = np.asarray(dropped, int)
+    if dropped.size == 0:
+        return observed
+    return replace(observed, params=np.setdiff1d(observed.model_params(robot), dropped))
+
+
+def dropped_note(robot: Robot, dropped) -> str:
+    """The verdict's note on the joints left out (:func:`check_identifiable`)."""
+    default = robot.joint_names == tuple(str(i + 1) for i in range(robot.n_joints))
+    names = ", ".join(str(int(j) + 1) if default else f"{robot.joint_names[int(j)]} (joint {int(j) + 1})"
+                      for j in dropped)
+    one = len(dropped) == 1
+    return (f"joint{'' if one else 's'} {names} never deflect{'s' if one else ''} the measured point under these "
+            f"loads (e.g. a vertical axis under hanging weights): {'its' if one else 'their'} compliance cannot be "
+            "identified from these data and is left out of the analysis (nominal.not_identifiable_joints); "
+            "measure with loads that turn it to identify it")
+
+
+def check_testable(robot: Robot, meas: Measurements, n_params: int | None = None) -> None:
     """Raise :class:`InputError` when the distinct (configuration, load) pairs give no more equations than there
-    are compliances: the data then identify the compliances at best, and no cause and no lack of fit can be
-    tested (e.g. every row repeats one configuration and one load)."""
+    are compliances (``n_params``, default ``robot.n_params``): the data then identify the compliances at best,
+    and no cause and no lack of fit can be tested (e.g. every row repeats one configuration and one load)."""
     groups = len(np.unique(meas.group))
-    if groups * robot.task_dim <= robot.n_params:
+    n_params = robot.n_params if n_params is None else n_params
+    if groups * robot.task_dim <= n_params:
         raise InputError(
             f"these data cannot test any cause: their {meas.n_rows} loaded rows hold {groups} distinct "
             f"configuration-and-load pair{'s' if groups > 1 else ''} ({groups * robot.task_dim} distinct equations "
-            f"for {robot.n_params} compliances); measure more configurations or loads", source=meas.source)
+            f"for {n_params} compliances); measure more configurations or loads", source=meas.source)
 
 
 # --- the noise ---------------------------------------------------------------------------------------------
@@ -934,10 +972,12 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     """
     if not 0 < alpha < 1:
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
-    check_identifiable(robot, meas)
-    check_testable(robot, meas)
+    full = Observed.of(robot, meas)
+    dropped = check_identifiable(robot, meas, full)
+    check_testable(robot, meas, len(full.model_params(robot)) - len(dropped))
     rw, rw_note = rad_weight(robot, meas, sigma_m, sigma_rad)
-    ob_all = Observed.of(robot, meas, rw)
+    ob_full = Observed.of(robot, meas, rw)
+    ob_all = reduced(robot, ob_full, dropped)
     des_all = build_design(robot, meas, ob_all)
     vm = variance_model(robot, meas, des_all.y.reshape(-1, des_all.d))  # a first look, before the blunders
     w_all = np.ones(meas.n_rows) if vm is None else vm.weights
@@ -946,12 +986,17 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     keep[blunders] = False
     m = meas.subset(keep)
     ob = ob_all.take(keep)
-    check_identifiable(robot, m, ob)
+    more = check_identifiable(robot, m, ob)
+    if more.size:  # only blunder rows turned these joints: leave them out too
+        dropped = np.union1d(dropped, more)
+        ob_all = reduced(robot, ob_all, more)
+        des_all = build_design(robot, meas, ob_all)
+        ob = ob_all.take(keep)
     vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
     w = np.ones(m.n_rows) if vm is None else vm.weights
     des = des_all.rows(keep).weighted(w)
     noise = noise_variance(des, m)
-    notes = list(meas.notes) + ([rw_note] if rw_note else [])
+    notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])
     if noise.df < 10:
         notes.append(f"the noise estimate has only {noise.df} degrees of freedom: the tests have little power")
     if vm is not None:
@@ -1009,7 +1054,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
            "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
            "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
            "outlier_rows": [int(meas.rows[r]) for r in blunders],
-           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas, observed=ob)
+           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas, observed=ob_full.take(keep))
                           for c in indistinct},
            "zero_point": zp, "notes": notes}
     ext = sorted(chosen, key=CAUSES.index) if ranked else []
@@ -1026,6 +1071,12 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
                          "test load, measuring what the data measured) does not identify every parameter of the "
                          f"extended model ({', '.join(ext)}): its information matrix is singular, so its O_t is "
                          "infinite")
+    if len(dropped) and out["gain"] is not None and "test_pose_rms_nominal_m" in out["gain"]:
+        tau = torques(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force))[0]
+        turned = [robot.joint_names[int(j)] for j in dropped if abs(tau[j]) > RANK_RTOL * np.abs(tau).max()]
+        if turned:
+            notes.append(f"the test load turns joint(s) {', '.join(turned)}, whose compliance these data cannot "
+                         "identify: the test-pose figures of gain leave its deflection out")
     out = _finite(out, out["notes"])
     if sel.unexplained:
         f = sel.fits[chosen]
