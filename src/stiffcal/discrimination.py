@@ -1299,8 +1299,8 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
     models = rm.models
     names = {i: list(m.causes) for i, m in enumerate(models)}
     unknown = [i for i, j in enumerate(rm.robot.params) if j + 1 in rm.verdict["nominal"]["not_identifiable_joints"]]
-    notes = list(res.notes) + ([f"the data cannot identify the compliance of joint(s) "
-                                f"{', '.join(rm.robot.joint_names[rm.robot.params[i]] for i in unknown)} (the verdict's "
+    which = ", ".join(rm.robot.joint_names[rm.robot.params[i]] for i in unknown)
+    notes = list(res.notes) + ([f"the data cannot identify the compliance of joint(s) {which} (the verdict's "
                                 "not_identifiable_joints): its parameter is null in models; every model keeps it as an "
                                 "unknown, so its value does not change the plan or its power"] if unknown else [])
     out = {"robot": rm.robot.source, "data": data, "alpha": rm.alpha, "sigma_m": rm.sigma, "noise_df": rm.noise_df,
