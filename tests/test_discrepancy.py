@@ -4,6 +4,7 @@ independent of the analysis) found at the rates of an oracle, several effects at
 cases, bad and degenerate data, the CLI."""
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -629,3 +630,65 @@ def test_gain_statistic_left_out_has_a_note():
     assert any(n.startswith("gain.nominal_plan_under_extended_rms_m is left out") for n in v["notes"])
     assert g["optimal_plan_extended_rms_m"] is not None or any(
         n.startswith("gain.optimal_plan_extended_rms_m is left out") for n in v["notes"])
+
+
+# --- the unloaded rows: a blunder among them is named, a common shift is the zero point that moved --------------
+
+def test_a_blunder_in_an_unloaded_row_of_the_ur10_file_is_named(ur10_verdict):
+    """make_ur10.py adds (0, -0.6, 0.3) mm to data row 40, an unloaded row: the verdict names it (it used to say
+    only that the zero point moved) and the other unloaded rows, exactly zero, are the reference."""
+    zp = ur10_verdict["zero_point"]
+    assert zp["outlier_rows"] == [40]
+    assert "row 42 (data row 40) stands out" in zp["note"] and "zero point moved" not in zp["note"]
+
+
+def _unloaded(rng, n0=30, sigma=8e-6, shift=None, blunder=None):
+    z = rng.normal(0.0, sigma, (n0, 3)) + (0.0 if shift is None else shift)
+    row = int(rng.integers(n0))
+    if blunder is not None:
+        z[row] += blunder
+    return z, row
+
+
+def test_unloaded_row_outliers_rates_over_seeds():
+    """Simulated unloaded rows (30 rows, 3 components, noise 8 um known on 200 df), 400 seeds each: a blunder of
+    6 or 7 sigma in one component of one row is named at the rate the noncentral F distribution predicts for the
+    first step of the test (within 3 binomial standard deviations; at 7 sigma at least 95 %), and no other row
+    beside it beyond alpha; clean rows, and rows with a common shift of 5 sigma (the zero point moved), have some
+    row named in at most alpha of the seeds (binomial: alpha n + 3 standard deviations)."""
+    sigma, alpha, n, n0, df = 8e-6, 0.01, 400, 30, 200
+    rng = np.random.default_rng(7)
+    limit = alpha * n + 3 * np.sqrt(n * alpha * (1 - alpha))
+    for size in (6, 7):
+        found = wrong = 0
+        for _ in range(n):
+            z, row = _unloaded(rng, n0, sigma, blunder=np.array([size * sigma, 0, 0]))
+            named, _ = D.zero_point_outliers(z, sigma**2, df, alpha)
+            found += row in named
+            wrong += any(r != row for r in named)
+        # the first step: F = |d|^2 / (3 s2 (1 + 1/29)), noncentral with lambda = (size sigma)^2 / (s2 (1 + 1/29))
+        crit = stats.f.isf(alpha / n0, 3, df)
+        power = stats.ncf.sf(crit, 3, df, size**2 / (1 + 1 / (n0 - 1)))
+        assert abs(found / n - power) <= 3 * np.sqrt(power * (1 - power) / n) + 1 / n, (size, found, power)
+        assert wrong <= limit
+    assert found >= 0.95 * n
+    for shift in (None, np.array([5 * sigma, -5 * sigma, 0.0])):
+        false = sum(bool(D.zero_point_outliers(_unloaded(rng, n0, sigma, shift=shift)[0], sigma**2, df, alpha)[0])
+                    for _ in range(n))
+        assert false <= limit
+
+
+def test_a_common_shift_of_the_unloaded_rows_is_the_zero_point_that_moved():
+    """All unloaded rows shifted together: no row is named and the note says the zero point moved; the same rows
+    with one blunder added name that row (file row numbers) and still say the zero point moved."""
+    rng = np.random.default_rng(11)
+    sigma = 8e-6
+    z, _ = _unloaded(rng, 20, sigma, shift=np.array([6 * sigma, 0.0, 0.0]))
+    meas = Measurements(np.zeros((1, 6)), np.ones((1, 3)), np.zeros((1, 3)), np.zeros(1, int), "<memory>",
+                        zero_rows=np.arange(20) * 2, zero_dp=z, zero_config=np.zeros(20, int))
+    zp = D.zero_point(meas, sigma**2, df=100)
+    assert zp["outlier_rows"] == [] and "the zero point moved" in zp["note"]
+    z[5] += [0.0, 20 * sigma, 0.0]
+    zp = D.zero_point(replace(meas, zero_dp=z), sigma**2, df=100)
+    assert zp["outlier_rows"] == [10] and "row 12 (data row 10) stands out" in zp["note"]
+    assert "the other unloaded rows scatter" in zp["note"] and "the zero point moved" in zp["note"]

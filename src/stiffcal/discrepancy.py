@@ -898,27 +898,88 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
     return notes
 
 
-def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0) -> dict | None:
-    """The unloaded reference rows: how many, the RMS of their displacement, and (when they are not all
-    exactly zero) the p-value of the chi-square test that they scatter about zero with the noise variance
-    s2 [m^2] (their rotation, when measured, times ``rad_weight`` [m/rad]); a moved zero point is a drift or a
-    disturbed target."""
+#: at most this fraction of the unloaded rows (and at least one) is named as standing out (a few blunders)
+ZERO_POINT_MAX_OUTLIERS = 0.2
+
+
+def zero_point_outliers(z: np.ndarray, s2: float, df: int | None = None, alpha: float = 0.01,
+                        max_fraction: float = ZERO_POINT_MAX_OUTLIERS) -> tuple[list[int], list[float]]:
+    """The unloaded rows that stand out from the others: (indices into z, Bonferroni-adjusted p-values).
+
+    z: (N0, r) [m] the unloaded rows' measured quantities; s2 [m^2]: the noise variance of one component, on
+    df degrees of freedom (None: known). A sequential outlier test among the rows (the generalised ESD
+    procedure of Rosner 1983, Technometrics 25(2), 165-172, with the noise known from the analysis rather
+    than from the rows themselves, so that a single row can be judged against a handful of others): at each
+    step the row farthest from the mean of the remaining others, d = z_i - mean(z_rest), has
+    F = |d|^2 / (r s2 (1 + 1 / (n - 1))) ~ F(r, df) (chi^2_r / r when df is None) when it is not an outlier;
+    it is named when its p-value times the n rows still in the test is at most ``alpha``, and the test goes on
+    without it, up to ``max_fraction`` of the rows (at least one). A shift common to every row (a zero point
+    that moved) moves the mean with it and names no row. On rows without an outlier the chance of naming any
+    is at most alpha (the first step's Bonferroni bound). Fewer than 3 rows: nothing is named (two rows that
+    differ cannot say which one is wrong)."""
+    z = np.asarray(z, float)
+    n0, r = z.shape
+    if n0 < 3 or not s2 > 0:
+        return [], []
+    left = list(range(n0))
+    out, ps = [], []
+    for _ in range(max(1, int(max_fraction * n0))):
+        n = len(left)
+        if n < 3:
+            break
+        rows = z[left]
+        rest = (rows.sum(axis=0)[None, :] - rows) / (n - 1)
+        F = ((rows - rest) ** 2).sum(axis=1) / (r * s2 * (1 + 1 / (n - 1)))
+        worst = int(np.argmax(F))
+        p = float(stats.chi2.sf(r * F[worst], r) if df is None else stats.f.sf(F[worst], r, df))
+        if min(1.0, n * p) > alpha:
+            break
+        out.append(left.pop(worst))
+        ps.append(min(1.0, n * p))
+    order = np.argsort(out)
+    return [out[i] for i in order], [ps[i] for i in order]
+
+
+def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0, df: int | None = None,
+               alpha: float = 0.01) -> dict | None:
+    """The unloaded reference rows: how many, the RMS of their displacement, the rows that stand out from the
+    others (:func:`zero_point_outliers` at ``alpha``, with the noise variance s2 [m^2] on df degrees of freedom:
+    ``outlier_rows``, 0-based data rows) and, for the others, when they are not all exactly zero, the p-value of
+    the chi-square test that they scatter about zero with the noise variance (their rotation, when measured,
+    times ``rad_weight`` [m/rad]); a zero point that moved as a whole is a drift or a disturbed target."""
+    from .measurements import _rows_text
+
     n0 = len(meas.zero_rows)
     if n0 == 0:
         return None
     z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rad_weight * meas.zero_rot])
     rms = float(np.sqrt(np.mean(z**2)))
-    out = {"n_rows": int(n0), "rms_m": rms, "p_value": None}
+    out = {"n_rows": int(n0), "rms_m": rms, "p_value": None, "outlier_rows": []}
     if rms == 0:
         out["note"] = ("the unloaded rows hold zero displacement: they are the reference the loaded rows are "
                        "measured from")
         return out
-    p = float(stats.chi2.sf(float((z**2).sum()) / s2, z.size)) if s2 > 0 else None
+    bad, p_bad = zero_point_outliers(z, s2, df, alpha)
+    out["outlier_rows"] = [int(meas.zero_rows[i]) for i in bad]
+    first = ""
+    if bad:
+        size = np.linalg.norm(z[bad], axis=1) * 1e6
+        first = (f"unloaded {_rows_text(meas.zero_rows[bad])} stand{'s' if len(bad) == 1 else ''} out from the "
+                 f"other unloaded rows ({', '.join(f'{v:.3g}' for v in size)} um from zero; adjusted p = "
+                 f"{', '.join(f'{v:.2g}' for v in p_bad)}): a blunder or a disturbed target in "
+                 f"{'that row' if len(bad) == 1 else 'those rows'}, left out of the zero-point check; ")
+    rest = np.delete(z, bad, axis=0)
+    rms_rest = float(np.sqrt(np.mean(rest**2)))
+    if rms_rest == 0:
+        out["note"] = first + ("the other unloaded rows hold zero displacement: they are the reference the loaded "
+                               "rows are measured from")
+        return out
+    p = float(stats.chi2.sf(float((rest**2).sum()) / s2, rest.size)) if s2 > 0 else None
     out["p_value"] = p
-    moved = p is not None and p < 0.01
-    out["note"] = (f"the unloaded rows scatter by {rms * 1e6:.3g} um RMS about zero"
-                   + (", more than the noise (p = %.2g): the zero point moved (a drift, or a disturbed target)" % p
-                      if moved else ", as the noise does"))
+    moved = p is not None and p < alpha
+    out["note"] = first + (f"the {'other ' if bad else ''}unloaded rows scatter by {rms_rest * 1e6:.3g} um RMS about "
+                           "zero" + (", more than the noise (p = %.2g): the zero point moved (a drift, or a disturbed "
+                                     "target)" % p if moved else ", as the noise does"))
     return out
 
 
@@ -1031,7 +1092,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
     lof_nominal = lof(frozenset(), sel.fits[frozenset()])
     notes += plausibility(robot, m, f0.beta, k_ci, ob)
-    zp = zero_point(meas, noise.s2, rw)
+    zp = zero_point(meas, noise.s2, rw, noise.df, alpha)
     params = ob.model_params(robot)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
                "k_names": [robot.joint_columns("k")[int(j)] for j in params],
