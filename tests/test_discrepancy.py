@@ -692,3 +692,93 @@ def test_a_common_shift_of_the_unloaded_rows_is_the_zero_point_that_moved():
     zp = D.zero_point(replace(meas, zero_dp=z), sigma**2, df=100)
     assert zp["outlier_rows"] == [10] and "row 12 (data row 10) stands out" in zp["note"]
     assert "the other unloaded rows scatter" in zp["note"] and "the zero point moved" in zp["note"]
+
+
+# --- common file mistakes the reader names ------------------------------------------------------------------------
+
+def _lab_file(tmp_path, name, edit, src="lab_3r_coupling.csv"):
+    """A copy of a lab file with ``edit`` (header list, rows list of lists) -> (header, rows) applied."""
+    lines = (LAB_DIR / src).read_text().splitlines()
+    header, rows = edit(lines[0].split(","), [ln.split(",") for ln in lines[1:]])
+    path = tmp_path / name
+    path.write_text("\n".join(",".join(r) for r in [header, *rows]) + "\n")
+    return path
+
+
+def test_angles_in_radians_in_degree_columns_are_named(tmp_path):
+    """The UR10 file with its joint angles written in radians under q_*_deg: a note says they look like radians
+    (every |q| < 3.2 deg over 160 rows of a robot whose joints range over 720 deg); the original file has no such
+    note."""
+    robot = load_robot(LAB_DIR / "ur10.yaml")
+
+    def to_rad(header, rows):
+        cols = [i for i, c in enumerate(header) if c.startswith("q_")]
+        return header, [[f"{np.radians(float(v)):.6f}" if i in cols else v for i, v in enumerate(r)] for r in rows]
+
+    meas = read_measurements(_lab_file(tmp_path, "rad.csv", to_rad, "ur10_bar.csv"), robot)
+    note = [n for n in meas.notes if "look like radians" in n]
+    assert len(note) == 1 and "q_shoulder_pan_joint_deg" in note[0] and "160 rows" in note[0]
+    assert not any("radians" in n for n in read_measurements(LAB_DIR / "ur10_bar.csv", robot).notes)
+
+
+def test_forces_in_kilonewtons_are_suspected_when_every_row_looks_unloaded(tmp_path):
+    """The 3-link lab file with forces and moments in kN / kN m (0.1 and 0.25): every row is within the force
+    resolution; the message says so, gives the resolution and the largest force, and suggests kN."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+
+    def to_kn(header, rows):
+        cols = [header.index(c) for c in ("fx_N", "fy_N", "mz_Nm")]
+        return header, [[f"{float(v) / 1000:.4f}" if i in cols else v for i, v in enumerate(r)] for r in rows]
+
+    with pytest.raises(InputError, match=r"every row is unloaded.*largest force component is 0.25 N, below the force "
+                                         r"resolution of 0.5 N: if the forces are in kN") as err:
+        read_measurements(_lab_file(tmp_path, "kn.csv", to_kn), robot)
+    assert "kn.csv" in str(err.value)
+
+
+@pytest.mark.parametrize("sep, what", [(";", "';' \\(semicolons\\)"), ("\t", "tabs")])
+def test_a_file_separated_by_another_character_is_named(tmp_path, sep, what):
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = tmp_path / "sep.csv"
+    path.write_text((LAB_DIR / "lab_3r_coupling.csv").read_text().replace(",", sep))
+    with pytest.raises(InputError, match=f"sep.csv.*missing columns: the header is one column separated by {what}.*"
+                                         "must be comma-separated"):
+        read_measurements(path, robot)
+
+
+def test_a_column_name_given_twice_is_refused_naming_it(tmp_path):
+    """pandas would read the second dx_m as 'dx_m.1' and the message would be about an unknown column; the
+    reader names the repeated column and where it is."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = _lab_file(tmp_path, "twice.csv", lambda h, rows: (h + ["dx_m"], [r + [r[-1]] for r in rows]))
+    with pytest.raises(InputError, match=r"twice.csv.*column dx_m.*more than once: dx_m \(header columns 11, 12\)"):
+        read_measurements(path, robot)
+
+
+def test_exact_duplicate_rows_are_named_and_kept(tmp_path):
+    """Loaded data row 1 pasted again at the end: a note names both file rows; the row is kept (a replicate)."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = _lab_file(tmp_path, "dup.csv", lambda h, rows: (h, rows + [rows[1]]))
+    meas = read_measurements(path, robot)
+    n = len((LAB_DIR / "lab_3r_coupling.csv").read_text().splitlines()) - 1
+    note = [x for x in meas.notes if "repeat an earlier row exactly" in x]
+    assert len(note) == 1 and f"row {n + 2} (data row {n}) repeats row 3 (data row 1)" in note[0]
+    assert n in meas.rows and len(np.unique(meas.group[np.isin(meas.rows, [1, n])])) == 1
+    assert not any("repeat an earlier" in x for x in read_measurements(LAB_DIR / "lab_3r_coupling.csv", robot).notes)
+
+
+def test_angles_outside_the_joint_limits_are_named(tmp_path):
+    """lab_3r.yaml limits joint 2 to [-150, 150] deg: configuration cfg0 moved to q2 = 155 deg is named with its
+    rows (every row of cfg0 is checked against the limits independently here)."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+
+    def move(header, rows):
+        i, p = header.index("q2_deg"), header.index("pose_id")
+        return header, [[("155" if k == i and r[p] == "cfg0" else v) for k, v in enumerate(r)] for r in rows]
+
+    path = _lab_file(tmp_path, "lim.csv", move)
+    moved = [k for k, ln in enumerate(path.read_text().splitlines()[1:]) if ln.split(",")[1] == "cfg0"]
+    note = [x for x in read_measurements(path, robot).notes if "outside the joint limits" in x]
+    assert len(note) == 1 and note[0].startswith("q2_deg is outside the joint limits")
+    assert f"[-150, 150] deg) in {len(moved)} rows {moved[0] + 2}, {moved[1] + 2}" in note[0]
+    assert not any("joint limits" in x for x in read_measurements(LAB_DIR / "lab_3r_coupling.csv", robot).notes)
