@@ -4,6 +4,7 @@ independent of the analysis) found at the rates of an oracle, several effects at
 cases, bad and degenerate data, the CLI."""
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -407,17 +408,78 @@ def test_too_few_equations_and_singular_plans_are_refused(tmp_path):
         D.check_identifiable(robot, read_measurements(p, robot))
     two = planar_robot([0.6, 0.4])
     p.write_text("q1_deg,q2_deg,fx_N,fy_N,dx_m,dy_m\n0,0,100,0,1e-4,2e-4\n0,0,200,0,1e-4,2e-4\n")  # force along the arm
-    with pytest.raises(InputError, match="rank 0"):
+    with pytest.raises(InputError, match="rank 0.*no compliance is left"):
         D.check_identifiable(two, read_measurements(p, two))
 
 
-def test_a_vertical_axis_under_hanging_weights_is_named(root):
+def test_a_joint_the_loads_never_turn_is_left_out_with_a_note(root):
+    """Hanging weights never turn the KR 210's vertical axis 1: the analysis leaves k1 out with a note (it used
+    to refuse the data) and still names the hidden coupling of joints 2-3, fits the other compliances to their
+    simulated values and computes the gain."""
     robot = load_robot(root / "config/robots/kuka_kr210_r2700.yaml")
     rng = np.random.default_rng(0)
     log = T.lab_log(robot, T.Protocol("hanging"), rng, 20)
-    meas = Measurements.from_arrays(log.q, log.force, T.measure(robot, T.Truth(robot.compliances), log, rng))
-    with pytest.raises(InputError, match="joint 1 never"):
-        D.check_identifiable(robot, meas)
+    C = np.zeros((6, 6))
+    C[1, 2] = C[2, 1] = 0.5 * robot.compliances[1]
+    meas = Measurements.from_arrays(log.q, log.force, T.measure(robot, T.Truth(robot.compliances, C), log, rng))
+    assert list(D.check_identifiable(robot, meas)) == [0]
+    v = D.analyse(robot, meas, 0.01, test_pose=np.radians([10, -60, 80, 0, 30, 0]), test_force=np.array([0, 0, -300.0]))
+    nom = v["nominal"]
+    assert nom["not_identifiable_joints"] == [1] and nom["k_joints"] == [2, 3, 4, 5, 6]
+    assert nom["k_names"] == [robot.joint_columns("k")[j - 1] for j in nom["k_joints"]]
+    assert any(n.startswith("joint 1 never deflects") and "left out of the analysis" in n for n in v["notes"])
+    assert v["causes"] == ["joint_coupling"]
+    k_ext = np.array(v["extended"]["k"])
+    assert np.all(np.abs(k_ext - robot.compliances[1:]) <= 2 * np.array(v["extended"]["k_ci95"]))
+    assert v["gain"]["loco_ratio"] > 1 and v["gain"]["test_pose_rms_extended_m"] > 0
+    json.dumps(v, allow_nan=False)
+
+
+def _hanging_rows_of_ur10_bar(tmp_path) -> Path:
+    """The UR10 loading-bar file without its pushes: hanging weights (and their bar's moment) only."""
+    lines = (LAB_DIR / "ur10_bar.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    fx, fy = head.index("fx_N"), head.index("fy_N")
+    keep = [ln for ln in lines[1:] if float(ln.split(",")[fx]) == 0 and float(ln.split(",")[fy]) == 0]
+    path = tmp_path / "ur10_hanging.csv"
+    path.write_text("\n".join([lines[0], *keep]) + "\n")
+    return path
+
+
+def test_ur10_hanging_weights_analyse_and_plan_without_joint_1(tmp_path, capsys):
+    """The user's UR10 file with hanging weights only: `stiffcal discrepancy` (which refused it: rank 4 of 5) gives a
+    verdict without shoulder_pan_joint whose compliances match make_ur10.py's k_true, and `stiffcal discriminate`
+    plans on the same data, k1 null in its models."""
+    data = _hanging_rows_of_ur10_bar(tmp_path)
+    robot = str(LAB_DIR / "ur10.yaml")
+    assert main(["discrepancy", "--robot", robot, "--data", str(data), "--out", str(tmp_path / "v")]) == 0
+    v = json.loads((tmp_path / "v/verdict.json").read_text())
+    nom = v["nominal"]
+    assert nom["not_identifiable_joints"] == [1, 6] and nom["k_joints"] == [2, 3, 4, 5]
+    k_true = np.array([1.9e-6, 4.3e-6, 1.1e-5, 0.9e-5])  # tests/data/lab/make_ur10.py, joints 2-5
+    assert np.all(np.abs(np.array(nom["k"]) - k_true) <= 2 * np.array(nom["k_ci95"]))
+    assert any("shoulder_pan_joint (joint 1) never deflects" in n for n in v["notes"])
+    assert main(["discriminate", "--robot", robot, "--data", str(data), "--experiments", "4",
+                 "--out", str(tmp_path / "p")]) == 0
+    plan = json.loads((tmp_path / "p/plan.json").read_text())
+    assert all(m["parameters"][0] is None and None not in m["parameters"][1:] for m in plan["models"])
+    assert any("shoulder_pan_joint" in n and "null" in n for n in plan["notes"])
+    capsys.readouterr()
+
+
+def test_joints_acting_in_a_fixed_combination_are_refused_naming_them(paper_robot):
+    """A straight 2-link arm (q2 = 0 in every row) under forces across it: joints 1 and 2 deflect the tool point
+    along the same direction with the fixed ratio ((l1 + l2) / l2)^2, so only that combination is identified; the
+    loss of rank is not one joint's column, and the data are refused naming both joints."""
+    rng = np.random.default_rng(3)
+    q = np.column_stack([rng.uniform(-3, 3, 12), np.zeros(12)])
+    u = np.column_stack([-np.sin(q[:, 0]), np.cos(q[:, 0])])  # across the straight arm
+    f = 300.0 * u * rng.choice([-1.0, 1.0], (12, 1))
+    dp = T.simulate(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), q, f, SIGMA, rng)
+    X = D.nominal_columns(paper_robot, q, f).reshape(-1, 2)
+    assert np.linalg.matrix_rank(X / np.linalg.norm(X, axis=0), 1e-9) == 1  # independent: numpy's rank
+    with pytest.raises(InputError, match="joints 1, 2 act only in a fixed combination"):
+        D.analyse(paper_robot, Measurements.from_arrays(q, f, dp))
 
 
 def test_every_row_one_configuration_and_one_load_is_refused(paper_robot, rng):
@@ -568,3 +630,155 @@ def test_gain_statistic_left_out_has_a_note():
     assert any(n.startswith("gain.nominal_plan_under_extended_rms_m is left out") for n in v["notes"])
     assert g["optimal_plan_extended_rms_m"] is not None or any(
         n.startswith("gain.optimal_plan_extended_rms_m is left out") for n in v["notes"])
+
+
+# --- the unloaded rows: a blunder among them is named, a common shift is the zero point that moved --------------
+
+def test_a_blunder_in_an_unloaded_row_of_the_ur10_file_is_named(ur10_verdict):
+    """make_ur10.py adds (0, -0.6, 0.3) mm to data row 40, an unloaded row: the verdict names it (it used to say
+    only that the zero point moved) and the other unloaded rows, exactly zero, are the reference."""
+    zp = ur10_verdict["zero_point"]
+    assert zp["outlier_rows"] == [40]
+    assert "row 42 (data row 40) stands out" in zp["note"] and "zero point moved" not in zp["note"]
+
+
+def _unloaded(rng, n0=30, sigma=8e-6, shift=None, blunder=None):
+    z = rng.normal(0.0, sigma, (n0, 3)) + (0.0 if shift is None else shift)
+    row = int(rng.integers(n0))
+    if blunder is not None:
+        z[row] += blunder
+    return z, row
+
+
+def test_unloaded_row_outliers_rates_over_seeds():
+    """Simulated unloaded rows (30 rows, 3 components, noise 8 um known on 200 df), 400 seeds each: a blunder of
+    6 or 7 sigma in one component of one row is named at the rate the noncentral F distribution predicts for the
+    first step of the test (within 3 binomial standard deviations; at 7 sigma at least 95 %), and no other row
+    beside it beyond alpha; clean rows, and rows with a common shift of 5 sigma (the zero point moved), have some
+    row named in at most alpha of the seeds (binomial: alpha n + 3 standard deviations)."""
+    sigma, alpha, n, n0, df = 8e-6, 0.01, 400, 30, 200
+    rng = np.random.default_rng(7)
+    limit = alpha * n + 3 * np.sqrt(n * alpha * (1 - alpha))
+    for size in (6, 7):
+        found = wrong = 0
+        for _ in range(n):
+            z, row = _unloaded(rng, n0, sigma, blunder=np.array([size * sigma, 0, 0]))
+            named, _ = D.zero_point_outliers(z, sigma**2, df, alpha)
+            found += row in named
+            wrong += any(r != row for r in named)
+        # the first step: F = |d|^2 / (3 s2 (1 + 1/29)), noncentral with lambda = (size sigma)^2 / (s2 (1 + 1/29))
+        crit = stats.f.isf(alpha / n0, 3, df)
+        power = stats.ncf.sf(crit, 3, df, size**2 / (1 + 1 / (n0 - 1)))
+        assert abs(found / n - power) <= 3 * np.sqrt(power * (1 - power) / n) + 1 / n, (size, found, power)
+        assert wrong <= limit
+    assert found >= 0.95 * n
+    for shift in (None, np.array([5 * sigma, -5 * sigma, 0.0])):
+        false = sum(bool(D.zero_point_outliers(_unloaded(rng, n0, sigma, shift=shift)[0], sigma**2, df, alpha)[0])
+                    for _ in range(n))
+        assert false <= limit
+
+
+def test_a_common_shift_of_the_unloaded_rows_is_the_zero_point_that_moved():
+    """All unloaded rows shifted together: no row is named and the note says the zero point moved; the same rows
+    with one blunder added name that row (file row numbers) and still say the zero point moved."""
+    rng = np.random.default_rng(11)
+    sigma = 8e-6
+    z, _ = _unloaded(rng, 20, sigma, shift=np.array([6 * sigma, 0.0, 0.0]))
+    meas = Measurements(np.zeros((1, 6)), np.ones((1, 3)), np.zeros((1, 3)), np.zeros(1, int), "<memory>",
+                        zero_rows=np.arange(20) * 2, zero_dp=z, zero_config=np.zeros(20, int))
+    zp = D.zero_point(meas, sigma**2, df=100)
+    assert zp["outlier_rows"] == [] and "the zero point moved" in zp["note"]
+    z[5] += [0.0, 20 * sigma, 0.0]
+    zp = D.zero_point(replace(meas, zero_dp=z), sigma**2, df=100)
+    assert zp["outlier_rows"] == [10] and "row 12 (data row 10) stands out" in zp["note"]
+    assert "the other unloaded rows scatter" in zp["note"] and "the zero point moved" in zp["note"]
+
+
+# --- common file mistakes the reader names ------------------------------------------------------------------------
+
+def _lab_file(tmp_path, name, edit, src="lab_3r_coupling.csv"):
+    """A copy of a lab file with ``edit`` (header list, rows list of lists) -> (header, rows) applied."""
+    lines = (LAB_DIR / src).read_text().splitlines()
+    header, rows = edit(lines[0].split(","), [ln.split(",") for ln in lines[1:]])
+    path = tmp_path / name
+    path.write_text("\n".join(",".join(r) for r in [header, *rows]) + "\n")
+    return path
+
+
+def test_angles_in_radians_in_degree_columns_are_named(tmp_path):
+    """The UR10 file with its joint angles written in radians under q_*_deg: a note says they look like radians
+    (every |q| < 3.2 deg over 160 rows of a robot whose joints range over 720 deg); the original file has no such
+    note."""
+    robot = load_robot(LAB_DIR / "ur10.yaml")
+
+    def to_rad(header, rows):
+        cols = [i for i, c in enumerate(header) if c.startswith("q_")]
+        return header, [[f"{np.radians(float(v)):.6f}" if i in cols else v for i, v in enumerate(r)] for r in rows]
+
+    meas = read_measurements(_lab_file(tmp_path, "rad.csv", to_rad, "ur10_bar.csv"), robot)
+    note = [n for n in meas.notes if "look like radians" in n]
+    assert len(note) == 1 and "q_shoulder_pan_joint_deg" in note[0] and "160 rows" in note[0]
+    assert not any("radians" in n for n in read_measurements(LAB_DIR / "ur10_bar.csv", robot).notes)
+
+
+def test_forces_in_kilonewtons_are_suspected_when_every_row_looks_unloaded(tmp_path):
+    """The 3-link lab file with forces and moments in kN / kN m (0.1 and 0.25): every row is within the force
+    resolution; the message says so, gives the resolution and the largest force, and suggests kN."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+
+    def to_kn(header, rows):
+        cols = [header.index(c) for c in ("fx_N", "fy_N", "mz_Nm")]
+        return header, [[f"{float(v) / 1000:.4f}" if i in cols else v for i, v in enumerate(r)] for r in rows]
+
+    with pytest.raises(InputError, match=r"every row is unloaded.*largest force component is 0.25 N, below the force "
+                                         r"resolution of 0.5 N: if the forces are in kN") as err:
+        read_measurements(_lab_file(tmp_path, "kn.csv", to_kn), robot)
+    assert "kn.csv" in str(err.value)
+
+
+@pytest.mark.parametrize("sep, what", [(";", "';' \\(semicolons\\)"), ("\t", "tabs")])
+def test_a_file_separated_by_another_character_is_named(tmp_path, sep, what):
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = tmp_path / "sep.csv"
+    path.write_text((LAB_DIR / "lab_3r_coupling.csv").read_text().replace(",", sep))
+    with pytest.raises(InputError, match=f"sep.csv.*missing columns: the header is one column separated by {what}.*"
+                                         "must be comma-separated"):
+        read_measurements(path, robot)
+
+
+def test_a_column_name_given_twice_is_refused_naming_it(tmp_path):
+    """pandas would read the second dx_m as 'dx_m.1' and the message would be about an unknown column; the
+    reader names the repeated column and where it is."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = _lab_file(tmp_path, "twice.csv", lambda h, rows: (h + ["dx_m"], [r + [r[-1]] for r in rows]))
+    with pytest.raises(InputError, match=r"twice.csv.*column dx_m.*more than once: dx_m \(header columns 11, 12\)"):
+        read_measurements(path, robot)
+
+
+def test_exact_duplicate_rows_are_named_and_kept(tmp_path):
+    """Loaded data row 1 pasted again at the end: a note names both file rows; the row is kept (a replicate)."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = _lab_file(tmp_path, "dup.csv", lambda h, rows: (h, rows + [rows[1]]))
+    meas = read_measurements(path, robot)
+    n = len((LAB_DIR / "lab_3r_coupling.csv").read_text().splitlines()) - 1
+    note = [x for x in meas.notes if "repeat an earlier row exactly" in x]
+    assert len(note) == 1 and f"row {n + 2} (data row {n}) repeats row 3 (data row 1)" in note[0]
+    assert n in meas.rows and len(np.unique(meas.group[np.isin(meas.rows, [1, n])])) == 1
+    assert not any("repeat an earlier" in x for x in read_measurements(LAB_DIR / "lab_3r_coupling.csv", robot).notes)
+
+
+def test_angles_outside_the_joint_limits_are_named(tmp_path):
+    """lab_3r.yaml limits joint 2 to [-150, 150] deg: configuration cfg0 moved to q2 = 155 deg is named with its
+    rows (every row of cfg0 is checked against the limits independently here)."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+
+    def move(header, rows):
+        i, p = header.index("q2_deg"), header.index("pose_id")
+        return header, [[("155" if k == i and r[p] == "cfg0" else v) for k, v in enumerate(r)] for r in rows]
+
+    path = _lab_file(tmp_path, "lim.csv", move)
+    moved = [k for k, ln in enumerate(path.read_text().splitlines()[1:]) if ln.split(",")[1] == "cfg0"]
+    note = [x for x in read_measurements(path, robot).notes if "outside the joint limits" in x]
+    assert len(note) == 1 and note[0].startswith("q2_deg is outside the joint limits")
+    assert f"[-150, 150] deg) in {len(moved)} rows {moved[0] + 2}, {moved[1] + 2}" in note[0]
+    assert not any("joint limits" in x for x in read_measurements(LAB_DIR / "lab_3r_coupling.csv", robot).notes)

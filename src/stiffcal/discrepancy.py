@@ -443,8 +443,16 @@ def _spans_within(a: np.ndarray, b: np.ndarray) -> bool:
     return fit(b, np.zeros(len(b))).rank == fit(np.hstack([b, a]), np.zeros(len(b))).rank
 
 
-def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | None = None) -> None:
-    """Enough equations for the compliances and a nonsingular plan, or one clear error."""
+def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | None = None) -> np.ndarray:
+    """The joints whose compliance these data cannot identify because they never deflect a measured quantity
+    under the data's loads (their column of the observation matrix, eq. 4, is zero in every row: a vertical
+    axis under hanging weights), as indices (k,) int into the robot's joints (empty when every compliance is
+    identifiable). The analysis leaves them out of the model (:func:`reduced`), as ``stiffcal design`` leaves
+    out a joint whose axis passes through the measured point.
+
+    Raises :class:`InputError` when there are fewer equations than compliances, when no compliance is left,
+    or when the information matrix of the remaining compliances is singular for another reason (joints whose
+    compliances act only in a fixed combination: they are named)."""
     ob = observed or Observed.of(robot, meas)
     params = ob.model_params(robot)
     n, d, N = len(params), ob.rows_per(robot), meas.n_rows
@@ -453,31 +461,61 @@ def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | No
                          f"({N} loaded measurements of {d} coordinates)", source=meas.source)
     X = _stack(nominal_columns(robot, meas.q, load_of(meas), ob))
     f = fit(X, observations(meas, ob).ravel())
-    if f.rank < n:
-        scale = np.linalg.norm(X, axis=0)
-        unloaded = [robot.joint_names[int(params[j])] for j in np.flatnonzero(scale <= RANK_RTOL * scale.max())]
-        if unloaded:
-            which = (f"joint{'s' if len(unloaded) > 1 else ''} {', '.join(map(str, unloaded))} never "
-                     "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
-        else:
-            v = np.linalg.svd(X / np.where(scale > 0, scale, 1.0))[2][-1]
-            joints = [robot.joint_names[int(params[j])] for j in np.flatnonzero(np.abs(v) > 0.1)]
-            which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
-        raise InputError(f"the measurement plan cannot identify the {n} joint compliances: its information "
-                         f"matrix has rank {f.rank}; {which}; measure other poses or load directions",
-                         source=meas.source)
+    if f.rank == n:
+        return np.zeros(0, int)
+    scale = np.linalg.norm(X, axis=0)
+    zero = scale <= RANK_RTOL * scale.max() if scale.max() > 0 else np.ones(n, bool)
+    names = [robot.joint_names[int(j)] for j in params[zero]]
+    unloaded = (f"joint{'s' if len(names) > 1 else ''} {', '.join(map(str, names))} never "
+                "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
+    refuse = (f"the measurement plan cannot identify the {n} joint compliances: its information matrix has rank "
+              f"{f.rank}; ")
+    if zero.all():
+        raise InputError(f"{refuse}{unloaded}, so no compliance is left to identify; measure other poses or load "
+                         "directions", source=meas.source)
+    if f.rank < n - int(zero.sum()):
+        rest = np.flatnonzero(~zero)
+        Xr = X[:, rest] / scale[rest]
+        v = np.linalg.svd(Xr)[2][-1]
+        joints = [robot.joint_names[int(params[rest[j]])] for j in np.flatnonzero(np.abs(v) > 0.1)]
+        which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
+        raise InputError(f"{refuse}{which}{'; ' + unloaded if names else ''}; measure other poses or load "
+                         "directions", source=meas.source)
+    return params[zero]
 
 
-def check_testable(robot: Robot, meas: Measurements) -> None:
+def reduced(robot: Robot, observed: Observed, dropped) -> Observed:
+    """``observed`` with the joints ``dropped`` (:func:`check_identifiable`) left out of the model's
+    parameters (the nominal columns and the verdict's ``k``; the catalogue's columns are unchanged)."""
+    dropped = np.asarray(dropped, int)
+    if dropped.size == 0:
+        return observed
+    return replace(observed, params=np.setdiff1d(observed.model_params(robot), dropped))
+
+
+def dropped_note(robot: Robot, dropped) -> str:
+    """The verdict's note on the joints left out (:func:`check_identifiable`)."""
+    default = robot.joint_names == tuple(str(i + 1) for i in range(robot.n_joints))
+    names = ", ".join(str(int(j) + 1) if default else f"{robot.joint_names[int(j)]} (joint {int(j) + 1})"
+                      for j in dropped)
+    one = len(dropped) == 1
+    return (f"joint{'' if one else 's'} {names} never deflect{'s' if one else ''} the measured point under these "
+            f"loads (e.g. a vertical axis under hanging weights): {'its' if one else 'their'} compliance cannot be "
+            "identified from these data and is left out of the analysis (nominal.not_identifiable_joints); "
+            "measure with loads that turn it to identify it")
+
+
+def check_testable(robot: Robot, meas: Measurements, n_params: int | None = None) -> None:
     """Raise :class:`InputError` when the distinct (configuration, load) pairs give no more equations than there
-    are compliances: the data then identify the compliances at best, and no cause and no lack of fit can be
-    tested (e.g. every row repeats one configuration and one load)."""
+    are compliances (``n_params``, default ``robot.n_params``): the data then identify the compliances at best,
+    and no cause and no lack of fit can be tested (e.g. every row repeats one configuration and one load)."""
     groups = len(np.unique(meas.group))
-    if groups * robot.task_dim <= robot.n_params:
+    n_params = robot.n_params if n_params is None else n_params
+    if groups * robot.task_dim <= n_params:
         raise InputError(
             f"these data cannot test any cause: their {meas.n_rows} loaded rows hold {groups} distinct "
             f"configuration-and-load pair{'s' if groups > 1 else ''} ({groups * robot.task_dim} distinct equations "
-            f"for {robot.n_params} compliances); measure more configurations or loads", source=meas.source)
+            f"for {n_params} compliances); measure more configurations or loads", source=meas.source)
 
 
 # --- the noise ---------------------------------------------------------------------------------------------
@@ -860,27 +898,88 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
     return notes
 
 
-def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0) -> dict | None:
-    """The unloaded reference rows: how many, the RMS of their displacement, and (when they are not all
-    exactly zero) the p-value of the chi-square test that they scatter about zero with the noise variance
-    s2 [m^2] (their rotation, when measured, times ``rad_weight`` [m/rad]); a moved zero point is a drift or a
-    disturbed target."""
+#: at most this fraction of the unloaded rows (and at least one) is named as standing out (a few blunders)
+ZERO_POINT_MAX_OUTLIERS = 0.2
+
+
+def zero_point_outliers(z: np.ndarray, s2: float, df: int | None = None, alpha: float = 0.01,
+                        max_fraction: float = ZERO_POINT_MAX_OUTLIERS) -> tuple[list[int], list[float]]:
+    """The unloaded rows that stand out from the others: (indices into z, Bonferroni-adjusted p-values).
+
+    z: (N0, r) [m] the unloaded rows' measured quantities; s2 [m^2]: the noise variance of one component, on
+    df degrees of freedom (None: known). A sequential outlier test among the rows (the generalised ESD
+    procedure of Rosner 1983, Technometrics 25(2), 165-172, with the noise known from the analysis rather
+    than from the rows themselves, so that a single row can be judged against a handful of others): at each
+    step the row farthest from the mean of the remaining others, d = z_i - mean(z_rest), has
+    F = |d|^2 / (r s2 (1 + 1 / (n - 1))) ~ F(r, df) (chi^2_r / r when df is None) when it is not an outlier;
+    it is named when its p-value times the n rows still in the test is at most ``alpha``, and the test goes on
+    without it, up to ``max_fraction`` of the rows (at least one). A shift common to every row (a zero point
+    that moved) moves the mean with it and names no row. On rows without an outlier the chance of naming any
+    is at most alpha (the first step's Bonferroni bound). Fewer than 3 rows: nothing is named (two rows that
+    differ cannot say which one is wrong)."""
+    z = np.asarray(z, float)
+    n0, r = z.shape
+    if n0 < 3 or not s2 > 0:
+        return [], []
+    left = list(range(n0))
+    out, ps = [], []
+    for _ in range(max(1, int(max_fraction * n0))):
+        n = len(left)
+        if n < 3:
+            break
+        rows = z[left]
+        rest = (rows.sum(axis=0)[None, :] - rows) / (n - 1)
+        F = ((rows - rest) ** 2).sum(axis=1) / (r * s2 * (1 + 1 / (n - 1)))
+        worst = int(np.argmax(F))
+        p = float(stats.chi2.sf(r * F[worst], r) if df is None else stats.f.sf(F[worst], r, df))
+        if min(1.0, n * p) > alpha:
+            break
+        out.append(left.pop(worst))
+        ps.append(min(1.0, n * p))
+    order = np.argsort(out)
+    return [out[i] for i in order], [ps[i] for i in order]
+
+
+def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0, df: int | None = None,
+               alpha: float = 0.01) -> dict | None:
+    """The unloaded reference rows: how many, the RMS of their displacement, the rows that stand out from the
+    others (:func:`zero_point_outliers` at ``alpha``, with the noise variance s2 [m^2] on df degrees of freedom:
+    ``outlier_rows``, 0-based data rows) and, for the others, when they are not all exactly zero, the p-value of
+    the chi-square test that they scatter about zero with the noise variance (their rotation, when measured,
+    times ``rad_weight`` [m/rad]); a zero point that moved as a whole is a drift or a disturbed target."""
+    from .measurements import _rows_text
+
     n0 = len(meas.zero_rows)
     if n0 == 0:
         return None
     z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rad_weight * meas.zero_rot])
     rms = float(np.sqrt(np.mean(z**2)))
-    out = {"n_rows": int(n0), "rms_m": rms, "p_value": None}
+    out = {"n_rows": int(n0), "rms_m": rms, "p_value": None, "outlier_rows": []}
     if rms == 0:
         out["note"] = ("the unloaded rows hold zero displacement: they are the reference the loaded rows are "
                        "measured from")
         return out
-    p = float(stats.chi2.sf(float((z**2).sum()) / s2, z.size)) if s2 > 0 else None
+    bad, p_bad = zero_point_outliers(z, s2, df, alpha)
+    out["outlier_rows"] = [int(meas.zero_rows[i]) for i in bad]
+    first = ""
+    if bad:
+        size = np.linalg.norm(z[bad], axis=1) * 1e6
+        first = (f"unloaded {_rows_text(meas.zero_rows[bad])} stand{'s' if len(bad) == 1 else ''} out from the "
+                 f"other unloaded rows ({', '.join(f'{v:.3g}' for v in size)} um from zero; adjusted p = "
+                 f"{', '.join(f'{v:.2g}' for v in p_bad)}): a blunder or a disturbed target in "
+                 f"{'that row' if len(bad) == 1 else 'those rows'}, left out of the zero-point check; ")
+    rest = np.delete(z, bad, axis=0)
+    rms_rest = float(np.sqrt(np.mean(rest**2)))
+    if rms_rest == 0:
+        out["note"] = first + ("the other unloaded rows hold zero displacement: they are the reference the loaded "
+                               "rows are measured from")
+        return out
+    p = float(stats.chi2.sf(float((rest**2).sum()) / s2, rest.size)) if s2 > 0 else None
     out["p_value"] = p
-    moved = p is not None and p < 0.01
-    out["note"] = (f"the unloaded rows scatter by {rms * 1e6:.3g} um RMS about zero"
-                   + (", more than the noise (p = %.2g): the zero point moved (a drift, or a disturbed target)" % p
-                      if moved else ", as the noise does"))
+    moved = p is not None and p < alpha
+    out["note"] = first + (f"the {'other ' if bad else ''}unloaded rows scatter by {rms_rest * 1e6:.3g} um RMS about "
+                           "zero" + (", more than the noise (p = %.2g): the zero point moved (a drift, or a disturbed "
+                                     "target)" % p if moved else ", as the noise does"))
     return out
 
 
@@ -934,10 +1033,12 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     """
     if not 0 < alpha < 1:
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
-    check_identifiable(robot, meas)
-    check_testable(robot, meas)
+    full = Observed.of(robot, meas)
+    dropped = check_identifiable(robot, meas, full)
+    check_testable(robot, meas, len(full.model_params(robot)) - len(dropped))
     rw, rw_note = rad_weight(robot, meas, sigma_m, sigma_rad)
-    ob_all = Observed.of(robot, meas, rw)
+    ob_full = Observed.of(robot, meas, rw)
+    ob_all = reduced(robot, ob_full, dropped)
     des_all = build_design(robot, meas, ob_all)
     vm = variance_model(robot, meas, des_all.y.reshape(-1, des_all.d))  # a first look, before the blunders
     w_all = np.ones(meas.n_rows) if vm is None else vm.weights
@@ -946,12 +1047,17 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     keep[blunders] = False
     m = meas.subset(keep)
     ob = ob_all.take(keep)
-    check_identifiable(robot, m, ob)
+    more = check_identifiable(robot, m, ob)
+    if more.size:  # only blunder rows turned these joints: leave them out too
+        dropped = np.union1d(dropped, more)
+        ob_all = reduced(robot, ob_all, more)
+        des_all = build_design(robot, meas, ob_all)
+        ob = ob_all.take(keep)
     vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
     w = np.ones(m.n_rows) if vm is None else vm.weights
     des = des_all.rows(keep).weighted(w)
     noise = noise_variance(des, m)
-    notes = list(meas.notes) + ([rw_note] if rw_note else [])
+    notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])
     if noise.df < 10:
         notes.append(f"the noise estimate has only {noise.df} degrees of freedom: the tests have little power")
     if vm is not None:
@@ -986,7 +1092,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
     lof_nominal = lof(frozenset(), sel.fits[frozenset()])
     notes += plausibility(robot, m, f0.beta, k_ci, ob)
-    zp = zero_point(meas, noise.s2, rw)
+    zp = zero_point(meas, noise.s2, rw, noise.df, alpha)
     params = ob.model_params(robot)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
                "k_names": [robot.joint_columns("k")[int(j)] for j in params],
@@ -1009,7 +1115,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
            "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
            "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
            "outlier_rows": [int(meas.rows[r]) for r in blunders],
-           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas, observed=ob)
+           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas, observed=ob_full.take(keep))
                           for c in indistinct},
            "zero_point": zp, "notes": notes}
     ext = sorted(chosen, key=CAUSES.index) if ranked else []
@@ -1026,6 +1132,12 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
                          "test load, measuring what the data measured) does not identify every parameter of the "
                          f"extended model ({', '.join(ext)}): its information matrix is singular, so its O_t is "
                          "infinite")
+    if len(dropped) and out["gain"] is not None and "test_pose_rms_nominal_m" in out["gain"]:
+        tau = torques(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force))[0]
+        turned = [robot.joint_names[int(j)] for j in dropped if abs(tau[j]) > RANK_RTOL * np.abs(tau).max()]
+        if turned:
+            notes.append(f"the test load turns joint(s) {', '.join(turned)}, whose compliance these data cannot "
+                         "identify: the test-pose figures of gain leave its deflection out")
     out = _finite(out, out["notes"])
     if sel.unexplained:
         f = sel.fits[chosen]

@@ -1298,6 +1298,11 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
     rm = res.rivals
     models = rm.models
     names = {i: list(m.causes) for i, m in enumerate(models)}
+    unknown = [i for i, j in enumerate(rm.robot.params) if j + 1 in rm.verdict["nominal"]["not_identifiable_joints"]]
+    which = ", ".join(rm.robot.joint_names[rm.robot.params[i]] for i in unknown)
+    notes = list(res.notes) + ([f"the data cannot identify the compliance of joint(s) {which} (the verdict's "
+                                "not_identifiable_joints): its parameter is null in models; every model keeps it as an "
+                                "unknown, so its value does not change the plan or its power"] if unknown else [])
     out = {"robot": rm.robot.source, "data": data, "alpha": rm.alpha, "sigma_m": rm.sigma, "noise_df": rm.noise_df,
            "experiments": res.m, "repeats": res.repeats, "truth_mode": res.truth,
            "loads": {"kind": res.loads.kind, "spec": res.loads.spec, "description": res.loads.describe(),
@@ -1308,7 +1313,8 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
                        "p_value": rm.verdict["p_value"], "p_value_of": rm.verdict.get("p_value_of"),
                        "significant_on_its_own": [c for c, t in rm.verdict["tests"].items() if t["significant"]]},
            "models": [{"causes": list(m.causes), "role": "truth" if i == 0 else "rival", "rss_m2": m.rss,
-                       "parameters": m.beta.tolist(), "bonferroni_share": m.multiplicity}
+                       "parameters": [None if i in unknown else float(b) for i, b in enumerate(m.beta)],
+                       "bonferroni_share": m.multiplicity}
                       for i, m in enumerate(models)],
            "separable": res.separable,
            "separability": [{"truth": names[s.truth], "rival": names[s.rival], "separable": s.separable,
@@ -1316,7 +1322,7 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
            "design_pairs": [{"truth": names[t], "rival": names[j]} for t, j in res.pairs],
            "plan": None, "compound": None, "ot_plan": None,
            "power_against_m": [{"m": m, "power": p} for m, p in res.power_against_m],
-           "notes": list(res.notes)}
+           "notes": notes}
     if res.plan is not None:
         c = res.certificate
         out["plan"] = _session_json(res.plan, res) | {"certificate": {

@@ -383,6 +383,7 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
         df = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
         raise InputError(f"cannot read a CSV table ({err})", source=source) from None
+    _header(path, source)
     df.columns = [c.strip() for c in df.columns]
     _check_units(df.columns, source)
     cols = angle_columns(list(df.columns), robot, source) + expected_columns(robot)[robot.n_joints:]
@@ -435,11 +436,16 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     unloaded = np.all(np.abs(force) <= force_resolution_N, axis=1) & np.all(np.abs(moment) <= moment_resolution_Nm,
                                                                             axis=1)
     if unloaded.all():
+        largest = float(np.abs(force).max())
+        kn = (f"; the largest force component is {largest:g} N, below the force resolution of {force_resolution_N:g} "
+              "N: if the forces are in kN (labelled N), give them in newtons (x 1000), or lower the force resolution"
+              if largest > 0 else "")
         raise InputError(f"every row is unloaded (all force components within {force_resolution_N:g} N of zero"
                          f"{f' and moments within {moment_resolution_Nm:g} N m' if groups['moment'] else ''}); "
-                         "expected measurements under load", source=source)
+                         f"expected measurements under load{kn}", source=source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
+    notes += _angle_notes(q_deg, cols[:n], robot) + _duplicate_notes(df, loaded)
     if zero.size:
         notes.append(f"{zero.size} unloaded row(s) ({_rows_text(zero)}) taken as the zero point, not as "
                      "measurements")
@@ -454,6 +460,79 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
                         tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config, tuple(notes), res,
                         moment[loaded], None if rot is None else rot[loaded], target[loaded], target_names,
                         None if rot is None else rot[zero])
+
+
+def _header(path, source: str) -> list[str]:
+    """The header row as the file writes it (pandas renames a repeated name 'dx_m' to 'dx_m.1'): raises
+    :class:`InputError` for a column name given twice, or a header with no comma but semicolons or tabs (a
+    file separated by another character: a comma-separated file is expected)."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        line = fh.readline()
+    names = [c.strip() for c in next(csv.reader([line]), [])]
+    seps = {";": "';' (semicolons)", "\t": "tabs"}
+    seen = [sep for sep in seps if sep in line]
+    if len(names) <= 1 and seen:
+        sep = max(seen, key=line.count)
+        raise InputError(f"missing columns: the header is one column separated by {seps[sep]} "
+                         f"({line.strip()[:80]!r}), but the file must be comma-separated; save it as CSV with commas "
+                         "(and a decimal point)", source=source)
+    twice = sorted({c for c in names if names.count(c) > 1}, key=names.index)
+    if twice:
+        where = "; ".join(f"{c} (header columns {', '.join(str(i + 1) for i, x in enumerate(names) if x == c)})"
+                          for c in twice)
+        raise InputError(f"column name(s) given more than once: {where}; give each quantity one column",
+                         source=source, field=f"column {twice[0]}")
+    return names
+
+
+#: angles all within this magnitude [deg] over at least RADIANS_MIN_ROWS rows look like radians
+RADIANS_MAX_DEG = 3.2
+RADIANS_MIN_ROWS = 10
+
+
+def _angle_notes(q_deg: np.ndarray, cols: list[str], robot: Robot) -> list[str]:
+    """Notes on joint angles that look wrong: every angle within +-RADIANS_MAX_DEG deg over many rows of a robot
+    whose joints range much wider (radians in degree columns), and angles outside the robot file's joint
+    limits (rows and joints named)."""
+    notes = []
+    lims = np.degrees(robot.joint_limits_rad)
+    span = float(np.max(lims[:, 1] - lims[:, 0]))
+    if (len(q_deg) >= RADIANS_MIN_ROWS and np.all(np.abs(q_deg) <= RADIANS_MAX_DEG) and np.ptp(q_deg) > 0
+            and span > 10 * RADIANS_MAX_DEG):
+        notes.append(f"the joint angles ({', '.join(cols)}) are all within +-{RADIANS_MAX_DEG:g} deg over "
+                     f"{len(q_deg)} rows while the robot's joints range over up to {span:.0f} deg: the angles look "
+                     "like radians; give them in degrees (x 180/pi)")
+    if robot.has_joint_limits:
+        tol = 1e-6
+        for j, col in enumerate(cols):
+            if j in robot.unlimited_joints:
+                continue
+            out = np.flatnonzero((q_deg[:, j] < lims[j, 0] - tol) | (q_deg[:, j] > lims[j, 1] + tol))
+            if out.size:
+                notes.append(f"{col} is outside the joint limits of robot {robot.source} ([{lims[j, 0]:g}, "
+                             f"{lims[j, 1]:g}] deg) in {out.size} {_rows_text(out)}: check the robot file's "
+                             "joint_limits_deg, the order of the joint columns and the angle unit")
+    return notes
+
+
+def _duplicate_notes(df, loaded: np.ndarray) -> list[str]:
+    """A note naming loaded rows that repeat an earlier row exactly in every column (a row pasted twice?);
+    they are kept as replicates. Unloaded rows are left out: a reference row of zeros repeats naturally."""
+    sub = df.iloc[loaded].apply(lambda c: c.str.strip())
+    again = np.flatnonzero(sub.duplicated(keep="first").to_numpy())
+    if again.size == 0:
+        return []
+    key = sub.apply(tuple, axis=1).to_numpy()
+    first = {}
+    for i, k in enumerate(key):
+        first.setdefault(k, i)
+    pairs = [(int(loaded[first[key[i]]]), int(loaded[i])) for i in again]
+    text = "; ".join(f"row {b + 2} (data row {b}) repeats row {a + 2} (data row {a})" for a, b in pairs[:_MAX_LISTED])
+    more = f" and {len(pairs) - _MAX_LISTED} more" if len(pairs) > _MAX_LISTED else ""
+    return [f"{len(pairs)} loaded row(s) repeat an earlier row exactly in every column ({text}{more}): a row pasted "
+            "twice? They are kept as replicates"]
 
 
 def _targets(df, robot: Robot, source: str) -> tuple[np.ndarray, tuple[str, ...]]:
