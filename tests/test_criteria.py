@@ -63,3 +63,23 @@ def test_o_t_star_and_chi():
     assert criteria.o_t_star(6, 3, 0.5) == pytest.approx(0.5)
     assert criteria.chi(0.5, 2, 1) == pytest.approx(4.0)
     assert criteria.chi(np.inf, 2, 1) == 0.0
+
+
+def test_o_t_star_is_o_t_with_every_measurement_at_the_test_pose_for_a_six_axis_arm():
+    """Eq. 17 for an arm with more compliances (6) than measured coordinates (3): measuring m times at the test
+    pose identifies only rank(A_t) = 3 combinations, and O_t of that plan (eq. 16 with the pseudo-inverse:
+    the error at the test pose is estimable) is 3 sigma^2 / m, not 6 sigma^2 / m; the paper's 2-link arm keeps
+    n = 2."""
+    from pathlib import Path
+
+    from stiffcal.design import Problem
+    from stiffcal.robot import load_robot
+
+    root = Path(__file__).resolve().parents[1]
+    kuka = load_robot(root / "config/robots/kuka_kr210_r2700.yaml")
+    prob = Problem(kuka, np.array([500.0, -300, -800]), "ot", 2, np.radians([20, -60, 110, 30, 45, -20]), sigma=1e-5)
+    At = prob.At
+    direct = 1e-10 * np.trace(At @ np.linalg.pinv(2 * At.T @ At) @ At.T)
+    assert prob.ot_star(2) == pytest.approx(direct, rel=1e-9) == pytest.approx(3 * 1e-10 / 2)
+    arm = load_robot(root / "config/robots/paper_2r.yaml")
+    assert Problem(arm, np.array([0.0, 1.0]), "ot", 1, np.radians([60, 20])).ot_star(3) == 2 / 3

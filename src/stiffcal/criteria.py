@@ -69,8 +69,10 @@ def o_t(M: np.ndarray, At: np.ndarray, sigma: float = 1.0, spec=None) -> np.ndar
 
 
 def o_t_star(n: int, m: int, sigma: float = 1.0) -> float:
-    """O_t* of eq. 17: ``n sigma^2 / m``, O_t when all m measurements are taken at the test pose
-    (valid when A_t has full column rank)."""
+    """O_t* of eq. 17: ``n sigma^2 / m``, O_t when all m measurements are taken at the test pose, with n the
+    number of parameters they identify (``trace(A_t (A_t^T A_t)^+ A_t^T) = rank A_t``): the number of
+    compliances when A_t has full column rank, the number of measured coordinates for an arm with more joints
+    than that (:meth:`stiffcal.design.Problem.ot_star`)."""
     return n * sigma**2 / m
 
 

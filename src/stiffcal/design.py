@@ -140,10 +140,12 @@ class Problem:
 
     def ot_star(self, m: int) -> float:
         """O_t* of eq. 17: O_t when all m measurements are taken at the test pose (``n sigma^2 / m`` for the
-        paper's problem; in general ``sigma^2 trace(A_t (m A_1^T A_1)^-1 A_t^T)`` with A_1 the rows measured
-        at the test pose, inf when they cannot give the error at the test pose)."""
+        paper's problem, n the number of parameters those measurements identify at a generic test pose: the
+        number of compliances, or the number of measured coordinates d for an arm with more joints than d,
+        where A_t has rank d; in general ``sigma^2 trace(A_t (m A_1^T A_1)^+ A_t^T)`` with A_1 the rows
+        measured at the test pose, inf when they cannot give the error at the test pose)."""
         if self.is_default:
-            return criteria.o_t_star(self.n_params, m, self.sigma)
+            return criteria.o_t_star(min(self.n_params, self.robot.task_dim), m, self.sigma)
         A1 = self.rows(self.test_pose)
         return float(criteria.o_t(m * pose_information(A1), self.At, self.sigma))
 
