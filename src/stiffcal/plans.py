@@ -10,10 +10,12 @@ the adjugate formula for up to 3 parameters, the Woodbury identity with the pool
 beyond), a few vector operations per step for the whole pool, with exactly the values (and so the plans)
 of a general inverse of every candidate's information matrix. The same engine serves any linear model
 (:func:`fedorov_exchange`); a slot holding the same point as one already verified since the last change is
-not rescored, so a converged plan of M poses at k distinct points costs k scorings a pass. Every exchanged
-plan is then polished in the continuum (L-BFGS-B on all M n angles, with the gradient of O_t from one
-batched evaluation of the rows whatever M: :func:`l_criterion_gradient`), roughly, and the best
-``N_FINISH`` to convergence. Starts: the roundings of the optimal approximate design
+not rescored, so a converged plan of M poses at k distinct points costs k scorings a pass. Every distinct
+exchanged plan is then polished in the continuum (L-BFGS-B on all M n angles, with the gradient of O_t
+from one batched evaluation of the rows whatever M: :func:`l_criterion_gradient`), roughly, and the best
+``N_FINISH`` to convergence; the L-BFGS-B runs of all plans go in lockstep (:func:`lbfgsb_lockstep`:
+scipy's routine for each, the points they ask for evaluated in one batch), so a step costs one
+evaluation of the rows for all starts. Starts: the roundings of the optimal approximate design
 (:func:`design_starts`, :mod:`stiffcal.certificate`), the best single pose repeated (plan (i)), and
 ``n_starts`` random plans drawn from the pool with the given seed, so the result is deterministic for a
 seed. The certificate bounds how far the result can be from the true optimum; the tests compare it with
@@ -491,7 +493,8 @@ def lbfgsb_lockstep(fun_grad, Z0: np.ndarray, bounds: np.ndarray, maxiter: int, 
     one call per step for all starts. bounds: (k, 2), +-inf where a variable is free. Each start follows
     exactly the iterates ``scipy.optimize.minimize(method="L-BFGS-B")`` would give it with the same values
     (scipy's reverse-communication routine ``setulb``; without it, those ``minimize`` calls one by one).
-    Returns (Z (S, k), f (S,)): the last point evaluated for each start and its value."""
+    Returns (Z (S, k), f (S,)): each start's final iterate (scipy's ``x``: after a failed line search, the
+    iterate before it) and the last value evaluated (scipy's ``fun``)."""
     Z0 = np.array(Z0, float)
     S, k = Z0.shape
     lo, hi = np.asarray(bounds, float).T
@@ -513,7 +516,7 @@ def lbfgsb_lockstep(fun_grad, Z0: np.ndarray, bounds: np.ndarray, maxiter: int, 
     st = [dict(x=z.copy(), f=0.0, g=np.zeros(k), wa=np.zeros(2 * maxcor * k + 5 * k + 11 * maxcor**2 + 8 * maxcor),
                iwa=np.zeros(3 * k, np.int32), task=np.zeros(2, np.int32), ln_task=np.zeros(2, np.int32),
                lsave=np.zeros(4, np.int32), isave=np.zeros(44, np.int32), dsave=np.zeros(29), nit=0) for z in Z0]
-    best_z, best_f = Z0.copy(), np.full(S, np.inf)
+    last_f = np.full(S, np.inf)
     alive = list(range(S))
     while alive:
         ask = []
@@ -536,9 +539,9 @@ def lbfgsb_lockstep(fun_grad, Z0: np.ndarray, bounds: np.ndarray, maxiter: int, 
         F, G = fun_grad(np.array(ask), Z)
         for i, z, fv, gv in zip(ask, Z, F, G):
             st[i]["f"], st[i]["g"] = float(fv), np.array(gv, float)
-            best_z[i], best_f[i] = z, float(fv)
+            last_f[i] = float(fv)
         alive = ask
-    return best_z, best_f
+    return np.array([s["x"] for s in st]), last_f
 
 
 #: step of the central differences in the polish of criteria other than O_t and A [rad]: truncation ~ h^2,
