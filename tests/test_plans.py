@@ -7,7 +7,7 @@ from stiffcal import reproduction, tables
 from stiffcal.certificate import approximate_design, candidate_pool
 from stiffcal.design import Problem, plan_loss, sample_joint_space
 from stiffcal.plans import (canonical_plan, exchange, exchange_scores, fedorov_exchange, l_criterion_gradient,
-                            optimise_plan, polish, pool_forms, round_design, symmetric_copies)
+                            lbfgsb_lockstep, optimise_plan, polish, pool_forms, round_design, symmetric_copies)
 from stiffcal.reference import general_exchange_scores, reference_exchange
 from stiffcal.robot import load_robot, planar_robot
 from stiffcal.stiffness import information_matrix, observation_matrix, pose_information
@@ -322,3 +322,55 @@ def test_polish_is_at_least_as_good_as_the_finite_difference_polish(arm, m, pape
                   options=dict(maxiter=2000, ftol=1e-15, gtol=1e-11))
     assert loss == pytest.approx(float(plan_loss(prob, plan)), rel=1e-12)
     assert loss <= fd.fun * (1 + 1e-9)
+
+
+def test_lockstep_lbfgsb_follows_scipys_lbfgsb_for_every_start(rng):
+    """lbfgsb_lockstep (every start's L-BFGS-B driven together, one batched evaluation a step) against
+    scipy.optimize.minimize(method="L-BFGS-B") run from each start alone: the same end points and values
+    (bit for bit: the same routine with the same values), on a bounded Rosenbrock function whose starts stop
+    after different numbers of steps, one of them by maxiter."""
+    from scipy.optimize import minimize
+
+    def rosen(Z):
+        Z = np.atleast_2d(Z)
+        a, b = Z[:, :-1], Z[:, 1:]
+        f = np.sum(100.0 * (b - a**2) ** 2 + (1 - a) ** 2, axis=1)
+        g = np.zeros_like(Z)
+        g[:, :-1] += -400.0 * a * (b - a**2) - 2 * (1 - a)
+        g[:, 1:] += 200.0 * (b - a**2)
+        return f, g
+
+    k = 5
+    bounds = np.column_stack([np.full(k, -np.inf), np.full(k, np.inf)])
+    bounds[1] = (-0.5, 0.8)  # an active bound for some starts
+    bounds[3, 1] = 2.0
+    Z0 = rng.uniform(-2.0, 2.0, (6, k))
+    seen = []
+
+    def batched(starts, Z):
+        seen.append(len(starts))
+        return rosen(Z)
+    opts = dict(maxiter=60, ftol=1e-12, gtol=1e-9)
+    Z, f = lbfgsb_lockstep(batched, Z0, bounds, **opts)
+    for z0, z, v in zip(Z0, Z, f):
+        ref = minimize(lambda x: tuple(a[0] for a in rosen(x)), z0, jac=True, method="L-BFGS-B",
+                       bounds=[(None if np.isinf(lo) else lo, None if np.isinf(hi) else hi) for lo, hi in bounds],
+                       options=opts)
+        np.testing.assert_array_equal(z, ref.x)
+        assert v == ref.fun
+    assert seen[0] == len(Z0) and len(set(seen)) > 1  # batched, and starts finish at different steps
+
+
+def test_batched_polish_gradient_is_the_single_plan_one(root, rng):
+    """l_criterion_gradient of a batch of plans (S, m, n) equals that of each plan alone (6-axis arm, O_t,
+    one plan singular: inf loss and a zero gradient, as plan_loss gives)."""
+    robot, force, qt = _arm("6-axis", root)
+    prob = Problem(robot, force, "ot", 3, qt)
+    plans = rng.uniform(-2.0, 2.0, (4, 3, 6))
+    plans[2, 1:] = plans[2, 0]  # one pose thrice: 3 equations for 6 compliances
+    loss, g = l_criterion_gradient(prob, plans)
+    for q, v, gi in zip(plans, loss, g):
+        v1, g1 = l_criterion_gradient(prob, q)
+        assert v == pytest.approx(v1, rel=1e-13) and v1 == pytest.approx(float(plan_loss(prob, q)), rel=1e-12)
+        np.testing.assert_allclose(gi, g1, rtol=1e-10, atol=1e-14 * np.abs(g1).max(initial=0.0))
+    assert np.isinf(loss[2]) and not g[2].any()

@@ -10,10 +10,12 @@ the adjugate formula for up to 3 parameters, the Woodbury identity with the pool
 beyond), a few vector operations per step for the whole pool, with exactly the values (and so the plans)
 of a general inverse of every candidate's information matrix. The same engine serves any linear model
 (:func:`fedorov_exchange`); a slot holding the same point as one already verified since the last change is
-not rescored, so a converged plan of M poses at k distinct points costs k scorings a pass. Every exchanged
-plan is then polished in the continuum (L-BFGS-B on all M n angles, with the gradient of O_t from one
-batched evaluation of the rows whatever M: :func:`l_criterion_gradient`), roughly, and the best
-``N_FINISH`` to convergence. Starts: the roundings of the optimal approximate design
+not rescored, so a converged plan of M poses at k distinct points costs k scorings a pass. Every distinct
+exchanged plan is then polished in the continuum (L-BFGS-B on all M n angles, with the gradient of O_t
+from one batched evaluation of the rows whatever M: :func:`l_criterion_gradient`), roughly, and the best
+``N_FINISH`` to convergence; the L-BFGS-B runs of all plans go in lockstep (:func:`lbfgsb_lockstep`:
+scipy's routine for each, the points they ask for evaluated in one batch), so a step costs one
+evaluation of the rows for all starts. Starts: the roundings of the optimal approximate design
 (:func:`design_starts`, :mod:`stiffcal.certificate`), the best single pose repeated (plan (i)), and
 ``n_starts`` random plans drawn from the pool with the given seed, so the result is deterministic for a
 seed. The certificate bounds how far the result can be from the true optimum; the tests compare it with
@@ -37,7 +39,7 @@ from scipy.optimize import minimize
 from . import criteria
 from .certificate import ApproximateDesign, candidate_pool, default_pool_step, has_planar_symmetry, vech
 from .design import Problem, _is_full_turn, into_limits, plan_loss, representative, wrap_deg
-from .stiffness import pose_information
+from .stiffness import pose_information, spectral
 
 
 @dataclass
@@ -82,9 +84,11 @@ def information_symmetries(problem: Problem, n_probe: int = 16, rtol: float = 1e
     maps = np.array([np.array(c).T for c in product(first, *[rest] * (robot.n_joints - 1))])  # (K, 2, n)
     q = np.random.default_rng(0).uniform(-180.0, 180.0, (n_probe, robot.n_joints))
     info = pose_information(_plan_A(problem, np.radians(q)))
-    copies = q * maps[:, None, 0] + maps[:, None, 1]  # (K, n_probe, n)
-    same = np.abs(pose_information(_plan_A(problem, np.radians(copies))) - info) <= rtol * np.abs(info).max()
-    return maps[same.all(axis=(1, 2, 3))]
+    for probes in (slice(0, 1), slice(None)):  # screened on one pose, the survivors checked on all
+        copies = q[probes] * maps[:, None, 0] + maps[:, None, 1]  # (K, probes, n)
+        diff = np.abs(pose_information(_plan_A(problem, np.radians(copies))) - info[probes])
+        maps = maps[(diff <= rtol * np.abs(info).max()).all(axis=(1, 2, 3))]
+    return maps
 
 
 def canonical_plan(problem: Problem, plan_deg: np.ndarray, symmetries: np.ndarray | None = None) -> np.ndarray:
@@ -437,30 +441,107 @@ def exchange(problem: Problem, plan: np.ndarray, pool: np.ndarray, pool_A: np.nd
 
 
 def l_criterion_gradient(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None,
-                         h: float = 1e-5) -> tuple[float, np.ndarray]:
+                         h: float = 1e-5, At: np.ndarray | None = None):
     """The loss of an L-optimality criterion (O_t, eq. 16, or A) of plan (m, n) [rad] and its gradient with
-    respect to the free joint angles (m, n_free) [per rad].
+    respect to the free joint angles (m, n_free) [per rad]; for plans (S, m, n) the losses (S,) and
+    gradients (S, m, n_free), all from one evaluation of the rows.
 
     With the plan's information ``M = sum_i A_i^T A_i`` and ``loss = s^2 trace(W M^-1)`` (O_t: W = A_t^T A_t,
     s = sigma; A: W = I, s = 1), ``d loss / d q_ij = -2 s^2 sum((A_i B) * dA_i/dq_ij)`` with
     ``B = M^-1 W M^-1`` (Magnus & Neudecker, Matrix Differential Calculus, ch. 8), so one evaluation of the
     observation rows at the m poses and at each pose with one joint moved by +-h (a central difference of
-    the rows, error about h^2) gives the whole gradient, whatever m. The loss is :func:`plan_loss`'s (+inf
-    for a singular plan, with a zero gradient)."""
-    m, n = plan.shape
+    the rows, error about h^2) gives the whole gradient, whatever m; M^-1 comes from the eigen-decomposition
+    that gives the loss. The loss is :func:`plan_loss`'s (+inf for a singular plan, with a zero gradient).
+    At: the test pose's rows ``problem.At``, when the caller has them (a polish computes them once)."""
+    plan = np.asarray(plan, float)
+    if plan.ndim == 2:
+        loss, g = l_criterion_gradient(problem, plan[None], free, h, At)
+        return float(loss[0]), g[0]
+    S, m, n = plan.shape
     js = np.flatnonzero(np.ones(n, bool) if free is None else free)
-    E = np.zeros((len(js), 1, n))
-    E[np.arange(len(js)), 0, js] = h
-    R = problem.rows(np.concatenate([plan[None], plan + E, plan - E]))  # (1 + 2 f, m, d, p)
-    A = R[0]
-    loss = float(criteria.loss(problem.criterion, A.reshape(-1, A.shape[-1]), m, problem.At, problem.sigma))
-    if not np.isfinite(loss):
-        return loss, np.zeros((m, len(js)))
-    dA = (R[1:1 + len(js)] - R[1 + len(js):]) / (2 * h)
-    W, s2 = (problem.At.T @ problem.At, problem.sigma**2) if problem.criterion == "ot" else (np.eye(A.shape[-1]), 1.0)
-    Minv = np.linalg.inv(np.einsum("mdi,mdj->ij", A, A))
-    AB = A @ (Minv @ W @ Minv)
-    return loss, -2.0 * s2 * np.einsum("fmdp,mdp->mf", dA, AB)
+    f = len(js)
+    E = np.zeros((f, 1, n))
+    E[np.arange(f), 0, js] = h
+    R = problem.rows(np.concatenate([plan[:, None], plan[:, None] + E, plan[:, None] - E], axis=1))  # (S, 1+2f, m, d, p)
+    A = R[:, 0]
+    p = A.shape[-1]
+    if problem.criterion == "ot":
+        At = problem.At if At is None else At
+        W, s2 = At.T @ At, problem.sigma**2
+    else:
+        At, W, s2 = None, np.eye(p), 1.0
+    stacked = A.reshape(S, -1, p)
+    M = np.einsum("...ri,...rj->...ij", stacked, stacked)  # as criteria.loss forms it: the same loss
+    spec = spectral(M)
+    w, V, null = spec
+    loss = np.nan_to_num(criteria.from_info(problem.criterion, M, m, At, problem.sigma, stacked, spec), nan=np.inf)
+    bad = null.any(axis=-1) | ~np.isfinite(loss)
+    loss = np.where(bad, np.inf, loss)
+    dA = (R[:, 1:1 + f] - R[:, 1 + f:]) / (2 * h)
+    Minv = (V / np.where(bad[:, None], 1.0, w)[:, None, :]) @ np.swapaxes(V, -1, -2)
+    AB = A @ (Minv @ W @ Minv)[:, None]
+    g = -2.0 * s2 * np.einsum("sfmdp,smdp->smf", dA, AB)
+    return loss, np.where(bad[:, None, None], 0.0, g)
+
+
+def lbfgsb_lockstep(fun_grad, Z0: np.ndarray, bounds: np.ndarray, maxiter: int, ftol: float, gtol: float,
+                    maxcor: int = 10, maxls: int = 20) -> tuple[np.ndarray, np.ndarray]:
+    """L-BFGS-B (Byrd, Lu, Nocedal & Zhu 1995; scipy's implementation and its ``minimize`` defaults) from
+    every start Z0 (S, k) at once: each start runs its own L-BFGS-B, and the points they ask for are
+    evaluated together, ``fun_grad(starts (S',), Z (S', k)) -> (f (S',), g (S', k))`` (which starts ask,
+    and where), so that a batched objective costs
+    one call per step for all starts. bounds: (k, 2), +-inf where a variable is free. Each start follows
+    exactly the iterates ``scipy.optimize.minimize(method="L-BFGS-B")`` would give it with the same values
+    (scipy's reverse-communication routine ``setulb``; without it, those ``minimize`` calls one by one).
+    Returns (Z (S, k), f (S,)): each start's final iterate (scipy's ``x``: after a failed line search, the
+    iterate before it) and the last value evaluated (scipy's ``fun``)."""
+    Z0 = np.array(Z0, float)
+    S, k = Z0.shape
+    lo, hi = np.asarray(bounds, float).T
+    Z0 = np.clip(Z0, lo, hi)
+    try:
+        from scipy.optimize import _lbfgsb
+        setulb = _lbfgsb.setulb
+    except (ImportError, AttributeError):  # pragma: no cover - another scipy: the same runs one by one
+        out = [minimize(lambda z, i=i: tuple(np.asarray(a)[0] for a in fun_grad(np.array([i]), z[None])), z,
+                        jac=True, method="L-BFGS-B", bounds=list(zip(lo, hi)),
+                        options=dict(maxiter=maxiter, ftol=ftol, gtol=gtol, maxcor=maxcor, maxls=maxls))
+               for i, z in enumerate(Z0)]
+        return np.array([r.x for r in out]), np.array([r.fun for r in out])
+    nbd = (np.isfinite(lo) & ~np.isfinite(hi)) * 1 + (np.isfinite(lo) & np.isfinite(hi)) * 2 \
+        + (~np.isfinite(lo) & np.isfinite(hi)) * 3
+    nbd = nbd.astype(np.int32)
+    low, up = np.where(np.isfinite(lo), lo, 0.0), np.where(np.isfinite(hi), hi, 0.0)
+    factr = ftol / np.finfo(float).eps
+    st = [dict(x=z.copy(), f=0.0, g=np.zeros(k), wa=np.zeros(2 * maxcor * k + 5 * k + 11 * maxcor**2 + 8 * maxcor),
+               iwa=np.zeros(3 * k, np.int32), task=np.zeros(2, np.int32), ln_task=np.zeros(2, np.int32),
+               lsave=np.zeros(4, np.int32), isave=np.zeros(44, np.int32), dsave=np.zeros(29), nit=0) for z in Z0]
+    last_f = np.full(S, np.inf)
+    alive = list(range(S))
+    while alive:
+        ask = []
+        for i in alive:
+            s = st[i]
+            while True:
+                setulb(maxcor, s["x"], low, up, nbd, s["f"], s["g"], factr, gtol, s["wa"], s["iwa"], s["task"],
+                       s["lsave"], s["isave"], s["dsave"], maxls, s["ln_task"])
+                if s["task"][0] == 3:  # wants the value and gradient at x
+                    ask.append(i)
+                    break
+                if s["task"][0] != 1:  # converged or stopped
+                    break
+                s["nit"] += 1  # a new iterate
+                if s["nit"] >= maxiter:
+                    s["task"][:] = (5, 504)
+        if not ask:
+            break
+        Z = np.array([st[i]["x"] for i in ask])
+        F, G = fun_grad(np.array(ask), Z)
+        for i, z, fv, gv in zip(ask, Z, F, G):
+            st[i]["f"], st[i]["g"] = float(fv), np.array(gv, float)
+            last_f[i] = float(fv)
+        alive = ask
+    return np.array([s["x"] for s in st]), last_f
 
 
 #: step of the central differences in the polish of criteria other than O_t and A [rad]: truncation ~ h^2,
@@ -468,19 +549,69 @@ def l_criterion_gradient(problem: Problem, plan: np.ndarray, free: np.ndarray | 
 POLISH_STEP_RAD = 1e-6
 #: the early stop of the first polish of every exchanged plan, and how many of them are polished to the end
 ROUGH_POLISH = dict(maxiter=300, ftol=1e-12, gtol=1e-8)
+FULL_POLISH = dict(maxiter=2000, ftol=1e-15, gtol=1e-10)
 N_FINISH = 4
 
 
-def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, rough: bool = False):
-    """L-BFGS-B on the free joint angles of every pose of plan (m, n) [rad]. Returns (plan, loss).
+def _polish_bounds(problem: Problem, free: np.ndarray, m: int) -> np.ndarray:
+    """L-BFGS-B bounds (m n_free, 2) [rad] of the free joints of m poses: +-inf for full-turn joints."""
+    lims = problem.robot.joint_limits_rad[free]
+    full = np.array([_is_full_turn(lo, hi) for lo, hi in lims], bool)
+    return np.tile(np.where(full[:, None], [-np.inf, np.inf], lims), (m, 1))
 
-    O_t and A use their gradient (:func:`l_criterion_gradient`: one batched evaluation of the rows per step,
-    whatever m); the other criteria central differences of the 2 m n + 1 plans in one batch. The loss is
-    taken relative to the start's, so that the tolerances do not depend on the unit of sigma (O_t ~
-    sigma^2). rough: stop early (:data:`ROUGH_POLISH`), to rank plans before the full polish of the best."""
+
+def polish_plans(problem: Problem, plans: np.ndarray, free: np.ndarray | None = None,
+                 rough: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """L-BFGS-B on the free joint angles of every pose of plans (S, m, n) [rad], all at once. Returns
+    (plans (S, m, n), losses (S,)), each never worse than its start.
+
+    O_t and A use their gradient (:func:`l_criterion_gradient`: one batched evaluation of the rows per step
+    for all plans, whatever m; the L-BFGS-B runs in lockstep, :func:`lbfgsb_lockstep`); the other criteria
+    central differences of the 2 m n + 1 plans in one batch, one plan at a time. The loss is taken relative
+    to the start's, so that the tolerances do not depend on the unit of sigma (O_t ~ sigma^2).
+    rough: stop early (:data:`ROUGH_POLISH`), to rank plans before the full polish of the best."""
+    plans = np.array(plans, float)
+    S, m, n = plans.shape
+    free = np.ones(n, bool) if free is None else np.asarray(free, bool)
+    if problem.criterion not in L_OPTIMAL:
+        out = [polish(problem, q, free, rough) for q in plans]
+        return np.array([q for q, _ in out]), np.array([v for _, v in out])
+    f0 = np.asarray(plan_loss(problem, plans), float)
+    go = np.flatnonzero(np.isfinite(f0) & (f0 > 0))
+    if not go.size:
+        return plans, f0
+    At = problem.At
+
+    def full(rows, Z):
+        q = plans[rows].copy()
+        q[:, :, free] = Z.reshape(len(rows), m, -1)
+        return q
+
+    def fun_grad(starts, Z):
+        rows = go[starts]
+        val, g = l_criterion_gradient(problem, full(rows, Z), free, At=At)
+        return val / f0[rows], g.reshape(len(rows), -1) / f0[rows, None]
+
+    opts = ROUGH_POLISH if rough else FULL_POLISH
+    Z0 = plans[go][:, :, free].reshape(len(go), -1)
+    Z, _ = lbfgsb_lockstep(fun_grad, Z0, _polish_bounds(problem, free, m), **opts)
+    out, losses = plans.copy(), f0.copy()
+    cand = full(go, Z)
+    vals = np.asarray(plan_loss(problem, cand), float)
+    ok = np.isfinite(vals) & (vals <= f0[go])
+    out[go[ok]], losses[go[ok]] = cand[ok], vals[ok]
+    return out, losses
+
+
+def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, rough: bool = False):
+    """L-BFGS-B on the free joint angles of every pose of plan (m, n) [rad] (:func:`polish_plans`; the
+    criteria other than O_t and A by central differences of the 2 m n + 1 plans in one batch). Returns
+    (plan, loss)."""
     m, n = plan.shape
     free = np.ones(n, bool) if free is None else np.asarray(free, bool)
-    lims = problem.robot.joint_limits_rad
+    if problem.criterion in L_OPTIMAL:
+        out, loss = polish_plans(problem, plan[None], free, rough)
+        return out[0], float(loss[0])
 
     def full(z):
         q = plan.copy()
@@ -495,10 +626,6 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
     if not np.isfinite(f0) or f0 <= 0:
         return plan, f0
     steps = POLISH_STEP_RAD * np.vstack([np.eye(z0.size), -np.eye(z0.size)])
-
-    def analytic(z):
-        val, g = l_criterion_gradient(problem, full(z), free)
-        return val / f0, g.ravel() / f0
 
     def differences(z):
         """The loss relative to the start's (so that gtol does not depend on the unit of sigma; O_t ~
@@ -515,9 +642,9 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
                                   np.where(np.isfinite(down), (v[0] - down) / POLISH_STEP_RAD, 0.0)))
         return float(v[0]), np.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0)
 
-    bounds = [(None, None) if _is_full_turn(*lims[j]) else tuple(lims[j]) for j in np.flatnonzero(free)] * m
-    res = minimize(analytic if problem.criterion in L_OPTIMAL else differences, z0, jac=True, method="L-BFGS-B",
-                   bounds=bounds, options=ROUGH_POLISH if rough else dict(maxiter=2000, ftol=1e-15, gtol=1e-10))
+    bounds = [(None if np.isinf(lo) else lo, None if np.isinf(hi) else hi) for lo, hi in _polish_bounds(problem, free, m)]
+    res = minimize(differences, z0, jac=True, method="L-BFGS-B", bounds=bounds,
+                   options=ROUGH_POLISH if rough else FULL_POLISH)
     loss = f(res.x)
     if np.isfinite(loss) and loss <= f0:
         return full(res.x), loss
@@ -622,9 +749,12 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
     forms = pool_forms(pool_A) if problem.criterion in L_OPTIMAL else None
     plans, losses = exchange_plans(problem, np.stack(inits), pool, pool_A, forms=forms, scores=scores)
     order = np.argsort(losses, kind="stable")[:n_polish or len(plans)]
-    rough = [polish(problem, plans[i], free, rough=True) for i in order]
-    finish = np.argsort([v for _, v in rough], kind="stable")[:N_FINISH]
-    results = [polish(problem, rough[i][0], free)[::-1] for i in finish]
+    keys = [q[np.lexsort(q.T[::-1])].tobytes() for q in plans]  # the same plan from several starts: polished once
+    order = [i for i in order if keys.index(keys[i]) == i]
+    rough, rough_vals = polish_plans(problem, plans[order], free, rough=True)
+    finish = np.argsort(rough_vals, kind="stable")[:N_FINISH]
+    done, done_vals = polish_plans(problem, rough[finish], free)
+    results = list(zip(done_vals, done))
     vals = np.array([r[0] for r in results])
     best_i = int(np.argmin(vals))
     best_val, best_plan = results[best_i]
