@@ -480,10 +480,12 @@ def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: s
     atomic_write(out_html, html)
 
 
-def report_pdf(html: str, out_pdf: str) -> None:
+def report_pdf(html: str, out_pdf: str, svgs: list[str] = ()) -> None:
+    """The PDF of the HTML report; every figure of ``svgs`` (SVG embedded in the HTML) printed from the PNG
+    beside it (:func:`stiffcal.report.write_pdf`)."""
     from . import report
 
-    pages = report.write_pdf(html, out_pdf)
+    pages = report.write_pdf(html, out_pdf, report.print_images(svgs))
     _log(f"{out_pdf}: {pages} pages")
 
 

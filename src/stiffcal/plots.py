@@ -20,6 +20,9 @@ from .study import Study  # noqa: E402
 
 STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.fontsize": 8,
          "figure.dpi": 100, "savefig.dpi": 150, "svg.hashsalt": "stiffcal", "svg.fonttype": "none"}
+#: resolution of the PNG figures [dots per inch]: a print resolution (the PDF report prints them, the HTML report
+#: shows the SVG)
+PNG_DPI = 200
 
 
 def save(fig, stem: str | Path) -> list[Path]:
@@ -30,7 +33,7 @@ def save(fig, stem: str | Path) -> list[Path]:
     stem = Path(stem)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
     with atomic_path(paths[0]) as tmp:
-        fig.savefig(tmp, format="png", metadata={"Software": None}, bbox_inches="tight")
+        fig.savefig(tmp, format="png", dpi=PNG_DPI, metadata={"Software": None}, bbox_inches="tight")
     with plt.rc_context({"svg.hashsalt": STYLE["svg.hashsalt"]}), atomic_path(paths[1]) as tmp:
         fig.savefig(tmp, format="svg", metadata={"Date": None, "Creator": None}, bbox_inches="tight")
     plt.close(fig)
