@@ -55,12 +55,18 @@ def planar_jacobian(links: np.ndarray, q: np.ndarray) -> np.ndarray:
     links: (n,) [m]; q: (..., n) [rad]. Returns (..., 2, n) [m/rad].
     """
     c = np.cumsum(q, axis=-1)
-    px = links * np.cos(c)
-    py = links * np.sin(c)
-    # reverse cumulative sums: contribution of links j..n to column j
-    jx = -np.flip(np.cumsum(np.flip(py, -1), -1), -1)
-    jy = np.flip(np.cumsum(np.flip(px, -1), -1), -1)
-    return np.stack([jx, jy], axis=-2)
+    p = np.empty(c.shape[:-1] + (2, c.shape[-1]))  # rows: l_k cos c_k, l_k sin c_k
+    np.multiply(links, np.cos(c), out=p[..., 0, :])
+    np.multiply(links, np.sin(c), out=p[..., 1, :])
+    # reverse cumulative sums (contribution of links j..n to column j), added from the last link as
+    # np.cumsum of the reversed rows adds them: the same numbers
+    s = p.copy()
+    for j in range(c.shape[-1] - 2, -1, -1):
+        np.add(s[..., j + 1], p[..., j], out=s[..., j])
+    J = np.empty_like(s)
+    np.negative(s[..., 1, :], out=J[..., 0, :])
+    J[..., 1, :] = s[..., 0, :]
+    return J
 
 
 def planar_link_points(links: np.ndarray, q: np.ndarray) -> np.ndarray:
