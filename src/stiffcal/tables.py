@@ -14,7 +14,7 @@ import pandas as pd
 
 from . import criteria
 from .design import optimal_single_pose, plan_observations
-from .stiffness import covariance_diagonal, identify_batch, information_matrix
+from .stiffness import covariance_diagonal, functional_variance, identify_batch, information_matrix, spectral
 from .study import Study
 
 FLOAT_FORMAT = "%.10g"
@@ -73,8 +73,9 @@ def plan_summary(study: Study, plan_deg: np.ndarray) -> dict:
     m, n = plan.shape[-2:]
     prob = study.problem("ot", m)
     M = information_matrix(prob.rows(plan))
-    cov_p = covariance_diagonal(M, study.sigma)
-    ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma), np.inf)
+    spec = spectral(M)  # one eigen-decomposition for both
+    cov_p = functional_variance(M, np.eye(M.shape[-1]), study.sigma, spec)  # covariance_diagonal
+    ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma, spec), np.inf)
     out = {"O_t": ot, "chi": prob.ot_star(m) / np.asarray(ot, float)}
     cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint the measurements never see: not identifiable
     cov[..., prob.params] = cov_p
