@@ -292,6 +292,12 @@ def test_binary_map_round_trip_is_deterministic_and_bad_files_are_named(tmp_path
     assert np.array_equal(back.chi, mp.chi) and back.link_ratio == mp.link_ratio
     df = maps.map_frame(back)
     assert list(df.columns) == maps.MAP_COLUMNS and len(df) == 30 * 30
+    # map.csv is written without pandas: the bytes pandas writes
+    from stiffcal.csvtext import write_numeric_csv
+    from stiffcal.tables import FLOAT_FORMAT
+
+    write_numeric_csv(maps.map_columns(back), tmp_path / "map.csv")
+    assert (tmp_path / "map.csv").read_text() == df.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(InputError, match="bad.npz"):
         maps.load_map(tmp_path / "bad.npz")
@@ -363,3 +369,8 @@ def test_pair_map_covers_the_grid_and_round_trips(tmp_path):
     back = maps.load_pair_map(tmp_path / "p.npz")
     assert np.array_equal(back.O_t2, pm.O_t2) and np.array_equal(back.poses_deg, pm.poses_deg)
     assert len(maps.pair_frame(back)) == 144
+    from stiffcal.csvtext import numeric_csv
+    from stiffcal.tables import FLOAT_FORMAT
+
+    assert numeric_csv(maps.pair_columns(back)) == maps.pair_frame(back).to_csv(
+        index=False, float_format=FLOAT_FORMAT, lineterminator="\n")  # pairs.csv, written without pandas

@@ -538,14 +538,21 @@ def load_map(path) -> MapArrays:
                      z["O_t"], z["q1_opt_deg"], z["q2_opt_deg"], z["status"])
 
 
+def map_columns(mp: MapArrays) -> dict[str, np.ndarray]:
+    """The map as columns :data:`MAP_COLUMNS` -> (N,) float64, rows sorted by (q1*, q2*) (map.csv, written
+    without pandas: :func:`stiffcal.csvtext.write_numeric_csv`)."""
+    Q1, Q2 = np.meshgrid(mp.axis, mp.axis, indexing="ij")
+    n = Q1.size
+    return {"link_ratio": np.full(n, float(mp.link_ratio)), "force_deg": np.full(n, float(mp.force_deg)),
+            "q1t_deg": Q1.ravel(), "q2t_deg": Q2.ravel(), "q1_opt_deg": mp.q1_opt_deg.ravel(),
+            "q2_opt_deg": mp.q2_opt_deg.ravel(), "O_t": mp.O_t.ravel(), "chi": mp.chi.ravel()}
+
+
 def map_frame(mp: MapArrays):
-    """The map as a table with :data:`MAP_COLUMNS`, rows sorted by (q1*, q2*)."""
+    """The map as a table with :data:`MAP_COLUMNS`, rows sorted by (q1*, q2*) (:func:`map_columns`)."""
     import pandas as pd
 
-    Q1, Q2 = np.meshgrid(mp.axis, mp.axis, indexing="ij")
-    return pd.DataFrame({"link_ratio": mp.link_ratio, "force_deg": mp.force_deg, "q1t_deg": Q1.ravel(),
-                         "q2t_deg": Q2.ravel(), "q1_opt_deg": mp.q1_opt_deg.ravel(),
-                         "q2_opt_deg": mp.q2_opt_deg.ravel(), "O_t": mp.O_t.ravel(), "chi": mp.chi.ravel()})
+    return pd.DataFrame(map_columns(mp))
 
 
 def log_progress(label: str):
@@ -886,13 +893,19 @@ def load_pair_map(path) -> PairMap:
                    z["poses_deg"])
 
 
-def pair_frame(pm: PairMap):
-    """The pair map as rows: test pose, O_t of the single optimum and of the best pair, the gain, the poses."""
-    import pandas as pd
-
+def pair_columns(pm: PairMap) -> dict[str, np.ndarray]:
+    """The pair map as columns -> (N,) float64: test pose, O_t of the single optimum and of the best pair, the
+    gain, the poses (pairs.csv, written without pandas)."""
     Q1, Q2 = np.meshgrid(pm.axis, pm.axis, indexing="ij")
     P = pm.poses_deg.reshape(-1, 4)
-    return pd.DataFrame({"link_ratio": pm.link_ratio, "force_deg": pm.force_deg, "q1t_deg": Q1.ravel(),
-                         "q2t_deg": Q2.ravel(), "O_t_single": pm.O_t1.ravel(), "O_t_pair": pm.O_t2.ravel(),
-                         "gain": pm.gain.ravel(), "q1a_deg": P[:, 0], "q2a_deg": P[:, 1], "q1b_deg": P[:, 2],
-                         "q2b_deg": P[:, 3]})
+    n = Q1.size
+    return {"link_ratio": np.full(n, float(pm.link_ratio)), "force_deg": np.full(n, float(pm.force_deg)),
+            "q1t_deg": Q1.ravel(), "q2t_deg": Q2.ravel(), "O_t_single": pm.O_t1.ravel(), "O_t_pair": pm.O_t2.ravel(),
+            "gain": pm.gain.ravel(), "q1a_deg": P[:, 0], "q2a_deg": P[:, 1], "q1b_deg": P[:, 2], "q2b_deg": P[:, 3]}
+
+
+def pair_frame(pm: PairMap):
+    """The pair map as rows (:func:`pair_columns`)."""
+    import pandas as pd
+
+    return pd.DataFrame(pair_columns(pm))

@@ -299,6 +299,7 @@ def map_merge(p: dict, tile_npzs: list[str], out_npz: str, out_csv: str) -> None
     complete; p = the map study. A map of one tile is computed here (``tile_npzs`` empty): one job instead of
     a tile job, its tile file and this job."""
     from . import maps
+    from .csvtext import write_numeric_csv
 
     st = _map_study(p)
     if tile_npzs:
@@ -310,7 +311,7 @@ def map_merge(p: dict, tile_npzs: list[str], out_npz: str, out_csv: str) -> None
     mp = maps.merge_tiles(tiles, st.link_ratio, st.force_deg, st.step_deg)
     _log(f"map {st.name}: {mp.O_t.size} cells, O_t in [{mp.O_t.min():.4g}, {mp.O_t.max():.4g}]")
     maps.save_map(out_npz, mp)
-    _write(maps.map_frame(mp), out_csv)
+    write_numeric_csv(maps.map_columns(mp), out_csv)  # no pandas in the map jobs
 
 
 def map_statistics(p: dict, map_npzs: dict, printed_yaml: str, out_csv: str) -> None:
@@ -334,6 +335,7 @@ def map_pairs(p: dict, out_npz: str, out_csv: str) -> None:
     import numpy as np
 
     from . import maps
+    from .csvtext import write_numeric_csv
 
     name, b, step = p["name"], float(p["link_ratio"]), float(p["pairs_step_deg"])
     _log(f"map {name} (b = {b:.4g}): best plans of two poses on the {step:g} deg grid")
@@ -342,7 +344,7 @@ def map_pairs(p: dict, out_npz: str, out_csv: str) -> None:
     _log(f"map {name}: a designed pair beats the single optimum measured twice by up to {100 * g.max():.1f} %; "
          f"by more than 1 % on {100 * np.mean(g > 0.01):.0f} % of the test poses")
     maps.save_pair_map(out_npz, pm)
-    _write(maps.pair_frame(pm), out_csv)
+    write_numeric_csv(maps.pair_columns(pm), out_csv)
 
 
 def map_figures(maps_by_figure: dict, out_pngs: dict, pairs_npz: str | None = None) -> None:
