@@ -7,16 +7,19 @@ design, so restyling a figure never reruns an optimisation.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 
 from .robot import as_xyz  # noqa: E402
 from .study import Study  # noqa: E402
+
+if TYPE_CHECKING:  # annotations only: a figure job that reads no table does not load pandas
+    import pandas as pd
 
 STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.fontsize": 8,
          "figure.dpi": 100, "savefig.dpi": 150, "svg.hashsalt": "stiffcal", "svg.fonttype": "none"}
