@@ -374,3 +374,25 @@ def test_pair_map_covers_the_grid_and_round_trips(tmp_path):
 
     assert numeric_csv(maps.pair_columns(back)) == maps.pair_frame(back).to_csv(
         index=False, float_format=FLOAT_FORMAT, lineterminator="\n")  # pairs.csv, written without pandas
+
+
+def test_grid_statistics_handed_over_give_the_same_table(tmp_path):
+    """map_grid_statistics solves the finer grids of the Figure-7 map once for map_statistics and
+    paper_comparison: the table from the saved statistics is the table computed from the map, to the byte."""
+    from stiffcal.tables import FLOAT_FORMAT
+
+    st = maps.MapStudy("b", 0.9, 7, 12.0, PHI, 65536)
+    other = maps.MapStudy("c", 0.5, 8, 12.0, PHI, 65536)
+    mp, mp2 = maps.solve_map(0.9, PHI, 12.0), maps.solve_map(0.5, PHI, 12.0)
+    steps = [36.0, 12.0, 9.0]  # a subgrid, the map's own grid and a grid that is solved
+    paper = {"mean": 4.0}
+    direct = maps.statistics_table({"b": mp, "c": mp2}, [st, other], steps, paper)
+    maps.save_grid_statistics(tmp_path / "g.npz", maps.grid_statistics(mp, st, steps))
+    handed = maps.statistics_table({"c": mp2}, [st, other], steps, paper,
+                                   {"b": maps.load_grid_statistics(tmp_path / "g.npz")})
+    assert sorted(direct.grid_deg.unique()) == [9.0, 12.0, 36.0]
+    kw = dict(index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    assert handed.to_csv(**kw) == direct.to_csv(**kw)
+    with pytest.raises(InputError, match="g2.npz"):
+        maps.save_arrays(tmp_path / "g2.npz", {"step_deg": np.array([1.0])})
+        maps.load_grid_statistics(tmp_path / "g2.npz")

@@ -138,6 +138,7 @@ def all_outputs(wildcards):
     out += [f"{MAPS}/{name}/map.{ext}" for name in MAP_STUDIES for ext in ("csv", "npz")]
     if 7 in MAP_FIGURES:
         out += [f"{MAPS}/{MAP_FIGURES[7]}/pairs.{ext}" for ext in ("csv", "npz")]
+        out += [f"{MAPS}/{MAP_FIGURES[7]}/grid_statistics.npz"]
     for name in MEASURED:
         out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg",
                                                              "plan.json", "plan.png", "plan.svg")]
