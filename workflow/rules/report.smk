@@ -18,13 +18,6 @@ rule report_html:
         "../scripts/report_html.py"
 
 
-def report_figures(wildcards):
-    """The SVG figures the HTML report embeds, and their PNG renditions, which the PDF prints instead (drawing
-    an SVG is most of WeasyPrint's work; docs/workflow.md)."""
-    svgs = sorted(v for v in report_inputs(wildcards).values() if v.endswith(".svg"))
-    return {"svgs": svgs, "pngs": [v.removesuffix(".svg") + ".png" for v in svgs]}
-
-
 rule report_pdf:
     input:
         unpack(report_figures),
