@@ -11,7 +11,7 @@ import pytest
 from stiffcal import archive as A
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.report import write_pdf
+from stiffcal.report import image_data_uri, print_images, write_pdf
 
 
 def _tree(tmp_path):
@@ -87,6 +87,25 @@ def test_pdf_is_reproducible_with_dates_from_source_date_epoch(tmp_path, monkeyp
     reader = pypdf.PdfReader(tmp_path / "a.pdf")
     assert len(reader.pages) == pages >= 2
     assert reader.metadata["/CreationDate"].startswith("D:20231114")  # 1700000000 = 2023-11-14T22:13:20Z
+
+
+def test_the_pdf_prints_an_embedded_svg_figure_from_its_png(tmp_path):
+    pypdf = pytest.importorskip("pypdf")
+    Image = pytest.importorskip("PIL.Image")
+    svg = tmp_path / "fig.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="100pt" height="50pt" viewBox="0 0 100 50">'
+                   + "".join(f'<circle cx="{i % 100}" cy="{i % 50}" r="1"/>' for i in range(200)) + "</svg>")
+    Image.new("RGB", (40, 20), (200, 30, 30)).save(tmp_path / "fig.png")
+    other = tmp_path / "other.svg"  # an SVG without a PNG in the map stays vector
+    other.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="10pt" height="10pt"><rect width="5" height="5"/>'
+                     "</svg>")
+    (tmp_path / "r.html").write_text(f'<html><body><img src="{image_data_uri(svg)}" style="width:10cm">'
+                                     f'<img src="{image_data_uri(other)}"></body></html>')
+    write_pdf(tmp_path / "r.html", tmp_path / "vector.pdf")
+    write_pdf(tmp_path / "r.html", tmp_path / "print.pdf", print_images([svg]))
+    images = [im.image.size for page in pypdf.PdfReader(tmp_path / "print.pdf").pages for im in page.images]
+    assert images == [(40, 20)]  # the PNG, as it is
+    assert not [im for page in pypdf.PdfReader(tmp_path / "vector.pdf").pages for im in page.images]
 
 
 def test_without_weasyprint_libraries_the_pdf_fails_naming_the_library(tmp_path, monkeypatch):

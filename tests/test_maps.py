@@ -292,6 +292,12 @@ def test_binary_map_round_trip_is_deterministic_and_bad_files_are_named(tmp_path
     assert np.array_equal(back.chi, mp.chi) and back.link_ratio == mp.link_ratio
     df = maps.map_frame(back)
     assert list(df.columns) == maps.MAP_COLUMNS and len(df) == 30 * 30
+    # map.csv is written without pandas: the bytes pandas writes
+    from stiffcal.csvtext import write_numeric_csv
+    from stiffcal.tables import FLOAT_FORMAT
+
+    write_numeric_csv(maps.map_columns(back), tmp_path / "map.csv")
+    assert (tmp_path / "map.csv").read_text() == df.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(InputError, match="bad.npz"):
         maps.load_map(tmp_path / "bad.npz")
@@ -363,3 +369,30 @@ def test_pair_map_covers_the_grid_and_round_trips(tmp_path):
     back = maps.load_pair_map(tmp_path / "p.npz")
     assert np.array_equal(back.O_t2, pm.O_t2) and np.array_equal(back.poses_deg, pm.poses_deg)
     assert len(maps.pair_frame(back)) == 144
+    from stiffcal.csvtext import numeric_csv
+    from stiffcal.tables import FLOAT_FORMAT
+
+    assert numeric_csv(maps.pair_columns(back)) == maps.pair_frame(back).to_csv(
+        index=False, float_format=FLOAT_FORMAT, lineterminator="\n")  # pairs.csv, written without pandas
+
+
+def test_grid_statistics_handed_over_give_the_same_table(tmp_path):
+    """map_grid_statistics solves the finer grids of the Figure-7 map once for map_statistics and
+    paper_comparison: the table from the saved statistics is the table computed from the map, to the byte."""
+    from stiffcal.tables import FLOAT_FORMAT
+
+    st = maps.MapStudy("b", 0.9, 7, 12.0, PHI, 65536)
+    other = maps.MapStudy("c", 0.5, 8, 12.0, PHI, 65536)
+    mp, mp2 = maps.solve_map(0.9, PHI, 12.0), maps.solve_map(0.5, PHI, 12.0)
+    steps = [36.0, 12.0, 9.0]  # a subgrid, the map's own grid and a grid that is solved
+    paper = {"mean": 4.0}
+    direct = maps.statistics_table({"b": mp, "c": mp2}, [st, other], steps, paper)
+    maps.save_grid_statistics(tmp_path / "g.npz", maps.grid_statistics(mp, st, steps))
+    handed = maps.statistics_table({"c": mp2}, [st, other], steps, paper,
+                                   {"b": maps.load_grid_statistics(tmp_path / "g.npz")})
+    assert sorted(direct.grid_deg.unique()) == [9.0, 12.0, 36.0]
+    kw = dict(index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
+    assert handed.to_csv(**kw) == direct.to_csv(**kw)
+    with pytest.raises(InputError, match="g2.npz"):
+        maps.save_arrays(tmp_path / "g2.npz", {"step_deg": np.array([1.0])})
+        maps.load_grid_statistics(tmp_path / "g2.npz")

@@ -1,5 +1,7 @@
 """The report rule's inputs sorted into tables, figures, verdicts and design studies."""
 
+import pytest
+
 from stiffcal.pipeline import REPORT_RULES, report_inputs
 
 
@@ -23,6 +25,7 @@ def test_numeric_tables_are_written_byte_for_byte_as_pandas_writes_them(tmp_path
     import numpy as np
     import pandas as pd
 
+    from stiffcal.csvtext import write_numeric_csv
     from stiffcal.tables import FLOAT_FORMAT, _numeric_csv, write_csv
 
     rng = np.random.default_rng(7)
@@ -38,6 +41,9 @@ def test_numeric_tables_are_written_byte_for_byte_as_pandas_writes_them(tmp_path
     # anything else is left to pandas: text, booleans, names that need quoting
     for other in (df.assign(s="x"), df.assign(ok=True), df.rename(columns={"a": "a,b"})):
         assert _numeric_csv(other) is None
+    with pytest.raises(ValueError, match="float64 or int64"):  # the map jobs' writer, without pandas
+        write_numeric_csv({"s": np.array(["x"])}, tmp_path / "s.csv")
+    assert not (tmp_path / "s.csv").exists()
 
 
 def test_code_versions_hash_each_definition_as_the_standard_library_cuts_it():

@@ -160,7 +160,8 @@ REPORT = {"report_html": 1, "report_pdf": 1}
     # and statistics and the comparison (the Figure-6 numbers of the text), not the pairs (their own
     # pairs_step_deg)
     ("the map step", lambda c: c["maps"].update(step_deg=15.0),
-     {"map_merge": 4, "map_statistics": 1, "map_figures": 1, "paper_comparison": 1, **REPORT}),
+     {"map_merge": 4, "map_grid_statistics": 1, "map_statistics": 1, "map_figures": 1, "paper_comparison": 1,
+      **REPORT}),
 ])
 def test_dry_run_after_a_config_edit_lists_exactly_the_affected_jobs(built, what, edit, expected):
     assert _dry_run_jobs(built) == {}

@@ -128,15 +128,20 @@ class Problem:
             return observation_matrix(self.robot.model_jacobian(q), self.force)
         return observation_rows(self.robot, q, self.load, self._sensing, self.params)
 
-    @property
+    @cached_property
     def At(self) -> np.ndarray | None:
-        """Observation matrix at the test pose, (d, n) (with the rotation rows times ``length_m``), or None."""
+        """Observation matrix at the test pose, (d, n) (with the rotation rows times ``length_m``), or None.
+        Computed once per problem (every loss of O_t reads it) and read-only."""
         if self.test_pose is None:
             return None
         if self.is_default:
             F = self.force if self.test_force is None else self.test_force
-            return observation_matrix(self.robot.model_jacobian(self.test_pose), F)
-        return test_rows(self.robot, self.test_pose, self.test_load, self.test_target, self.length_m, self.params)
+            At = observation_matrix(self.robot.model_jacobian(self.test_pose), F)
+        else:
+            At = test_rows(self.robot, self.test_pose, self.test_load, self.test_target, self.length_m, self.params)
+        At = np.array(At, float)
+        At.flags.writeable = False
+        return At
 
     def ot_star(self, m: int) -> float:
         """O_t* of eq. 17: O_t when all m measurements are taken at the test pose (``n sigma^2 / m`` for the

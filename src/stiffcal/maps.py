@@ -538,14 +538,21 @@ def load_map(path) -> MapArrays:
                      z["O_t"], z["q1_opt_deg"], z["q2_opt_deg"], z["status"])
 
 
+def map_columns(mp: MapArrays) -> dict[str, np.ndarray]:
+    """The map as columns :data:`MAP_COLUMNS` -> (N,) float64, rows sorted by (q1*, q2*) (map.csv, written
+    without pandas: :func:`stiffcal.csvtext.write_numeric_csv`)."""
+    Q1, Q2 = np.meshgrid(mp.axis, mp.axis, indexing="ij")
+    n = Q1.size
+    return {"link_ratio": np.full(n, float(mp.link_ratio)), "force_deg": np.full(n, float(mp.force_deg)),
+            "q1t_deg": Q1.ravel(), "q2t_deg": Q2.ravel(), "q1_opt_deg": mp.q1_opt_deg.ravel(),
+            "q2_opt_deg": mp.q2_opt_deg.ravel(), "O_t": mp.O_t.ravel(), "chi": mp.chi.ravel()}
+
+
 def map_frame(mp: MapArrays):
-    """The map as a table with :data:`MAP_COLUMNS`, rows sorted by (q1*, q2*)."""
+    """The map as a table with :data:`MAP_COLUMNS`, rows sorted by (q1*, q2*) (:func:`map_columns`)."""
     import pandas as pd
 
-    Q1, Q2 = np.meshgrid(mp.axis, mp.axis, indexing="ij")
-    return pd.DataFrame({"link_ratio": mp.link_ratio, "force_deg": mp.force_deg, "q1t_deg": Q1.ravel(),
-                         "q2t_deg": Q2.ravel(), "q1_opt_deg": mp.q1_opt_deg.ravel(),
-                         "q2_opt_deg": mp.q2_opt_deg.ravel(), "O_t": mp.O_t.ravel(), "chi": mp.chi.ravel()})
+    return pd.DataFrame(map_columns(mp))
 
 
 def log_progress(label: str):
@@ -660,30 +667,57 @@ def chi_statistics(mp: MapArrays) -> dict[str, float]:
             "min": float(chi.min()), "white": float(np.mean(chi >= WHITE_CHI)), "dark": float(np.mean(chi <= DARK_CHI))}
 
 
-def statistics_table(maps_by_study: dict[str, MapArrays], studies: list[MapStudy], steps_deg, paper: dict):
+def grid_statistics(mp: MapArrays, st: MapStudy, steps_deg) -> dict[float, dict[str, float]]:
+    """:func:`chi_statistics` of a map on its own grid and on every grid of ``steps_deg`` [deg] (step ->
+    statistics): grids whose step is a multiple of the map's are its subgrids; others are solved
+    (:func:`solve_map`)."""
+    grids = {st.step_deg: mp}
+    for step in map(float, steps_deg):
+        if step not in grids:
+            try:
+                grids[step] = mp.subgrid(step)
+            except ValueError:
+                grids[step] = solve_map(st.link_ratio, st.force_deg, step, mp.sigma)
+    return {step: chi_statistics(g) for step, g in grids.items()}
+
+
+def save_grid_statistics(path, stats: dict[float, dict[str, float]]) -> None:
+    """:func:`grid_statistics` as an .npz file (exact float64: the tables read from it are the same bytes)."""
+    steps = list(stats)
+    names = list(stats[steps[0]])
+    save_arrays(path, {"step_deg": np.array(steps, float), "statistic": np.array(names),
+                       "value": np.array([[stats[s][k] for k in names] for s in steps], float)})
+
+
+def load_grid_statistics(path) -> dict[float, dict[str, float]]:
+    z = load_arrays(path, ("step_deg", "statistic", "value"))
+    names = [str(k) for k in z["statistic"]]
+    if z["value"].shape != (len(z["step_deg"]), len(names)):
+        raise InputError("expected one value per grid and statistic", source=str(path))
+    return {float(s): dict(zip(names, map(float, row))) for s, row in zip(z["step_deg"], z["value"])}
+
+
+def statistics_table(maps_by_study: dict[str, MapArrays], studies: list[MapStudy], steps_deg, paper: dict,
+                     grid_stats: dict | None = None):
     """Rows (study, link_ratio, grid_deg, statistic, ours, paper): every study's map statistics, and for
-    the paper's arm (the study of Figure 7) the mean chi on each grid of steps_deg, beside the paper's.
-    Grids whose step is a multiple of the map's are its subgrids; others are solved."""
+    the paper's arm (the study of Figure 7) the mean chi on each grid of steps_deg, beside the paper's
+    (:func:`grid_statistics`, or ``grid_stats[study]`` when given: then that study's map is not needed)."""
     import pandas as pd
 
     rows = []
     for st in studies:
-        mp = maps_by_study[st.name]
-        grids = {st.step_deg: mp}
         if st.figure == 7:
-            for step in map(float, steps_deg):
-                if step not in grids:
-                    try:
-                        grids[step] = mp.subgrid(step)
-                    except ValueError:
-                        grids[step] = solve_map(st.link_ratio, st.force_deg, step, mp.sigma)
-        for step in sorted(grids, reverse=True):
-            stats = chi_statistics(grids[step])
-            keys = stats if step == st.step_deg else ("mean", "mean_regular", "median", "harmonic_mean")
+            stats = (grid_stats or {}).get(st.name)
+            if stats is None:
+                stats = grid_statistics(maps_by_study[st.name], st, steps_deg)
+        else:
+            stats = {st.step_deg: chi_statistics(maps_by_study[st.name])}
+        for step in sorted(stats, reverse=True):
+            keys = stats[step] if step == st.step_deg else ("mean", "mean_regular", "median", "harmonic_mean")
             for k in keys:
                 p = paper.get(k) if st.figure == 7 else None
                 rows.append({"study": st.name, "link_ratio": st.link_ratio, "grid_deg": step, "statistic": k,
-                             "ours": stats[k], "paper": p if p is not None else np.nan})
+                             "ours": stats[step][k], "paper": p if p is not None else np.nan})
     return pd.DataFrame(rows)
 
 
@@ -886,13 +920,19 @@ def load_pair_map(path) -> PairMap:
                    z["poses_deg"])
 
 
-def pair_frame(pm: PairMap):
-    """The pair map as rows: test pose, O_t of the single optimum and of the best pair, the gain, the poses."""
-    import pandas as pd
-
+def pair_columns(pm: PairMap) -> dict[str, np.ndarray]:
+    """The pair map as columns -> (N,) float64: test pose, O_t of the single optimum and of the best pair, the
+    gain, the poses (pairs.csv, written without pandas)."""
     Q1, Q2 = np.meshgrid(pm.axis, pm.axis, indexing="ij")
     P = pm.poses_deg.reshape(-1, 4)
-    return pd.DataFrame({"link_ratio": pm.link_ratio, "force_deg": pm.force_deg, "q1t_deg": Q1.ravel(),
-                         "q2t_deg": Q2.ravel(), "O_t_single": pm.O_t1.ravel(), "O_t_pair": pm.O_t2.ravel(),
-                         "gain": pm.gain.ravel(), "q1a_deg": P[:, 0], "q2a_deg": P[:, 1], "q1b_deg": P[:, 2],
-                         "q2b_deg": P[:, 3]})
+    n = Q1.size
+    return {"link_ratio": np.full(n, float(pm.link_ratio)), "force_deg": np.full(n, float(pm.force_deg)),
+            "q1t_deg": Q1.ravel(), "q2t_deg": Q2.ravel(), "O_t_single": pm.O_t1.ravel(), "O_t_pair": pm.O_t2.ravel(),
+            "gain": pm.gain.ravel(), "q1a_deg": P[:, 0], "q2a_deg": P[:, 1], "q1b_deg": P[:, 2], "q2b_deg": P[:, 3]}
+
+
+def pair_frame(pm: PairMap):
+    """The pair map as rows (:func:`pair_columns`)."""
+    import pandas as pd
+
+    return pd.DataFrame(pair_columns(pm))

@@ -57,21 +57,23 @@ def table3(p: dict, robot: str, table2_csv: str, out_csv: str) -> None:
 
 
 def comparison(p: dict, robot: str, table2_csv: str, table3_csv: str, table4_csv: str, table5_csv: str,
-               printed_yaml: str, out_csv: str, figure6_map_npz: str | None = None) -> None:
+               printed_yaml: str, out_csv: str, figure6_stats_npz: str | None = None) -> None:
     """Every result number the paper prints (Tables 2-5 and its text) beside ours, with a status and a
     reason. p = the study's test_pose_deg, force_N, sigma_m, seed and ``figure6`` (the map study of Figure 7
     and statistics_steps_deg, or None): the Figure 6 numbers of the text are that map's statistics
-    (``figure6_map_npz``; computed here from that one map, so that editing another map does not rerun this)."""
+    (``figure6_stats_npz``, :func:`map_grid_statistics`: of that one map, so that editing another map does not
+    rerun this)."""
     from . import maps, reproduction
 
     study = _study({k: v for k, v in p.items() if k != "figure6"}, robot)
     stats = None
-    if figure6_map_npz and p.get("figure6"):
+    if figure6_stats_npz and p.get("figure6"):
         f6 = dict(p["figure6"])
         steps = f6.pop("statistics_steps_deg")
         st = _map_study(f6)
         printed = {k: float(v) for k, v in reproduction.load_printed(printed_yaml).get("figure6", {}).items()}
-        stats = maps.statistics_table({st.name: maps.load_map(figure6_map_npz)}, [st], steps, printed)
+        stats = maps.statistics_table({}, [st], steps, printed,
+                                      {st.name: maps.load_grid_statistics(figure6_stats_npz)})
     cmp = reproduction.comparison_table(study, *(_read(f) for f in (table2_csv, table3_csv, table4_csv, table5_csv)),
                                         reproduction.load_printed(printed_yaml), stats, seed=int(p["seed"]))
     s = reproduction.summary(cmp)
@@ -299,6 +301,7 @@ def map_merge(p: dict, tile_npzs: list[str], out_npz: str, out_csv: str) -> None
     complete; p = the map study. A map of one tile is computed here (``tile_npzs`` empty): one job instead of
     a tile job, its tile file and this job."""
     from . import maps
+    from .csvtext import write_numeric_csv
 
     st = _map_study(p)
     if tile_npzs:
@@ -310,18 +313,34 @@ def map_merge(p: dict, tile_npzs: list[str], out_npz: str, out_csv: str) -> None
     mp = maps.merge_tiles(tiles, st.link_ratio, st.force_deg, st.step_deg)
     _log(f"map {st.name}: {mp.O_t.size} cells, O_t in [{mp.O_t.min():.4g}, {mp.O_t.max():.4g}]")
     maps.save_map(out_npz, mp)
-    _write(maps.map_frame(mp), out_csv)
+    write_numeric_csv(maps.map_columns(mp), out_csv)  # no pandas in the map jobs
 
 
-def map_statistics(p: dict, map_npzs: dict, printed_yaml: str, out_csv: str) -> None:
+def map_grid_statistics(p: dict, map_npz: str, out_npz: str) -> None:
+    """The statistics of the map of Figure 7 on its grid and on every grid of ``statistics_steps_deg``
+    (:func:`stiffcal.maps.grid_statistics`; a finer grid is solved), for :func:`map_statistics` and
+    :func:`comparison`, which both show them (one solve instead of two); p = the map study and
+    statistics_steps_deg."""
+    from . import maps
+
+    p = dict(p)
+    steps = [float(s) for s in p.pop("statistics_steps_deg")]
+    st = _map_study(p)
+    maps.save_grid_statistics(out_npz, maps.grid_statistics(maps.load_map(map_npz), st, steps))
+
+
+def map_statistics(p: dict, map_npzs: dict, printed_yaml: str, out_csv: str, grid_npz: str | None = None) -> None:
     """The statistics the paper quotes for Figure 6, ours beside theirs, and their grid dependence;
-    p = studies (the map studies), statistics_steps_deg."""
+    p = studies (the map studies), statistics_steps_deg; grid_npz: those of the Figure-7 study on every grid
+    (:func:`map_grid_statistics`)."""
     from . import maps, reproduction
 
     studies = [_map_study(s) for s in p["studies"]]
     steps = [float(s) for s in p["statistics_steps_deg"]]
     printed = {k: float(v) for k, v in reproduction.load_printed(printed_yaml).get("figure6", {}).items()}
-    df = maps.statistics_table({n: maps.load_map(f) for n, f in map_npzs.items()}, studies, steps, printed)
+    grid = {st.name: maps.load_grid_statistics(grid_npz) for st in studies if st.figure == 7} if grid_npz else None
+    loaded = {n: maps.load_map(f) for n, f in map_npzs.items() if not (grid and n in grid)}
+    df = maps.statistics_table(loaded, studies, steps, printed, grid)
     for _, r in df[df.statistic == "mean"].iterrows():
         _log(f"map {r.study}: mean chi {r.ours:.4g} on the {r.grid_deg:g} deg grid (paper: {r.paper})")
     _write(df, out_csv)
@@ -334,6 +353,7 @@ def map_pairs(p: dict, out_npz: str, out_csv: str) -> None:
     import numpy as np
 
     from . import maps
+    from .csvtext import write_numeric_csv
 
     name, b, step = p["name"], float(p["link_ratio"]), float(p["pairs_step_deg"])
     _log(f"map {name} (b = {b:.4g}): best plans of two poses on the {step:g} deg grid")
@@ -342,7 +362,7 @@ def map_pairs(p: dict, out_npz: str, out_csv: str) -> None:
     _log(f"map {name}: a designed pair beats the single optimum measured twice by up to {100 * g.max():.1f} %; "
          f"by more than 1 % on {100 * np.mean(g > 0.01):.0f} % of the test poses")
     maps.save_pair_map(out_npz, pm)
-    _write(maps.pair_frame(pm), out_csv)
+    write_numeric_csv(maps.pair_columns(pm), out_csv)
 
 
 def map_figures(maps_by_figure: dict, out_pngs: dict, pairs_npz: str | None = None) -> None:
@@ -480,10 +500,12 @@ def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: s
     atomic_write(out_html, html)
 
 
-def report_pdf(html: str, out_pdf: str) -> None:
+def report_pdf(html: str, out_pdf: str, svgs: list[str] = ()) -> None:
+    """The PDF of the HTML report; every figure of ``svgs`` (SVG embedded in the HTML) printed from the PNG
+    beside it (:func:`stiffcal.report.write_pdf`)."""
     from . import report
 
-    pages = report.write_pdf(html, out_pdf)
+    pages = report.write_pdf(html, out_pdf, report.print_images(svgs))
     _log(f"{out_pdf}: {pages} pages")
 
 

@@ -7,19 +7,25 @@ design, so restyling a figure never reruns an optimisation.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
 
 from .robot import as_xyz  # noqa: E402
 from .study import Study  # noqa: E402
 
+if TYPE_CHECKING:  # annotations only: a figure job that reads no table does not load pandas
+    import pandas as pd
+
 STYLE = {"font.size": 9, "axes.titlesize": 10, "axes.labelsize": 9, "legend.fontsize": 8,
          "figure.dpi": 100, "savefig.dpi": 150, "svg.hashsalt": "stiffcal", "svg.fonttype": "none"}
+#: resolution of the PNG figures [dots per inch]: a print resolution (the PDF report prints them, the HTML report
+#: shows the SVG)
+PNG_DPI = 200
 
 
 def save(fig, stem: str | Path) -> list[Path]:
@@ -30,7 +36,7 @@ def save(fig, stem: str | Path) -> list[Path]:
     stem = Path(stem)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
     with atomic_path(paths[0]) as tmp:
-        fig.savefig(tmp, format="png", metadata={"Software": None}, bbox_inches="tight")
+        fig.savefig(tmp, format="png", dpi=PNG_DPI, metadata={"Software": None}, bbox_inches="tight")
     with plt.rc_context({"svg.hashsalt": STYLE["svg.hashsalt"]}), atomic_path(paths[1]) as tmp:
         fig.savefig(tmp, format="svg", metadata={"Date": None, "Creator": None}, bbox_inches="tight")
     plt.close(fig)
@@ -109,8 +115,7 @@ def fig5_chi_map(chi: pd.DataFrame, optimal_set_deg: np.ndarray, representative_
         q2 = np.unique(chi["q2_deg"])
         Z = chi["chi"].to_numpy(float).reshape(len(q1), len(q2)).T
         fig, ax = plt.subplots(figsize=(5.6, 4.4))
-        mesh = ax.pcolormesh(q1, q2, Z, shading="auto", cmap="viridis", vmin=0, vmax=np.nanmax(Z),
-                             rasterized=True)
+        mesh = _grid_image(ax, q1, q2, Z, cmap="viridis", vmin=0, vmax=np.nanmax(Z))
         ax.contour(q1, q2, Z, levels=[1, 2, 3, 4, 5], colors="w", linewidths=0.5)
         fig.colorbar(mesh, ax=ax, label="χ = O_t* / O_t")
         ax.plot(optimal_set_deg[:, 0], optimal_set_deg[:, 1], "o", mfc="none", mec="r", ms=9,
@@ -131,7 +136,7 @@ def fig_design(support: pd.DataFrame, phi_map: pd.DataFrame):
         q2 = np.unique(phi_map["q2_deg"])
         Z = phi_map["ratio"].to_numpy(float).reshape(len(q1), len(q2)).T
         fig, ax = plt.subplots(figsize=(5.6, 4.4))
-        mesh = ax.pcolormesh(q1, q2, Z, shading="auto", cmap="magma", vmin=0, vmax=1.0, rasterized=True)
+        mesh = _grid_image(ax, q1, q2, Z, cmap="magma", vmin=0, vmax=1.0)
         fig.colorbar(mesh, ax=ax, label="φ(x, ξ*) / Φ(ξ*)")
         ax.scatter(support["q1_deg"], support["q2_deg"], s=1500 * support["weight"], facecolors="none",
                    edgecolors="c", linewidths=2, label="support of ξ* (area ∝ weight)")
@@ -174,6 +179,22 @@ def _map_axes(ax, title: str):
     ax.set_title(title)
 
 
+def _grid_image(ax, x: np.ndarray, y: np.ndarray, Z: np.ndarray, **kw):
+    """Z (len(y), len(x)) drawn as cells centred on the grid points x, y [deg]: what ``pcolormesh(x, y, Z,
+    shading="auto")`` draws, as one image instead of one quadrilateral per cell when both axes are regular (a
+    map of 129,600 cells draws in a fraction of the time). NaN cells are left blank."""
+    def edges(a):
+        a = np.asarray(a, float)
+        h = (a[-1] - a[0]) / max(len(a) - 1, 1)
+        regular = len(a) < 2 or np.allclose(np.diff(a), h, rtol=1e-9, atol=0.0)
+        return (a[0] - h / 2, a[-1] + h / 2) if regular and h > 0 else None
+
+    ex, ey = edges(x), edges(y)
+    if ex is None or ey is None:
+        return ax.pcolormesh(x, y, Z, shading="auto", rasterized=True, **kw)
+    return ax.imshow(Z, origin="lower", extent=(*ex, *ey), interpolation="nearest", aspect="auto", **kw)
+
+
 #: colour of the map cells without an optimal pose (a grey that none of the map colour maps contains)
 NO_POSE_COLOUR = "#9a9a9a"
 
@@ -183,8 +204,8 @@ def _mark_no_pose(ax, mp, mask: np.ndarray) -> None:
     from matplotlib.colors import ListedColormap
 
     if mask.any():
-        ax.pcolormesh(mp.axis, mp.axis, np.where(mask, 1.0, np.nan).T, shading="auto",
-                      cmap=ListedColormap([NO_POSE_COLOUR]), vmin=0, vmax=1, rasterized=True)
+        _grid_image(ax, mp.axis, mp.axis, np.where(mask, 1.0, np.nan).T, cmap=ListedColormap([NO_POSE_COLOUR]),
+                    vmin=0, vmax=1)
 
 
 def fig6_inverse_chi(mp):
@@ -194,8 +215,7 @@ def fig6_inverse_chi(mp):
     :mod:`stiffcal.maps`)."""
     with plt.rc_context(STYLE):
         fig, ax = plt.subplots(figsize=(5.6, 4.4))
-        mesh = ax.pcolormesh(mp.axis, mp.axis, (1.0 / mp.chi).T, shading="auto", cmap="gray_r", vmin=0, vmax=1,
-                             rasterized=True)
+        mesh = _grid_image(ax, mp.axis, mp.axis, (1.0 / mp.chi).T, cmap="gray_r", vmin=0, vmax=1)
         fig.colorbar(mesh, ax=ax, label="1 / χ")
         _map_axes(ax, f"Maximum accuracy improvement, b = l2/l1 = {mp.link_ratio:.2f}")
         return fig
@@ -212,7 +232,7 @@ def fig_optimal_poses(mp, figure: int):
         no_pose = np.isnan(mp.q1_opt_deg)
         for ax, Z, label, (lo, hi), cmap in zip(axes, (mp.q1_opt_deg, mp.q2_opt_deg), ("q1", "q2"),
                                                ((-90, 90), (0, 180)), ("twilight", "viridis")):
-            mesh = ax.pcolormesh(mp.axis, mp.axis, Z.T, shading="auto", cmap=cmap, vmin=lo, vmax=hi, rasterized=True)
+            mesh = _grid_image(ax, mp.axis, mp.axis, Z.T, cmap=cmap, vmin=lo, vmax=hi)
             _mark_no_pose(ax, mp, no_pose)
             fig.colorbar(mesh, ax=ax, label=f"optimal {label} [deg]")
             _map_axes(ax, f"Optimal measurement {label}")

@@ -227,8 +227,19 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     }
 
 
-def write_pdf(html_path: str | Path, pdf_path: str | Path) -> int:
+def print_images(svgs) -> dict[str, Path]:
+    """The print rendition of every figure: the embedded SVG's data URI (:func:`image_data_uri`) -> the PNG that
+    :func:`stiffcal.plots.save` wrote beside it (the same figure at :data:`stiffcal.plots.PNG_DPI`), for
+    :func:`write_pdf`. svgs: paths of SVG figures, each with its ``.png`` beside it."""
+    return {image_data_uri(svg): Path(svg).with_suffix(".png") for svg in svgs}
+
+
+def write_pdf(html_path: str | Path, pdf_path: str | Path, png_for: dict[str, Path] | None = None) -> int:
     """Print the HTML to PDF with WeasyPrint; returns the number of pages.
+
+    png_for: embedded SVG figures (data URI -> PNG file, :func:`print_images`) that the PDF shows as their PNG
+    rendition instead: WeasyPrint draws an SVG figure element by element (0.1-1.4 s of CPU each, most of the
+    PDF's cost), a PNG it embeds as it is; the HTML keeps the SVG. Any other image is printed as it is.
 
     Reproducible: the PDF's creation and modification dates, and the time stamps fontTools writes into
     the embedded font subsets, come from ``SOURCE_DATE_EPOCH`` (default: the commit's time), so the same
@@ -241,7 +252,7 @@ def write_pdf(html_path: str | Path, pdf_path: str | Path) -> int:
     from .archive import source_date_epoch
 
     try:
-        from weasyprint import HTML
+        from weasyprint import HTML, default_url_fetcher
     except OSError as err:  # cffi cannot load Pango/HarfBuzz/etc.; the message names the library
         raise InputError(f"WeasyPrint cannot load a system library it needs ({err}); install it (Debian: "
                          "apt-get install libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz0b) or use the HTML report",
@@ -250,7 +261,13 @@ def write_pdf(html_path: str | Path, pdf_path: str | Path) -> int:
     before = os.environ.get("SOURCE_DATE_EPOCH")
     os.environ["SOURCE_DATE_EPOCH"] = str(epoch)  # read by fontTools when it subsets the fonts
     try:
-        doc = HTML(filename=str(html_path)).render()
+        png_for = png_for or {}
+
+        def fetch(url: str) -> dict:
+            png = png_for.get(url)
+            return default_url_fetcher(url) if png is None else {"string": png.read_bytes(), "mime_type": "image/png"}
+
+        doc = HTML(filename=str(html_path), url_fetcher=fetch).render()
         doc.metadata.created = doc.metadata.modified = datetime.datetime.fromtimestamp(
             epoch, datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
         tmp = Path(str(pdf_path) + ".part")

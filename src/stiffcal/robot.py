@@ -55,12 +55,18 @@ def planar_jacobian(links: np.ndarray, q: np.ndarray) -> np.ndarray:
     links: (n,) [m]; q: (..., n) [rad]. Returns (..., 2, n) [m/rad].
     """
     c = np.cumsum(q, axis=-1)
-    px = links * np.cos(c)
-    py = links * np.sin(c)
-    # reverse cumulative sums: contribution of links j..n to column j
-    jx = -np.flip(np.cumsum(np.flip(py, -1), -1), -1)
-    jy = np.flip(np.cumsum(np.flip(px, -1), -1), -1)
-    return np.stack([jx, jy], axis=-2)
+    p = np.empty(c.shape[:-1] + (2, c.shape[-1]))  # rows: l_k cos c_k, l_k sin c_k
+    np.multiply(links, np.cos(c), out=p[..., 0, :])
+    np.multiply(links, np.sin(c), out=p[..., 1, :])
+    # reverse cumulative sums (contribution of links j..n to column j), added from the last link as
+    # np.cumsum of the reversed rows adds them: the same numbers
+    s = p.copy()
+    for j in range(c.shape[-1] - 2, -1, -1):
+        np.add(s[..., j + 1], p[..., j], out=s[..., j])
+    J = np.empty_like(s)
+    np.negative(s[..., 1, :], out=J[..., 0, :])
+    J[..., 1, :] = s[..., 0, :]
+    return J
 
 
 def planar_link_points(links: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -86,29 +92,35 @@ def dh_link_transforms(dh: np.ndarray, q: np.ndarray, convention: str = "standar
     dh: (n, 4) rows ``[a [m], alpha [rad], d [m], offset [rad]]``; q: (..., n) [rad].
     Returns (..., n, 4, 4).
     """
+    if convention not in ("standard", "modified"):
+        raise ValueError(f"unknown DH convention {convention!r}")
     a, alpha, d, off = (dh[:, j] for j in range(4))
     th = np.asarray(q, float) + off
     ct, st = np.cos(th), np.sin(th)
-    ca, sa = np.broadcast_to(np.cos(alpha), th.shape), np.broadcast_to(np.sin(alpha), th.shape)
-    a, d = np.broadcast_to(a, th.shape), np.broadcast_to(d, th.shape)
-    zero, one = np.zeros_like(th), np.ones_like(th)
+    ca, sa = np.cos(alpha), np.sin(alpha)
+    T = np.zeros(th.shape + (4, 4))  # filled entry by entry (one array, no stacking: small batches are common)
+    T[..., 0, 0], T[..., 1, 1] = ct, ct * ca
     if convention == "standard":
-        rows = [[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [zero, sa, ca, d]]
-    elif convention == "modified":
-        rows = [[ct, -st, zero, a], [st * ca, ct * ca, -sa, -sa * d], [st * sa, ct * sa, ca, ca * d]]
+        T[..., 0, 1], T[..., 0, 2], T[..., 0, 3] = -st * ca, st * sa, a * ct
+        T[..., 1, 0], T[..., 1, 2], T[..., 1, 3] = st, -ct * sa, a * st
+        T[..., 2, 1], T[..., 2, 2], T[..., 2, 3] = sa, ca, d
     else:
-        raise ValueError(f"unknown DH convention {convention!r}")
-    rows.append([zero, zero, zero, one])
-    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+        T[..., 0, 1], T[..., 0, 3] = -st, a
+        T[..., 1, 0], T[..., 1, 2], T[..., 1, 3] = st * ca, -sa, -sa * d
+        T[..., 2, 0], T[..., 2, 1], T[..., 2, 2], T[..., 2, 3] = st * sa, ct * sa, ca, ca * d
+    T[..., 3, 3] = 1.0
+    return T
 
 
 def dh_frames(dh: np.ndarray, q: np.ndarray, convention: str = "standard") -> np.ndarray:
     """Base-frame poses of frames 0..n, ``T_{0,i}``. dh: (n, 4); q: (..., n) [rad]. Returns (..., n+1, 4, 4)."""
     A = dh_link_transforms(dh, q, convention)
-    T = [np.broadcast_to(np.eye(4), A.shape[:-3] + (4, 4))]
-    for i in range(A.shape[-3]):
-        T.append(T[-1] @ A[..., i, :, :])
-    return np.stack(T, axis=-3)
+    n = A.shape[-3]
+    T = np.empty(A.shape[:-3] + (n + 1, 4, 4))
+    T[..., 0, :, :] = np.eye(4)
+    for i in range(n):
+        np.matmul(T[..., i, :, :], A[..., i, :, :], out=T[..., i + 1, :, :])
+    return T
 
 
 def dh_tool_point(frames: np.ndarray, tool: np.ndarray) -> np.ndarray:
@@ -173,7 +185,18 @@ def dh_jacobian(dh: np.ndarray, tool: np.ndarray, q: np.ndarray, convention: str
     axes = F[..., :-1, :, :] if convention == "standard" else F[..., 1:, :, :]
     z, o = axes[..., :3, 2], axes[..., :3, 3]  # (..., n, 3)
     p = dh_tool_point(F, tool)
-    return np.swapaxes(np.cross(z, p[..., None, :] - o), -1, -2)
+    return cross_columns(z, p[..., None, :] - o)
+
+
+def cross_columns(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``np.swapaxes(np.cross(u, v), -1, -2)`` for u, v (..., n, 3): the same products and differences, so the
+    same numbers in the same memory layout (a view of (..., n, 3)), in fewer array operations. Returns
+    (..., 3, n)."""
+    u, v = np.broadcast_arrays(u, v)
+    out = np.empty(u.shape)
+    for k, (i, j) in enumerate(((1, 2), (2, 0), (0, 1))):
+        np.subtract(u[..., i] * v[..., j], u[..., j] * v[..., i], out=out[..., k])
+    return np.swapaxes(out, -1, -2)
 
 
 @dataclass(frozen=True)

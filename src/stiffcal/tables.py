@@ -13,11 +13,11 @@ import numpy as np
 import pandas as pd
 
 from . import criteria
+from .csvtext import FLOAT_FORMAT, numeric_csv
 from .design import optimal_single_pose, plan_observations
-from .stiffness import covariance_diagonal, identify_batch, information_matrix
+from .stiffness import covariance_diagonal, functional_variance, identify_batch, information_matrix, spectral
 from .study import Study
 
-FLOAT_FORMAT = "%.10g"
 
 
 def write_csv(df: pd.DataFrame, path: str | Path) -> None:
@@ -37,24 +37,11 @@ def write_csv(df: pd.DataFrame, path: str | Path) -> None:
 
 def _numeric_csv(df: pd.DataFrame) -> str | None:
     """``df.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator='\\n')`` as text for a table whose
-    columns are all float64 or int64 and whose column names need no quoting (NaN as an empty field, as pandas
-    writes it), one %-format per column; None for any other table."""
-    names = [str(c) for c in df.columns]
-    if not names or not df.columns.is_unique or any(set(c) & set(',"\n\r') for c in names):
+    columns are all float64 or int64 and whose column names need no quoting
+    (:func:`stiffcal.csvtext.numeric_csv`); None for any other table."""
+    if not len(df.columns) or not df.columns.is_unique:
         return None
-    cols = []
-    for c in df.columns:
-        a = df[c].to_numpy()
-        if a.dtype == np.float64:
-            s = ((FLOAT_FORMAT + "\n") * len(a) % tuple(a.tolist())).split("\n")[:-1]
-            for i in np.flatnonzero(np.isnan(a)).tolist():
-                s[i] = ""
-        elif a.dtype == np.int64:
-            s = ("%d\n" * len(a) % tuple(a.tolist())).split("\n")[:-1]
-        else:
-            return None
-        cols.append(s)
-    return ",".join(names) + "\n" + "".join(",".join(r) + "\n" for r in zip(*cols))
+    return numeric_csv({str(c): df[c].to_numpy() for c in df.columns})
 
 
 def _pose_cols(robot) -> list[str]:
@@ -73,8 +60,9 @@ def plan_summary(study: Study, plan_deg: np.ndarray) -> dict:
     m, n = plan.shape[-2:]
     prob = study.problem("ot", m)
     M = information_matrix(prob.rows(plan))
-    cov_p = covariance_diagonal(M, study.sigma)
-    ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma), np.inf)
+    spec = spectral(M)  # one eigen-decomposition for both
+    cov_p = functional_variance(M, np.eye(M.shape[-1]), study.sigma, spec)  # covariance_diagonal
+    ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma, spec), np.inf)
     out = {"O_t": ot, "chi": prob.ot_star(m) / np.asarray(ot, float)}
     cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint the measurements never see: not identifiable
     cov[..., prob.params] = cov_p

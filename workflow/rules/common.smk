@@ -127,6 +127,13 @@ def report_inputs(wildcards):
     }
 
 
+def report_figures(wildcards):
+    """The SVG figures the HTML report embeds, and their PNG renditions, which the PDF prints instead (drawing
+    an SVG is most of WeasyPrint's work; docs/workflow.md)."""
+    svgs = sorted(v for v in report_inputs(wildcards).values() if v.endswith(".svg"))
+    return {"svgs": svgs, "pngs": [v.removesuffix(".svg") + ".png" for v in svgs]}
+
+
 def all_outputs(wildcards):
     """Every file the workflow makes (except the temporary map tiles), as inputs of the target all. Snakemake
     rebuilds a deleted intermediate only when something asks for it, so everything is asked for."""
@@ -138,6 +145,7 @@ def all_outputs(wildcards):
     out += [f"{MAPS}/{name}/map.{ext}" for name in MAP_STUDIES for ext in ("csv", "npz")]
     if 7 in MAP_FIGURES:
         out += [f"{MAPS}/{MAP_FIGURES[7]}/pairs.{ext}" for ext in ("csv", "npz")]
+        out += [f"{MAPS}/{MAP_FIGURES[7]}/grid_statistics.npz"]
     for name in MEASURED:
         out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg",
                                                              "plan.json", "plan.png", "plan.svg")]

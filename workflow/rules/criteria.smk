@@ -44,7 +44,7 @@ rule paper_comparison:
         table4=f"{TABLES}/table4.csv",
         table5=f"{TABLES}/table5.csv",
         printed=PRINTED,
-        figure6_map=[f"{MAPS}/{MAP_FIGURES[7]}/map.npz"] if 7 in MAP_FIGURES else [],
+        figure6_stats=[f"{MAPS}/{MAP_FIGURES[7]}/grid_statistics.npz"] if 7 in MAP_FIGURES else [],
     output:
         csv=f"{TABLES}/paper_comparison.csv",
     params:

@@ -48,9 +48,29 @@ rule map_merge:
         "../scripts/map_merge.py"
 
 
+rule map_grid_statistics:
+    input:
+        map=f"{MAPS}/{{study}}/map.npz",
+    output:
+        npz=f"{MAPS}/{{study}}/grid_statistics.npz",
+    params:
+        map=lambda wc: {**map_params(wc.study), "statistics_steps_deg": MAP_SETTINGS["statistics_steps_deg"]},
+        code=code_version("map_grid_statistics"),
+    log:
+        f"{LOGS}/maps/{{study}}/grid_statistics.log",
+    resources:
+        mem_mb=2000,
+        runtime=10,
+    conda:
+        ENV
+    script:
+        "../scripts/map_grid_statistics.py"
+
+
 rule map_statistics:
     input:
         maps=expand(f"{MAPS}/{{study}}/map.npz", study=MAP_STUDIES),
+        grid=[f"{MAPS}/{MAP_FIGURES[7]}/grid_statistics.npz"] if 7 in MAP_FIGURES else [],
         printed=PRINTED,
     output:
         csv=f"{TABLES}/map_statistics.csv",

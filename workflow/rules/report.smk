@@ -20,6 +20,7 @@ rule report_html:
 
 rule report_pdf:
     input:
+        unpack(report_figures),
         html=rules.report_html.output.html,
     output:
         pdf="paper/build/report.pdf",

@@ -4,5 +4,6 @@ from pathlib import Path
 from stiffcal import pipeline
 
 maps = {Path(p).parent.name: p for p in snakemake.input.maps}
+grid = list(snakemake.input.grid)  # [] when the config has no map of the paper's arm (Figure 7)
 pipeline.run(snakemake, pipeline.map_statistics, snakemake.params.maps, maps, snakemake.input.printed,
-             snakemake.output.csv)
+             snakemake.output.csv, grid[0] if grid else None)

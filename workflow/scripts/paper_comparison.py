@@ -2,6 +2,6 @@
 from stiffcal import pipeline
 
 i = snakemake.input
-maps = list(i.figure6_map)  # [] when the config has no map of the paper's arm (Figure 7)
+stats = list(i.figure6_stats)  # [] when the config has no map of the paper's arm (Figure 7)
 pipeline.run(snakemake, pipeline.comparison, snakemake.params.study, i.robot, i.table2, i.table3, i.table4, i.table5,
-             i.printed, snakemake.output.csv, maps[0] if maps else None)
+             i.printed, snakemake.output.csv, stats[0] if stats else None)
