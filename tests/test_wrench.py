@@ -296,3 +296,27 @@ def test_a_force_along_the_straight_arm_with_a_moment_has_a_certified_answer(roo
     assert res.lower_bound <= res.O_t * (1 + 1e-9) and res.approximate_design["converged"]
     A1 = rows(*np.radians(res.poses_deg[0]))
     assert res.O_t == pytest.approx(float(np.trace(At @ np.linalg.inv(A1.T @ A1) @ At.T)), rel=1e-9)
+
+
+def test_a_joint_the_force_never_turns_is_left_out_whatever_is_measured():
+    """UR10 (tool point on wrist 3's axis) with the orientation or a second target measured: a force at the
+    tool point has no torque about wrist 3 at any pose (checked on random poses from the robot's Jacobian), so
+    its compliance cannot be identified and is left out with a note (cov_diag "inf"), instead of every pose
+    being singular; with a moment (a wrench) it is identified."""
+    from pathlib import Path
+
+    import stiffcal
+
+    root = Path(__file__).resolve().parents[1]
+    robot = stiffcal.load_robot(root / "tests/data/lab/ur10.yaml")
+    q = np.random.default_rng(3).uniform(-np.pi, np.pi, (200, 6))
+    force = np.array([30.0, 20.0, -100.0])
+    assert np.abs(np.einsum("kdn,d->kn", robot.jacobian(q), force)[:, 5]).max() < 1e-9  # tau_6 = J_6^T F = 0
+    kw = dict(test_pose_deg=[20, -100, 90, -80, -90, 0], sigma=1e-5, experiments=2, progress=False)
+    for sensing in (dict(orientation=True, sigma_rad=2e-5), dict(targets=["tool", "A"])):
+        res = stiffcal.design(robot, force_N=force, **sensing, **kw)
+        assert np.isinf(res.cov_diag[5]) and np.all(np.isfinite(res.cov_diag[:5]))
+        assert any("wrist_3_joint" in n and "moment" in n for n in res.notes)
+        assert res.lower_bound <= res.O_t < np.inf
+    res = stiffcal.design(robot, wrench=[30, 20, -100, 0, 5, 2], orientation=True, sigma_rad=2e-5, **kw)
+    assert np.all(np.isfinite(res.cov_diag)) and not any("wrist_3_joint" in n for n in res.notes)

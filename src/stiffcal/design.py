@@ -95,8 +95,21 @@ class Problem:
 
     @cached_property
     def params(self) -> np.ndarray:
-        """Joints whose compliances the measurements see (:func:`stiffcal.observation.sensed_params`)."""
-        return self.robot.params if self.is_default else sensed_params(self.robot, self._sensing)
+        """Joints whose compliances the measurements see (:func:`stiffcal.observation.sensed_params`) and the
+        loads turn: a force at the tool point on a joint's axis (:attr:`stiffcal.robot.Robot.inert_joints`) has
+        no torque about it, so without a moment that joint never deflects, whatever is measured."""
+        if self.is_default:
+            return self.robot.params
+        sensed = sensed_params(self.robot, self._sensing)
+        if self.unloaded_inert:
+            sensed = np.intersect1d(sensed, self.robot.params)
+        return sensed
+
+    @property
+    def unloaded_inert(self) -> bool:
+        """No moment in the measurements' loads: the joints whose axis passes through the tool point carry no
+        torque."""
+        return self.moment is None or not np.any(self.moment)
 
     @property
     def n_params(self) -> int:
