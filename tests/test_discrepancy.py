@@ -782,3 +782,18 @@ def test_angles_outside_the_joint_limits_are_named(tmp_path):
     assert len(note) == 1 and note[0].startswith("q2_deg is outside the joint limits")
     assert f"[-150, 150] deg) in {len(moved)} rows {moved[0] + 2}, {moved[1] + 2}" in note[0]
     assert not any("joint limits" in x for x in read_measurements(LAB_DIR / "lab_3r_coupling.csv", robot).notes)
+
+
+def test_a_joint_whose_axis_passes_through_the_measured_point_is_left_out_with_a_note():
+    """The new user's UR10 (tool point on wrist 3's axis), positions only: the Jacobian's column of wrist 3 is
+    zero at every pose of the file (checked directly), the verdict lists joint 6 as not identifiable and says
+    why in a note (docs/measured-data.md: left out "with a note")."""
+    from stiffcal.measurements import read_measurements
+
+    lab = LAB_DIR
+    robot = load_robot(lab / "ur10.yaml")
+    meas = read_measurements(lab / "ur10_bar.csv", robot)
+    assert np.abs(robot.jacobian(meas.q)[..., 5]).max() < 1e-12
+    v = D.analyse(robot, meas, gain=False)
+    assert v["nominal"]["not_identifiable_joints"] == [6]
+    assert any("wrist_3_joint (joint 6)" in n and "not_identifiable_joints" in n for n in v["notes"])

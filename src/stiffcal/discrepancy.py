@@ -505,6 +505,16 @@ def dropped_note(robot: Robot, dropped) -> str:
             "measure with loads that turn it to identify it")
 
 
+def unseen_note(robot: Robot, joints) -> str:
+    """The verdict's note on joints left out because no measured quantity shows them: an axis through every
+    measured point (the tool point on the flange axis), with the orientation not measured."""
+    names = ", ".join(f"{robot.joint_names[int(j)]} (joint {int(j) + 1})" for j in joints)
+    return (f"joint axis through every measured point at every pose: {names}; a deflection about it moves no "
+            "measured point, so its compliance cannot be identified from these data and is left out of the "
+            "analysis (nominal.not_identifiable_joints); measure a point off the axis (targets), or the "
+            "orientation with a moment in the loads, to identify it")
+
+
 def check_testable(robot: Robot, meas: Measurements, n_params: int | None = None) -> None:
     """Raise :class:`InputError` when the distinct (configuration, load) pairs give no more equations than there
     are compliances (``n_params``, default ``robot.n_params``): the data then identify the compliances at best,
@@ -1058,6 +1068,9 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     des = des_all.rows(keep).weighted(w)
     noise = noise_variance(des, m)
     notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])
+    unseen = [j for j in range(robot.n_joints) if j not in ob_all.model_params(robot) and j not in dropped]
+    if unseen:
+        notes.append(unseen_note(robot, unseen))
     if noise.df < 10:
         notes.append(f"the noise estimate has only {noise.df} degrees of freedom: the tests have little power")
     if vm is not None:

@@ -1113,9 +1113,13 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
                      "separates the catalogue's combinations only")
     alone = unsupported_causes(verdict)
     if alone:
+        # near alpha the global rejection may be one of its false alarms; far below it, the causes are real but
+        # cannot be told apart on these data
+        why = ("a false alarm of the global test looks like this" if verdict["p_value"] > verdict["alpha"] / 100
+               else "the data cannot tell these causes apart")
         notes.append(f"no cause is needed on its own: the data need at least one of {{{', '.join(alone)}}} "
                      f"(adjusted p = {verdict['p_value']:.2g} of 'none of them is needed'), but none of them is "
-                     "significant on its own at alpha (a false alarm of the global test looks like this); the "
+                     f"significant on its own at alpha ({why}); the "
                      f"plan takes {rm.truth.label} as the truth with its fitted parameters, and its predicted power "
                      "holds only if that combination is real")
     if len(rm.models) == 1:
