@@ -5,6 +5,7 @@ import builtins
 import io
 import json
 import tarfile
+from pathlib import Path
 
 import pytest
 
@@ -27,10 +28,12 @@ def _tree(tmp_path):
 PROV = {"commit": "abc", "dirty": False, "started": "s", "ended": "e", "source_date_epoch": 1700000000}
 
 
+FILES = [Path("config/config.yaml"), Path("results/tables/t.csv")]
+
+
 def test_archive_holds_every_file_with_checksums_and_verifies(tmp_path, capsys):
     root = _tree(tmp_path)
-    files = A.archive_files(root)
-    assert [f.as_posix() for f in files] == ["config/config.yaml", "results/tables/t.csv"]  # no earlier archive
+    files = FILES
     out = A.write_archive(tmp_path / "out/stiffcal-abc.tar.gz", files, PROV, root)
     with tarfile.open(out) as tar:
         names = tar.getnames()
@@ -57,7 +60,7 @@ def _tamper(src, dst, name, data):
 
 def test_a_changed_file_is_named(tmp_path, capsys):
     root = _tree(tmp_path)
-    out = A.write_archive(tmp_path / "a/stiffcal-abc.tar.gz", A.archive_files(root), PROV, root)
+    out = A.write_archive(tmp_path / "a/stiffcal-abc.tar.gz", FILES, PROV, root)
     bad = tmp_path / "bad.tar.gz"
     _tamper(out, bad, "results/tables/t.csv", b"a,b\n1,3\n")
     assert A.verify_archive(bad)[1] == ["changed: results/tables/t.csv"]
@@ -129,7 +132,7 @@ def test_a_damaged_archive_is_reported_as_damaged(tmp_path, capsys, where, needl
     """A flipped byte in the compressed data, or a damaged gzip trailer (CRC-32, length), is reported as a
     damaged archive with exit 1 (not as missing files, and never as verified)."""
     root = _tree(tmp_path)
-    out = A.write_archive(tmp_path / "out/stiffcal-abc.tar.gz", A.archive_files(root), PROV, root)
+    out = A.write_archive(tmp_path / "out/stiffcal-abc.tar.gz", FILES, PROV, root)
     raw = bytearray(out.read_bytes())
     i = int(len(raw) * where) if isinstance(where, float) else len(raw) + where
     raw[i] ^= 0x01
@@ -152,3 +155,32 @@ def test_integrity_records_refuse_a_changed_or_truncated_file(tmp_path):
     with pytest.raises(InputError, match="changed after rule map_merge wrote it"):
         integrity.verify([f], root=tmp_path)
     assert [p.name for p in f.parent.iterdir()] == ["map.csv"]  # no temporary file left beside it
+
+
+def test_the_archive_takes_every_file_the_config_names_and_refuses_a_missing_one(tmp_path):
+    """config_files finds the robot files (and the URDF one reads, relative to the robot file), data CSVs and
+    printed values wherever they lie, and nothing else; a file outside the root is packed under external/."""
+    (tmp_path / "lab/urdf").mkdir(parents=True)
+    (tmp_path / "lab/arm.yaml").write_text("name: arm\nkind: urdf\nurdf: urdf/arm.urdf\n")
+    (tmp_path / "lab/urdf/arm.urdf").write_text("<robot name='arm'/>")
+    (tmp_path / "lab/run1.csv").write_text("q1,q2\n0,0\n")
+    (tmp_path / "printed.yaml").write_text("a: 1\n")
+    outside = tmp_path.parent / f"{tmp_path.name}-outside.csv"
+    outside.write_text("x\n1\n")
+    config = {"seed": 1, "study": {"name": "lab", "robot": "lab/arm.yaml", "force_N": [0, -1]},
+              "measured_data": [{"name": "run1", "data": "lab/run1.csv", "robot": "lab/arm.yaml",
+                                 "discriminate": {"loads": "hanging:100,300"}},
+                                {"name": "far", "data": str(outside), "robot": "lab/arm.yaml"}],
+              "paper_values": "printed.yaml", "other": "lab/missing.csv"}
+    files = A.config_files(config, tmp_path)
+    assert [f.as_posix() for f in files] == sorted([outside.as_posix(), "lab/arm.yaml", "lab/run1.csv",
+                                                    "lab/urdf/arm.urdf", "printed.yaml"])
+    out = A.write_archive(tmp_path / "out/stiffcal-abc.tar.gz", files, PROV, tmp_path)
+    with tarfile.open(out) as tar:
+        names = {n.split("/", 1)[1] for n in tar.getnames()}
+    assert names == {"lab/arm.yaml", "lab/run1.csv", "lab/urdf/arm.urdf", "printed.yaml", A.PROVENANCE, A.SUMS,
+                     "external/" + outside.resolve().as_posix().lstrip("/")}
+    assert A.verify_archive(out) == (6, [])
+    with pytest.raises(InputError, match="missing: lab/gone.csv"):
+        A.write_archive(tmp_path / "out2/stiffcal-abc.tar.gz", [*files, Path("lab/gone.csv")], PROV, tmp_path)
+    assert not (tmp_path / "out2").exists()

@@ -167,7 +167,8 @@ def test_dry_run_after_a_config_edit_lists_exactly_the_affected_jobs(built, what
     assert _dry_run_jobs(built) == {}
     before = _edit_config(built, edit)
     try:
-        assert _dry_run_jobs(built) == expected, what
+        # and any config edit rewrites results/config.effective.yaml (the config the run saw)
+        assert _dry_run_jobs(built) == {**expected, "effective_config": 1}, what
     finally:
         (built / "config/test.yaml").write_text(before)
     assert _dry_run_jobs(built) == {}
@@ -326,8 +327,9 @@ def test_archive_verifies_and_names_a_changed_file(built, tmp_path):
     with tarfile.open(tgz) as tar:
         names = tar.getnames()
         prov = json.loads(tar.extractfile(next(n for n in names if n.endswith("provenance.json"))).read())
-    for part in ("/paper/build/report.html", "/paper/build/report.pdf", "/config/config.yaml", "/SHA256SUMS",
-                 "/results/tables/table2.csv", "/figures/fig3.png"):
+    for part in ("/paper/build/report.html", "/paper/build/report.pdf", "/results/config.effective.yaml",
+                 "/SHA256SUMS", "/results/tables/table2.csv", "/figures/fig3.png", "/logs/table2.log",
+                 "/config/robots/paper_2r.yaml", "/data/synthetic_paper_2r.csv", "/paper/printed_values.yaml"):
         assert any(n.endswith(part) for n in names), part
     assert {"commit", "dirty", "python", "packages", "platform", "config_hash", "started", "ended"} <= set(prov)
     bad = tmp_path / "bad.tar.gz"
@@ -339,6 +341,51 @@ def test_archive_verifies_and_names_a_changed_file(built, tmp_path):
             tout.addfile(m, io.BytesIO(data))
     res = subprocess.run([str(cli), "verify-archive", str(bad)], capture_output=True, text=True)
     assert res.returncode == 1 and "changed: results/tables/table3.csv" in res.stderr
+
+
+def test_archive_of_a_second_config_holds_its_config_inputs_and_no_stale_output(built, tmp_path, monkeypatch):
+    """An archive made with another --configfile holds that config as the run saw it (the hash the report and
+    provenance.json show), the robot file and data it names outside config/ and data/, and nothing that the
+    first config's run left behind (results, figures, logs of its studies and data sets)."""
+    import tarfile
+
+    from stiffcal.config import workflow_config
+    from stiffcal.report import config_hash
+    from stiffcal.validation import read_yaml
+
+    wd = tmp_path / "wf"
+    shutil.copytree(built, wd, symlinks=True, ignore=shutil.ignore_patterns("locks", "archive"))
+    cfg = yaml.safe_load((wd / "config/test.yaml").read_text())
+    (wd / "lab").mkdir()
+    shutil.copy(wd / "config/robots/paper_2r.yaml", wd / "lab/arm.yaml")
+    shutil.copy(wd / "data/synthetic_paper_2r.csv", wd / "lab/run1.csv")
+    cfg["studies"] = [st for st in cfg["studies"] if st["name"] == "added-rrr"]
+    cfg["measured_data"] = [{**cfg["measured_data"][0], "name": "lab-run1", "data": "lab/run1.csv",
+                             "robot": "lab/arm.yaml"}]
+    (wd / "config/second.yaml").write_text(yaml.safe_dump(cfg))
+    res = subprocess.run([str(SNAKEMAKE), "archive", "--cores", "2", "--configfile", "config/second.yaml", "--quiet",
+                          "--config", "seed=7"], cwd=wd, capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr[-3000:]
+    (tgz,) = (wd / "results/archive").glob("stiffcal-*.tar.gz")
+    with tarfile.open(tgz) as tar:
+        names = {n.split("/", 1)[1] for n in tar.getnames()}
+        read = {n: tar.extractfile(m).read().decode() for m in tar.getmembers()
+                for n in [m.name.split("/", 1)[1]] if n in ("provenance.json", "results/config.effective.yaml",
+                                                             "paper/build/report.html")}
+    (tmp_path / "effective.yaml").write_text(read["results/config.effective.yaml"])
+    effective = read_yaml(tmp_path / "effective.yaml")
+    monkeypatch.chdir(wd)  # as the run saw it: --configfile with --config on top, defaults filled in
+    assert effective == workflow_config(["config/second.yaml"], {"seed": 7})[1]
+    digest = config_hash(effective)
+    assert json.loads(read["provenance.json"])["config_hash"] == digest and digest in read["paper/build/report.html"]
+    assert {"lab/arm.yaml", "lab/run1.csv", "results/discrepancy/lab-run1/verdict.json",
+            "logs/discrepancy/lab-run1.log", "results/studies/added-rrr/plans.csv"} <= names
+    stale = [n for n in names if any(old in n for old in ("kuka-kr210-machining", "synthetic-paper-2r"))]
+    assert stale == [] and (wd / "results/studies/kuka-kr210-machining").is_dir()  # left on disk, not packed
+    assert not {"config/robots/kuka_kr210_r2700.yaml", "config/test.yaml", "data/synthetic_paper_2r.csv"} & names
+    res = subprocess.run([str(Path(sys.executable).with_name("stiffcal")), "verify-archive", str(tgz)],
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
 
 
 def test_a_changed_intermediate_stops_the_run_and_a_deleted_one_is_rebuilt(built):

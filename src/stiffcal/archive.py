@@ -1,5 +1,7 @@
-"""The archive a reviewer gets: config, data, results, figures, logs, run times per rule and the report in
-one reproducible ``.tar.gz``, with ``provenance.json`` and ``SHA256SUMS``; and its verification.
+"""The archive a reviewer gets: exactly the files one config's workflow made (its outputs, the logs of their jobs
+with run times, the report), the effective config as the run saw it, every file that config refers to (robot
+files and their URDFs, measured data, printed values), in one reproducible ``.tar.gz`` with ``provenance.json``
+and ``SHA256SUMS``; and its verification.
 
 The tarball is deterministic for given files: members sorted, owner 0, mode 0644, every time set to
 ``SOURCE_DATE_EPOCH`` (default: the commit's time), gzip header without a time. Only ``provenance.json``
@@ -22,8 +24,6 @@ from pathlib import Path
 
 from .errors import InputError
 
-#: directories (relative to the workflow root) whose files go into the archive
-ARCHIVED = ("config", "data", "results", "figures", "paper/build", "logs", "benchmarks/out")
 PACKAGES = ("stiffcal", "numpy", "scipy", "pandas", "matplotlib", "Jinja2", "PyYAML", "jsonschema", "snakemake",
             "weasyprint", "fonttools", "pydyf")
 SUMS = "SHA256SUMS"
@@ -67,13 +67,42 @@ def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".
             "source_date_epoch": source_date_epoch(root)}
 
 
-def archive_files(root: str | Path = ".", exclude: tuple[str, ...] = ("results/archive", "logs/archive.log",
-                                                                      "benchmarks/out/archive.tsv")) -> list[Path]:
-    """Every file under :data:`ARCHIVED` (relative to root), sorted, without earlier archives and the log
-    and benchmark of the archive rule itself (written while or after it runs)."""
+def config_files(config, root: str | Path = ".") -> list[Path]:
+    """Every input file the config refers to: each string value (at any depth) that names an existing file,
+    relative to ``root`` (robot files, measured data CSVs, printed values), plus the URDF each robot file
+    reads. Sorted, without repeats, as given (relative to ``root`` or absolute)."""
+    from .robot import robot_inputs
+
     root = Path(root)
-    files = [p.relative_to(root) for d in ARCHIVED if (root / d).is_dir() for p in (root / d).rglob("*") if p.is_file()]
-    return sorted(p for p in files if not p.as_posix().startswith(exclude))
+    found: set[Path] = set()
+
+    def walk(v):
+        if isinstance(v, dict):
+            for x in v.values():
+                walk(x)
+        elif isinstance(v, list):
+            for x in v:
+                walk(x)
+        elif isinstance(v, str) and v and (root / v).is_file():
+            found.add(Path(v))
+            urdfs = robot_inputs(root / v) if Path(v).suffix in (".yaml", ".yml") else []
+            for u in urdfs:  # relative to root / v's folder: made relative to root again
+                q = Path(u) if Path(v).is_absolute() else Path(os.path.relpath(u, root))
+                if (root / q).is_file():
+                    found.add(q)
+
+    walk(config)
+    return sorted(found, key=lambda p: p.as_posix())
+
+
+def member_name(path: str | Path, root: str | Path = ".") -> str:
+    """The name of a file in the archive: its path relative to root; a file outside root (an absolute path or
+    one above root) goes under ``external/`` with its absolute path."""
+    full = (Path(root) / path).resolve()
+    try:
+        return full.relative_to(Path(root).resolve()).as_posix()
+    except ValueError:
+        return "external/" + full.as_posix().lstrip("/")
 
 
 def _sha256(data: bytes) -> str:
@@ -81,12 +110,17 @@ def _sha256(data: bytes) -> str:
 
 
 def write_archive(out: str | Path, files: list[Path], prov: dict, root: str | Path = ".") -> Path:
-    """Write ``out`` (.tar.gz) with ``files`` (relative to root), provenance.json and SHA256SUMS under one
-    top directory named like the archive. Written to a temporary name and renamed: never a partial file."""
+    """Write ``out`` (.tar.gz) with ``files`` (relative to root; names: :func:`member_name`), provenance.json
+    and SHA256SUMS under one top directory named like the archive. Written to a temporary name and renamed:
+    never a partial file. Raises :class:`InputError` naming a file that is missing, before anything is written."""
     out, root = Path(out), Path(root)
     top = out.name.removesuffix(".tar.gz")
     epoch = int(prov.get("source_date_epoch", 0))
-    members = {p.as_posix(): (root / p).read_bytes() for p in files}
+    missing = [str(p) for p in files if not (root / p).is_file()]
+    if missing:
+        raise InputError(f"expected every file of the archive to exist; missing: {', '.join(missing)}",
+                         source=str(out))
+    members = {member_name(p, root): (root / p).read_bytes() for p in files}
     members[PROVENANCE] = (json.dumps(prov, indent=1, sort_keys=True, allow_nan=False) + "\n").encode()
     members[SUMS] = "".join(f"{_sha256(data)}  {name}\n" for name, data in sorted(members.items())).encode()
     buf = io.BytesIO()

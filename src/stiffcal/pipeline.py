@@ -509,19 +509,35 @@ def report_pdf(html: str, out_pdf: str, svgs: list[str] = ()) -> None:
     _log(f"{out_pdf}: {pages} pages")
 
 
-def archive(config: dict, started: str, out_tgz: str) -> None:
-    """results/archive/stiffcal-<commit>.tar.gz: config, data, results, figures, logs and the report, with
-    provenance.json and SHA256SUMS (``stiffcal verify-archive`` checks it)."""
+def effective_config(config: dict, out: str) -> None:
+    """results/config.effective.yaml: the config as the run saw it (after ``--configfile`` and ``--config``),
+    as sorted YAML; loading it gives back the dict whose :func:`stiffcal.report.config_hash` the report and
+    provenance.json show (the first line says so)."""
+    import yaml
+
+    from . import report
+    from .integrity import atomic_write
+
+    text = yaml.safe_dump(config, sort_keys=True, default_flow_style=False, allow_unicode=True)
+    atomic_write(out, f"# the config this run used; config hash {report.config_hash(config)} (report, "
+                      f"provenance.json)\n{text}")
+
+
+def archive(config: dict, started: str, out_tgz: str, files: list[str]) -> None:
+    """results/archive/stiffcal-<commit>.tar.gz: the files of this config's run (``files``: its outputs, the
+    logs of their jobs, the report, the effective config) and every file the config refers to
+    (:func:`stiffcal.archive.config_files`), with provenance.json and SHA256SUMS (``stiffcal verify-archive``
+    checks it)."""
     import datetime
 
     from . import archive as arc
     from . import report
 
-    files = arc.archive_files(".")
+    members = sorted({*map(Path, files), *arc.config_files(config, ".")}, key=lambda p: p.as_posix())
     ended = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     prov = arc.provenance(report.config_hash(config), started, ended)
-    arc.write_archive(out_tgz, files, prov)
-    _log(f"{out_tgz}: {len(files)} files + provenance.json + SHA256SUMS (commit {prov['commit'][:12]}, "
+    arc.write_archive(out_tgz, members, prov)
+    _log(f"{out_tgz}: {len(members)} files + provenance.json + SHA256SUMS (commit {prov['commit'][:12]}, "
          f"dirty: {prov['dirty']})")
 
 

@@ -1,7 +1,9 @@
-# The archive for reviewers (`make archive`): config, data, results, figures, logs and the report with
+# The archive for reviewers (`make archive`): exactly what this config's workflow made (the outputs `all` asks
+# for, the report, the logs of their jobs), the effective config and every file the config refers to, with
 # provenance.json and SHA256SUMS; `stiffcal verify-archive FILE` checks it. Not part of `all`.
 import datetime as _dt
 
+from stiffcal.archive import config_files as _config_files
 from stiffcal.report import git_commit as _git_commit
 
 RUN_STARTED = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
@@ -13,11 +15,14 @@ rule archive:
         unpack(report_inputs),
         html=rules.report_html.output.html,
         pdf=rules.report_pdf.output.pdf,
+        made=all_outputs,
+        inputs=lambda wc: [str(p) for p in _config_files(config, ".")],
     output:
         tgz=ARCHIVE,
     params:
         started=RUN_STARTED,
         config=config,
+        files=archive_files,
     log:
         f"{LOGS}/archive.log",
     conda:

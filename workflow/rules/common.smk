@@ -17,6 +17,8 @@ from stiffcal.study import PROBLEM_KEYS as _PROBLEM_KEYS
 from stiffcal.study import design_studies as _design_studies
 
 TABLES = "results/tables"
+# the config as the run saw it (rule effective_config); its hash is the one the report shows
+EFFECTIVE_CONFIG = "results/config.effective.yaml"
 FIGURES = "figures"
 LOGS = "logs"
 PRINTED = config["paper_values"]
@@ -141,7 +143,8 @@ def all_outputs(wildcards):
     out += [f"{FIGURES}/{name}.{ext}" for name in ("fig3", "fig4", "fig5", "fig_design", "fig_ot_versus_m")
             for ext in ("png", "svg")]
     out += list(map_figure_outputs().values())
-    out += ["results/maps/fig5_chi.csv", "results/design/approximate_design.json", "results/maps/design_phi.csv"]
+    out += ["results/maps/fig5_chi.csv", "results/design/approximate_design.json", "results/maps/design_phi.csv",
+            EFFECTIVE_CONFIG]
     out += [f"{MAPS}/{name}/map.{ext}" for name in MAP_STUDIES for ext in ("csv", "npz")]
     if 7 in MAP_FIGURES:
         out += [f"{MAPS}/{MAP_FIGURES[7]}/pairs.{ext}" for ext in ("csv", "npz")]
@@ -166,3 +169,24 @@ def study_report_inputs(wildcards):
         out[f"studyfigplan__{name}"] = f"{FIGURES}/studies/{name}/plan.svg"
         out[f"studyfigm__{name}"] = f"{FIGURES}/studies/{name}/versus_m.svg"
     return out
+
+
+def job_logs(files):
+    """The log file of every job that makes one of ``files`` (the rule whose output matches, its wildcards
+    applied), sorted: the logs of exactly this config's jobs, for the archive."""
+    logs = set()
+    for f in files:
+        for r in workflow.rules:
+            if r.name not in ("all", "archive") and any(o.match(f) for o in r.output):
+                logs.update(str(x) for x in r.expand_log(r.get_wildcards(f)))
+                break
+    return sorted(logs)
+
+
+def archive_files(wildcards):
+    """What the archive packs besides the files the config refers to: every output of this config's workflow
+    (the list `all` asks for), the report, and the logs of their jobs (map tiles included: temporary files,
+    not packed, but their jobs' logs are)."""
+    made = [*all_outputs(wildcards), "paper/build/report.html", "paper/build/report.pdf"]
+    tiles = [t for name in MAP_STUDIES for t in map_tiles(name)]
+    return sorted({*made, *job_logs(made + tiles)})

@@ -32,3 +32,16 @@ rule report_pdf:
         ENV
     script:
         "../scripts/report_pdf.py"
+
+
+rule effective_config:
+    output:
+        yaml=EFFECTIVE_CONFIG,
+    params:
+        config=config,
+    log:
+        f"{LOGS}/effective_config.log",
+    conda:
+        ENV
+    script:
+        "../scripts/effective_config.py"
