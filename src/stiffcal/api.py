@@ -275,7 +275,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     equivalence theorem bounds O_t of any M-pose plan from below (``lower_bound``, ``gap``).
     Raises :class:`InputError` for bad arguments or a file that does not hold a valid robot.
     """
-    from . import criteria, observation
+    from . import criteria
     from .certificate import approximate_design
     from .design import optimal_single_pose
     from .plans import design_starts, optimise_plan
@@ -333,7 +333,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     notes += [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
               "compliance never deflects them, cannot be identified from their positions and is left out of the "
               "model (cov_diag 'inf'); measure a point off that axis (tool_m, targets) or the orientation to "
-              "identify it" if j not in observation.sensed_params(robot, base._sensing) else
+              "identify it" if j not in base.sensed else
               f"joint {robot.joint_names[j]}'s axis passes through the tool point, where the force is applied: "
               "without a moment the load never turns that joint, whose compliance cannot be identified and is "
               "left out of the model (cov_diag 'inf'); apply a moment (--wrench) to identify it"

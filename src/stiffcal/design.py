@@ -100,10 +100,13 @@ class Problem:
         no torque about it, so without a moment that joint never deflects, whatever is measured."""
         if self.is_default:
             return self.robot.params
-        sensed = sensed_params(self.robot, self._sensing)
-        if self.unloaded_inert:
-            sensed = np.intersect1d(sensed, self.robot.params)
-        return sensed
+        return np.intersect1d(self.sensed, self.robot.params) if self.unloaded_inert else self.sensed
+
+    @cached_property
+    def sensed(self) -> np.ndarray:
+        """Joints whose rotation changes some measured quantity (:func:`stiffcal.observation.sensed_params`),
+        whether or not the loads turn them."""
+        return sensed_params(self.robot, self._sensing)
 
     @property
     def unloaded_inert(self) -> bool:

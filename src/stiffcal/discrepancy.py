@@ -493,11 +493,16 @@ def reduced(robot: Robot, observed: Observed, dropped) -> Observed:
     return replace(observed, params=np.setdiff1d(observed.model_params(robot), dropped))
 
 
+def _joint_list(robot: Robot, joints) -> str:
+    """Joints (0-based indices) as the notes name them: "2, 3", or "elbow (joint 2)" for named joints."""
+    default = robot.joint_names == tuple(str(i + 1) for i in range(robot.n_joints))
+    return ", ".join(str(int(j) + 1) if default else f"{robot.joint_names[int(j)]} (joint {int(j) + 1})"
+                     for j in joints)
+
+
 def dropped_note(robot: Robot, dropped) -> str:
     """The verdict's note on the joints left out (:func:`check_identifiable`)."""
-    default = robot.joint_names == tuple(str(i + 1) for i in range(robot.n_joints))
-    names = ", ".join(str(int(j) + 1) if default else f"{robot.joint_names[int(j)]} (joint {int(j) + 1})"
-                      for j in dropped)
+    names = _joint_list(robot, dropped)
     one = len(dropped) == 1
     return (f"joint{'' if one else 's'} {names} never deflect{'s' if one else ''} the measured point under these "
             f"loads (e.g. a vertical axis under hanging weights): {'its' if one else 'their'} compliance cannot be "
@@ -508,10 +513,9 @@ def dropped_note(robot: Robot, dropped) -> str:
 def unseen_note(robot: Robot, joints) -> str:
     """The verdict's note on joints left out because no measured quantity shows them: an axis through every
     measured point (the tool point on the flange axis), with the orientation not measured."""
-    names = ", ".join(f"{robot.joint_names[int(j)]} (joint {int(j) + 1})" for j in joints)
-    return (f"joint axis through every measured point at every pose: {names}; a deflection about it moves no "
-            "measured point, so its compliance cannot be identified from these data and is left out of the "
-            "analysis (nominal.not_identifiable_joints); measure a point off the axis (targets), or the "
+    return (f"joint axis through every measured point at every pose: {_joint_list(robot, joints)}; a deflection "
+            "about it moves no measured point, so its compliance cannot be identified from these data and is left "
+            "out of the analysis (nominal.not_identifiable_joints); measure a point off the axis (targets), or the "
             "orientation with a moment in the loads, to identify it")
 
 

@@ -805,6 +805,13 @@ def separability(rm: RivalModels, pool: Pool, measurement=None, probe: int = 512
     return out
 
 
+def false_alarm_possible(verdict: dict) -> bool:
+    """Whether the verdict's rejection of "no cause is needed" may be one of the global test's false alarms:
+    its adjusted p within a factor 100 of alpha. Far below that, the causes the data need are real but cannot
+    be told apart on these data."""
+    return verdict["p_value"] > verdict["alpha"] / 100
+
+
 def unsupported_causes(verdict: dict) -> list[str]:
     """The verdict's cause and its indistinguishable alternatives when none of them is significant on its own
     (each one's closed-testing adjusted p above alpha), else []: the verdict then rests on the intersection
@@ -1113,9 +1120,7 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
                      "separates the catalogue's combinations only")
     alone = unsupported_causes(verdict)
     if alone:
-        # near alpha the global rejection may be one of its false alarms; far below it, the causes are real but
-        # cannot be told apart on these data
-        why = ("a false alarm of the global test looks like this" if verdict["p_value"] > verdict["alpha"] / 100
+        why = ("a false alarm of the global test looks like this" if false_alarm_possible(verdict)
                else "the data cannot tell these causes apart")
         notes.append(f"no cause is needed on its own: the data need at least one of {{{', '.join(alone)}}} "
                      f"(adjusted p = {verdict['p_value']:.2g} of 'none of them is needed'), but none of them is "
@@ -1315,7 +1320,8 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
            "verdict": {"cause": rm.verdict["cause"], "causes": rm.verdict["causes"],
                        "equivalent_combinations": rm.verdict["equivalent_combinations"],
                        "p_value": rm.verdict["p_value"], "p_value_of": rm.verdict.get("p_value_of"),
-                       "significant_on_its_own": [c for c, t in rm.verdict["tests"].items() if t["significant"]]},
+                       "significant_on_its_own": [c for c, t in rm.verdict["tests"].items() if t["significant"]],
+                       "false_alarm_possible": false_alarm_possible(rm.verdict)},
            "models": [{"causes": list(m.causes), "role": "truth" if i == 0 else "rival", "rss_m2": m.rss,
                        "parameters": [None if i in unknown else float(b) for i, b in enumerate(m.beta)],
                        "bonferroni_share": m.multiplicity}
