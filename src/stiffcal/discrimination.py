@@ -17,10 +17,11 @@ and the plan maximises Delta = min_j Delta_j. For linear spans Delta_j / sigma^2
 F-test of rival j against the model with both spans (Scheffe, *The Analysis of Variance*, 1959, sec. 2.8),
 so its power is 1 - F'(F_crit; nu1, nu2, Delta_j / sigma^2), nu1 = rank(X_j, X_0) - rank(X_j), nu2 the
 error degrees of freedom. The level is the share the analysis's closed test gives this comparison:
-the rival combination S_j stays compatible until the Bonferroni test of "every cause outside S_j is absent"
-rejects, which tests each of the k_j causes outside S_j (and the lack of fit) at alpha / k_j. The
-predicted power is that of the F-test at alpha / k_j; the other members of the Bonferroni test can only
-add to the rate of separation.
+the rival combination S_j stays compatible until the local test of "every cause outside S_j is absent"
+rejects, which rejects at least when one of the k_j causes outside S_j (and the lack of fit) is rejected at
+alpha / k_j (its min-P test is never more conservative than Bonferroni). The predicted power is that of the
+F-test at alpha / k_j, a lower bound: the other members of the local test can only add to the rate of
+separation.
 
 Where the truth's span lies inside the rival's at every pose and load (for planar arms a bending link acts
 like a compliance block on its joints: ``link_compliance`` and ``joint_coupling`` of a 2-link arm span the
