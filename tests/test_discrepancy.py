@@ -825,3 +825,22 @@ def test_min_p_value_equals_a_brute_force_monte_carlo_of_its_null(p_min):
     else:  # too rare for the brute force: the sampler's own standard error, from independent seeds
         runs = [D.min_p_value(p_min, spaces, df, rng=np.random.default_rng(s)) for s in range(8)]
         assert np.std(runs) < 0.05 * np.mean(runs)
+
+
+def test_a_blunder_is_found_where_the_noise_grows_with_the_distance(paper_robot, tmp_path):
+    """A gross blunder (25 sigma) among few replicate pairs with tracker noise that grows with the distance:
+    its wild replicate variance must not be read as distance-dependent noise that hides it (found by a new
+    user: 17 of 122 blunders missed). Rate over seeds, against the known blunder row."""
+    pr = T.Protocol("tracker pairs", sigma_m=5e-6, sigma_per_m=1e-5, tracker_m=(1.5, 0.5, 0.0))
+    found = 0
+    for seed in range(12):
+        rng = np.random.default_rng(900 + seed)
+        log = T.lab_log(paper_robot, pr, rng, n_configs=9)
+        row = int(rng.integers(len(log.q)))
+        bad = {row: 25 * log.sigma[row] * T.random_directions(rng, 1, 2)[0]}
+        dp = T.measure(paper_robot, T.Truth(R.compliances(paper_robot)), log, rng, blunders=bad)
+        path = tmp_path / f"b{seed}.csv"
+        path.write_text(T.lab_csv(paper_robot, log, dp), encoding="utf-8")
+        v = D.analyse(paper_robot, read_measurements(path, paper_robot), gain=False)
+        found += v["outlier_rows"] == [row]
+    assert found >= 11, found
