@@ -373,6 +373,18 @@ class Design:
         r = np.repeat(w, self.d)
         return Design(self.X0 * r[:, None], {k: v * r[:, None] for k, v in self.blocks.items()}, self.y * r, self.d)
 
+    def within(self, visit: np.ndarray, c: np.ndarray) -> "Design":
+        """The design with the rows of every visit v (visit: (N,) int) less c[v] times their mean over the
+        visit: generalised least squares for an error common to a visit's rows (:class:`SharedReference`)."""
+        def shrink(A):
+            B = A.reshape(-1, self.d, *A.shape[1:])
+            counts = np.bincount(visit)
+            means = np.zeros((len(counts),) + B.shape[1:])
+            np.add.at(means, visit, B)
+            means /= counts.reshape((-1,) + (1,) * (B.ndim - 1))
+            return (B - c[visit].reshape((-1,) + (1,) * (B.ndim - 1)) * means[visit]).reshape(A.shape)
+        return Design(shrink(self.X0), {k: shrink(v) for k, v in self.blocks.items()}, shrink(self.y), self.d)
+
     def model(self, causes=()) -> np.ndarray:
         """(N d, n + sum p_c): the nominal columns and those of ``causes`` in catalogue order."""
         return np.hstack([self.X0, *[self.blocks[c] for c in sorted(causes, key=CAUSES.index)]])
@@ -1082,6 +1094,52 @@ def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0, df: int |
     return out
 
 
+@dataclass(frozen=True)
+class SharedReference:
+    """An error common to the rows of one robot configuration, of variance tau2 [m^2] beside the rows' own
+    noise s2: the displacements of a configuration measured from one reference reading (its error enters every
+    row, whatever the order the loads were measured in), or a zero point that moves from one configuration to
+    the next. Seen in the unloaded rows, which then scatter about zero by s2 + tau2 instead of s2
+    (:func:`zero_point`). The fit becomes generalised least squares for the compound-symmetric covariance
+    s2 I + tau2 J of each configuration: its rows less c_v times their mean, c_v = 1 - sqrt(s2 / (s2 + L_v
+    tau2)) for L_v rows (Searle, Casella & McCulloch, *Variance Components*, 1992, sec. 3.6); replicates,
+    and so the pure error, are unchanged.
+
+    visit: (N,) int: the configuration of every row; tau2, s2 [m^2]."""
+    visit: np.ndarray
+    tau2: float
+    s2: float
+
+    @property
+    def c(self) -> np.ndarray:
+        """(visits,): the shrinkage of each visit."""
+        return 1.0 - np.sqrt(self.s2 / (self.s2 + np.bincount(self.visit) * self.tau2))
+
+    @classmethod
+    def of(cls, meas: Measurements, zp: dict | None, s2: float, alpha: float) -> "SharedReference | None":
+        """From the unloaded rows of the whole data set (``meas``, before blunders are left out) and the
+        zero-point check ``zp`` (:func:`zero_point`): None unless they scatter more than the noise s2 [m^2]
+        (p < alpha) and some configuration has more than one loaded row."""
+        if not zp or zp.get("p_value") is None or zp["p_value"] >= alpha or not s2 > 0:
+            return None
+        z = meas.zero_dp[~np.isin(meas.zero_rows, zp["outlier_rows"])]
+        tau2 = float(np.mean(z**2)) - s2
+        if not tau2 > 0 or np.bincount(meas.config).max() < 2:
+            return None
+        return cls(meas.config, tau2, s2)
+
+    def take(self, keep: np.ndarray) -> "SharedReference":
+        """The same for the rows ``keep`` (bool (N,)), visits renumbered."""
+        return SharedReference(np.unique(self.visit[keep], return_inverse=True)[1].ravel(), self.tau2, self.s2)
+
+    def note(self, zp: dict) -> str:
+        return (f"the unloaded rows scatter about zero more than the replicates' noise (p = {zp['p_value']:.2g}): "
+                f"the rows of each configuration are taken to share an error of {np.sqrt(self.tau2) * 1e6:.3g} um "
+                "RMS (their displacements measured from one reference reading, or a zero point that moves from "
+                "one configuration to the next), and the fit is generalised least squares for it; measuring "
+                "every load from its own unloaded reading avoids it")
+
+
 # --- the analysis --------------------------------------------------------------------------------------
 
 def rad_weight(robot: Robot, meas: Measurements, sigma_m: float | None = None,
@@ -1166,6 +1224,11 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
         notes.append(f"the noise varies with the position of the measured point (a tracker's error grows with "
                      f"the distance; p = {vm.p_value:.2g}), by a factor {vm.sigma_ratio:.3g} between rows: the fits "
                      "are weighted by it")
+    zp = zero_point(meas, noise.s2, rw, noise.df, alpha)
+    shared = SharedReference.of(meas, zp, noise.s2, alpha)
+    if shared is not None:
+        des = des.within(shared.take(keep).visit, shared.take(keep).c)
+        notes.append(shared.note(zp))
 
     f0 = fit(des.X0, des.y)
     lof = lack_of_fit_test(robot, m, des, noise, w)
@@ -1194,7 +1257,6 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
     lof_nominal = lof(frozenset(), sel.fits[frozenset()])
     notes += plausibility(robot, m, f0.beta, k_ci, ob)
-    zp = zero_point(meas, noise.s2, rw, noise.df, alpha)
     params = ob.model_params(robot)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
                "k_names": [robot.joint_columns("k")[int(j)] for j in params],

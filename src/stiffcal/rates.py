@@ -56,6 +56,9 @@ PROTOCOLS = {
                                                          unloaded_rows=True, sigma_m=5e-6, sigma_per_m=5e-6),
     "hanging x4, unloaded rows, tracker": T.Protocol("hanging x4, unloaded rows, tracker", unloaded_rows=True,
                                                      sigma_m=5e-6, sigma_per_m=5e-6),
+    "4 directions x 2, shared reference": T.Protocol("4 directions x 2, shared reference", loads="directions",
+                                                     magnitudes_N=(250.0, 600.0), unloaded_rows=True,
+                                                     reference="configuration"),
 }
 
 
@@ -155,12 +158,12 @@ def oracle_power(robot: Robot, log: T.LabLog, e: np.ndarray, others: list[np.nda
     their span beyond the nominal model."""
     rows = log.loaded
     q, f = log.q[rows], log.force[rows]
-    w = np.repeat(1.0 / log.sigma[rows], robot.task_dim)
+    white = _whitening(log)
     causes = D.CAUSES if against_catalogue else ()
-    X = D._stack(D.model_columns(robot, q, f, causes)) * w[:, None]
+    X = D._stack(white(D.model_columns(robot, q, f, causes)))
     if others:
-        X = np.hstack([X, np.stack([o.ravel() for o in others], -1) * w[:, None]])
-    y = e.ravel() * w
+        X = np.hstack([X, D._stack(white(np.stack(others, -1)))])
+    y = D._stack(white(e[..., None]))[:, 0]
 
     def rss(A):
         return float(np.sum((y - A @ np.linalg.lstsq(A, y, rcond=None)[0]) ** 2))
@@ -168,13 +171,39 @@ def oracle_power(robot: Robot, log: T.LabLog, e: np.ndarray, others: list[np.nda
     if block is None:
         lam, r = rss(X), 1
     else:
-        B = D._stack(D.cause_columns(block, robot, q, f)) * w[:, None]
+        B = D._stack(white(D.cause_columns(block, robot, q, f)))
         r = np.linalg.matrix_rank(np.hstack([X, B])) - np.linalg.matrix_rank(X)
         lam = rss(X) - rss(np.hstack([X, B]))
         if r == 0:
             return 0.0
     crit = stats.f.isf(alpha, r, df)
     return float(stats.ncf.sf(crit, r, df, max(lam, 0.0)))
+
+
+def _whitening(log: T.LabLog):
+    """The map A (N_loaded, d, k) -> Sigma^(-1/2) A for the true noise of the log's loaded rows: independent
+    with sigma per row, or with a shared reference (:class:`stiffcal.truth.Protocol`) the error of one reading
+    common to the rows of a configuration (and target): per configuration the Cholesky factor of
+    diag(sigma_r^2) + sigma_ref^2 J, sigma_ref the noise at the configuration's first reading."""
+    rows = np.flatnonzero(log.loaded)
+    sig = log.sigma[rows]
+    if not log.shared_reference:
+        return lambda A: A / sig[:, None, None]
+    target = np.zeros(len(log.q), int) if log.target is None else log.target
+    key = np.unique(np.column_stack([log.config, target]), axis=0, return_inverse=True)[1].ravel()
+    blocks = []
+    for k in np.unique(key[rows]):
+        mine = np.flatnonzero(key[rows] == k)
+        ref = log.sigma[np.flatnonzero(key == k)[0]]
+        chol = np.linalg.cholesky(np.diag(sig[mine] ** 2) + ref**2)
+        blocks.append((mine, np.linalg.inv(chol)))
+
+    def white(A):
+        out = np.empty_like(A, dtype=float)
+        for mine, Wc in blocks:
+            out[mine] = np.einsum("ij,j...->i...", Wc, A[mine])
+        return out
+    return white
 
 
 @dataclass(frozen=True)

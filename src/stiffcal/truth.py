@@ -229,7 +229,11 @@ class Protocol:
     at this distance [m] from the tool point along a random horizontal direction per configuration (in the
     plane for a planar arm), so that each carries the moment r x F about the tool point (0: at the tool point);
     targets: the targets the tracker measures, one row each per reading (the robot file's ``targets``, ``tool``
-    the tool point); orientation: a 6-DoF tracker logs the tool's rotation too, with the noise sigma_rad [rad].
+    the tool point); orientation: a 6-DoF tracker logs the tool's rotation too, with the noise sigma_rad [rad];
+    reference: ``"reading"`` (every displacement is taken from its own unloaded reading: independent errors,
+    unloaded rows logged as exactly zero) or ``"configuration"`` (every displacement of a configuration is
+    taken from one unloaded reading, whose error enters all of them; unloaded rows are then further readings
+    from it, logged with their noise).
     """
 
     name: str
@@ -246,6 +250,7 @@ class Protocol:
     targets: tuple[str, ...] = (TOOL_TARGET,)
     orientation: bool = False
     sigma_rad: float = 1e-5
+    reference: str = "reading"
 
 
 @dataclass(frozen=True)
@@ -265,6 +270,7 @@ class LabLog:
     target_names: tuple[str, ...] = (TOOL_TARGET,)
     orientation: bool = False
     sigma_rad: float = 1e-5
+    shared_reference: bool = False
 
 
 def _gravity(d: int) -> np.ndarray:
@@ -325,8 +331,11 @@ def lab_log(robot: Robot, protocol: Protocol, rng: np.random.Generator, n_config
     plain = tuple(protocol.targets) == (TOOL_TARGET,)
     where = as_xyz(robot.fk(q)) if plain else target_world(robot, q, target, names)
     dist = np.linalg.norm(where - tracker, axis=-1)
+    if protocol.reference not in ("reading", "configuration"):
+        raise ValueError(f"unknown reference {protocol.reference!r}")
     return LabLog(q, force, config, loaded, protocol.sigma_m + protocol.sigma_per_m * dist, moment,
-                  None if plain else target, names, protocol.orientation, protocol.sigma_rad)
+                  None if plain else target, names, protocol.orientation, protocol.sigma_rad,
+                  protocol.reference == "configuration")
 
 
 def _levers(protocol: Protocol, d: int, rng: np.random.Generator, n_configs: int) -> np.ndarray | None:
@@ -343,12 +352,22 @@ def _levers(protocol: Protocol, d: int, rng: np.random.Generator, n_configs: int
 def measure(robot: Robot, truth: Truth, log: LabLog, rng: np.random.Generator,
             blunders: dict[int, np.ndarray] | None = None) -> np.ndarray:
     """Displacements (N, d) [m] of every row of ``log``: loaded rows from :func:`simulate` (the drift runs
-    in time order over all rows), unloaded reference rows exactly zero (the log's reference). With the
-    orientation logged: (N, d + d_r), the rotation [rad] after the displacement."""
+    in time order over all rows), unloaded reference rows exactly zero (the log's reference). With a shared
+    reference (``log.shared_reference``) every row of a configuration (and target) less the error of one
+    reference reading there, and the unloaded rows their own noise less it. With the orientation logged:
+    (N, d + d_r), the rotation [rad] after the displacement."""
     dp = simulate(robot, truth, log.q, log.force, log.sigma, rng, blunders, order=np.arange(len(log.q)),
                   moment=log.moment, target=log.target, target_names=log.target_names, orientation=log.orientation,
                   sigma_rad=log.sigma_rad)
-    dp[~log.loaded] = 0.0
+    if not log.shared_reference:
+        dp[~log.loaded] = 0.0
+        return dp
+    dp[~log.loaded] = rng.normal(0.0, 1.0, (int(np.sum(~log.loaded)), dp.shape[1])) * log.sigma[~log.loaded, None]
+    target = np.zeros(len(dp), int) if log.target is None else log.target
+    key = np.unique(np.column_stack([log.config, target]), axis=0, return_inverse=True)[1].ravel()
+    first = np.array([np.flatnonzero(key == k)[0] for k in range(key.max() + 1)])
+    ref = rng.normal(0.0, 1.0, (len(first), robot.task_dim)) * log.sigma[first, None]
+    dp[:, : robot.task_dim] -= ref[key]
     return dp
 
 
