@@ -876,3 +876,19 @@ def test_the_oracle_whitens_by_the_true_covariance_of_a_shared_reference(paper_r
         S[np.ix_(mine, mine)] += log.sigma[np.flatnonzero(log.config == c)[0]] ** 2
     for k in range(2):
         assert np.allclose(W[:, k].T @ W[:, k], A[:, k].T @ np.linalg.solve(S, A[:, k]))
+
+
+NEWUSER = Path(__file__).parent / "data" / "newuser"
+
+
+def test_a_new_users_data_sets_give_the_verdicts_of_their_readme(paper_robot):
+    """Data from an independent simulator (tests/data/newuser/README.md)."""
+    r3 = load_robot(NEWUSER / "planar_3r.yaml")
+    v = D.analyse(r3, read_measurements(NEWUSER / "r3_push4_nonlinear_M_s182_pid.csv", r3), gain=False)
+    assert v["cause"] in D.CAUSES and v["p_value"] <= v["alpha"]
+    assert "nonlinear_joint_stiffness" in {*v["causes"], *v["indistinguishable_from"]}
+    v = D.analyse(paper_robot, read_measurements(NEWUSER / "r2_hangrep_clean_0_s102_pid.csv", paper_robot), gain=False)
+    assert v["outlier_rows"] == [36] and v["cause"] == "none"
+    for name in ("r2_hangrep_sharedref_once_s0.csv", "r2_push4rep_sharedref_once_s2.csv"):
+        v = D.analyse(paper_robot, read_measurements(NEWUSER / name, paper_robot), gain=False)
+        assert v["cause"] == "none" and any("share an error" in n for n in v["notes"]), (name, v["cause"])

@@ -1248,7 +1248,14 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     elif ranked:
         cause = ranked[0]
         p_of = [cause, *indistinct]
-        p_value = sel.adjusted_p(p_of) if indistinct else sel.adjusted[cause]
+        f_nominal = sel.fits[frozenset()]
+        others = sorted((c for c in testable if c not in p_of), key=lambda c: (f_test(
+            f_nominal.rss, f_nominal.df, sel.fits[frozenset([c])].rss, sel.fits[frozenset([c])].df, noise.s2,
+            noise.df), CAUSES.index(c)))
+        while sel.adjusted_p(p_of) > alpha and others:  # the principal cause is not needed on its own: name the
+            p_of.append(others.pop(0))                   # fewest causes of which the data need at least one
+        indistinct = sorted(p_of[1:], key=CAUSES.index)
+        p_value = sel.adjusted_p(p_of)
     else:
         cause, p_value, p_of = "none", (sel.adjusted_p(testable) if testable else 1.0), list(testable)
 
