@@ -1051,13 +1051,24 @@ def zero_point_outliers(z: np.ndarray, s2: float, df: int | None = None, alpha: 
     return [out[i] for i in order], [ps[i] for i in order]
 
 
+def zero_weights(meas: Measurements, keep: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(N0,): the weight of every unloaded row: that of the first kept loaded row at its configuration (w:
+    the weights of the kept rows ``keep`` (bool (N,)) of ``meas``), 1 where none is."""
+    full = np.ones(meas.n_rows)
+    full[keep] = w
+    first = {int(c): i for i, c in reversed(list(enumerate(meas.config))) if keep[i]}
+    return np.array([full[first[c]] if c in first else 1.0 for c in meas.zero_config.tolist()])
+
+
 def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0, df: int | None = None,
-               alpha: float = 0.01) -> dict | None:
+               alpha: float = 0.01, weights: np.ndarray | None = None) -> dict | None:
     """The unloaded reference rows: how many, the RMS of their displacement, the rows that stand out from the
     others (:func:`zero_point_outliers` at ``alpha``, with the noise variance s2 [m^2] on df degrees of freedom:
     ``outlier_rows``, 0-based data rows) and, for the others, when they are not all exactly zero, the p-value of
     the chi-square test that they scatter about zero with the noise variance (their rotation, when measured,
-    times ``rad_weight`` [m/rad]); a zero point that moved as a whole is a drift or a disturbed target."""
+    times ``rad_weight`` [m/rad]); a zero point that moved as a whole is a drift or a disturbed target. With
+    a noise that varies from row to row, ``weights`` (N0,) scale the unloaded rows to the noise s2 is of
+    (:func:`zero_weights`); ``rms_m`` stays unscaled."""
     from .measurements import _rows_text
 
     n0 = len(meas.zero_rows)
@@ -1065,6 +1076,7 @@ def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0, df: int |
         return None
     z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rad_weight * meas.zero_rot])
     rms = float(np.sqrt(np.mean(z**2)))
+    z = z if weights is None else z * weights[:, None]
     out = {"n_rows": int(n0), "rms_m": rms, "p_value": None, "outlier_rows": []}
     if rms == 0:
         out["note"] = ("the unloaded rows hold zero displacement: they are the reference the loaded rows are "
@@ -1080,7 +1092,7 @@ def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0, df: int |
                  f"{', '.join(f'{v:.2g}' for v in p_bad)}): a blunder or a disturbed target in "
                  f"{'that row' if len(bad) == 1 else 'those rows'}, left out of the zero-point check; ")
     rest = np.delete(z, bad, axis=0)
-    rms_rest = float(np.sqrt(np.mean(rest**2)))
+    rms_rest = float(np.sqrt(np.mean(np.delete(z if weights is None else z / weights[:, None], bad, axis=0)**2)))
     if rms_rest == 0:
         out["note"] = first + ("the other unloaded rows hold zero displacement: they are the reference the loaded "
                                "rows are measured from")
@@ -1116,13 +1128,16 @@ class SharedReference:
         return 1.0 - np.sqrt(self.s2 / (self.s2 + np.bincount(self.visit) * self.tau2))
 
     @classmethod
-    def of(cls, meas: Measurements, zp: dict | None, s2: float, alpha: float) -> "SharedReference | None":
+    def of(cls, meas: Measurements, zp: dict | None, s2: float, alpha: float,
+           weights: np.ndarray | None = None) -> "SharedReference | None":
         """From the unloaded rows of the whole data set (``meas``, before blunders are left out) and the
         zero-point check ``zp`` (:func:`zero_point`): None unless they scatter more than the noise s2 [m^2]
-        (p < alpha) and some configuration has more than one loaded row."""
+        (p < alpha) and some configuration has more than one loaded row; ``weights``: those of
+        :func:`zero_point`."""
         if not zp or zp.get("p_value") is None or zp["p_value"] >= alpha or not s2 > 0:
             return None
-        z = meas.zero_dp[~np.isin(meas.zero_rows, zp["outlier_rows"])]
+        z = meas.zero_dp if weights is None else meas.zero_dp * weights[:, None]
+        z = z[~np.isin(meas.zero_rows, zp["outlier_rows"])]
         tau2 = float(np.mean(z**2)) - s2
         if not tau2 > 0 or np.bincount(meas.config).max() < 2:
             return None
@@ -1224,8 +1239,9 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
         notes.append(f"the noise varies with the position of the measured point (a tracker's error grows with "
                      f"the distance; p = {vm.p_value:.2g}), by a factor {vm.sigma_ratio:.3g} between rows: the fits "
                      "are weighted by it")
-    zp = zero_point(meas, noise.s2, rw, noise.df, alpha)
-    shared = SharedReference.of(meas, zp, noise.s2, alpha)
+    w0 = zero_weights(meas, keep, w)
+    zp = zero_point(meas, noise.s2, rw, noise.df, alpha, w0)
+    shared = SharedReference.of(meas, zp, noise.s2, alpha, w0)
     if shared is not None:
         des = des.within(shared.take(keep).visit, shared.take(keep).c)
         notes.append(shared.note(zp))
