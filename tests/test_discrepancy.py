@@ -892,3 +892,133 @@ def test_a_new_users_data_sets_give_the_verdicts_of_their_readme(paper_robot):
     for name in ("r2_hangrep_sharedref_once_s0.csv", "r2_push4rep_sharedref_once_s2.csv"):
         v = D.analyse(paper_robot, read_measurements(NEWUSER / name, paper_robot), gain=False)
         assert v["cause"] == "none" and any("share an error" in n for n in v["notes"]), (name, v["cause"])
+
+
+# --- the extended model: parameters the data do not determine, joint compliances below zero -------------------
+
+def _brute_force_estimable(X: np.ndarray, j: int) -> bool:
+    """e_j is in the row space of X when appending it as a row leaves the rank unchanged (numpy's rank)."""
+    e = np.zeros((1, X.shape[1]))
+    e[0, j] = 1.0
+    return np.linalg.matrix_rank(np.vstack([X, e])) == np.linalg.matrix_rank(X)
+
+
+def test_estimability_equals_a_brute_force_rank_computation(rng):
+    """Designs [A, B_1 M_1, ..., 0]: A (40, q) integer, each B_i a few of A's columns (disjoint blocks) and M_i
+    nonzero integer mixtures, sometimes a zero column. Estimable parameters: a brute-force rank test per column;
+    the groups that cannot be separated: the blocks with their mixtures, by construction (union-find); a
+    determined combination must pass the same rank test. The code under test sees the columns scaled by factors
+    from 1e-8 to 1e2 (estimability does not depend on the units)."""
+    seen = {"estimable": 0, "groups": 0, "several groups": 0, "combinations": 0, "without": 0}
+    for _ in range(30):
+        q = int(rng.integers(4, 8))
+        A = rng.integers(-4, 5, (40, q)).astype(float)
+        cols, parent = [A], list(range(q))
+        blocks = np.array_split(rng.permutation(q)[: int(rng.integers(1, q))], int(rng.integers(1, 3)))
+        for block in blocks:
+            if not block.size:
+                continue
+            for s in block[1:]:
+                parent[int(s)] = int(block[0])
+            for _ in range(int(rng.integers(1, 3))):
+                m = rng.choice([-3.0, -2.0, -1.0, 1.0, 2.0, 3.0], block.size)
+                cols.append((A[:, block] @ m)[:, None])
+                parent.append(int(block[0]))
+        if rng.random() < 0.3:
+            cols.append(np.zeros((40, 1)))
+            parent.append(len(parent))
+        X = np.hstack(cols)
+
+        def root(i):
+            while parent[i] != i:
+                i = parent[i]
+            return i
+
+        scale = 10.0 ** rng.uniform(-8, 2, X.shape[1])
+        ok, groups = D.estimability(X * scale)
+        assert ok.tolist() == [_brute_force_estimable(X, j) for j in range(X.shape[1])]
+        bad = np.flatnonzero(~ok)
+        expected = sorted(sorted(int(i) for i in bad if root(i) == r) for r in {root(int(i)) for i in bad})
+        assert sorted(sorted(g.members.tolist()) for g in groups) == expected
+        norm = np.linalg.norm(X * scale, axis=0)
+        norm[norm == 0] = 1.0
+        for g in groups:
+            if g.combination is not None:  # lambda (in the units of X * scale) lies in the row space of X * scale
+                lam = np.zeros(X.shape[1])
+                lam[g.members] = g.combination
+                assert np.linalg.matrix_rank(np.vstack([X * scale / norm, lam / norm])) == np.linalg.matrix_rank(X)
+        seen["estimable"] += int(ok.sum())
+        seen["groups"] += len(groups)
+        seen["several groups"] += len(groups) > 1
+        seen["combinations"] += sum(g.combination is not None for g in groups)
+        seen["without"] += sum(g.combination is None for g in groups)
+    assert min(seen.values()) > 0, seen  # every kind of case occurred
+
+
+def test_a_link_bending_like_a_joint_is_not_estimable_and_its_combination_is(paper_robot):
+    """A planar 2-link arm measured at the tool point: the last link bending under the force at its end moves the
+    tool as joint 2 turning does, (L2^3 / 3) c2 against L2^2 k2 (Euler-Bernoulli cantilever), so k2 and c2 are not
+    estimable and only k2 + (L2 / 3) c2 is; k1 and c1 are, and each interval covers the simulator's truth."""
+    k, c = np.array([1e-6, 2e-6]), np.array([1e-5, 1e-5])
+    v = D.analyse(paper_robot, _simulated(paper_robot, T.Truth(k, link_bending=c), 2), gain=False)
+    ext = v["extended"]
+    assert ext["causes"] == ["link_compliance"] and v["tests"]["link_compliance"]["extra_parameters"] == 1
+    assert ext["k"][1] is None and ext["k_ci95"][1] is None
+    assert ext["parameters"][1] is None and ext["parameters_ci95"][1] is None
+    assert abs(ext["k"][0] - k[0]) <= ext["k_ci95"][0] and abs(ext["parameters"][0] - c[0]) <= ext["parameters_ci95"][0]
+    (group,) = ext["not_estimable"]
+    assert group["parameters"] == ["k2", "c2_1/(N m^2)"]
+    L2 = paper_robot.links_m[1]
+    assert group["combination"]["k2"] == 1.0 and group["combination"]["c2_1/(N m^2)"] == pytest.approx(L2 / 3, rel=1e-9)
+    assert abs(group["value"] - (k[1] + L2 / 3 * c[1])) <= group["ci95"]
+    assert any("k2 and c2 cannot be separated" in n and "k2 + 0.133 c2" in n for n in v["notes"]), v["notes"]
+
+
+def _coupling_case(robot):
+    k, k12 = np.array([1e-6, 2e-6]), 8.5e-7
+    meas = _simulated(robot, T.Truth(k, coupling=np.array([[0.0, k12], [k12, 0.0]])), 4)
+    return k, k12, meas
+
+
+def test_an_extension_with_a_negative_joint_compliance_gives_way_to_an_equivalent_physical_one(paper_robot):
+    """Joint coupling on a planar 2-link arm: link_compliance spans the same deflections and comes first in the
+    catalogue, but it holds the coupling only with k1' = k1 - a k12 / g < 0, where J1 tau1 a + ... + (J1 tau2 +
+    J2 tau1) g is the truth's bending of link 1 (stiffcal.truth) regressed on the joint model's columns. The
+    extended model then holds joint_coupling, whose intervals cover the simulator's k1, k2, k12."""
+    k, k12, meas = _coupling_case(paper_robot)
+    v = D.analyse(paper_robot, meas, gain=False)
+    assert v["cause"] == "joint_coupling" and v["causes"] == ["joint_coupling"]
+    assert v["equivalent_combinations"] == [["link_compliance"]] and v["indistinguishable_from"] == ["link_compliance"]
+    ext = v["extended"]
+    assert ext["causes"] == ["joint_coupling"] and ext["not_estimable"] == []
+    assert np.all(np.abs(np.array(ext["k"]) - k) <= np.array(ext["k_ci95"]))
+    assert abs(ext["parameters"][0] - k12) <= ext["parameters_ci95"][0]
+    # the passed-over model's k1, from the physics: the truth's link-1 bending in the joint model's columns
+    J, tau = paper_robot.jacobian(meas.q), T.joint_torques(paper_robot, meas.q, meas.force)
+    J1, J2 = J[:, :, 0], J[:, :, 1]
+    cols = np.stack([J1 * tau[:, :1], J2 * tau[:, 1:], J1 * tau[:, 1:] + J2 * tau[:, :1]], -1).reshape(-1, 3)
+    bend = T.link_bending_displacement(paper_robot, meas.q, meas.force, np.array([1.0, 0.0])).ravel()
+    a, _, g = np.linalg.lstsq(cols, bend, rcond=None)[0]
+    k1_link = k[0] - a * k12 / g
+    assert k1_link < 0
+    note = next(n for n in v["notes"] if "not the physical extension" in n)
+    shown = float(note.split("k1 = ")[1].split(" +- ")[0])
+    half = float(note.split(" +- ")[1].split(" ")[0])
+    assert shown + half < 0 and abs(shown - k1_link) <= half, note
+
+
+def test_an_extension_with_a_negative_joint_compliance_and_no_alternative_is_named_not_physical(paper_robot):
+    """The same data with closed testing's alternatives withheld: the chosen link_compliance is kept, and the note
+    names its negative k1 and says the extension is not physical; with the alternative it gives way to it."""
+    _, _, meas = _coupling_case(paper_robot)
+    des = D.build_design(paper_robot, meas)
+    noise = D.noise_variance(des, meas)
+    sel = D.closed_testing(des, D.CAUSES, noise, lambda S, f: None, 0.01)
+    chosen, *rest = sel.explanations
+    assert chosen == {"link_compliance"} and rest[0] == {"joint_coupling"}
+    ob = D.Observed.of(paper_robot, meas)
+    pick, others, notes = D.physical_choice(des, sel, chosen, [], noise, paper_robot, ob, [])
+    assert pick == chosen and others == []
+    assert any("k1 = -" in n and "not physical" in n and "k2 and c2 cannot be separated" not in n for n in notes), notes
+    pick, others, notes = D.physical_choice(des, sel, chosen, [rest[0]], noise, paper_robot, ob, [])
+    assert pick == {"joint_coupling"} and others == [chosen]

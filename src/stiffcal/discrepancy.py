@@ -1252,6 +1252,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     testable = sel.causes
     chosen = sel.explanations[0] if sel.explanations else frozenset(testable)
     alternatives = [S for S in sel.explanations[1:] if len(S) == len(chosen)]
+    chosen, alternatives, notes = physical_choice(des, sel, chosen, alternatives, noise, robot, ob, notes)
 
     def drop_p(c):  # how much the chosen model needs c
         a, b = sel.fits[chosen - {c}], sel.fits[chosen]
@@ -1488,14 +1489,182 @@ def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe:
             + ("; measuring " + " or ".join(missing) + " would separate them" if missing else ""))
 
 
+#: a parameter counts as estimable when its unit vector lies within this distance of the design's row space
+#: (columns scaled to unit norm, so the distance is the sine of an angle; round-off gives about 1e-15)
+ESTIMABLE_TOL = 1e-6
+#: why a joint compliance below zero is not physical (the notes on the extended model)
+NOT_PHYSICAL = "a joint cannot push back against the load"
+
+
+@dataclass(frozen=True)
+class Confounded:
+    """Non-estimable parameters that cannot be separated from one another: ``members`` (indices into the
+    model's parameters) and, when the data determine exactly one combination of them, its coefficients
+    ``combination`` (over ``members``, in the parameters' units, the first member's coefficient 1; None
+    otherwise); ``relations``: how many independent linear relations their regressors satisfy."""
+    members: np.ndarray
+    combination: np.ndarray | None
+    relations: int
+
+
+def estimability(X: np.ndarray) -> tuple[np.ndarray, list[Confounded]]:
+    """Which parameters of the linear model y = X b + e (X (N, p)) the data determine: b_j is estimable when
+    the unit vector e_j lies in the row space of X (some linear combination of the observations has expectation
+    b_j; Searle, *Linear Models*, 1971, sec. 5.4). The rank is decided as :func:`fit` decides it (columns scaled
+    to unit norm, singular values below RANK_RTOL of the largest are absent); the parameters the pseudo-inverse
+    then gives a minimum-norm value are the others.
+
+    Returns (estimable (p,) bool, groups): the non-estimable parameters in groups that cannot be separated
+    (connected through the projector on the null space of X), each a :class:`Confounded`."""
+    from scipy.sparse.csgraph import connected_components
+
+    p = X.shape[1]
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    s, Vt = np.linalg.svd(X / scale, full_matrices=False)[1:]
+    V = Vt[s > RANK_RTOL * s[0]] if s.size else np.zeros((0, p))
+    null = np.eye(p) - V.T @ V  # projector on the null space, in the scaled parameters
+    ok = np.sqrt(np.clip(np.diag(null), 0.0, None)) <= ESTIMABLE_TOL
+    bad = np.flatnonzero(~ok)
+    linked = np.abs(null[np.ix_(bad, bad)]) > ESTIMABLE_TOL**2
+    n_groups, label = connected_components(linked, directed=False) if bad.size else (0, np.zeros(0, int))
+    groups = []
+    for g in range(n_groups):
+        members = bad[label == g]
+        block = np.eye(len(members)) - null[np.ix_(members, members)]  # projector on what the data determine
+        relations = len(members) - int(round(np.trace(block)))
+        combination = None
+        if relations == len(members) - 1:  # one combination is determined: lambda_s in the row space, D lambda_s
+            lam = block[:, np.argmax(np.linalg.norm(block, axis=0))] * scale[members]
+            combination = lam / lam[np.argmax(np.abs(lam) > ESTIMABLE_TOL * np.abs(lam).max())]
+        groups.append(Confounded(members, combination, relations))
+    return ok, groups
+
+
+def _parameters(des: Design, f: Fit, causes, sigma: float, t: float, robot: Robot, observed: Observed | None):
+    """Names, values, 95 % half-widths (None where not estimable), the estimable mask and the
+    :class:`Confounded` groups of the model nominal + ``causes`` fitted as ``f``."""
+    causes = sorted(causes, key=CAUSES.index)
+    params = (observed or Observed()).model_params(robot)
+    k_names = [robot.joint_columns("k")[int(j)] for j in params]
+    names = k_names + [name for c in causes for name in parameter_names(c, robot, observed)]
+    ok, groups = estimability(des.model(causes))
+    ci = t * sigma * np.sqrt(np.clip(np.diag(f.cov_unscaled), 0.0, None))
+    value = [float(b) if e else None for b, e in zip(f.beta, ok)]
+    half = [float(c) if e else None for c, e in zip(ci, ok)]
+    return names, value, half, ok, groups
+
+
+def _short(name: str) -> str:
+    """A parameter's name without its unit: c2_1/(N m^2) -> c2 (the compliances' names carry none)."""
+    return name.rsplit("_", 1)[0] if "/" in name or name.endswith(("_rad", "_m")) else name
+
+
+def _confounded(groups: list[Confounded], names: list[str], f: Fit, sigma: float, t: float) -> list[dict]:
+    """The verdict's ``extended.not_estimable``: per group its parameters, the number of linear relations their
+    regressors satisfy and, when the data determine one combination of them, that combination (coefficients by
+    name), its value and 95 % half-width."""
+    out = []
+    for g in groups:
+        entry = {"parameters": [names[i] for i in g.members], "relations": g.relations, "combination": None,
+                 "value": None, "ci95": None}
+        if g.combination is not None:
+            lam = np.zeros(len(f.beta))
+            lam[g.members] = g.combination
+            entry.update({"combination": {names[i]: float(c) for i, c in zip(g.members, g.combination)},
+                          "value": float(lam @ f.beta),
+                          "ci95": float(t * sigma * np.sqrt(max(lam @ f.cov_unscaled @ lam, 0.0)))})
+        out.append(entry)
+    return out
+
+
 def _extended(des: Design, f: Fit, causes: list[str], sigma: float, t: float, robot: Robot,
               observed: Observed | None = None) -> dict:
+    """The verdict's ``extended``: the fit ``f`` of nominal + ``causes``; a parameter the data do not determine
+    (:func:`estimability`) has value and interval None and is listed in ``not_estimable``."""
     n = des.X0.shape[1]
-    ci = t * sigma * np.sqrt(np.diag(f.cov_unscaled))
-    names = [name for c in causes for name in parameter_names(c, robot, observed)]
-    return {"cause": "+".join(causes), "causes": causes, "k": f.beta[:n].tolist(), "k_ci95": ci[:n].tolist(),
-            "parameters": f.beta[n:].tolist(), "parameters_ci95": ci[n:].tolist(),
-            "parameter_names": names, "rss": f.rss, "df": f.df}
+    names, value, half, _, groups = _parameters(des, f, causes, sigma, t, robot, observed)
+    return {"cause": "+".join(causes), "causes": causes, "k": value[:n], "k_ci95": half[:n],
+            "parameters": value[n:], "parameters_ci95": half[n:], "parameter_names": names[n:],
+            "not_estimable": _confounded(groups, names, f, sigma, t), "rss": f.rss, "df": f.df}
+
+
+def not_estimable_note(cause: str, entries: list[dict]) -> str:
+    """The verdict's note on the extended model's parameters that the data do not determine
+    (``entries``: ``extended.not_estimable``)."""
+    parts = []
+    for e in entries:
+        names = [_short(p) for p in e["parameters"]]
+        if len(names) == 1:
+            parts.append(f"{names[0]} acts on no measured quantity here (its regressor is zero in every row)")
+            continue
+        who = ", ".join(names[:-1]) + " and " + names[-1]
+        combo = e["combination"]
+        if combo is None:
+            r = e["relations"]
+            parts.append(f"{who} cannot be separated: their regressors satisfy {r} linear "
+                         f"relation{'s' if r > 1 else ''} on these data, so only {len(names) - r} combinations of them "
+                         "are determined")
+            continue
+        terms = " + ".join(f"{c:.3g} {_short(k)}" if i else _short(k) for i, (k, c) in enumerate(combo.items()))
+        why = (f"{names[1]} moves every measured quantity as {list(combo.values())[1]:.3g} times {names[0]} does"
+               if len(names) == 2 else "their regressors are linearly dependent on these data")
+        parts.append(f"{who} cannot be separated ({why}), so only {terms.replace('+ -', '- ')} = {e['value']:.3g} "
+                     f"+- {e['ci95']:.2g} is determined")
+    return (f"extended model ({cause}): " + "; ".join(parts) + " (not estimable: e_j is not in the row space of the "
+            "design, Searle, Linear Models, 1971, sec. 5.4); their values and intervals in extended are null, and "
+            "extended.not_estimable lists them")
+
+
+def _negative(names: list[str], value: list, half: list, n: int) -> list[str]:
+    """The joint compliances (the first n parameters) that are estimable and below zero beyond their 95 %
+    interval, as "name = value +- half-width" (``names``, ``value``, ``half``: :func:`_parameters`). Only these:
+    a link's 1/(E I) or a lost motion may be truly zero, and then dips below zero by chance."""
+    return [f"{names[i]} = {value[i]:.3g} +- {half[i]:.2g}" for i in range(n)
+            if value[i] is not None and value[i] + half[i] < 0]
+
+
+def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives: list, noise: Noise, robot: Robot,
+                    observed: Observed, notes: list[str]) -> tuple[frozenset, list, list[str]]:
+    """The combination the extended model holds, among the smallest compatible ones closed testing found equally
+    good (``chosen`` first, then ``alternatives``: the verdict's ``equivalent_combinations``): the first whose
+    joint compliances are nowhere below zero beyond their 95 % interval, else ``chosen``. The selection itself
+    is unchanged; only which of the equivalent combinations comes first.
+
+    Returns (the combination, the others in their order, ``notes`` with what was found: a combination passed
+    over, an extension that is not physical, parameters the data do not determine (:func:`estimability`)).
+    Nothing is judged when the nominal model's compliances are already negative (:func:`plausibility` names
+    the likely cause: the data's signs or frames, which every extension inherits)."""
+    if not chosen:
+        return chosen, alternatives, notes
+    sigma, t = float(np.sqrt(noise.s2)), float(stats.t.isf(0.025, noise.df))
+    n = des.X0.shape[1]
+    candidates = [chosen, *alternatives]
+    tables = {S: _parameters(des, sel.fits[S], sorted(S, key=CAUSES.index), sigma, t, robot, observed)
+              for S in [frozenset(), *candidates]}
+    judged = not _negative(*tables[frozenset()][:3], n)
+    wrong = {S: _negative(*tables[S][:3], n) if judged else [] for S in candidates}
+    pick = next((S for S in candidates if not wrong[S]), chosen)
+    found = []
+    label = {S: "+".join(sorted(S, key=CAUSES.index)) for S in candidates}
+    if pick != chosen:
+        found.append(f"the extended model holds {label[pick]}, not {label[chosen]}: both explain the data equally well "
+                     f"at this alpha (equivalent_combinations), but {label[chosen]} fits with "
+                     f"{', '.join(wrong[chosen])} (below zero beyond the 95 % interval: {NOT_PHYSICAL}), so it is not "
+                     "the physical extension; "
+                     f"{label[pick]} fits with every joint compliance non-negative within its interval, and cause and "
+                     "causes name it")
+    elif wrong[chosen]:
+        also = ("; the equivalent combination" + ("s " if len(alternatives) > 1 else " ")
+                + ", ".join(f"{label[S]} ({', '.join(wrong[S])})" for S in alternatives) + " fit with negative ones too"
+                if alternatives else "")
+        found.append(f"the extended model ({label[chosen]}) fits with {', '.join(wrong[chosen])} (below zero beyond "
+                     f"the 95 % interval: {NOT_PHYSICAL}), so this extension is not physical: the data need an effect "
+                     f"it describes only with a compliance no joint has{also}")
+    names, _, _, _, groups = tables[pick]
+    if groups:
+        found.append(not_estimable_note(label[pick], _confounded(groups, names, sel.fits[pick], sigma, t)))
+    return pick, [S for S in candidates if S != pick], notes + found
 
 
 def parameter_names(cause: str, robot: Robot, observed: Observed | None = None) -> list[str]:
