@@ -7,8 +7,9 @@ the next M design points.
 
 T-optimality (Atkinson & Fedorov 1975, *Biometrika* 62(1), 57-70; several rivals: Atkinson & Fedorov
 1975, *Biometrika* 62(2), 289-303). The rival models are fitted to the data; the verdict's own combination
-(the closed test's choice: fewest causes, then fewest parameters; the smallest residual sum of squares would
-reward the rival with the most parameters) is taken as the truth, with its fitted mean mu(x) = X_0(x) beta_0. The
+(the closed test's choice: fewest causes, then fewest parameters, a physical one (no negative joint
+compliance) first among equals; the smallest residual sum of squares would reward the rival with the most
+parameters) is taken as the truth, with its fitted mean mu(x) = X_0(x) beta_0. The
 lack of fit of rival j after the old data and the new plan x_1..x_M (each measured R times) is
 
     Delta_j = min_theta [ sum_old |mu - X_j theta|^2 + R sum_i |mu(x_i) - X_j(x_i) theta|^2 ],
