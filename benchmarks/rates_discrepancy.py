@@ -10,16 +10,19 @@ exact shape has power >= 0.9 (stiffcal.rates); the rates are also printed agains
 knows which cause is present but not its parameters (the F-test of that cause's regressors). Also printed,
 for two effects at once, the rate at which both are named.
 
-Run: .venv/bin/python benchmarks/rates_discrepancy.py [SEEDS] [ALPHA]     (defaults 20 seeds, alpha 0.01;
-about 10 minutes of CPU at 20 seeds). Prints one row per robot x protocol x effect: named / qualifying
-(rate), or for clean data false alarms / cases; then the totals per effect and the share of cases where the
-two CSV variants give the same verdict. Requirements (issue 12): every catalogue cause >= 95 %, clean data
+Run: .venv/bin/python benchmarks/rates_discrepancy.py [SEEDS] [ALPHA] [JOBS]     (defaults 20 seeds, alpha
+0.01, 1 process; about 10 minutes of CPU at 20 seeds; JOBS processes share the cells, with the same seeds and
+output). Prints one row per robot x protocol x effect: named / qualifying (rate), or for clean data false
+alarms / cases; then the totals per effect and the share of cases where the two CSV variants give the same
+verdict. Requirements (issue 12): every catalogue cause >= 95 %, clean data
 <= alpha, the variants agree.
 """
 
+import multiprocessing
 import sys
 import tempfile
 import time
+from contextlib import nullcontext
 from pathlib import Path
 
 from scipy import stats
@@ -32,30 +35,40 @@ PAIRS = {"2-link": ("backlash", "measurement_offset"), "3-link": ("joint_couplin
          "6-axis": ("link_compliance", "backlash")}
 
 
-def main(seeds: int = 20, alpha: float = 0.01) -> None:
+def _cell(args):
+    """The cases of one robot x protocol x effects cell (seeds as in the serial order: cell index x seeds + s)."""
+    index, arm, protocol, effects, seeds, alpha = args
+    robot = R.robots(ROOT)[arm]
+    with tempfile.TemporaryDirectory() as tmp:
+        cases = [R.run_case(arm, robot, protocol, effects, 1000 * index * seeds + s, alpha, workdir=tmp)
+                 for s in range(seeds)]
+    return cases
+
+
+def main(seeds: int = 20, alpha: float = 0.01, jobs: int = 1) -> None:
     arms = R.robots(ROOT)
     start = time.process_time()
+    cells = [(arm, protocol, effects) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
+             for effects in [(e,) for e in R.EFFECTS] + [()] + [PAIRS[arm]]]
+    tasks = [(i, *cell, seeds, alpha) for i, cell in enumerate(cells)]
     everything = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for arm, robot in arms.items():
-            for protocol in R.protocols_for(robot):
-                for effects in [(e,) for e in R.EFFECTS] + [()] + [PAIRS[arm]]:
-                    cases = [R.run_case(arm, robot, protocol, effects, 1000 * len(everything) + s, alpha,
-                                        workdir=tmp) for s in range(seeds)]
-                    everything += cases
-                    table = R.rates(cases)
-                    label = " + ".join(effects) or "clean"
-                    if not effects:
-                        cell = f"false alarms {table['clean']['false_alarms']}/{table['clean']['cases']}"
-                    elif len(effects) == 2:
-                        both = [c for c in cases if min(c.power.values()) >= 0.9]
-                        hit = sum(all(c.named(e) for e in effects) for c in both)
-                        cell = f"both named {hit}/{len(both)}"
-                    else:
-                        row = table[effects[0]]
-                        cell = f"named {row['named']}/{row['qualifying']}"
-                    print(f"{arm:7s} {protocol:40s} {label:45s} {cell:24s} variants agree "
-                          f"{table['variants_agree']:.0%}", flush=True)
+    with multiprocessing.Pool(jobs) if jobs > 1 else nullcontext() as pool:
+        results = pool.imap(_cell, tasks) if jobs > 1 else map(_cell, tasks)
+        for (arm, protocol, effects), cases in zip(cells, results):
+            everything += cases
+            table = R.rates(cases)
+            label = " + ".join(effects) or "clean"
+            if not effects:
+                cell = f"false alarms {table['clean']['false_alarms']}/{table['clean']['cases']}"
+            elif len(effects) == 2:
+                both = [c for c in cases if min(c.power.values()) >= 0.9]
+                hit = sum(all(c.named(e) for e in effects) for c in both)
+                cell = f"both named {hit}/{len(both)}"
+            else:
+                row = table[effects[0]]
+                cell = f"named {row['named']}/{row['qualifying']}"
+            print(f"{arm:7s} {protocol:40s} {label:45s} {cell:24s} variants agree "
+                  f"{table['variants_agree']:.0%}", flush=True)
     print()
     single = [c for c in everything if len(c.effects) <= 1]
     for oracle, what in (("exact", "exact-shape oracle (1 degree of freedom)"),
@@ -77,8 +90,16 @@ def main(seeds: int = 20, alpha: float = 0.01) -> None:
     print(f"{'two effects at once':28s} both named in {sum(all(c.named(e) for e in c.effects) for c in pairs)} of "
           f"{len(pairs)} qualifying cases")
     print(f"{'variants agree':28s} {R.rates(everything)['variants_agree']:.1%} of {len(everything)} cases")
-    print(f"CPU {time.process_time() - start:.0f} s")
+    cpu = time.process_time() - start + (sum(_children_cpu()) if jobs > 1 else 0.0)
+    print(f"CPU {cpu:.0f} s ({jobs} process{'es' if jobs > 1 else ''})")
+
+
+def _children_cpu():
+    import resource
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime, usage.ru_stime
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 20, float(sys.argv[2]) if len(sys.argv) > 2 else 0.01)
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 20, float(sys.argv[2]) if len(sys.argv) > 2 else 0.01,
+         int(sys.argv[3]) if len(sys.argv) > 3 else 1)

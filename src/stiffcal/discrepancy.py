@@ -770,10 +770,15 @@ def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float)
         rest = everything - U
         members = [c for c in sorted(U, key=CAUSES.index) if fits[rest | {c}].rank > fits[rest].rank]
         p_causes = None
-        if members:  # the min-P test of the causes in U, each added to the largest model H_U allows
-            spaces = [_beyond(spans[rest], spans[rest | {c}]) for c in members]
-            p_causes = min_p_value(min(p_add(c, rest) for c in members), spaces, noise.df,
-                                   rng=np.random.default_rng([MIN_P_SEED, i]))
+        if members:  # the min-P test of the causes in U, each added to the largest model H_U allows; where it
+            # cannot change a decision at alpha (p_min > alpha, or Bonferroni's k p_min is below alpha times the
+            # causes' weight beside the lack of fit) its upper bound k p_min is kept: a valid p-value, never
+            # below the min-P one, with the same decisions at alpha
+            p_min = min(p_add(c, rest) for c in members)
+            p_causes = min(1.0, len(members) * p_min)
+            if p_min <= alpha and p_causes > alpha * (1.0 - (1.0 / (len(U) + 1) if lof[rest] is not None else 0.0)):
+                spaces = [_beyond(spans[rest], spans[rest | {c}]) for c in members]
+                p_causes = min_p_value(p_min, spaces, noise.df, rng=np.random.default_rng([MIN_P_SEED, i]))
         elif U:
             p_causes = 1.0
         if p_causes is not None:
