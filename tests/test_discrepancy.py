@@ -898,3 +898,50 @@ def test_misspelled_optional_columns_are_refused_and_other_columns_get_no_sugges
         read_measurements(_write(tmp_path, ur10.replace("mz_Nm", "MZ_Nm", 1), "mz.csv"), robot)
     notes = read_measurements(LAB_DIR / "ur10_bar.csv", robot).notes
     assert any("timestamp, temperature_C not used" in n for n in notes) and not any("looks like" in n for n in notes)
+
+
+@pytest.mark.parametrize("n_configs, pose_id", [(12, True), (60, True), (12, False)])
+def test_the_residual_figure_labels_configurations_by_pose_id_and_marks_the_blunders(tmp_path, paper_robot,
+                                                                                     n_configs, pose_id):
+    """fig_residuals on a simulated log with pose_id labels P001 ...: the configuration axis carries the labels in
+    file order (one in two beyond 40 configurations), integers without pose_id; the rows named as blunders are
+    drawn with their own marker at their configuration and residual (clipped to the axis when far off) and listed
+    in the legend."""
+    import matplotlib.pyplot as plt
+
+    from stiffcal import plots
+
+    rng = np.random.default_rng(n_configs)
+    log = T.lab_log(paper_robot, T.Protocol("directions", magnitudes_N=(200.0, 400.0), n_directions=3, repeats=2),
+                    rng, n_configs)
+    dp = T.measure(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), log, rng)
+    lines = T.lab_csv(paper_robot, log, dp, pose_id=pose_id).splitlines()
+    if pose_id:
+        lines[1:] = [f"P{int(ln.split(',', 1)[0]):03d}," + ln.split(",", 1)[1] for ln in lines[1:]]
+    meas = read_measurements(_write(tmp_path, "\n".join(lines) + "\n"), paper_robot)
+    resid = rng.normal(0.0, SIGMA, (meas.n_rows, 2))
+    blunders = [5, 40]
+    resid[40, 0] = 50 * SIGMA  # far off the others: drawn at the edge of the axis
+    fig = plots.fig_residuals(meas, {"q1 [deg]": np.degrees(meas.q[:, 0])}, resid, SIGMA, "t", outlier_rows=blunders)
+    fig.canvas.draw()
+    ax0 = fig.axes[0]
+    ticks = [t.get_text() for t in ax0.get_xticklabels()]
+    if pose_id:
+        first = list(dict.fromkeys(log.config))  # configurations in file order
+        step = 1 if n_configs <= 40 else 2
+        assert ticks == [f"P{c + 1:03d}" for c in first][::step]
+    else:
+        assert all(t.lstrip("−-").isdigit() for t in ticks) and meas.config_labels[0].startswith("q = (")
+    legend = [t.get_text() for t in ax0.get_legend().get_texts()]
+    assert "blunder (outlier_rows): data rows 5, 40" in legend
+    red = plt.matplotlib.colors.to_rgb(plots.OUTLIER_STYLE["color"])
+    marked = [c for c in ax0.collections if len(c.get_facecolor()) == 1 and np.allclose(c.get_facecolor()[0][:3], red)]
+    xy = np.vstack([c.get_offsets() for c in marked])
+    assert len(xy) == 2 * len(blunders)  # dx and dy of each blunder row
+    for k, row in enumerate(blunders):
+        at = np.flatnonzero(meas.rows == row)[0]
+        assert np.all(np.abs(xy[k::2][:, 0] - meas.config[at]) <= 0.35 + 1e-9)
+    lo, hi = ax0.get_ylim()
+    assert hi < 50 * SIGMA * 1e6 and np.isclose(xy[:, 1].max(), 1.15 * max(np.abs(np.delete(resid, blunders, 0)).max(),
+                                                                             2 * SIGMA) * 1e6)
+    plt.close(fig)
