@@ -1022,3 +1022,151 @@ def test_an_extension_with_a_negative_joint_compliance_and_no_alternative_is_nam
     assert any("k1 = -" in n and "not physical" in n and "k2 and c2 cannot be separated" not in n for n in notes), notes
     pick, others, notes = D.physical_choice(des, sel, chosen, [rest[0]], noise, paper_robot, ob, [])
     assert pick == {"joint_coupling"} and others == [chosen]
+
+
+# --- forces in kN below the resolution in some rows, pose_id relabelled, misspelled columns (new user 21) ----
+
+def _hanging_log(robot, seed, magnitudes, k, n_configs=12, interleaved=False):
+    """A simulated lab log (stiffcal.truth): hanging loads, each load sequence measured twice, an unloaded
+    reference row before every loaded one (zero force, zero displacement), and the displacements."""
+    rng = np.random.default_rng(seed)
+    protocol = T.Protocol("hanging", magnitudes_N=magnitudes, repeats=2, unloaded_rows=True, interleaved=interleaved)
+    log = T.lab_log(robot, protocol, rng, n_configs)
+    return log, T.measure(robot, T.Truth(np.asarray(k)), log, rng), rng
+
+
+def test_forces_in_kilonewtons_below_the_resolution_in_some_rows_are_refused(tmp_path, paper_robot):
+    """Loads of 150, 300 and 600 N written in kN under fx_N, fy_N: the 0.15 and 0.3 rows fall below the 0.5 N
+    resolution (they used to become unloaded rows of up to 340 um and a zero point that 'moved'). Refused over
+    20 seeds, naming the file, the rows below the resolution (counted from the generated loads) and kN; the
+    same logs in newtons are read with exactly the generated reference rows as the zero point."""
+    for seed in range(20):
+        log, dp, _ = _hanging_log(paper_robot, seed, (150.0, 300.0, 600.0), [1.5e-6, 3e-6])
+        below = int(np.sum(log.loaded & (np.linalg.norm(log.force, axis=1) < 500.0)))
+        kn = _write(tmp_path, T.lab_csv(paper_robot, replace(log, force=log.force / 1000), dp), f"kn{seed}.csv")
+        with pytest.raises(InputError) as err:
+            read_measurements(kn, paper_robot)
+        msg = str(err.value)
+        assert msg.startswith(str(kn)) and "'columns fx_N, fy_N'" in msg and "kN" in msg
+        assert f"{below} row(s) classed as unloaded" in msg
+        meas = read_measurements(_write(tmp_path, T.lab_csv(paper_robot, log, dp), f"n{seed}.csv"), paper_robot)
+        assert len(meas.zero_rows) == int(np.sum(~log.loaded)) and meas.n_rows == int(np.sum(log.loaded))
+        assert np.all(meas.zero_dp == 0)
+
+
+def test_reference_rows_with_a_load_cell_reading_below_the_resolution_are_the_zero_point(tmp_path, paper_robot):
+    """Genuine unloaded rows are not taken for kN: a soft arm under small loads (2, 5, 10 N, numbers a kN file
+    could hold, compliances such that a reading of 0.3 N would deflect it by about the noise), the reference rows
+    carrying a load-cell reading of up to +-0.3 N and a displacement of pure tracker noise (10 um), over 100
+    seeds: every file is read, with every reference row as the zero point."""
+    for seed in range(100):
+        log, dp, rng = _hanging_log(paper_robot, seed, (2.0, 5.0, 10.0), [1.2e-4, 2.4e-4])
+        ref = ~log.loaded
+        force = log.force.copy()
+        force[ref] = rng.uniform(-0.3, 0.3, (ref.sum(), 2))
+        dp[ref] = rng.normal(0.0, 1e-5, (ref.sum(), 2))
+        path = _write(tmp_path, T.lab_csv(paper_robot, replace(log, force=force), dp), f"cell{seed}.csv")
+        meas = read_measurements(path, paper_robot)
+        assert len(meas.zero_rows) == int(ref.sum()) and meas.n_rows == int(np.sum(log.loaded))
+
+
+def test_a_second_pass_relabelled_is_one_configuration_per_joint_configuration(tmp_path, paper_robot):
+    """The plan measured twice (interleaved), the second pass labelled C<i>b: configurations are the generated
+    joint configurations (12, not 24), the rows of each are those generated there, labels 'C<i>/C<i>b', and a
+    note names the merged labels. Rows sharing a label but not their angles are still refused."""
+    log, dp, _ = _hanging_log(paper_robot, 3, (150.0, 300.0, 600.0), [1.5e-6, 3e-6], interleaved=True)
+    lines = T.lab_csv(paper_robot, log, dp).splitlines()
+    second = np.arange(len(log.q)) >= len(log.q) // 2  # interleaved: the second half repeats the plan
+    rows = [("C" + ln.split(",", 1)[0] + ("b" if s else "")) + "," + ln.split(",", 1)[1]
+            for ln, s in zip(lines[1:], second)]
+    meas = read_measurements(_write(tmp_path, "\n".join([lines[0], *rows]) + "\n"), paper_robot)
+    loaded = np.flatnonzero(log.loaded)
+    assert meas.n_configurations == len(np.unique(log.config)) == 12
+    # the same partition of the loaded rows as the generated configurations
+    assert len({(a, b) for a, b in zip(meas.config, log.config[loaded])}) == 12
+    assert meas.config_labels == tuple(f"C{c + 1}/C{c + 1}b" for c in dict.fromkeys(log.config[loaded]))
+    note = [n for n in meas.notes if "several pose_id labels name the same joint angles" in n]
+    assert len(note) == 1 and "C1 and C1b" in note[0] and "12 configurations, 24 labels" in note[0]
+    bad = rows[:]
+    bad[-1] = bad[-1].split(",", 1)[0] + ",1.5," + bad[-1].split(",", 2)[2]  # a C<i>b row moved to q1 = 1.5 deg
+    with pytest.raises(InputError, match="pose_id 'C.*b' labels one robot configuration"):
+        read_measurements(_write(tmp_path, "\n".join([lines[0], *bad]) + "\n", "bad.csv"), paper_robot)
+
+
+@pytest.mark.parametrize("header", ["pose id", "Pose-ID", "POSE_ID", "pose_idd"])
+def test_a_misspelled_pose_id_is_named_with_the_likely_name(tmp_path, paper_robot, header):
+    meas = read_measurements(_write(tmp_path, LAB.replace("pose_id", header, 1)), paper_robot)
+    note = [n for n in meas.notes if "not used by the analysis" in n]
+    assert len(note) == 1 and f"{header!r} looks like pose_id" in note[0]
+    assert meas.n_configurations == 2 and not meas.labelled  # configurations from the joint angles
+
+
+@pytest.mark.parametrize("column, likely", [("DX_M", "dx_m"), ("Dy-m", "dy_m"), ("q 1 deg", "q1_deg")])
+def test_a_misspelled_column_the_analysis_reads_is_refused_with_the_likely_name(tmp_path, paper_robot, column, likely):
+    path = _write(tmp_path, LAB.replace(likely, column, 1))
+    with pytest.raises(InputError) as err:
+        read_measurements(path, paper_robot)
+    assert str(err.value).startswith(f"{path}: field 'column {column}'") and f"looks like {likely}" in str(err.value)
+
+
+def test_misspelled_optional_columns_are_refused_and_other_columns_get_no_suggestion(tmp_path, paper_robot):
+    """'Target' (the targets would be dropped: every row taken for the tool point) and 'MZ_Nm' beside mx_Nm,
+    my_Nm (the moment would be dropped) are refused naming the likely column; the UR10 file's timestamp and
+    temperature_C are noted as unused with no suggestion."""
+    lines = LAB.splitlines()
+    text = "\n".join([lines[0] + ",Target"] + [ln + ",tool" for ln in lines[1:]]) + "\n"
+    with pytest.raises(InputError, match="column Target'.*looks like target"):
+        read_measurements(_write(tmp_path, text), paper_robot)
+    robot = load_robot(LAB_DIR / "ur10.yaml")
+    ur10 = (LAB_DIR / "ur10_bar.csv").read_text()
+    with pytest.raises(InputError, match="column MZ_Nm'.*looks like mz_Nm"):
+        read_measurements(_write(tmp_path, ur10.replace("mz_Nm", "MZ_Nm", 1), "mz.csv"), robot)
+    notes = read_measurements(LAB_DIR / "ur10_bar.csv", robot).notes
+    assert any("timestamp, temperature_C not used" in n for n in notes) and not any("looks like" in n for n in notes)
+
+
+@pytest.mark.parametrize("n_configs, pose_id", [(12, True), (60, True), (12, False)])
+def test_the_residual_figure_labels_configurations_by_pose_id_and_marks_the_blunders(tmp_path, paper_robot,
+                                                                                     n_configs, pose_id):
+    """fig_residuals on a simulated log with pose_id labels P001 ...: the configuration axis carries the labels in
+    file order (one in two beyond 40 configurations), integers without pose_id; the rows named as blunders are
+    drawn with their own marker at their configuration and residual (clipped to the axis when far off) and listed
+    in the legend."""
+    import matplotlib.pyplot as plt
+
+    from stiffcal import plots
+
+    rng = np.random.default_rng(n_configs)
+    log = T.lab_log(paper_robot, T.Protocol("directions", magnitudes_N=(200.0, 400.0), n_directions=3, repeats=2),
+                    rng, n_configs)
+    dp = T.measure(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), log, rng)
+    lines = T.lab_csv(paper_robot, log, dp, pose_id=pose_id).splitlines()
+    if pose_id:
+        lines[1:] = [f"P{int(ln.split(',', 1)[0]):03d}," + ln.split(",", 1)[1] for ln in lines[1:]]
+    meas = read_measurements(_write(tmp_path, "\n".join(lines) + "\n"), paper_robot)
+    resid = rng.normal(0.0, SIGMA, (meas.n_rows, 2))
+    blunders = [5, 40]
+    resid[40, 0] = 50 * SIGMA  # far off the others: drawn at the edge of the axis
+    fig = plots.fig_residuals(meas, {"q1 [deg]": np.degrees(meas.q[:, 0])}, resid, SIGMA, "t", outlier_rows=blunders)
+    fig.canvas.draw()
+    ax0 = fig.axes[0]
+    ticks = [t.get_text() for t in ax0.get_xticklabels()]
+    if pose_id:
+        first = list(dict.fromkeys(log.config))  # configurations in file order
+        step = 1 if n_configs <= 40 else 2
+        assert ticks == [f"P{c + 1:03d}" for c in first][::step]
+    else:
+        assert all(t.lstrip("−-").isdigit() for t in ticks) and meas.config_labels[0].startswith("q = (")
+    legend = [t.get_text() for t in ax0.get_legend().get_texts()]
+    assert "blunder (outlier_rows): data rows 5, 40" in legend
+    red = plt.matplotlib.colors.to_rgb(plots.OUTLIER_STYLE["color"])
+    marked = [c for c in ax0.collections if len(c.get_facecolor()) == 1 and np.allclose(c.get_facecolor()[0][:3], red)]
+    xy = np.vstack([c.get_offsets() for c in marked])
+    assert len(xy) == 2 * len(blunders)  # dx and dy of each blunder row
+    for k, row in enumerate(blunders):
+        at = np.flatnonzero(meas.rows == row)[0]
+        assert np.all(np.abs(xy[k::2][:, 0] - meas.config[at]) <= 0.35 + 1e-9)
+    lo, hi = ax0.get_ylim()
+    assert hi < 50 * SIGMA * 1e6 and np.isclose(xy[:, 1].max(), 1.15 * max(np.abs(np.delete(resid, blunders, 0)).max(),
+                                                                             2 * SIGMA) * 1e6)
+    plt.close(fig)

@@ -1785,9 +1785,9 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
     keep[np.isin(meas.rows, verdict["outlier_rows"])] = False
     weight = verdict["nominal"]["rotation_weight_m_per_rad"]
     resid = nominal_residuals(robot, meas, keep, Observed.of(robot, meas, 1.0 if weight is None else weight))
-    fig = plots.fig_residuals(meas.subset(keep), residual_features(robot, meas.subset(keep)), resid[keep],
-                              verdict["nominal"]["sigma_m"],
-                              f"Nominal-model residuals: {label or Path(data_path).name}")
+    fig = plots.fig_residuals(meas, residual_features(robot, meas), resid, verdict["nominal"]["sigma_m"],
+                              f"Nominal-model residuals: {label or Path(data_path).name}",
+                              outlier_rows=verdict["outlier_rows"])
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plots.save(fig, out / "residuals")

@@ -16,13 +16,15 @@ the load sequence):
   force agrees within ``force_resolution_N`` and moment within ``moment_resolution_Nm`` (component by
   component; rows linked through a chain of such pairs form one group), whatever their ``pose_id``. Their
   spread is the pure error.
-- **configurations** are rows whose joint angles agree within ``angle_resolution_deg``; with a ``pose_id``
-  column, the label names the configuration, and rows sharing a label must share their joint angles.
-  Configurations are what leave-one-configuration-out prediction and the residual plots use.
+- **configurations** are rows whose joint angles agree within ``angle_resolution_deg``, whatever their
+  ``pose_id``; with a ``pose_id`` column, the labels name the configuration (several labels of the same joint
+  angles, a second pass relabelled, are one configuration, with a note), and rows sharing a label must share
+  their joint angles. Configurations are what leave-one-configuration-out prediction and the residual plots use.
 - **unloaded rows** (every force component within ``force_resolution_N`` of zero, every moment component
   within ``moment_resolution_Nm``) are the zero point of the
   displacement, not a measurement of compliance: they are set aside (``zero_rows``) and used only to check
-  that the zero point did not move.
+  that the zero point did not move. Rows below the force resolution that deflect as the loaded rows'
+  compliance predicts for their force are loads given in kN under N columns, and refused.
 
 Every problem is one :class:`InputError` naming the file, the row (1-based line of the file and 0-based
 data row) and the column; nothing is fitted on bad data.
@@ -100,7 +102,8 @@ class Measurements:
     resolutions: (angle [deg], force [N], moment [N m]) used to group the rows;
     moment (N, d_m) [N m] about the tool point (zero without moment columns); rot (N, d_r) [rad] the tool's
     orientation deflection, or None when it was not measured; target (N,) int: the target of each row, an
-    index into target_names; zero_rot (N0, d_r) [rad] the unloaded rows' orientation (None without it).
+    index into target_names; zero_rot (N0, d_r) [rad] the unloaded rows' orientation (None without it);
+    labelled: config_labels are the data's ``pose_id`` labels (False: the joint angles, or given by the caller).
     """
 
     q: np.ndarray
@@ -121,6 +124,7 @@ class Measurements:
     target: np.ndarray | None = None
     target_names: tuple[str, ...] = (TOOL_TARGET,)
     zero_rot: np.ndarray | None = None
+    labelled: bool = False
 
     def __post_init__(self):
         n_rows = len(self.q)
@@ -177,7 +181,7 @@ class Measurements:
                             config.ravel(), tuple(self.config_labels[c] for c in used), self.rows[keep],
                             self.zero_rows, self.zero_dp, self.zero_config, self.notes, self.resolutions,
                             self.moment[keep], None if self.rot is None else self.rot[keep], self.target[keep],
-                            self.target_names, self.zero_rot)
+                            self.target_names, self.zero_rot, self.labelled)
 
     @property
     def wrench(self) -> np.ndarray:
@@ -296,6 +300,32 @@ def _rows_text(rows: np.ndarray) -> str:
             f"(data row{'s' if len(rows) > 1 else ''} {', '.join(str(r) for r in rows)}{more})")
 
 
+def _spelling(name: str) -> str:
+    """A column name without case, spaces and punctuation ('Pose ID' -> 'poseid')."""
+    return re.sub(r"[^a-z0-9]", "", name.lower())
+
+
+#: a column whose spelling (:func:`_spelling`) is this similar to a known name's (difflib's ratio) is taken for it
+MISSPELLING_RATIO = 0.85
+
+
+def _misspelled(columns, known) -> dict[str, str]:
+    """{column: known name} for the columns that are not a ``known`` name but look like one that the file lacks:
+    the same letters and digits apart from case, spaces and punctuation ('pose id', 'DX_M'), or a spelling
+    at least :data:`MISSPELLING_RATIO` similar ('pose_idd')."""
+    import difflib
+
+    absent = {_spelling(k): k for k in known if k not in columns}
+    out = {}
+    for col in columns:
+        if col in known:
+            continue
+        close = difflib.get_close_matches(_spelling(col), list(absent), n=1, cutoff=MISSPELLING_RATIO)
+        if close:
+            out[col] = absent[close[0]]
+    return out
+
+
 def _check_units(columns, source: str) -> None:
     for col in columns:
         m = _PATTERN.match(col)
@@ -334,20 +364,22 @@ def _numbers(df, cols: list[str], source: str) -> np.ndarray:
     return values
 
 
-def _configurations(labels, q_deg: np.ndarray, angle_res: float, source: str) -> tuple[np.ndarray, tuple]:
-    """Configuration index per row and the label of each, from ``pose_id`` labels (checked against the joint
-    angles) or, without labels, from the joint angles."""
+def _configurations(labels, q_deg: np.ndarray, angle_res: float, source: str) -> tuple[np.ndarray, tuple, list]:
+    """Configuration index per row (the robot's joint configurations: rows whose joint angles agree within
+    ``angle_res`` [deg], modulo 360), the label of each and notes. With ``pose_id`` labels (N,): rows sharing a
+    label must share their joint angles (else :class:`InputError`); a configuration is labelled by its rows'
+    labels ('C01/C13' when several labels name the same joint angles, e.g. a second pass relabelled, with a
+    note); without labels, by its joint angles."""
     n = q_deg.shape[1]
-    by_angle = cluster(q_deg, np.full(n, angle_res), np.full(n, 360.0))
+    config = cluster(q_deg, np.full(n, angle_res), np.full(n, 360.0))
+    first = [int(np.flatnonzero(config == c)[0]) for c in range(config.max(initial=-1) + 1)]
     if labels is None:
-        first = [int(np.flatnonzero(by_angle == c)[0]) for c in range(by_angle.max(initial=-1) + 1)]
-        return by_angle, tuple(_angle_label(q_deg[i]) for i in first)
-    names, config = np.unique(labels, return_inverse=True)
-    config = config.ravel()
+        return config, tuple(_angle_label(q_deg[i]) for i in first), []
+    names, index = np.unique(labels, return_inverse=True)
     for c in range(len(names)):
-        rows = np.flatnonzero(config == c)
-        if len(np.unique(by_angle[rows])) > 1:
-            other = rows[by_angle[rows] != by_angle[rows[0]]]
+        rows = np.flatnonzero(index.ravel() == c)
+        if len(np.unique(config[rows])) > 1:
+            other = rows[config[rows] != config[rows[0]]]
             diff = np.abs((q_deg[other[0]] - q_deg[rows[0]] + 180.0) % 360.0 - 180.0)
             j = int(np.argmax(diff))
             raise InputError(
@@ -355,10 +387,17 @@ def _configurations(labels, q_deg: np.ndarray, angle_res: float, source: str) ->
                 f"differ by {diff[j]:.4g} deg in q{j + 1} (more than the angle resolution of {angle_res:g} deg); "
                 "give each configuration its own pose_id, or raise the angle resolution", source=source,
                 field="column pose_id")
-    # relabel by first occurrence, so that configuration numbers follow the file
-    _, first = np.unique(config, return_index=True)
-    rank = np.argsort(np.argsort(first))
-    return rank[config], tuple(str(names[i]) for i in np.argsort(rank))
+    per_config = [list(dict.fromkeys(labels[config == c])) for c in range(len(first))]  # in file order
+    merged = [m for m in per_config if len(m) > 1]
+    notes = []
+    if merged:
+        listed = "; ".join(f"{', '.join(m[:-1])} and {m[-1]}" for m in merged[:_MAX_LISTED])
+        more = f"; and {len(merged) - _MAX_LISTED} more" if len(merged) > _MAX_LISTED else ""
+        notes.append(f"several pose_id labels name the same joint angles (within the angle resolution of "
+                     f"{angle_res:g} deg): {listed}{more}; each set is one configuration ({len(first)} "
+                     f"configurations, {len(names)} labels), held out together in the leave-one-configuration-out "
+                     "prediction error")
+    return config, tuple("/".join(m) for m in per_config), notes
 
 
 def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: float = ANGLE_RESOLUTION_DEG,
@@ -370,7 +409,10 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     wrong or missing unit; missing or surplus joint, force or displacement columns; some but not all of the
     arm's moment or orientation columns; a value that is not a finite number; a ``target`` the robot file does
     not name, or blank; blank ``pose_id`` cells beside filled ones; rows that share a ``pose_id`` but not their
-    joint angles; no loaded row. Columns the analysis does not use are named in ``notes``.
+    joint angles; no loaded row; forces that look like kN (:func:`_check_loads_below_resolution`); a column that
+    looks like a misspelling of one the analysis reads ('DX_M', 'Target'). Columns the analysis does not use are
+    named in ``notes`` (one that looks like ``pose_id``, 'pose id', with a suggestion), and so are ``pose_id``
+    labels merged into one configuration.
     """
     import pandas as pd
 
@@ -387,6 +429,12 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     df.columns = [c.strip() for c in df.columns]
     _check_units(df.columns, source)
     cols = angle_columns(list(df.columns), robot, source) + expected_columns(robot)[robot.n_joints:]
+    misspelled = _misspelled(df.columns, cols + sum(optional_columns(robot).values(), []) + ["target", "pose_id"])
+    for col, name in misspelled.items():
+        if name != "pose_id":  # the analysis would go on without a quantity it reads: refuse
+            raise InputError(f"the column {col!r} looks like {name} (a misspelling?); the analysis reads {name} only "
+                             f"under that name: rename the column {name}{'' if name in cols else ', or remove it'}",
+                             source=source, field=f"column {col}")
     missing = [c for c in cols if c not in df.columns]
     if missing:
         raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(cols)} (and optionally pose_id, "
@@ -409,7 +457,9 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
                      f"measured coordinates and are ignored")
     unused = [c for c in df.columns if c not in used and c not in ("pose_id", "target") and c not in surplus]
     if unused:
-        notes.append(f"column(s) {', '.join(unused)} not used by the analysis")
+        notes.append(f"column(s) {', '.join(unused)} not used by the analysis"
+                     + "".join(f"; {c!r} looks like pose_id (a misspelling?): rename it pose_id to label the "
+                               "configurations" for c in misspelled))
     values = _numbers(df, used, source)
     n, d, dm = robot.n_joints, force_dim(robot), moment_dim(robot)
     q_deg, force, dp = values[:, :n], values[:, n:n + d], values[:, n + d:n + 2 * d]
@@ -431,7 +481,8 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
                              "then found from the joint angles)", source=source, field="column pose_id")
         else:
             labels = raw
-    config, names = _configurations(labels, q_deg, angle_resolution_deg, source)
+    config, names, config_notes = _configurations(labels, q_deg, angle_resolution_deg, source)
+    notes += config_notes
 
     unloaded = np.all(np.abs(force) <= force_resolution_N, axis=1) & np.all(np.abs(moment) <= moment_resolution_Nm,
                                                                             axis=1)
@@ -443,6 +494,8 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
         raise InputError(f"every row is unloaded (all force components within {force_resolution_N:g} N of zero"
                          f"{f' and moments within {moment_resolution_Nm:g} N m' if groups['moment'] else ''}); "
                          f"expected measurements under load{kn}", source=source)
+    _check_loads_below_resolution(q_deg, force, moment if groups["moment"] else None, dp, target, unloaded,
+                                  angle_resolution_deg, force_resolution_N, moment_resolution_Nm, cols[n:n + d], source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
     notes += _angle_notes(q_deg, cols[:n], robot) + _duplicate_notes(df, loaded)
@@ -459,7 +512,70 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     return Measurements(np.radians(q_deg[loaded]), force[loaded], dp[loaded], group, source, cfg_index.ravel(),
                         tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config, tuple(notes), res,
                         moment[loaded], None if rot is None else rot[loaded], target[loaded], target_names,
-                        None if rot is None else rot[zero])
+                        None if rot is None else rot[zero], labels is not None)
+
+
+#: rows classed unloaded that deflect like loaded rows are taken for loads in kN when every force is at most this
+KN_MAX_FORCE = 100.0
+#: ... and their deflection is within this factor of what the loaded rows' compliance gives for their force
+KN_COMPLIANCE_FACTOR = 5.0
+
+
+def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, angle_res, force_res, moment_res,
+                                  force_cols, source) -> None:
+    """Refuse forces given in kN under N columns when only some rows fall below the force resolution.
+
+    Rows classed unloaded (``unloaded`` (N,) bool) whose force is not zero are loads below the resolution, not the
+    zero point, when all of: every force magnitude is at most :data:`KN_MAX_FORCE` (numbers typical of kN); their
+    median displacement per unit force is within :data:`KN_COMPLIANCE_FACTOR` of the loaded rows' (they deflect
+    as the loaded rows' compliance predicts for their force); and the median of their squared displacements
+    over the noise variance is above what noise gives at a level of at most 1 % (Bonferroni over the median of
+    ``||dp||^2 / (d sigma^2) ~ chi2(d) / d`` per row, its order statistic through the Beta distribution, at
+    0.5 %, and the estimate of sigma^2 ~ sigma^2 chi2(df) / df at 0.5 %; sigma^2 the pure error of the replicate
+    groups, at the force
+    and moment resolutions divided by 1000 as they would be for kN, pooled with the unloaded rows of zero force
+    about zero; rows of exactly zero displacement, a reference by definition, carry no noise) or, with no noise
+    estimate, at least 5 % of the loaded rows' median displacement. Genuine
+    reference rows (zero force, or a load cell's reading below the resolution with a displacement within the
+    noise) pass. q_deg (N, n) [deg]; force, dp (N, d); moment (N, d_m) or None; target (N,) int."""
+    from scipy import stats
+
+    fmag, dmag = np.linalg.norm(force, axis=1), np.linalg.norm(dp, axis=1)
+    small = np.flatnonzero(unloaded & (fmag > 0))
+    big = ~unloaded & (np.abs(force).max(axis=1) > force_res)
+    if small.size == 0 or not big.any() or fmag.max() > KN_MAX_FORCE:
+        return
+    compliance = float(np.median(dmag[big] / fmag[big]))
+    ratio = float(np.median(dmag[small] / (compliance * fmag[small]))) if compliance > 0 else 0.0
+    if not 1 / KN_COMPLIANCE_FACTOR <= ratio <= KN_COMPLIANCE_FACTOR:
+        return
+    d = dp.shape[1]
+    ref = unloaded & (fmag == 0) & np.any(dp != 0, axis=1)  # reference rows that carry noise
+    rest = np.flatnonzero(~(unloaded & (fmag == 0)))
+    group = replicate_groups(q_deg[rest], force[rest], angle_res, force_res / 1000,  # the resolution if in kN
+                             None if moment is None else moment[rest], moment_res / 1000, target[rest])
+    sums = np.zeros((group.max(initial=-1) + 1, d))
+    np.add.at(sums, group, dp[rest])
+    means = sums / np.bincount(group, minlength=len(sums))[:, None]
+    ss = float(np.sum((dp[rest] - means[group]) ** 2) + np.sum(dp[ref] ** 2))
+    df = d * (len(rest) - len(means) + int(ref.sum()))
+    noise = ""
+    if df > 0 and ss > 0:
+        sigma2 = ss / df
+        k = (small.size + 1) // 2  # the median's order statistic: F(X_(k)) ~ Beta(k, m - k + 1) under the noise
+        median = stats.chi2.ppf(stats.beta.ppf(0.995, k, small.size - k + 1), d) / d  # of ||dp||^2 / (d sigma^2)
+        if np.sort(dmag[small] ** 2)[k - 1] / (d * sigma2) <= median / (stats.chi2.ppf(0.005, df) / df):
+            return
+        noise = f", beyond the noise of {np.sqrt(sigma2) * 1e6:.3g} um"
+    elif np.median(dmag[small]) < 0.05 * np.median(dmag[big]):
+        return
+    raise InputError(
+        f"{small.size} row(s) classed as unloaded ({_rows_text(small)}) carry forces of {fmag[small].min():g} to "
+        f"{fmag[small].max():g} N, below the force resolution of {force_res:g} N, yet deflect as the loaded rows do "
+        f"under such forces ({np.median(dmag[small]) * 1e6:.3g} um in the median, {ratio:.2g} times what the loaded "
+        f"rows' compliance gives{noise}): they are loads, not the zero point, and every force is at most "
+        f"{fmag.max():g} N: the forces look like kN labelled N; give them in newtons (x 1000), or lower the force "
+        "resolution", source=source, field=f"columns {', '.join(force_cols)}")
 
 
 def _header(path, source: str) -> list[str]:

@@ -262,15 +262,71 @@ def fig_map_pairs(pm):
         return fig
 
 
-def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigma: float, title: str):
+#: at most this many configurations are labelled on the residual figure's axis (every k-th beyond)
+MAX_CONFIG_TICKS = 40
+#: blunder rows of the residual figure: a marker and colour no other point uses
+OUTLIER_STYLE = {"marker": "X", "s": 42, "color": "C3", "edgecolors": "k", "linewidths": 0.5, "zorder": 5}
+
+
+def _config_ticks(ax, meas, n_cfg: int) -> str:
+    """Label the configuration axis: the data's pose_id labels (every k-th when there are more than
+    :data:`MAX_CONFIG_TICKS`), else integers 0 .. n_cfg - 1 in file order. Returns the axis label's note."""
+    from matplotlib.ticker import MaxNLocator
+
+    if not meas.labelled:
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        return "numbered in file order from 0"
+    step = int(np.ceil(n_cfg / MAX_CONFIG_TICKS))
+    at = np.arange(0, n_cfg, step)
+    labels = [meas.config_labels[c] for c in at]
+    ax.set_xticks(at, labels, fontsize=7, rotation=0 if len(at) * max(map(len, labels)) <= 60 else 90)
+    return "pose_id" + (f", one in {step} labelled" if step > 1 else "")
+
+
+def _outliers(ax, x: np.ndarray, resid_um: np.ndarray, lim: float | None, label: str | None = None,
+              rows: np.ndarray | None = None):
+    """Draw the blunder rows' residuals (M, d) [um] at x (M,) with :data:`OUTLIER_STYLE`, one collection per
+    component; values beyond +-lim [um] are drawn at the limit and, with the rows' data-row numbers ``rows``
+    (M,), labelled with them (one label per row and side: 'row 72: dx 268, dz 260 µm')."""
+    y = resid_um if lim is None else np.clip(resid_um, -lim, lim)
+    for j in range(resid_um.shape[1]):
+        ax.scatter(x, y[:, j], label=label if j == 0 else None, **OUTLIER_STYLE)
+    if lim is None or rows is None:
+        return
+    for xi, v, r in zip(x, resid_um, rows):
+        for sign in (1, -1):
+            off = [f"d{'xyz'[j]} {v[j]:.0f}" for j in range(len(v)) if sign * v[j] > lim]
+            if off:
+                ax.annotate(f"row {r}: {', '.join(off)} µm", (xi, sign * lim), xytext=(6, 0),
+                            textcoords="offset points", fontsize=6, color=OUTLIER_STYLE["color"],
+                            va="top" if sign > 0 else "bottom")
+
+
+def _rows_label(rows) -> str:
+    rows = [int(r) for r in rows]
+    shown = ", ".join(map(str, rows[:8])) + (f" and {len(rows) - 8} more" if len(rows) > 8 else "")
+    return f"blunder (outlier_rows): data row{'s' if len(rows) > 1 else ''} {shown}"
+
+
+def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigma: float, title: str,
+                  outlier_rows=()):
     """Residuals of the nominal fit [m]: first per robot configuration (every load of a configuration side by
     side, coloured by the force magnitude, so that a response that grows with the load, or a step that
-    follows the load's sign, shows), then against pose, force magnitude, force direction and joint torque
-    (one panel per feature; x, y (z) components; the +-2 sigma band of the noise).
+    follows the load's sign, shows; the axis labelled by the data's pose_id when they have one), then against
+    pose, force magnitude, force direction and joint torque (one panel per feature; x, y (z) components; the
+    +-2 sigma band of the noise). Blunder rows are drawn with their own marker (:data:`OUTLIER_STYLE`) and
+    listed in the legend; the axes are scaled to the other rows, a blunder beyond them is drawn at the edge (with
+    its row, component and value in the first panel).
 
     meas: :class:`stiffcal.measurements.Measurements` of the rows plotted (N rows); features: name -> (N,);
-    resid: (N, d) [m]; sigma [m]."""
+    resid: (N, d) [m]; sigma [m]; outlier_rows: 0-based data rows (``meas.rows``) of the blunders, the verdict's
+    ``outlier_rows`` (rows not among ``meas.rows`` are ignored)."""
     features = {k: v for k, v in features.items() if np.ptp(v) > 1e-3 * max(np.abs(v).max(), 1e-12)}  # not constant
+    out = np.isin(meas.rows, np.asarray(outlier_rows, int))
+    ok = ~out if (~out).any() else out
+    um = resid * 1e6
+    lim = 1.15 * max(np.abs(um[ok]).max(initial=0.0), 2e6 * sigma)
+    lim = lim if out.any() and np.abs(um[out]).max() > lim else None  # scale to the others when a blunder is off it
     with plt.rc_context(STYLE):
         k = len(features) + 1
         cols = min(3, k)
@@ -283,6 +339,7 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
         by_magnitude = np.ptp(fmag) > 0.05 * fmag.mean()
         colour = fmag if by_magnitude else np.degrees(np.arctan2(meas.force[:, 1], meas.force[:, 0]))
         order = np.argsort(meas.config, kind="stable")
+        order = order[ok[order]]
         n_cfg = max(meas.n_configurations, 1)
         # within a configuration, spread its rows by load (sorted by force magnitude) across 0.7 of a slot
         slot = np.zeros(len(fmag))
@@ -293,23 +350,32 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
         norm = (plt.Normalize(fmag.min(), fmag.max()) if by_magnitude else plt.Normalize(-180.0, 180.0))
         for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
             if j < resid.shape[1]:
-                sc = ax0.scatter(slot[order], resid[order, j] * 1e6, c=colour[order],
+                sc = ax0.scatter(slot[order], um[order, j], c=colour[order],
                                  cmap="viridis" if by_magnitude else "twilight", norm=norm,
                                  marker=mk, s=9, alpha=0.85, label=f"d{lab}")
+        if out.any():
+            _outliers(ax0, slot[out], um[out], lim, _rows_label(meas.rows[out]), meas.rows[out])
         ax0.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
         ax0.set_xlim(-0.6, n_cfg - 0.4)
-        ax0.set_xlabel(f"robot configuration ({n_cfg}; the loads of each side by side)")
+        how = _config_ticks(ax0, meas, n_cfg)
+        ax0.set_xlabel(f"robot configuration ({n_cfg}, {how}; the loads of each side by side)")
         ax0.set_ylabel("residual [µm]")
         fig.colorbar(sc, ax=ax0, label="|F| [N]" if by_magnitude else "force direction [deg]", pad=0.01)
-        ax0.legend(fontsize=7, loc="upper right")
+        ax0.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=4, frameon=False, borderaxespad=0.2)
         for i, (name, v) in enumerate(features.items()):
             ax = fig.add_subplot(grid[1 + i // cols, i % cols])
             for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
                 if j < resid.shape[1]:
-                    ax.plot(v, resid[:, j] * 1e6, mk, ms=3, alpha=0.7, label=f"d{lab}")
+                    ax.plot(v[ok], um[ok, j], mk, ms=3, alpha=0.7, label=f"d{lab}")
+            if out.any():
+                _outliers(ax, v[out], um[out], lim)
             ax.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
             ax.set_xlabel(name)
             ax.set_ylabel("residual [µm]")
+        if lim is not None:
+            for ax in fig.axes:
+                if ax.get_ylabel() == "residual [µm]":
+                    ax.set_ylim(-1.08 * lim, 1.08 * lim)
         fig.suptitle(title)
         return fig
 
