@@ -492,7 +492,7 @@ def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: s
     ctx["verdicts"] = {k: json.loads(Path(v).read_text(encoding="utf-8")) for k, v in (verdicts or {}).items()}
     ctx["measured"] = {m["name"]: m for m in config.get("measured_data", [])}
     ctx["plans"] = {k: json.loads(Path(v).read_text(encoding="utf-8")) for k, v in (plans or {}).items()}
-    loaded = design_studies(config, ".", "config/config.yaml") if studies else {}
+    loaded = design_studies(config, ".", "the workflow's config (--configfile)") if studies else {}
     ctx["studies"] = {name: report.study_context(*loaded[name], paths) for name, paths in (studies or {}).items()}
     html = report.render_html(ctx, template_dir)
     from .integrity import atomic_write
