@@ -799,26 +799,28 @@ def test_a_joint_whose_axis_passes_through_the_measured_point_is_left_out_with_a
     assert any("wrist_3_joint (joint 6)" in n and "not_identifiable_joints" in n for n in v["notes"])
 
 
-@pytest.mark.parametrize("p_min", [0.05, 0.004, 2e-5])
-def test_min_p_value_equals_a_brute_force_monte_carlo_of_its_null(p_min):
+@pytest.mark.parametrize("p_min, weighted", [(0.05, False), (0.004, False), (2e-5, False), (0.004, True)])
+def test_min_p_value_equals_a_brute_force_monte_carlo_of_its_null(p_min, weighted):
     """The closed test's min-P p-value (importance sampling) against a plain Monte Carlo of the same null:
-    F-tests of overlapping column blocks added to one common model, sharing a chi^2 error variance."""
+    F-tests of overlapping column blocks added to one common model, sharing a chi^2 error variance; with
+    weights (a block and its parameters alone, as the closed test weights them), P(some p_m <= w_m p_min)."""
     rng = np.random.default_rng(3)
     P, df = 14, 30
     X = rng.standard_normal((P, 9))
     X[:, 5:7] = X[:, 2:4] + 0.4 * rng.standard_normal((P, 2))  # two causes that look alike
     base = np.linalg.qr(X[:, :2])[0]
-    spaces = [D._beyond(base, np.linalg.qr(X[:, list(range(2)) + cols])[0])
-              for cols in ([2, 3, 4], [5, 6], [7, 8])]
+    blocks = [[2, 3, 4], [5, 6], [7, 8]] + ([[2], [3], [4]] if weighted else [])
+    spaces = [D._beyond(base, np.linalg.qr(X[:, list(range(2)) + cols])[0]) for cols in blocks]
+    w = np.array([0.5 / 3, 1 / 3, 1 / 3] + [0.5 / 9] * 3) if weighted else np.ones(3)
     r = np.array([W.shape[1] for W in spaces])
     n = 300_000
     z = rng.standard_normal((n, P))
     s2 = rng.chisquare(df, n) / df
     p = np.stack([stats.f.sf(np.sum((z @ W) ** 2, 1) / k / s2, k, df) for W, k in zip(spaces, r)], -1)
-    brute = np.mean(p.min(axis=1) <= p_min)
-    estimate = D.min_p_value(p_min, spaces, df)
-    assert p_min <= estimate <= len(spaces) * p_min
-    assert estimate < 0.95 * len(spaces) * p_min  # correlated tests: below Bonferroni
+    brute = np.mean((p / w).min(axis=1) <= p_min)
+    estimate = D.min_p_value(p_min, spaces, df, weights=w if weighted else None)
+    assert w.max() * p_min <= estimate <= w.sum() * p_min
+    assert estimate < 0.95 * w.sum() * p_min  # correlated tests: below Bonferroni
     sd = np.hypot(np.sqrt(brute * (1 - brute) / n), 1.5 * estimate / np.sqrt(D.MIN_P_DRAWS))
     if brute * n >= 50:
         assert abs(estimate - brute) < 4 * sd, (estimate, brute)

@@ -24,9 +24,12 @@ lack of fit):
   63(3), 655-660; Bretz, Hothorn & Westfall, *Multiple Comparisons Using R*, 2011, sec. 2.2.3) over the
   elementary hypotheses H_c "cause c is absent" (c in the catalogue) and H_L "nothing outside the catalogue
   is present". The local test of an intersection H_U (and H_L) tests its members against the largest model
-  the intersection allows, M_{C minus U}: the F-test of adding c for each c in U, combined by the min-P test
-  over their joint null distribution (Westfall & Young 1993; :func:`min_p_value`, which gains over
-  Bonferroni where causes look alike), and, for H_L, the lack-of-fit test of M_{C minus U} against pure
+  the intersection allows, M_{C minus U}: for each c in U the F-test of adding its whole block (weight 1/2,
+  powerful when the effect spreads over its parameters: one gap on every joint) and the F-test of each of
+  its parameters alone (weight 1/2 shared, powerful when one parameter carries it: one coupled pair of joints,
+  one worn gearbox), the causes weighted alike, combined by the weighted min-P test over their joint null
+  distribution (Westfall & Young 1993; :func:`min_p_value`, which gains over Bonferroni where tests look
+  alike), and, for H_L, the lack-of-fit test of M_{C minus U} against pure
   error (without replicates: rank correlations of its residuals with row order, force, pose and torque),
   joined to the causes' test by a weighted Bonferroni test (weight 1/(|U| + 1) to H_L). A hypothesis is
   rejected when every intersection containing it is rejected, so the family-wise false-alarm rate is at
@@ -708,34 +711,36 @@ def _beyond(base: np.ndarray, bigger: np.ndarray) -> np.ndarray:
 
 
 def min_p_value(p_min: float, spaces: list[np.ndarray], df: int, draws: int = MIN_P_DRAWS,
-                rng: np.random.Generator | None = None) -> float:
-    """The p-value of the min-P test of several nested F-tests that share their error variance: the
-    probability, under their joint null, that the smallest of their p-values is at most ``p_min``.
+                rng: np.random.Generator | None = None, weights=None) -> float:
+    """The p-value of the weighted min-P test of several nested F-tests that share their error variance: the
+    probability, under their joint null, that some test m has p_m <= w_m p_min (``weights`` w, default 1: the
+    smallest p-value is at most ``p_min``; with weights, p_min is the observed min_m p_m / w_m).
 
-    Test c adds the columns whose orthonormal basis beyond the common model is ``spaces[c]`` (P, r_c), all
+    Test m adds the columns whose orthonormal basis beyond the common model is ``spaces[m]`` (P, r_m), all
     in one P-dimensional coordinate system of the union's column space, in which the whitened noise is
     N(0, I_P); the error variance is an independent chi^2_df / df. Each p-value is exactly uniform under the
-    null, so P(p_c <= p_min) = p_min, and the probability of the union of those events is estimated by
-    importance sampling (Naiman & Priebe, *J. Comput. Graph. Statist.* 10(2), 2001, 296-328): draw a test c
-    at random, the noise conditioned on p_c <= p_min (the F ratio through its Beta variable, truncated to
-    that tail), count the tests N rejected at p_min; the estimate k p_min mean(1/N) is unbiased and lies
-    between p_min and the Bonferroni bound k p_min, with a relative error below about 1/sqrt(draws) whatever
-    p_min is (no floor at 1/draws, as a plain Monte Carlo p-value has). Correlated tests (causes whose columns
-    overlap) give less than Bonferroni (Westfall & Young, *Resampling-Based Multiple Testing*, 1993,
-    sec. 2.6). ``rng``: the draws (default a fixed seed, :data:`MIN_P_SEED`)."""
+    null, so P(p_m <= w_m p_min) = w_m p_min, and the probability of the union of those events is estimated
+    by importance sampling (Naiman & Priebe, *J. Comput. Graph. Statist.* 10(2), 2001, 296-328): draw a test
+    m with probability proportional to w_m, the noise conditioned on p_m <= w_m p_min (the F ratio through its
+    Beta variable, truncated to that tail), count the tests N rejected; the estimate p_min sum(w) mean(1/N)
+    is unbiased and lies between p_min max(w) and the (weighted) Bonferroni bound p_min sum(w), with a
+    relative error below about 1/sqrt(draws) whatever p_min is (no floor at 1/draws, as a plain Monte Carlo
+    p-value has). Correlated tests (causes or parameters whose columns overlap) give less than Bonferroni
+    (Westfall & Young, *Resampling-Based Multiple Testing*, 1993, sec. 2.6). ``rng``: the draws (default a
+    fixed seed, :data:`MIN_P_SEED`)."""
     k = len(spaces)
     if k == 0:
         return 1.0
-    if k == 1 or not 1e-250 < p_min < 1.0:  # exact; or the Bonferroni bound beyond the sampler's range
-        return float(min(1.0, k * p_min))
+    w = np.ones(k) if weights is None else np.asarray(weights, float)
+    level = np.minimum(w * p_min, 1.0)  # with weights: P(some p_m <= w_m t), t = p_min
+    if k == 1 or not (1e-250 < level.min() and level.max() < 1.0):
+        return float(min(1.0, level.sum()))
     rng = np.random.default_rng(MIN_P_SEED) if rng is None else rng
     r = np.array([W.shape[1] for W in spaces])
-    f_crit = stats.f.isf(p_min, r, df)
-    pick = rng.integers(k, size=draws)
+    f_crit = stats.f.isf(level, r, df)
+    pick = rng.choice(k, size=draws, p=level / level.sum())
     z = rng.standard_normal((draws, spaces[0].shape[0]))
-    # the conditioned test's statistic: C = v / (u + v) ~ Beta(df/2, r/2) in its lower tail of mass p_min,
-    # u + v ~ chi^2_(r + df) independent of C; u = |W_c^T z|^2 (its direction uniform), v = df s^2
-    C = stats.beta.ppf(p_min * rng.uniform(size=draws), df / 2, r[pick] / 2)
+    C = stats.beta.ppf(level[pick] * rng.uniform(size=draws), df / 2, r[pick] / 2)
     total = rng.chisquare(r[pick] + df)
     u, v = (1.0 - C) * total, C * total
     for c, W in enumerate(spaces):
@@ -744,8 +749,8 @@ def min_p_value(p_min: float, spaces: list[np.ndarray], df: int, draws: int = MI
         z[rows] += (zc * (np.sqrt(u[rows]) / np.linalg.norm(zc, axis=1) - 1.0)[:, None]) @ W.T
     s2 = v / df
     hits = np.stack([np.sum((z @ W) ** 2, axis=1) / r[c] / s2 >= f_crit[c] for c, W in enumerate(spaces)], -1)
-    hits[np.arange(draws), pick] = True  # the conditioned test, whatever round-off says
-    return float(min(1.0, k * p_min * np.mean(1.0 / hits.sum(axis=1))))
+    hits[np.arange(draws), pick] = True
+    return float(min(1.0, level.sum() * np.mean(1.0 / hits.sum(axis=1))))
 
 
 def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float) -> Selection:
@@ -765,20 +770,38 @@ def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float)
         f0, f1 = fits[S], fits[S | {c}]
         return f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df) if f1.rank > f0.rank else 1.0
 
+    def statistics(c, S):  # (p, space, weight): the block of c added to S, and each parameter of c alone
+        f0 = fits[S]
+        block = (p_add(c, S), _beyond(spans[S], spans[S | {c}]))
+        extra = np.setdiff1d(des.columns([c]), des.columns())
+        singles = []
+        if block[1].shape[1] > 1:
+            for j in extra:
+                cols = np.append(des.columns(S), j)
+                f1 = red.fit(cols)
+                if f1.rank > f0.rank:
+                    singles.append((f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df),
+                                    _beyond(spans[S], _span(red.R, cols))))
+        if len(singles) < 2:
+            return [(*block, 1.0)]
+        return [(*block, 0.5)] + [(p, W, 0.5 / len(singles)) for p, W in singles]
+
     local = {}
     for i, U in enumerate(subsets):
         rest = everything - U
         members = [c for c in sorted(U, key=CAUSES.index) if fits[rest | {c}].rank > fits[rest].rank]
         p_causes = None
-        if members:  # the min-P test of the causes in U, each added to the largest model H_U allows; where it
-            # cannot change a decision at alpha (p_min > alpha, or Bonferroni's k p_min is below alpha times the
-            # causes' weight beside the lack of fit) its upper bound k p_min is kept: a valid p-value, never
-            # below the min-P one, with the same decisions at alpha
-            p_min = min(p_add(c, rest) for c in members)
-            p_causes = min(1.0, len(members) * p_min)
-            if p_min <= alpha and p_causes > alpha * (1.0 - (1.0 / (len(U) + 1) if lof[rest] is not None else 0.0)):
-                spaces = [_beyond(spans[rest], spans[rest | {c}]) for c in members]
-                p_causes = min_p_value(p_min, spaces, noise.df, rng=np.random.default_rng([MIN_P_SEED, i]))
+        if members:  # the weighted min-P test of the causes in U, each added to the largest model H_U allows;
+            # where it cannot change a decision at alpha its weighted Bonferroni bound min p / w is kept: a valid
+            # p-value, never below the min-P one, with the same decisions at alpha
+            tests = [(p, W, wt / len(members)) for c in members for p, W, wt in statistics(c, rest)]
+            ps, spaces, weights = (list(x) for x in zip(*tests))
+            t = min(p / wt for p, wt in zip(ps, weights))
+            p_causes = min(1.0, t)
+            low = max(weights) * t
+            if low <= alpha and p_causes > alpha * (1.0 - (1.0 / (len(U) + 1) if lof[rest] is not None else 0.0)):
+                p_causes = min_p_value(t, spaces, noise.df, rng=np.random.default_rng([MIN_P_SEED, i]),
+                                       weights=weights)
         elif U:
             p_causes = 1.0
         if p_causes is not None:
