@@ -376,16 +376,16 @@ class Design:
         r = np.repeat(w, self.d)
         return Design(self.X0 * r[:, None], {k: v * r[:, None] for k, v in self.blocks.items()}, self.y * r, self.d)
 
-    def within(self, visit: np.ndarray, c: np.ndarray) -> "Design":
-        """The design with the rows of every visit v (visit: (N,) int) less c[v] times their mean over the
-        visit: generalised least squares for an error common to a visit's rows (:class:`SharedReference`)."""
+    def within(self, group: np.ndarray, c: np.ndarray) -> "Design":
+        """The design with the rows of every group g (group: (N,) int) less c[g] times their mean over the
+        group: generalised least squares for an error common to a group's rows (:class:`SharedReference`)."""
         def shrink(A):
             B = A.reshape(-1, self.d, *A.shape[1:])
-            counts = np.bincount(visit)
+            counts = np.bincount(group)
             means = np.zeros((len(counts),) + B.shape[1:])
-            np.add.at(means, visit, B)
+            np.add.at(means, group, B)
             means /= counts.reshape((-1,) + (1,) * (B.ndim - 1))
-            return (B - c[visit].reshape((-1,) + (1,) * (B.ndim - 1)) * means[visit]).reshape(A.shape)
+            return (B - c[group].reshape((-1,) + (1,) * (B.ndim - 1)) * means[group]).reshape(A.shape)
         return Design(shrink(self.X0), {k: shrink(v) for k, v in self.blocks.items()}, shrink(self.y), self.d)
 
     def model(self, causes=()) -> np.ndarray:
@@ -1145,15 +1145,15 @@ class SharedReference:
     tau2)) for L_v rows (Searle, Casella & McCulloch, *Variance Components*, 1992, sec. 3.6); replicates,
     and so the pure error, are unchanged.
 
-    visit: (N,) int: the configuration of every row; tau2, s2 [m^2]."""
-    visit: np.ndarray
+    config: (N,) int: the configuration of every row; tau2, s2 [m^2]."""
+    config: np.ndarray
     tau2: float
     s2: float
 
     @property
     def c(self) -> np.ndarray:
-        """(visits,): the shrinkage of each visit."""
-        return 1.0 - np.sqrt(self.s2 / (self.s2 + np.bincount(self.visit) * self.tau2))
+        """(configurations,): the shrinkage of each configuration's rows."""
+        return 1.0 - np.sqrt(self.s2 / (self.s2 + np.bincount(self.config) * self.tau2))
 
     @classmethod
     def of(cls, meas: Measurements, zp: dict | None, s2: float, alpha: float,
@@ -1172,8 +1172,8 @@ class SharedReference:
         return cls(meas.config, tau2, s2)
 
     def take(self, keep: np.ndarray) -> "SharedReference":
-        """The same for the rows ``keep`` (bool (N,)), visits renumbered."""
-        return SharedReference(np.unique(self.visit[keep], return_inverse=True)[1].ravel(), self.tau2, self.s2)
+        """The same for the rows ``keep`` (bool (N,)), configurations renumbered."""
+        return SharedReference(np.unique(self.config[keep], return_inverse=True)[1].ravel(), self.tau2, self.s2)
 
     def note(self, zp: dict) -> str:
         return (f"the unloaded rows scatter about zero more than the replicates' noise (p = {zp['p_value']:.2g}): "
@@ -1271,7 +1271,8 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     zp = zero_point(meas, noise.s2, rw, noise.df, alpha, w0)
     shared = SharedReference.of(meas, zp, noise.s2, alpha, w0)
     if shared is not None:
-        des = des.within(shared.take(keep).visit, shared.take(keep).c)
+        kept = shared.take(keep)
+        des = des.within(kept.config, kept.c)
         notes.append(shared.note(zp))
 
     f0 = fit(des.X0, des.y)
