@@ -511,14 +511,20 @@ def report_pdf(html: str, out_pdf: str, svgs: list[str] = ()) -> None:
 
 def effective_config(config: dict, out: str) -> None:
     """results/config.effective.yaml: the config as the run saw it (after ``--configfile`` and ``--config``),
-    as sorted YAML; loading it gives back the dict whose :func:`stiffcal.report.config_hash` the report and
+    as sorted YAML, without the keys whose default is none (the schema takes no null): given back as
+    ``--configfile`` it is that config again, whose :func:`stiffcal.report.config_hash` the report and
     provenance.json show (the first line says so)."""
     import yaml
 
     from . import report
     from .integrity import atomic_write
 
-    text = yaml.safe_dump(config, sort_keys=True, default_flow_style=False, allow_unicode=True)
+    def written(doc):
+        if isinstance(doc, dict):
+            return {k: written(v) for k, v in doc.items() if v is not None}
+        return [written(v) for v in doc] if isinstance(doc, list) else doc
+
+    text = yaml.safe_dump(written(config), sort_keys=True, default_flow_style=False, allow_unicode=True)
     atomic_write(out, f"# the config this run used; config hash {report.config_hash(config)} (report, "
                       f"provenance.json)\n{text}")
 
