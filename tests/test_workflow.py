@@ -376,6 +376,9 @@ def test_archive_of_a_second_config_holds_its_config_inputs_and_no_stale_output(
     # effective config given back as --configfile is that config again
     effective = workflow_config([str(tmp_path / "effective.yaml")])[1]
     assert effective == workflow_config(["config/second.yaml"], {"seed": 7})[1]
+    res = subprocess.run([str(SNAKEMAKE), "-n", "--configfile", str(tmp_path / "effective.yaml")], cwd=wd,
+                         capture_output=True, text=True)  # a reviewer's rerun of it has nothing to do
+    assert res.returncode == 0 and "Nothing to be done" in res.stdout + res.stderr, res.stdout[-2000:]
     digest = config_hash(effective)
     assert json.loads(read["provenance.json"])["config_hash"] == digest and digest in read["paper/build/report.html"]
     assert {"lab/arm.yaml", "lab/run1.csv", "results/discrepancy/lab-run1/verdict.json",

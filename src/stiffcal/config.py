@@ -25,7 +25,9 @@ def workflow_config(configfiles, overrides: dict | None = None, root: str | Path
     """(source, config): the config the workflow runs with. configfiles: the ``--configfile`` arguments (at most
     one; none means :data:`DEFAULT`); overrides: the ``--config`` values. Read with
     :func:`stiffcal.validation.read_yaml` (duplicate keys, aliases, YAML 1.2 numbers) and checked by
-    :func:`check_config`; an error names the file (or ``--config``) and the field."""
+    :func:`check_config`; an error names the file (or ``--config``) and the field. Its keys are sorted at every
+    level, so that the same config written in another order (results/config.effective.yaml given back) gives
+    the rules the same parameters and reruns nothing."""
     from .validation import read_yaml
 
     root_abs = Path(root).resolve()
@@ -50,7 +52,13 @@ def workflow_config(configfiles, overrides: dict | None = None, root: str | Path
         if top in overrides:
             raise err.renamed(source="--config") from None
         raise
-    return source, fill_defaults(config)
+    return source, _sorted(fill_defaults(config))
+
+
+def _sorted(doc):
+    if isinstance(doc, dict):
+        return {k: _sorted(doc[k]) for k in sorted(doc)}
+    return [_sorted(v) for v in doc] if isinstance(doc, list) else doc
 
 
 def fill_defaults(config: dict) -> dict:

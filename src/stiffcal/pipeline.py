@@ -512,8 +512,9 @@ def report_pdf(html: str, out_pdf: str, svgs: list[str] = ()) -> None:
 def effective_config(config: dict, out: str) -> None:
     """results/config.effective.yaml: the config as the run saw it (after ``--configfile`` and ``--config``),
     as sorted YAML, without the keys whose default is none (the schema takes no null): given back as
-    ``--configfile`` it is that config again, whose :func:`stiffcal.report.config_hash` the report and
-    provenance.json show (the first line says so)."""
+    ``--configfile`` it is that config again (:func:`stiffcal.config.workflow_config` sorts its keys), whose
+    :func:`stiffcal.report.config_hash` the report and provenance.json show (the first line says so), and the
+    rules' parameters are unchanged, so nothing reruns."""
     import yaml
 
     from . import report
