@@ -1279,6 +1279,8 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     lof = lack_of_fit_test(robot, m, des, noise, w)
     sel = closed_testing(des, CAUSES, noise, lof, alpha)
     testable = sel.causes
+    alone = {c: f_test(f0.rss, f0.df, sel.fits[frozenset([c])].rss, sel.fits[frozenset([c])].df, noise.s2, noise.df)
+             if c in testable else 1.0 for c in CAUSES}  # each cause against the nominal model alone
     chosen = sel.explanations[0] if sel.explanations else frozenset(testable)
     alternatives = [S for S in sel.explanations[1:] if len(S) == len(chosen)]
     chosen, alternatives, notes = physical_choice(des, sel, chosen, alternatives, noise, robot, ob, notes)
@@ -1294,10 +1296,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     elif ranked:
         cause = ranked[0]
         p_of = [cause, *indistinct]
-        f_nominal = sel.fits[frozenset()]
-        others = sorted((c for c in testable if c not in p_of), key=lambda c: (f_test(
-            f_nominal.rss, f_nominal.df, sel.fits[frozenset([c])].rss, sel.fits[frozenset([c])].df, noise.s2,
-            noise.df), CAUSES.index(c)))
+        others = sorted((c for c in testable if c not in p_of), key=lambda c: (alone[c], CAUSES.index(c)))
         while sel.adjusted_p(p_of) > alpha and others:  # the principal cause is not needed on its own: name the
             p_of.append(others.pop(0))                   # fewest causes of which the data need at least one
         indistinct = sorted(p_of[1:], key=CAUSES.index)
@@ -1320,8 +1319,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
                "rss": f0.rss, "df": f0.df,
                "lack_of_fit_p": lof_nominal, "n_rows": int(m.n_rows), "n_poses": int(m.n_configurations)}
     tests = {c: {"extra_parameters": int(sel.fits[frozenset([c])].rank - f0.rank) if c in testable else 0,
-                 "p_value": (f_test(f0.rss, f0.df, sel.fits[frozenset([c])].rss, sel.fits[frozenset([c])].df,
-                                    noise.s2, noise.df) if c in testable else 1.0),
+                 "p_value": alone[c],
                  "adjusted_p_value": sel.adjusted.get(c), "significant": c in sel.declared} for c in CAUSES}
     out = {"cause": cause, "causes": ranked, "indistinguishable_from": indistinct,
            "equivalent_combinations": [sorted(S, key=CAUSES.index) for S in alternatives],
