@@ -226,7 +226,8 @@ def test_link_regressors_equal_the_integrated_beam_of_the_truth(rng):
 @pytest.mark.parametrize("block", [None, "backlash"])
 def test_oracle_power_equals_a_monte_carlo_of_the_oracle_test(rng, block):
     """The noncentral-F power of the oracle (exact shape: 1 df; cause block: the backlash regressors) against
-    the rejection rate of that F-test on simulated noise."""
+    the rejection rate of that F-test on the simulator's noise (every row a loaded reading less its own
+    unloaded reference reading: independent rows of twice a reading's variance)."""
     robot = planar_robot([0.6, 0.4])
     log = T.lab_log(robot, R.PROTOCOLS["4 directions x 2, repeated"], rng, 10)
     rows = log.loaded
@@ -239,11 +240,12 @@ def test_oracle_power_equals_a_monte_carlo_of_the_oracle_test(rng, block):
     r = Xe.shape[1] - X.shape[1]
     crit = stats.f.isf(0.01, r, df)
     hits, n = 0, 2000
+    still = T.Truth(np.zeros(2))
     for _ in range(n):
-        y = e + rng.normal(0, SIGMA, len(e))
+        y = e + T.measure(robot, still, log, rng)[rows].ravel()
         r0 = y - X @ np.linalg.lstsq(X, y, rcond=None)[0]
         r1 = y - Xe @ np.linalg.lstsq(Xe, y, rcond=None)[0]
-        s2 = SIGMA**2 * rng.chisquare(df) / df  # an independent pure-error estimate on df degrees of freedom
+        s2 = 2 * SIGMA**2 * rng.chisquare(df) / df  # an independent pure-error estimate on df degrees of freedom
         hits += (r0 @ r0 - r1 @ r1) / r / s2 > crit
     assert 0.2 < power < 0.95
     assert abs(hits / n - power) < 4 * np.sqrt(power * (1 - power) / n)
@@ -308,7 +310,10 @@ def test_two_effects_at_once_are_both_named(arm, protocol, effects, arms, tmp_pa
     for r in both:
         v = r.verdict_with_pose_id
         assert set(effects) <= {*v["causes"], *v["indistinguishable_from"]}, (r.seed, v["causes"])
-        assert v["cause"] in effects and r.agree
+        # the principal cause is a hidden effect, or one the data cannot tell from a hidden effect (for a planar
+        # arm measured at the tool point a bending link acts like a compliance block on its joints)
+        assert v["cause"] in effects or set(v["indistinguishable_from"]) & set(effects), (r.seed, v["cause"])
+        assert r.agree
 
 
 def test_an_effect_outside_the_catalogue_is_unexplained(arms, tmp_path):
@@ -893,7 +898,8 @@ def test_a_new_users_data_sets_give_the_verdicts_of_their_readme(paper_robot):
     assert v["outlier_rows"] == [36] and v["cause"] == "none"
     for name in ("r2_hangrep_sharedref_once_s0.csv", "r2_push4rep_sharedref_once_s2.csv"):
         v = D.analyse(paper_robot, read_measurements(NEWUSER / name, paper_robot), gain=False)
-        assert v["cause"] == "none" and any("share an error" in n for n in v["notes"]), (name, v["cause"])
+        assert v["cause"] == "none" and any("share the errors of their reference readings" in n for n in v["notes"]), (
+            name, v["cause"])
 
 
 # --- the extended model: parameters the data do not determine, joint compliances below zero -------------------
@@ -1114,7 +1120,7 @@ def test_a_misspelled_column_the_analysis_reads_is_refused_with_the_likely_name(
 def test_misspelled_optional_columns_are_refused_and_other_columns_get_no_suggestion(tmp_path, paper_robot):
     """'Target' (the targets would be dropped: every row taken for the tool point) and 'MZ_Nm' beside mx_Nm,
     my_Nm (the moment would be dropped) are refused naming the likely column; the UR10 file's timestamp and
-    temperature_C are noted as unused with no suggestion."""
+    temperature_C are noted as unused, the timestamp with the name the analysis reads it under (timestamp_s)."""
     lines = LAB.splitlines()
     text = "\n".join([lines[0] + ",Target"] + [ln + ",tool" for ln in lines[1:]]) + "\n"
     with pytest.raises(InputError, match="column Target'.*looks like target"):
@@ -1124,7 +1130,9 @@ def test_misspelled_optional_columns_are_refused_and_other_columns_get_no_sugges
     with pytest.raises(InputError, match="column MZ_Nm'.*looks like mz_Nm"):
         read_measurements(_write(tmp_path, ur10.replace("mz_Nm", "MZ_Nm", 1), "mz.csv"), robot)
     notes = read_measurements(LAB_DIR / "ur10_bar.csv", robot).notes
-    assert any("timestamp, temperature_C not used" in n for n in notes) and not any("looks like" in n for n in notes)
+    assert any("timestamp, temperature_C not used" in n for n in notes)
+    assert any("'timestamp' looks like timestamp_s" in n for n in notes)  # a log column: a suggestion, not a refusal
+    assert not any("'temperature_C' looks like" in n for n in notes)
 
 
 @pytest.mark.parametrize("n_configs, pose_id", [(12, True), (60, True), (12, False)])

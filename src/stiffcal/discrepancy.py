@@ -11,6 +11,10 @@ so every question is a comparison of nested linear models:
 - ``nonlinear_joint_stiffness``: a compliance that changes with the torque, dq_i = k_i tau_i + g_i tau_i^3
   (the first odd term of any symmetric law): columns J_i tau_i^3.
 - ``backlash``: a deflection of fixed size whose sign follows the torque: columns J_i sign(tau_i).
+- Both act on the total torque: with the arm's own weight known (the robot file's masses or the URDF's
+  inertias, :meth:`stiffcal.robot.Robot.gravity_torques`, t0) a row is the loaded state less the unloaded one,
+  columns J_i ((t0_i + tau_i)^3 - t0_i^3) and J_i (sign(t0_i + tau_i) - sign(t0_i)): a gap preloaded by the
+  weight jumps only where the load reverses the total torque.
 - ``measurement_offset``: a constant bias of the measuring system: one column per axis (a property of the
   tracker, not of the robot: it does not enter predictions at a test pose).
 
@@ -60,6 +64,7 @@ from .observation import (Sensing, as_wrench, force_dim, moment_dim, observe, se
                           tool_twists)
 from .observation import torques as observation_torques
 from .robot import TOOL_TARGET, Robot, as_xyz
+from .errormodel import KINDS as EMKINDS
 from .stiffness import observation_matrix, random_directions
 
 CAUSES = ("link_compliance", "joint_coupling", "nonlinear_joint_stiffness", "backlash", "measurement_offset")
@@ -156,23 +161,42 @@ def _twists(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray) -> np.nda
     robot cause (the nominal model as cause ``"nominal"``), under the wrench ``load`` (N, d + d_m)."""
     if cause == "link_compliance":
         return _link_twists(robot, q, load)
-    return _joint_columns(cause, tool_twists(robot, q)[0], observation_torques(robot, q, load))
+    return _joint_columns(cause, tool_twists(robot, q)[0], observation_torques(robot, q, load),
+                          _preload(cause, robot, q))
 
 
-def _joint_columns(cause: str, J: np.ndarray, tau: np.ndarray) -> np.ndarray:
+def _preload(cause: str, robot: Robot, q: np.ndarray) -> np.ndarray | None:
+    """The self-weight torques (N, n) [N m] that preload a cause acting on the total torque (backlash, a
+    nonlinear stiffness; :meth:`Robot.gravity_torques`), None for the others or a robot without masses."""
+    if cause not in ("nonlinear_joint_stiffness", "backlash") or robot.masses is None:
+        return None
+    return robot.gravity_torques(q)
+
+
+def _signs(tau: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """sign(tau) with a torque within round-off of zero (relative to ``scale``, (N, 1)) taken as zero."""
+    return np.sign(tau) * (np.abs(tau) > 1e-12 * scale)
+
+
+def _joint_columns(cause: str, J: np.ndarray, tau: np.ndarray, preload: np.ndarray | None = None) -> np.ndarray:
     """(N, k, p): the columns of a joint cause (``"nominal"``: the compliances) from the joints' Jacobian columns
-    J (N, k, n) (positions of the tool point, or 6-D twists) and the torques tau (N, n) (module docstring)."""
+    J (N, k, n) (positions of the tool point, or 6-D twists) and the load's torques tau (N, n) (module
+    docstring). With the arm's own weight, ``preload`` (N, n) [N m], backlash and the nonlinear stiffness act on
+    the total torque and a row sees the loaded state less the unloaded one: J ((t0 + tau)^3 - t0^3) and
+    J (sign(t0 + tau) - sign(t0)) (a gap preloaded by the weight jumps only where the load reverses the total
+    torque)."""
     n = J.shape[-1]
     if cause == "nominal":
         return J * tau[:, None, :]
     if cause == "joint_coupling":
         pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
         return np.stack([J[:, :, i] * tau[:, j, None] + J[:, :, j] * tau[:, i, None] for i, j in pairs], axis=-1)
+    t0 = np.zeros_like(tau) if preload is None else preload
     if cause == "nonlinear_joint_stiffness":
-        return J * (tau**3)[:, None, :]
+        return J * ((t0 + tau) ** 3 - t0**3)[:, None, :]
     if cause == "backlash":  # a torque within round-off of zero (the arm along the force) has no sign
-        tol = 1e-12 * np.abs(tau).max(axis=-1, keepdims=True)
-        return J * (np.sign(tau) * (np.abs(tau) > tol))[:, None, :]
+        scale = np.maximum(np.abs(tau), np.abs(t0)).max(axis=-1, keepdims=True)
+        return J * (_signs(t0 + tau, scale) - _signs(t0, scale))[:, None, :]
     raise ValueError(f"unknown cause {cause!r}")
 
 
@@ -248,7 +272,7 @@ def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray,
         return np.broadcast_to(np.eye(d), (len(q), d, d)).copy()
     if cause == "nominal":
         raise ValueError(f"unknown cause {cause!r}")
-    return _joint_columns(cause, robot.jacobian(q), torques(robot, q, force))
+    return _joint_columns(cause, robot.jacobian(q), torques(robot, q, force), _preload(cause, robot, q))
 
 
 def model_columns(robot: Robot, q: np.ndarray, force: np.ndarray, causes=(), predict: bool = False,
@@ -375,18 +399,6 @@ class Design:
         """The design with measurement i's rows multiplied by w_i (w: (N,)): weighted least squares."""
         r = np.repeat(w, self.d)
         return Design(self.X0 * r[:, None], {k: v * r[:, None] for k, v in self.blocks.items()}, self.y * r, self.d)
-
-    def within(self, group: np.ndarray, c: np.ndarray) -> "Design":
-        """The design with the rows of every group g (group: (N,) int) less c[g] times their mean over the
-        group: generalised least squares for an error common to a group's rows (:class:`SharedReference`)."""
-        def shrink(A):
-            B = A.reshape(-1, self.d, *A.shape[1:])
-            counts = np.bincount(group)
-            means = np.zeros((len(counts),) + B.shape[1:])
-            np.add.at(means, group, B)
-            means /= counts.reshape((-1,) + (1,) * (B.ndim - 1))
-            return (B - c[group].reshape((-1,) + (1,) * (B.ndim - 1)) * means[group]).reshape(A.shape)
-        return Design(shrink(self.X0), {k: shrink(v) for k, v in self.blocks.items()}, shrink(self.y), self.d)
 
     def model(self, causes=()) -> np.ndarray:
         """(N d, n + sum p_c): the nominal columns and those of ``causes`` in catalogue order."""
@@ -560,23 +572,6 @@ class Noise:
     source: str
     ss_pe: float
     df_pe: int
-
-
-def noise_variance(des: Design, meas: Measurements) -> Noise:
-    """Pure error when the data have replicates, else the residual variance of the union model; raises
-    :class:`InputError` when neither has a degree of freedom (nothing could be tested)."""
-    ss_pe, df_pe = pure_error(des.y.reshape(-1, des.d), meas.group)
-    if df_pe > 0:
-        return Noise(ss_pe / df_pe, df_pe, "replicates (pure error)", ss_pe, df_pe)
-    fu = fit(des.union(), des.y)
-    if fu.df > 0 and fu.rss > 0:
-        return Noise(fu.rss / fu.df, fu.df, "residuals of the union of all extensions", 0.0, 0)
-    p = fu.rank
-    raise InputError(
-        f"these data cannot support the analysis: no replicates (rows repeating a joint configuration and a "
-        f"load) and {meas.n_rows} loaded measurements x {des.d} coordinates = {len(des.y)} equations for the "
-        f"{p} parameters of the union of all extensions, so no degree of freedom is left to estimate the "
-        f"noise; repeat some measurements or measure more configurations", source=meas.source)
 
 
 @dataclass(frozen=True)
@@ -931,23 +926,34 @@ class ConfigurationModel:
     d: int
 
     @classmethod
-    def of(cls, meas: Measurements, weights: np.ndarray | None = None, d: int | None = None) -> "ConfigurationModel":
-        """G for the measurements, its rows multiplied by ``weights`` (N,) when the fit is weighted; d: the
-        measured components per row (default the displacement's)."""
+    def of(cls, meas: Measurements, weights: np.ndarray | None = None, d: int | None = None,
+           error=None) -> "ConfigurationModel":
+        """G for the measurements, its rows multiplied by ``weights`` (N,) when the fit is weighted and whitened
+        configuration by configuration by the error model ``error`` (:class:`stiffcal.errormodel.ErrorModel`)
+        when rows share errors; d: the measured components per row (default the displacement's)."""
         blocks, rank = [], 0
         d = meas.dp.shape[1] if d is None else d
         w = np.ones(meas.n_rows) if weights is None else weights
         load = load_of(meas)
+        roots = {} if error is None else {int(meas.config[rows[0]]): (rows, W) for rows, _, W, _ in error.blocks}
         for c in range(meas.n_configurations):
-            for t in np.unique(meas.target):
-                rows = np.flatnonzero((meas.config == c) & (meas.target == t))
-                if rows.size == 0:
-                    continue
-                Z = np.hstack([load[rows], np.ones((len(rows), 1))]) * w[rows, None]
-                U, sv, _ = np.linalg.svd(Z, full_matrices=False)
-                r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size else 0
-                blocks.append((rows, U[:, :r]))
-                rank += r * d
+            rows = np.flatnonzero(meas.config == c)
+            cols = []
+            for t in np.unique(meas.target[rows]):
+                mine = meas.target[rows] == t
+                Z = np.zeros((len(rows), load.shape[1] + 1))
+                Z[mine] = np.hstack([load[rows[mine]], np.ones((int(mine.sum()), 1))]) * w[rows[mine], None]
+                cols.append(Z)
+            Z = np.hstack(cols)
+            if c in roots:
+                order, W = roots[c]
+                pos = {int(r): i for i, r in enumerate(rows)}
+                Z = W @ Z[[pos[int(r)] for r in order]]
+                rows = order
+            U, sv, _ = np.linalg.svd(Z, full_matrices=False)
+            r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+            blocks.append((rows, U[:, :r]))
+            rank += r * d
         return cls(tuple(blocks), rank, d)
 
     def residualise(self, A: np.ndarray) -> np.ndarray:
@@ -959,7 +965,8 @@ class ConfigurationModel:
         return B.reshape(A.shape)
 
 
-def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise, weights: np.ndarray | None = None):
+def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise, weights: np.ndarray | None = None,
+                     error=None):
     """The test of H_L ("nothing outside the catalogue") for a model nominal + S, for :func:`closed_testing`:
     a Bonferroni combination of the tests the data allow (Draper & Smith 2.1 for the first):
 
@@ -968,9 +975,9 @@ def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise
       have loads to spare: the F-test of adding G;
     - residual structure: rank correlations of the residuals with row order, force, pose and torque
       (:func:`structure_p_value`), which sees a drift even where replicates repeat it.
-    ``des`` and ``noise`` are weighted by ``weights`` (N,) when the noise varies from row to row. Returns
-    None when no test is possible."""
-    G = ConfigurationModel.of(meas, weights, des.d)
+    ``des`` and ``noise`` are weighted by ``weights`` (N,) when the noise varies from row to row, and whitened by
+    the error model ``error`` when rows share errors. Returns None when no test is possible."""
+    G = ConfigurationModel.of(meas, weights, des.d, error)
     redG = Reduced.of(G.residualise(des.union()), G.residualise(des.y))
     Xu = des.union()
     feats = Structure.of(robot, meas)
@@ -984,7 +991,7 @@ def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise
     def test(S, f: Fit):
         ps = []
         if noise.df_pe > 0 and f.df > noise.df_pe:
-            ps.append(f_test(f.rss, f.df, noise.ss_pe, noise.df_pe, noise.s2, noise.df_pe))
+            ps.append(f_test(f.rss, f.df, noise.ss_pe, noise.df_pe, noise.s2, noise.df))
         cols = des.columns(S)
         if dfG > 0 and s2G > 0:
             fg = redG.fit(cols)
@@ -1041,44 +1048,6 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
 ZERO_POINT_MAX_OUTLIERS = 0.2
 
 
-def zero_point_outliers(z: np.ndarray, s2: float, df: int | None = None, alpha: float = 0.01,
-                        max_fraction: float = ZERO_POINT_MAX_OUTLIERS) -> tuple[list[int], list[float]]:
-    """The unloaded rows that stand out from the others: (indices into z, Bonferroni-adjusted p-values).
-
-    z: (N0, r) [m] the unloaded rows' measured quantities; s2 [m^2]: the noise variance of one component, on
-    df degrees of freedom (None: known). A sequential outlier test among the rows (the generalised ESD
-    procedure of Rosner 1983, Technometrics 25(2), 165-172, with the noise known from the analysis rather
-    than from the rows themselves, so that a single row can be judged against a handful of others): at each
-    step the row farthest from the mean of the remaining others, d = z_i - mean(z_rest), has
-    F = |d|^2 / (r s2 (1 + 1 / (n - 1))) ~ F(r, df) (chi^2_r / r when df is None) when it is not an outlier;
-    it is named when its p-value times the n rows still in the test is at most ``alpha``, and the test goes on
-    without it, up to ``max_fraction`` of the rows (at least one). A shift common to every row (a zero point
-    that moved) moves the mean with it and names no row. On rows without an outlier the chance of naming any
-    is at most alpha (the first step's Bonferroni bound). Fewer than 3 rows: nothing is named (two rows that
-    differ cannot say which one is wrong)."""
-    z = np.asarray(z, float)
-    n0, r = z.shape
-    if n0 < 3 or not s2 > 0:
-        return [], []
-    left = list(range(n0))
-    out, ps = [], []
-    for _ in range(max(1, int(max_fraction * n0))):
-        n = len(left)
-        if n < 3:
-            break
-        rows = z[left]
-        rest = (rows.sum(axis=0)[None, :] - rows) / (n - 1)
-        F = ((rows - rest) ** 2).sum(axis=1) / (r * s2 * (1 + 1 / (n - 1)))
-        worst = int(np.argmax(F))
-        p = float(stats.chi2.sf(r * F[worst], r) if df is None else stats.f.sf(F[worst], r, df))
-        if min(1.0, n * p) > alpha:
-            break
-        out.append(left.pop(worst))
-        ps.append(min(1.0, n * p))
-    order = np.argsort(out)
-    return [out[i] for i in order], [ps[i] for i in order]
-
-
 def zero_weights(meas: Measurements, keep: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(N0,): the weight of every unloaded row: that of the first kept loaded row at its configuration (w:
     the weights of the kept rows ``keep`` (bool (N,)) of ``meas``), 1 where none is."""
@@ -1088,99 +1057,160 @@ def zero_weights(meas: Measurements, keep: np.ndarray, w: np.ndarray) -> np.ndar
     return np.array([full[first[c]] if c in first else 1.0 for c in meas.zero_config.tolist()])
 
 
-def zero_point(meas: Measurements, s2: float, rad_weight: float = 1.0, df: int | None = None,
-               alpha: float = 0.01, weights: np.ndarray | None = None) -> dict | None:
-    """The unloaded reference rows: how many, the RMS of their displacement, the rows that stand out from the
-    others (:func:`zero_point_outliers` at ``alpha``, with the noise variance s2 [m^2] on df degrees of freedom:
-    ``outlier_rows``, 0-based data rows) and, for the others, when they are not all exactly zero, the p-value of
-    the chi-square test that they scatter about zero with the noise variance (their rotation, when measured,
-    times ``rad_weight`` [m/rad]); a zero point that moved as a whole is a drift or a disturbed target. With
-    a noise that varies from row to row, ``weights`` (N0,) scale the unloaded rows to the noise s2 is of
-    (:func:`zero_weights`); ``rms_m`` stays unscaled."""
+def _check_noise_df(des: Design, group: np.ndarray, source: str) -> None:
+    """Raise :class:`InputError` when the rows (replicate groups ``group`` (N,)) leave no degree of freedom for the
+    noise: no replicates and no residual of the union of all extensions."""
+    if np.bincount(group).max(initial=0) >= 2:
+        return
+    fu = fit(des.union(), des.y)
+    if not (fu.df > 0 and fu.rss > 0):
+        N = len(des.y) // des.d
+        raise InputError(
+            f"these data cannot support the analysis: no replicates (rows repeating a joint configuration and a "
+            f"load) and {N} loaded measurements x {des.d} coordinates = {len(des.y)} equations for the {fu.rank} "
+            "parameters of the union of all extensions, so no degree of freedom is left to estimate the noise; "
+            "repeat some measurements or measure more configurations", source=source)
+
+
+def noise_variance(des: Design, meas: Measurements) -> Noise:
+    """The error variance of the rows of ``des`` (the measurements ``meas``) taken as independent, with no
+    shared reference reading (:func:`stiffcal.errormodel.independent`): the pure error of the replicates, else
+    the residuals of the union of all extensions. Raises :class:`InputError` when no degree of freedom is left."""
+    from . import errormodel as EM
+
+    _check_noise_df(des, meas.group, meas.source)
+    N = len(des.y) // des.d
+    groups = np.unique(meas.group, return_inverse=True)[1].ravel()
+    em = EM.estimate(EM.independent(N), des.y.reshape(N, des.d), np.ones(N), groups,
+                     des.union().reshape(N, des.d, -1))
+    return Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
+
+
+def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.ndarray, w0: np.ndarray, rw: float,
+                    alpha: float):
+    """The rows' error model (:func:`stiffcal.errormodel.estimate`: which reference reading every row was taken
+    from, the errors they share, by REML) and the verdict's ``zero_point``, for the loaded rows ``keep`` (bool
+    (N,)) of ``meas`` whose weighted design is ``des`` (weights w (N_kept,)), the unloaded rows weighted by
+    w0 (N0,) and their rotation by rw [m/rad].
+
+    The unloaded rows that carry noise are screened for blunders first, one at a time: the row that stands out
+    most as if no row shared an error is tested against the others (a mean shift of that row,
+    :func:`stiffcal.errormodel.unloaded_tests`, F(w, df - w)) in the error model fitted without it (its
+    deleted residual: a blunder must not be read as the shared error of its group), and named when its
+    Bonferroni-adjusted p (times the unloaded rows still in) is at most ``alpha``, up to
+    :data:`ZERO_POINT_MAX_OUTLIERS` of them (at least one); then whether the others as a whole moved from zero
+    (a drift, a disturbed target). Returns ``(ErrorModel, zero_point)``."""
+    from . import errormodel as EM
+
+    N = int(keep.sum())
+    d = des.d
+    _check_noise_df(des, meas.group[keep], meas.source)
+    Yl = des.y.reshape(N, d)
+    Xu = des.union().reshape(N, d, -1)
+    groups = np.unique(meas.group[keep], return_inverse=True)[1].ravel()
+    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+    zw = z * w0[:, None] if len(z) else z.reshape(0, d)
+    out, p_out = [], []
+
+    def model(excluded):
+        st = EM.reading_structure(meas, keep, excluded)
+        Y = np.vstack([Yl, zw[st.zero_index]]) if len(st.zero_index) else Yl
+        weights = np.concatenate([w, w0[st.zero_index]])
+        return st, Y, weights, EM.estimate(st, Y, weights, groups, Xu)
+
+    while True:
+        st, Y, weights, em = model(out)
+        n_u = len(st.zero_index)
+        if n_u == 0:
+            p_shift = None
+            break
+        # the candidate: the row that stands out most if no row shared an error; judged in the error model fitted
+        # without it (a blunder would otherwise be read as a shared error of its group)
+        naive = replace(em, ratios=np.zeros_like(em.ratios))
+        p0 = EM.unloaded_tests(naive, Y, groups, Xu, weights)[0]
+        cand = int(np.argmin(p0))
+        limit = max(1, int(ZERO_POINT_MAX_OUTLIERS * (n_u + len(out))))
+        if min(1.0, n_u * float(p0[cand])) <= alpha and len(out) < limit:
+            without = model(out + [int(st.zero_index[cand])])[3]
+            ratios = {c.name: lam for c, lam in zip(without.structure.components, without.ratios)}
+            deleted = replace(em, ratios=np.array([ratios.get(c.name, 0.0) for c in st.components]),
+                              sigma2=without.sigma2, df=without.df)
+            p_cand = EM.unloaded_tests(deleted, Y, groups, Xu, weights)[0][cand]
+            if min(1.0, n_u * float(p_cand)) <= alpha:
+                out.append(int(st.zero_index[cand]))
+                p_out.append(min(1.0, n_u * float(p_cand)))
+                continue
+        p_shift = EM.unloaded_tests(em, Y, groups, Xu, weights)[1]
+        break
+    return em, _zero_point_summary(meas, em, out, p_out, p_shift, alpha, rw)
+
+
+def _zero_point_summary(meas: Measurements, em, out: list, p_out: list, p_shift, alpha: float, rw: float) -> dict | None:
+    """The verdict's ``zero_point`` (docs/measured-data.md)."""
     from .measurements import _rows_text
 
     n0 = len(meas.zero_rows)
     if n0 == 0:
         return None
-    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rad_weight * meas.zero_rot])
-    rms = float(np.sqrt(np.mean(z**2)))
-    z = z if weights is None else z * weights[:, None]
-    out = {"n_rows": int(n0), "rms_m": rms, "p_value": None, "outlier_rows": []}
-    if rms == 0:
-        out["note"] = ("the unloaded rows hold zero displacement: they are the reference the loaded rows are "
-                       "measured from")
-        return out
-    bad, p_bad = zero_point_outliers(z, s2, df, alpha)
-    out["outlier_rows"] = [int(meas.zero_rows[i]) for i in bad]
-    first = ""
-    if bad:
-        size = np.linalg.norm(z[bad], axis=1) * 1e6
-        first = (f"unloaded {_rows_text(meas.zero_rows[bad])} stand{'s' if len(bad) == 1 else ''} out from the "
-                 f"other unloaded rows ({', '.join(f'{v:.3g}' for v in size)} um from zero; adjusted p = "
-                 f"{', '.join(f'{v:.2g}' for v in p_bad)}): a blunder or a disturbed target in "
-                 f"{'that row' if len(bad) == 1 else 'those rows'}, left out of the zero-point check; ")
-    rest = np.delete(z, bad, axis=0)
-    rms_rest = float(np.sqrt(np.mean(np.delete(z if weights is None else z / weights[:, None], bad, axis=0)**2)))
-    if rms_rest == 0:
-        out["note"] = first + ("the other unloaded rows hold zero displacement: they are the reference the loaded "
-                               "rows are measured from")
-        return out
-    p = float(stats.chi2.sf(float((rest**2).sum()) / s2, rest.size)) if s2 > 0 else None
-    out["p_value"] = p
-    moved = p is not None and p < alpha
-    out["note"] = first + (f"the {'other ' if bad else ''}unloaded rows scatter by {rms_rest * 1e6:.3g} um RMS about "
-                           "zero" + (", more than the noise (p = %.2g): the zero point moved (a drift, or a disturbed "
-                                     "target)" % p if moved else ", as the noise does"))
-    return out
+    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+    exact = np.all(z == 0.0, axis=1)
+    used = em.structure.zero_index
+    noisy = np.setdiff1d(np.flatnonzero(~exact), out)
+    rms = float(np.sqrt(np.mean(z[noisy] ** 2))) if noisy.size else 0.0
+    zp = {"n_rows": int(n0), "n_exact_zero_rows": int(exact.sum()), "n_rows_used": int(len(used)), "rms_m": rms,
+          "outlier_rows": sorted(int(meas.zero_rows[i]) for i in out), "p_value": p_shift}
+    parts = []
+    if exact.any():
+        parts.append(f"{int(exact.sum())} unloaded row(s) hold exactly zero: the reference readings themselves, the rows "
+                     "after each measured from it (not noise samples)")
+    if out:
+        order = np.argsort(out)
+        rows = np.array(out)[order]
+        size = np.linalg.norm(z[rows], axis=1) * 1e6
+        parts.append(f"unloaded {_rows_text(meas.zero_rows[rows])} stand{'s' if len(rows) == 1 else ''} out from the "
+                     f"other unloaded rows ({', '.join(f'{v:.3g}' for v in size)} um from zero; adjusted p = "
+                     f"{', '.join(f'{p_out[i]:.2g}' for i in order)}): a blunder or a disturbed target in "
+                     f"{'that row' if len(rows) == 1 else 'those rows'}, left out")
+    if p_shift is not None:
+        moved = p_shift < alpha
+        parts.append(f"the {'other ' if out else ''}{len(used)} unloaded row(s) with noise scatter by {rms * 1e6:.3g} um "
+                     "RMS about zero" + (f", shifted from zero as a whole (p = {p_shift:.2g}): the zero point moved (a "
+                                         "drift, or a disturbed target)" if moved else
+                                         f", as the error model expects (shift from zero: p = {p_shift:.2g})"))
+    zp["note"] = "; ".join(parts) if parts else None
+    return zp
 
 
-@dataclass(frozen=True)
-class SharedReference:
-    """An error common to the rows of one robot configuration, of variance tau2 [m^2] beside the rows' own
-    noise s2: the displacements of a configuration measured from one reference reading (its error enters every
-    row, whatever the order the loads were measured in), or a zero point that moves from one configuration to
-    the next. Seen in the unloaded rows, which then scatter about zero by s2 + tau2 instead of s2
-    (:func:`zero_point`). The fit becomes generalised least squares for the compound-symmetric covariance
-    s2 I + tau2 J of each configuration: its rows less c_v times their mean, c_v = 1 - sqrt(s2 / (s2 + L_v
-    tau2)) for L_v rows (Searle, Casella & McCulloch, *Variance Components*, 1992, sec. 3.6); replicates,
-    and so the pure error, are unchanged.
+def gls_design(des: Design, em) -> Design:
+    """``des`` (weighted by the noise model) in the coordinates of generalised least squares for the error model
+    ``em`` (:class:`stiffcal.errormodel.ErrorModel`): every configuration's rows conditioned on its unloaded rows
+    and whitened (identity where no row shares an error)."""
+    if not em.blocks:
+        return des
+    N, d = len(des.y) // des.d, des.d
 
-    config: (N,) int: the configuration of every row; tau2, s2 [m^2]."""
-    config: np.ndarray
-    tau2: float
-    s2: float
+    def white(A):
+        return em.whiten(A.reshape(N, d, -1)).reshape(N * d, -1)
+    return Design(white(des.X0), {c: white(v) for c, v in des.blocks.items()},
+                  em.whiten_observations(des.y.reshape(N, d)).ravel(), d)
 
-    @property
-    def c(self) -> np.ndarray:
-        """(configurations,): the shrinkage of each configuration's rows."""
-        return 1.0 - np.sqrt(self.s2 / (self.s2 + np.bincount(self.config) * self.tau2))
 
-    @classmethod
-    def of(cls, meas: Measurements, zp: dict | None, s2: float, alpha: float,
-           weights: np.ndarray | None = None) -> "SharedReference | None":
-        """From the unloaded rows of the whole data set (``meas``, before blunders are left out) and the
-        zero-point check ``zp`` (:func:`zero_point`): None unless they scatter more than the noise s2 [m^2]
-        (p < alpha) and some configuration has more than one loaded row; ``weights``: those of
-        :func:`zero_point`."""
-        if not zp or zp.get("p_value") is None or zp["p_value"] >= alpha or not s2 > 0:
-            return None
-        z = meas.zero_dp if weights is None else meas.zero_dp * weights[:, None]
-        z = z[~np.isin(meas.zero_rows, zp["outlier_rows"])]
-        tau2 = float(np.mean(z**2)) - s2
-        if not tau2 > 0 or np.bincount(meas.config).max() < 2:
-            return None
-        return cls(meas.config, tau2, s2)
-
-    def take(self, keep: np.ndarray) -> "SharedReference":
-        """The same for the rows ``keep`` (bool (N,)), configurations renumbered."""
-        return SharedReference(np.unique(self.config[keep], return_inverse=True)[1].ravel(), self.tau2, self.s2)
-
-    def note(self, zp: dict) -> str:
-        return (f"the unloaded rows scatter about zero more than the replicates' noise (p = {zp['p_value']:.2g}): "
-                f"the rows of each configuration are taken to share an error of {np.sqrt(self.tau2) * 1e6:.3g} um "
-                "RMS (their displacements measured from one reference reading, or a zero point that moves from "
-                "one configuration to the next), and the fit is generalised least squares for it; measuring "
-                "every load from its own unloaded reading avoids it")
+def error_model_notes(em) -> list[str]:
+    """The verdict's notes on the rows' reference readings and the errors they share."""
+    st = em.structure
+    notes = list(st.notes) + list(em.notes)
+    if not em.shared:
+        if st.components:
+            notes.append(f"the rows' reference readings ({st.kind}; found from {st.source}) give them no shared error "
+                         "beyond the noise (REML): they are fitted as independent")
+        return notes
+    comps = [f"per {EMKINDS[c.name]} {np.sqrt(lam * em.sigma2) * 1e6:.3g} um (p = {p:.2g})"
+             for c, lam, p in zip(st.components, em.ratios, em.p_values) if lam > 0 and p is not None]
+    notes.append(f"the rows share the errors of their reference readings ({st.kind}; found from {st.source}; "
+                 f"{st.n_visits} visits, {st.n_revisited} configurations visited more than once): "
+                 + "; ".join(comps) + " RMS, estimated by REML on " + em.stage
+                 + "; every fit, test and interval is generalised least squares for them (error_model)")
+    return notes
 
 
 # --- the analysis --------------------------------------------------------------------------------------
@@ -1220,19 +1250,43 @@ def rad_weight(robot: Robot, meas: Measurements, sigma_m: float | None = None,
     return w, f"the rotation rows are weighted by sigma_m / sigma_rad = {w:.4g} m/rad, estimated from {how}"
 
 
-def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=None, test_force=None,
-            gain: bool = True, sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
-    """The verdict for one data set (module docstring; fields in docs/measured-data.md).
+@dataclass(frozen=True)
+class Prepared:
+    """The analysis of one data set up to its tests (:func:`prepare`), shared by the verdict (:func:`analyse`) and
+    the next experiment's rivals (:func:`stiffcal.discrimination.rivals_from_verdict`).
 
-    robot: the robot; meas: its measurements; alpha: family-wise false-alarm rate; test_pose (n,) [rad] and
-    test_force (d,) [N] or wrench (d + d_m,) [N, N m] (optional): the compensation error of the tool point at
-    the study's test pose under both models; gain=False skips the prediction-error and plan comparison
-    (faster, for simulation studies); sigma_m [m] and sigma_rad [rad]: the noise levels of positions and
-    rotations, whose ratio weights the rotation rows (default: estimated, :func:`rad_weight`).
-    Raises :class:`InputError` when the data cannot identify the compliances or estimate the noise.
-    """
-    if not 0 < alpha < 1:
-        raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
+    meas: every row; keep (N,) bool: the loaded rows used (blunders left out); m: those rows; blunders: their
+    indices; dropped: joints left out; ob_full, ob: what the rows measure (all joints; the model's); rw: the
+    rotation rows' weight [m/rad]; vm: the noise model (None: constant); w (N_kept,): its row weights;
+    error: the :class:`stiffcal.errormodel.ErrorModel` (which reference reading every row was taken from, the
+    shared errors); des: the stacked regressors, weighted and whitened by it (generalised least squares);
+    noise: the error variance of the tests; zero_point: the verdict's ``zero_point``; notes; w0 (N0,): the
+    unloaded rows' weights."""
+    meas: Measurements
+    keep: np.ndarray
+    m: Measurements
+    blunders: list
+    dropped: np.ndarray
+    ob_full: Observed
+    ob: Observed
+    rw: float
+    vm: "VarianceModel | None"
+    w: np.ndarray
+    error: object
+    des: Design
+    noise: Noise
+    zero_point: dict | None
+    notes: list
+    weighted: Design | None = None
+    w0: np.ndarray | None = None
+
+
+def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: float | None = None,
+            sigma_rad: float | None = None) -> Prepared:
+    """Everything the verdict's tests need (:class:`Prepared`): the joints the data can identify, the weight of
+    the rotation rows, the noise model, the blunders, the error model of the rows' reference readings
+    (:mod:`stiffcal.errormodel`) and the whitened design. Raises :class:`InputError` when the data cannot
+    identify the compliances or estimate the noise."""
     full = Observed.of(robot, meas)
     dropped = check_identifiable(robot, meas, full)
     check_testable(robot, meas, len(full.model_params(robot)) - len(dropped))
@@ -1256,7 +1310,10 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
     w = np.ones(m.n_rows) if vm is None else vm.weights
     des = des_all.rows(keep).weighted(w)
-    noise = noise_variance(des, m)
+    w0 = zero_weights(meas, keep, w)
+    em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha)
+    weighted, des = des, gls_design(des, em)
+    noise = Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
     notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])
     unseen = [j for j in range(robot.n_joints) if j not in ob_all.model_params(robot) and j not in dropped]
     if unseen:
@@ -1267,16 +1324,30 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
         notes.append(f"the noise varies with the position of the measured point (a tracker's error grows with "
                      f"the distance; p = {vm.p_value:.2g}), by a factor {vm.sigma_ratio:.3g} between rows: the fits "
                      "are weighted by it")
-    w0 = zero_weights(meas, keep, w)
-    zp = zero_point(meas, noise.s2, rw, noise.df, alpha, w0)
-    shared = SharedReference.of(meas, zp, noise.s2, alpha, w0)
-    if shared is not None:
-        kept = shared.take(keep)
-        des = des.within(kept.config, kept.c)
-        notes.append(shared.note(zp))
+    notes += error_model_notes(em)
+    return Prepared(meas, keep, m, blunders, dropped, ob_full, ob, rw, vm, w, em, des, noise, zp, notes, weighted,
+                    w0)
+
+
+def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=None, test_force=None,
+            gain: bool = True, sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
+    """The verdict for one data set (module docstring; fields in docs/measured-data.md).
+
+    robot: the robot; meas: its measurements; alpha: family-wise false-alarm rate; test_pose (n,) [rad] and
+    test_force (d,) [N] or wrench (d + d_m,) [N, N m] (optional): the compensation error of the tool point at
+    the study's test pose under both models; gain=False skips the prediction-error and plan comparison
+    (faster, for simulation studies); sigma_m [m] and sigma_rad [rad]: the noise levels of positions and
+    rotations, whose ratio weights the rotation rows (default: estimated, :func:`rad_weight`).
+    Raises :class:`InputError` when the data cannot identify the compliances or estimate the noise.
+    """
+    if not 0 < alpha < 1:
+        raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
+    pre = prepare(robot, meas, alpha, sigma_m, sigma_rad)
+    m, ob, ob_full, des, noise, w, keep = pre.m, pre.ob, pre.ob_full, pre.des, pre.noise, pre.w, pre.keep
+    blunders, dropped, rw, vm, zp, notes = pre.blunders, pre.dropped, pre.rw, pre.vm, pre.zero_point, list(pre.notes)
 
     f0 = fit(des.X0, des.y)
-    lof = lack_of_fit_test(robot, m, des, noise, w)
+    lof = lack_of_fit_test(robot, m, des, noise, w, pre.error)
     sel = closed_testing(des, CAUSES, noise, lof, alpha)
     testable = sel.causes
     alone = {c: f_test(f0.rss, f0.df, sel.fits[frozenset([c])].rss, sel.fits[frozenset([c])].df, noise.s2, noise.df)
@@ -1332,13 +1403,24 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
            "outlier_rows": [int(meas.rows[r]) for r in blunders],
            "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas, observed=ob_full.take(keep))
                           for c in indistinct},
-           "zero_point": zp, "notes": notes}
+           "zero_point": zp, "error_model": pre.error.as_dict(), "notes": notes}
     ext = sorted(chosen, key=CAUSES.index) if ranked else []
+    out["diagnostics"], more = diagnostics(robot, pre, chosen, sel.fits[chosen], alpha)
+    notes += more
     out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
-    out["gain"] = _gain(robot, m, des, ext, noise.s2, test_pose, test_force, ob) if ext and gain else None
+    out["gain"] = _gain(robot, m, des, ext, noise.s2, test_pose, test_force, ob, pre.error, w) if ext and gain else None
     if out["gain"] is not None and out["gain"]["loco_ratio"] is None:
         notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
                      "configurations (and a nonzero error of the extended model); it is left out")
+    elif out["gain"] is not None and out["gain"]["loco_ratio"] <= 1.0:
+        g = out["gain"]
+        out["diagnostics"]["extended_not_better_held_out"] = True
+        notes.append(f"the extended model ({', '.join(ext)}) predicts held-out configurations no better than the "
+                     f"nominal one (leave-one-configuration-out RMS {g['loco_rms_extended_m'] * 1e6:.3g} um against "
+                     f"{g['loco_rms_nominal_m'] * 1e6:.3g} um, loco_ratio {g['loco_ratio']:.3g}): its extra parameters "
+                     "fit these configurations but do not carry to others, so its gain at the test pose rests on the "
+                     "extension being right there; prefer the nominal model for prediction, or measure more "
+                     "configurations")
     for key, what in (("optimal_plan_extended_rms_m", "the O_t-optimal plan for the extended model"),
                       ("nominal_plan_under_extended_rms_m", "the nominal model's optimal plan")):
         if out["gain"] is not None and key in out["gain"] and not np.isfinite(out["gain"][key]):
@@ -1359,6 +1441,123 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
         resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
         out["residual_structure"] = residual_structure(robot, m, resid)
     return out
+
+
+#: fewest groups of a shared error whose predicted effects are compared with the time since their reference
+MIN_DRIFT_GROUPS = 5
+
+
+def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: float) -> tuple[dict, list[str]]:
+    """The verdict's ``diagnostics`` and their notes: what a careful analyst checks beside the catalogue (each a
+    warning at ``alpha``, Bonferroni within it; none changes the verdict):
+
+    - ``one_load_per_configuration``: every configuration is measured under one load only, so at each the load-
+      deflection curve is seen at one point;
+    - ``time``: the residuals of the chosen model (whitened) against the time and the time since each row's
+      reference reading, and the predicted shared errors of the revisits and references against the time since
+      their reference (Spearman; a drift of the tracker over the campaign, which the catalogue only absorbs in
+      ``measurement_offset`` or the shared errors);
+    - ``load_direction``: the F-test of a load turned by a small angle from its logged direction (a pulley, a
+      tilted fixture: regressors A(q, a x F) k for the axes a, with the chosen model's compliances k), with the
+      angle it finds.
+    Returns (dict, notes)."""
+    m, des, em, noise = pre.m, pre.des, pre.error, pre.noise
+    out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
+                 "extended_not_better_held_out": False}
+    notes = []
+    loads = m.structure()["loads_per_configuration"]
+    if loads["max"] == 1:
+        out["one_load_per_configuration"] = True
+        notes.append("every configuration is measured under one load only: at a configuration the load-deflection "
+                     "curve is seen at one point, so a backlash, a nonlinear stiffness and the shared error of its "
+                     "reference reading all look like compliance there, and the data tell them apart only by how they "
+                     "vary across configurations (the compliances' intervals assume the model is right); measure two "
+                     "or more loads of different size per configuration")
+    N, d = m.n_rows, des.d
+    X = des.model(chosen)
+    resid = (des.y - X @ f.beta).reshape(N, d)
+    out["time"], note = _time_diagnostic(pre, chosen, f, resid, alpha)
+    notes += [note] if note else []
+    out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, alpha)
+    notes += [note] if note else []
+    del noise, em
+    return out, notes
+
+
+def _time_diagnostic(pre: Prepared, chosen, f: Fit, resid: np.ndarray, alpha: float):
+    """(``diagnostics.time`` or None, note): the time tests of :func:`diagnostics`."""
+    st = pre.error.structure
+    N, d = pre.m.n_rows, pre.des.d
+    tests = {}
+    t, since = st.time[:N], (st.time - st.ref_time)[:N]
+    for name, feat in (("time", t), ("time since the reference reading", since)):
+        if np.ptp(feat) <= 0 or N < 4:
+            continue
+        for j in range(d):
+            if np.ptp(resid[:, j]) > 0:
+                rho, p = stats.spearmanr(feat, resid[:, j])
+                tests[f"{'xyz'[j] if j < 3 else 'r'} residual vs {name}"] = (float(rho), float(p))
+    if pre.error.shared:  # the shared errors' predictions (BLUPs) against the time since their reference
+        w = pre.weighted
+        rl = w.y.reshape(N, d) - (w.model(chosen) @ f.beta).reshape(N, d)
+        z = pre.meas.zero_dp if pre.meas.zero_rot is None else np.hstack([pre.meas.zero_dp, pre.rw * pre.meas.zero_rot])
+        idx = st.zero_index
+        R = np.vstack([rl, z[idx] * pre.w0[idx, None]]) if len(idx) else rl
+        u = pre.error.blups(R, np.concatenate([pre.w, pre.w0[idx]]))
+        for comp in st.components:
+            if comp.name == "visit" or comp.n_groups < MIN_DRIFT_GROUPS:
+                continue
+            lab = comp.label
+            elapsed = np.array([np.mean((st.time - st.ref_time)[lab == g]) for g in range(comp.n_groups)])
+            if np.ptp(elapsed) <= 0:
+                continue
+            for j in range(d):
+                if np.ptp(u[comp.name][:, j]) > 0:
+                    rho, p = stats.spearmanr(elapsed, u[comp.name][:, j])
+                    tests[f"shared error per {comp.name} ({'xyz'[j] if j < 3 else 'r'}) vs time since its "
+                          "reference"] = (float(rho), float(p))
+    if not tests:
+        return None, None
+    worst = min(tests, key=lambda k: tests[k][1])
+    p = min(1.0, tests[worst][1] * len(tests))
+    out = {"p_value": p, "strongest": worst, "spearman": tests[worst][0], "n_tests": len(tests)}
+    if p > alpha:
+        return out, None
+    return out, (f"the residuals follow the time ({worst}: Spearman rho {tests[worst][0]:.2f}, adjusted p = {p:.2g}): "
+                 "a drift of the tracker (or of the zero point) over the campaign? No catalogue cause describes it: "
+                 "measurement_offset and the rows' shared errors only absorb part of it; re-measure the reference "
+                 "readings more often, or log the tracker's drift check")
+
+
+def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
+    """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`."""
+    m, des, noise = pre.m, pre.des, pre.noise
+    N, d = m.n_rows, des.d
+    n = des.X0.shape[1]
+    k = f.beta[:n]
+    force = m.force
+    axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
+    cols = []
+    for a in axes:
+        turned = np.cross(a, as_xyz(force))[:, : robot.task_dim]
+        load = np.hstack([turned, np.zeros_like(m.moment)]) if m.has_moment else turned
+        cols.append(np.einsum("ndp,p->nd", nominal_columns(robot, m.q, load, pre.ob), k))
+    T = np.stack(cols, -1) * pre.w[:, None, None]
+    T = pre.error.whiten(T).reshape(N * d, -1) if pre.error.blocks else T.reshape(N * d, -1)
+    X = des.model(chosen)
+    f1 = fit(np.hstack([X, T]), des.y)
+    if f1.rank <= f.rank:
+        return None, None
+    p = f_test(f.rss, f.df, f1.rss, f1.df, noise.s2, noise.df)
+    angle = f1.beta[X.shape[1]:]
+    size = float(np.degrees(np.linalg.norm(angle)))
+    out = {"p_value": p, "angle_deg": size, "axis": (angle / np.linalg.norm(angle)).tolist() if size > 0 else None}
+    if p > alpha:
+        return out, None
+    return out, (f"the residuals follow the load turned by {size:.2g} deg from its logged direction (F-test p = {p:.2g}): "
+                 "the load's real direction differs from the logged one (a pulley, a tilted fixture, a frame "
+                 "mismatch between the load cell and the tracker?); no catalogue cause describes it: the compliances "
+                 "and measurement_offset absorb it")
 
 
 def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dict, alpha: float) -> str:
@@ -1706,28 +1905,41 @@ def parameter_names(cause: str, robot: Robot, observed: Observed | None = None) 
             "measurement_offset": [f"o{a}_m" for a in "xyz"[: robot.task_dim]] + rot}[cause]
 
 
-def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None) -> float | None:
+def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None, des: Design | None = None,
+             error=None, weights: np.ndarray | None = None) -> float | None:
     """RMS prediction error [m] of the positions of held-out configurations: each robot configuration (all its
     loads, targets and replicates) left out in turn and predicted from the others (fitted on every measured
-    quantity, ``observed``). None when fewer than two configurations."""
+    quantity, ``observed``). With the analysis's design ``des`` (weighted by ``weights`` (N,) and whitened by the
+    error model ``error``) the fits are its generalised least squares (configurations are independent blocks,
+    so leaving one out drops its rows) and a held-out configuration's rows are compared less the shared error its
+    own unloaded rows predict. None when fewer than two configurations."""
     if meas.n_configurations < 2:
         return None
     ob = observed or Observed.of(robot, meas)
     X = model_columns(robot, meas.q, load_of(meas), causes, observed=ob)
     y = observations(meas, ob)
     d = robot.task_dim
+    if des is not None:
+        Xw = des.model(causes).reshape(len(y), des.d, -1)
+        yw = des.y.reshape(len(y), des.d)
+        w = np.ones(len(y)) if weights is None else weights
+        y = y if error is None else error.adjusted(y * w[:, None]) / w[:, None]
+    else:
+        Xw, yw = X, y
     err = []
     for g in range(meas.n_configurations):
         test = meas.config == g
-        f = fit(_stack(X[~test]), y[~test].ravel())
+        f = fit(_stack(Xw[~test]), yw[~test].ravel())
         err.append((y[test] - np.einsum("ndp,p->nd", X[test], f.beta))[:, :d].ravel())
     e = np.concatenate(err)
     return float(np.sqrt(np.mean(e**2)))
 
 
-def _gain(robot, meas, des, causes, s2, test_pose, test_force, observed: Observed | None = None) -> dict:
+def _gain(robot, meas, des, causes, s2, test_pose, test_force, observed: Observed | None = None, error=None,
+          weights=None) -> dict:
     ob = observed or Observed.of(robot, meas)
-    nom, ext = loco_rms(robot, meas, observed=ob), loco_rms(robot, meas, causes, ob)
+    nom = loco_rms(robot, meas, observed=ob, des=des, error=error, weights=weights)
+    ext = loco_rms(robot, meas, causes, ob, des, error, weights)
     out = {"loco_rms_nominal_m": nom, "loco_rms_extended_m": ext,
            "loco_ratio": nom / ext if nom is not None and ext else None}
     if test_pose is not None and test_force is not None:

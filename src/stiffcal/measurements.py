@@ -47,10 +47,10 @@ ANGLE_RESOLUTION_DEG = 0.01
 FORCE_RESOLUTION_N = 0.5
 MOMENT_RESOLUTION_NM = 0.05
 
-_UNITS = {"q": "deg", "f": "N", "d": "m", "m": "Nm", "r": "rad"}
+_UNITS = {"q": "deg", "f": "N", "d": "m", "m": "Nm", "r": "rad", "t": "s"}
 _PATTERN = re.compile(r"^(q\d+|f[xyz]|d[xyz]|m[xyz]|r[xyz])(?:_(.*))?$")
 _NAMES = {"q": "joint angles", "f": "force components", "d": "displacements", "m": "moment components",
-          "r": "orientation deflections"}
+          "r": "orientation deflections", "t": "timestamps"}
 _MAX_LISTED = 5
 
 
@@ -87,6 +87,44 @@ def cluster(values: np.ndarray, resolution: np.ndarray, period: np.ndarray | Non
     return order[raw]
 
 
+#: optional columns that say how the lab took its readings (docs/measured-data.md, "The lab's reference readings")
+LOG_COLUMNS = ("timestamp_s", "visit", "reference")
+#: what each optional label column is for (the note on a column that looks like a misspelling of one)
+_LOG_USE = {"pose_id": "label the configurations", "timestamp_s": "order the rows by it (seconds)",
+            "visit": "say which visit each row belongs to", "reference": "say which reference reading each row is "
+            "taken from"}
+
+
+@dataclass(frozen=True)
+class RowLog:
+    """What the file says of every data row (N_file,), loaded or not, beyond the measurement itself: how the lab
+    took its readings (:mod:`stiffcal.errormodel` infers from it which reference reading each displacement was
+    taken from).
+
+    time (N_file,) [s]: the ``timestamp_s`` column, else the row's index in the file (the log's order);
+    has_time: the file has timestamps; label: the ``pose_id`` of every row (None without); visit, reference:
+    the ``visit`` and ``reference`` columns (labels of the visit and of the reference reading, None without);
+    target (N_file,) int into the measurements' target names; config (N_file,) int: the joint configuration of
+    every row (clusters of the joint angles, loaded and unloaded rows alike); loaded (N_file,) bool;
+    exact (N_file,) bool: an unloaded row whose every measured component is exactly zero (the reference
+    reading itself, logged as zeros); group (N_file,) int: the replicate group of a loaded row (-1 unloaded)."""
+
+    time: np.ndarray
+    has_time: bool
+    label: np.ndarray | None
+    visit: np.ndarray | None
+    reference: np.ndarray | None
+    target: np.ndarray
+    config: np.ndarray
+    loaded: np.ndarray
+    exact: np.ndarray
+    group: np.ndarray
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.time)
+
+
 @dataclass(frozen=True)
 class Measurements:
     """Loaded measurements of one data set (unloaded reference rows are kept apart, see the module docstring).
@@ -103,7 +141,9 @@ class Measurements:
     moment (N, d_m) [N m] about the tool point (zero without moment columns); rot (N, d_r) [rad] the tool's
     orientation deflection, or None when it was not measured; target (N,) int: the target of each row, an
     index into target_names; zero_rot (N0, d_r) [rad] the unloaded rows' orientation (None without it);
-    labelled: config_labels are the data's ``pose_id`` labels (False: the joint angles, or given by the caller).
+    labelled: config_labels are the data's ``pose_id`` labels (False: the joint angles, or given by the caller);
+    log: what the file says of every data row (:class:`RowLog`: times, labels, visits, references, exact-zero
+    reference rows), None for measurements made in memory.
     """
 
     q: np.ndarray
@@ -125,6 +165,7 @@ class Measurements:
     target_names: tuple[str, ...] = (TOOL_TARGET,)
     zero_rot: np.ndarray | None = None
     labelled: bool = False
+    log: RowLog | None = None
 
     def __post_init__(self):
         n_rows = len(self.q)
@@ -181,7 +222,7 @@ class Measurements:
                             config.ravel(), tuple(self.config_labels[c] for c in used), self.rows[keep],
                             self.zero_rows, self.zero_dp, self.zero_config, self.notes, self.resolutions,
                             self.moment[keep], None if self.rot is None else self.rot[keep], self.target[keep],
-                            self.target_names, self.zero_rot, self.labelled)
+                            self.target_names, self.zero_rot, self.labelled, self.log)
 
     @property
     def wrench(self) -> np.ndarray:
@@ -340,7 +381,7 @@ def _check_units(columns, source: str) -> None:
 
 
 #: magnitudes no measurement of a robot reaches (a value beyond is a corrupted cell, not a measurement)
-_MAX_ABS = {"q": 3600.0, "f": 1e7, "d": 100.0, "m": 1e7, "r": 10.0}
+_MAX_ABS = {"q": 3600.0, "f": 1e7, "d": 100.0, "m": 1e7, "r": 10.0, "t": 1e12}
 
 
 def _numbers(df, cols: list[str], source: str) -> np.ndarray:
@@ -429,9 +470,10 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     df.columns = [c.strip() for c in df.columns]
     _check_units(df.columns, source)
     cols = angle_columns(list(df.columns), robot, source) + expected_columns(robot)[robot.n_joints:]
-    misspelled = _misspelled(df.columns, cols + sum(optional_columns(robot).values(), []) + ["target", "pose_id"])
+    misspelled = _misspelled(df.columns, cols + sum(optional_columns(robot).values(), []) + ["target", "pose_id",
+                                                                                            *LOG_COLUMNS])
     for col, name in misspelled.items():
-        if name != "pose_id":  # the analysis would go on without a quantity it reads: refuse
+        if name not in ("pose_id", *LOG_COLUMNS):  # the analysis would go on without a quantity it reads: refuse
             raise InputError(f"the column {col!r} looks like {name} (a misspelling?); the analysis reads {name} only "
                              f"under that name: rename the column {name}{'' if name in cols else ', or remove it'}",
                              source=source, field=f"column {col}")
@@ -455,11 +497,12 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     if surplus:
         notes.append(f"column(s) {', '.join(surplus)} do not belong to a {robot.kind} robot with {robot.task_dim} "
                      f"measured coordinates and are ignored")
-    unused = [c for c in df.columns if c not in used and c not in ("pose_id", "target") and c not in surplus]
+    unused = [c for c in df.columns if c not in used and c not in ("pose_id", "target", *LOG_COLUMNS)
+              and c not in surplus]
     if unused:
         notes.append(f"column(s) {', '.join(unused)} not used by the analysis"
-                     + "".join(f"; {c!r} looks like pose_id (a misspelling?): rename it pose_id to label the "
-                               "configurations" for c in misspelled))
+                     + "".join(f"; {c!r} looks like {name} (a misspelling?): rename it {name} to "
+                               + _LOG_USE[name] for c, name in misspelled.items()))
     values = _numbers(df, used, source)
     n, d, dm = robot.n_joints, force_dim(robot), moment_dim(robot)
     q_deg, force, dp = values[:, :n], values[:, n:n + d], values[:, n + d:n + 2 * d]
@@ -509,10 +552,49 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     has_m = bool(groups["moment"])
     group = replicate_groups(q_deg[loaded], force[loaded], *res[:2], moment[loaded] if has_m else None, res[2],
                              target[loaded])
+    log, log_notes = _row_log(df, source, labels, target, config, unloaded, dp, rot, group, loaded)
     return Measurements(np.radians(q_deg[loaded]), force[loaded], dp[loaded], group, source, cfg_index.ravel(),
-                        tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config, tuple(notes), res,
-                        moment[loaded], None if rot is None else rot[loaded], target[loaded], target_names,
-                        None if rot is None else rot[zero], labels is not None)
+                        tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config,
+                        tuple(notes + log_notes), res, moment[loaded], None if rot is None else rot[loaded],
+                        target[loaded], target_names, None if rot is None else rot[zero], labels is not None, log)
+
+
+def _row_log(df, source: str, labels, target, config, unloaded, dp, rot, group, loaded) -> tuple[RowLog, list[str]]:
+    """The :class:`RowLog` of the file (its ``timestamp_s``, ``visit`` and ``reference`` columns; docs), and notes.
+    Raises :class:`InputError` for a timestamp that is not a finite number, or blank ``visit``/``reference``
+    cells beside filled ones."""
+    n = len(df)
+    notes = []
+    time, has_time = np.arange(n, dtype=float), False
+    if "timestamp_s" in df.columns:
+        time = _numbers(df, ["timestamp_s"], source)[:, 0]
+        has_time = True
+        back = np.flatnonzero(np.diff(time) < 0)
+        if back.size:
+            notes.append(f"timestamp_s runs backwards at {_rows_text(back + 1)}: the rows are taken in the order of "
+                         "their timestamps (the reference readings and visits are found in that order)")
+    columns = {}
+    for col in ("visit", "reference"):
+        if col not in df.columns:
+            columns[col] = None
+            continue
+        raw = df[col].str.strip().to_numpy()
+        blank = np.flatnonzero(raw == "")
+        if blank.size == n:
+            notes.append(f"column {col} is blank in every row: it is not used")
+            columns[col] = None
+        elif blank.size:
+            raise InputError(f"{col} is blank in {_rows_text(blank)} but filled in the other rows; give every row "
+                             f"the label of its {'visit' if col == 'visit' else 'reference reading'}, or drop the "
+                             "column", source=source, field=f"column {col}")
+        else:
+            columns[col] = raw
+    obs = dp if rot is None else np.hstack([dp, rot])
+    exact = unloaded & np.all(obs == 0.0, axis=1)
+    full_group = np.full(n, -1)
+    full_group[loaded] = group
+    return RowLog(time, has_time, labels, columns["visit"], columns["reference"], np.asarray(target, int),
+                  np.asarray(config, int), ~unloaded, exact, full_group), notes
 
 
 #: rows classed unloaded that deflect like loaded rows are taken for loads in kN when every force is at most this

@@ -33,12 +33,12 @@ from scipy import stats
 from . import discrepancy as D
 from . import truth as T
 from .measurements import read_measurements
-from .robot import Robot, load_robot, planar_robot
+from .robot import Robot, load_robot, planar_robot, with_masses, with_targets
 
 #: the effects a case can hide; the last two are outside the catalogue
 EFFECTS = ("link_compliance", "joint_coupling", "nonlinear_joint_stiffness", "backlash", "measurement_offset",
-           "drift", "modulation")
-OUTSIDE = ("drift", "modulation")
+           "drift", "modulation", "tilted_load")
+OUTSIDE = ("drift", "modulation", "tilted_load")
 
 PROTOCOLS = {
     "hanging x4, repeated": T.Protocol("hanging x4, repeated"),
@@ -59,15 +59,54 @@ PROTOCOLS = {
     "4 directions x 2, shared reference": T.Protocol("4 directions x 2, shared reference", loads="directions",
                                                      magnitudes_N=(250.0, 600.0), unloaded_rows=True,
                                                      reference="configuration"),
+    # the lab's own reference readings (stiffcal.truth.Protocol): one per visit, or one per configuration with
+    # later visits measured against it (the robot back within its pose repeatability); hanging masses only
+    "hanging x3, reference per visit, 2 passes": T.Protocol(
+        "hanging x3, reference per visit, 2 passes", magnitudes_N=(196.1, 392.3, 588.4), repeats=1,
+        reference="visit", passes=2, shuffle=True, zero_rows=True, return_to_zero=True, sigma_m=5e-6,
+        sigma_per_m=5e-6, repeatability_m=1e-5, timestamps=True),
+    "loading bar x3, reference per visit, 2 passes": T.Protocol(
+        "loading bar x3, reference per visit, 2 passes", magnitudes_N=(98.1, 245.2, 392.3), repeats=1,
+        lever_m=0.3, bar_sides=2, reference="visit", passes=2, shuffle=True, return_to_zero=True,
+        repeatability_m=1e-5, timestamps=True),
+    "gauge +-axes, reference per visit, half revisited": T.Protocol(
+        "gauge +-axes, reference per visit, half revisited", loads="gauge", magnitudes_N=(300.0,), repeats=1,
+        reference="visit", passes=2, revisit_fraction=0.5, shuffle=True, relabel=True, return_to_zero=True,
+        repeatability_m=1e-5, timestamps=True),
+    "hanging x3, reference per configuration, half revisited": T.Protocol(
+        "hanging x3, reference per configuration, half revisited", magnitudes_N=(147.1, 294.2, 490.3), repeats=1,
+        reference="configuration", passes=2, revisit_fraction=0.5, shuffle=True, relabel=True, zero_rows=True,
+        repeatability_m=1.5e-5, sigma_m=5e-6, sigma_per_m=5e-6, timestamps=True),
+    "hanging x3, 2 targets, reference per configuration, 2 passes": T.Protocol(
+        "hanging x3, 2 targets, reference per configuration, 2 passes", magnitudes_N=(147.1, 294.2, 490.3),
+        repeats=1, targets=("A", "B"), reference="configuration", passes=2, shuffle=True, zero_rows=True,
+        repeatability_m=1e-5, timestamps=True),
+    "one hanging mass, reference per visit, 2 passes": T.Protocol(
+        "one hanging mass, reference per visit, 2 passes", magnitudes_N=(490.3,), repeats=1, reference="visit",
+        passes=2, shuffle=True, zero_rows=True, return_to_zero=True, repeatability_m=1e-5, timestamps=True),
 }
+
+#: the targets (tracker SMRs on the last link) of the arms of the matrix, in the tip frame [m]
+TARGETS = {2: {"A": [-0.04, 0.05], "B": [-0.12, -0.04]}, 3: {"A": [0.08, 0.0, 0.06], "B": [-0.05, 0.07, 0.09]}}
 
 
 def robots(root: str | Path) -> dict[str, Robot]:
-    """The arms of the study: the paper's 2-link arm, a 3-link planar arm and the 6-axis KUKA of the config."""
+    """The arms of the study: the paper's 2-link arm and a 3-link planar arm (no weight of their own: a lab arm
+    whose weight is compensated), and the 6-axis KUKA of the config with its links' masses (about 0.9 t in all,
+    :data:`KUKA_MASSES`) and a 60 kg spindle: its own weight preloads the joints (a backlash jumps only where
+    the load reverses the total torque). Each carries two tracker targets (:data:`TARGETS`)."""
     root = Path(root)
-    return {"2-link": load_robot(root / "config/robots/paper_2r.yaml"),
+    arms = {"2-link": load_robot(root / "config/robots/paper_2r.yaml"),
             "3-link": planar_robot([0.5, 0.4, 0.3], "3-link"),
-            "6-axis": load_robot(root / "config/robots/kuka_kr210_r2700.yaml")}
+            "6-axis": with_masses(load_robot(root / "config/robots/kuka_kr210_r2700.yaml"), KUKA_MASSES, "<rates>")}
+    return {name: with_targets(arm, TARGETS[arm.task_dim], "<rates>") for name, arm in arms.items()}
+
+
+#: the 6-axis arm's own weight (a KR 210 class arm: masses and centres in its DH frames, roughly)
+KUKA_MASSES = {"link_masses_kg": [400.0, 250.0, 150.0, 60.0, 30.0, 10.0],
+               "link_coms_m": [[-0.15, 0.1, 0.0], [-0.6, 0.0, 0.15], [-0.1, -0.1, 0.0], [0.0, 0.25, 0.0],
+                               [0.0, 0.0, 0.05], [0.0, 0.0, -0.05]],
+               "payload_kg": 60.0}
 
 
 def compliances(robot: Robot) -> np.ndarray:
@@ -77,12 +116,14 @@ def compliances(robot: Robot) -> np.ndarray:
 
 
 def protocols_for(robot: Robot) -> list[str]:
-    """The protocols that make sense for the robot: hanging weights for a planar arm in its vertical plane
-    (on a spatial arm with a vertical first axis they never load joint 1, which the analysis refuses with
-    that reason), 3-D pushes for a spatial arm."""
+    """The protocols that make sense for the robot: 3-D pushes for a spatial arm only, the old plain hanging
+    protocols for a planar arm in its vertical plane only (on a spatial arm with a vertical first axis hanging
+    masses never load joint 1: the analysis leaves it out, and the lab protocols with their own reference
+    readings cover that case), every other protocol for both."""
     spatial = robot.task_dim == 3
+    plain_hanging = ("hanging x4, repeated", "hanging x4, once", "hanging x4, unloaded rows, tracker")
     return [p for p, pr in PROTOCOLS.items()
-            if (pr.loads == "pushes3d") == spatial or pr.loads in ("directions", "random")]
+            if not (pr.loads == "pushes3d" and not spatial) and not (spatial and p in plain_hanging)]
 
 
 def _unit_truth(effect: str, robot: Robot, k: np.ndarray, rng: np.random.Generator, log: T.LabLog) -> T.Truth:
@@ -96,7 +137,10 @@ def _unit_truth(effect: str, robot: Robot, k: np.ndarray, rng: np.random.Generat
         c[i, j] = c[j, i] = 0.1 * np.sqrt(k[i] * k[j]) * rng.choice([-1.0, 1.0])
         return T.Truth(k, coupling=c)
     if effect == "nonlinear_joint_stiffness":
-        tau = np.abs(T.joint_torques(robot, log.q[log.loaded], log.force[log.loaded])).max(axis=0)
+        on = log.loaded
+        weight = T.self_weight_torques(robot, log.q)
+        load = T.joint_torques(robot, log.q[on], log.force[on], None if log.moment is None else log.moment[on])
+        tau = np.abs(np.vstack([load + weight[on], weight])).max(axis=0)  # the largest total torque
         return T.Truth(k, tau_max=np.maximum(tau, 1e-9) / 0.3)
     if effect == "backlash":
         return T.Truth(k, gap=np.full(n, 1e-5))
@@ -106,14 +150,27 @@ def _unit_truth(effect: str, robot: Robot, k: np.ndarray, rng: np.random.Generat
         return T.Truth(k, drift=T.random_directions(rng, 1, d)[0] * 1e-7)
     if effect == "modulation":
         return T.Truth(k, modulation=rng.uniform(0.05, 0.15, n) * rng.choice([-1.0, 1.0], n))
+    if effect == "tilted_load":  # a pulley or a fixture that pulls a few degrees off the logged direction
+        axis = T.random_directions(rng, 1, 3)[0] if d == 3 else np.array([0.0, 0.0, 1.0])
+        return T.Truth(k, load_tilt=axis * np.radians(1.0))
     raise ValueError(effect)
 
 
 def _effect_displacement(robot, truth: T.Truth, base: T.Truth, log: T.LabLog) -> np.ndarray:
-    rows = log.loaded
-    order = np.flatnonzero(np.ones(len(log.q)))[rows]
-    return (T.physics(robot, truth, log.q[rows], log.force[rows], order)
-            - T.physics(robot, base, log.q[rows], log.force[rows], order))
+    """(N_noisy, w): the effect's noise-free part of every noisy row (every row but the exact-zero references;
+    the unloaded rows see a drift)."""
+    return (T.row_means(robot, truth, log) - T.row_means(robot, base, log))[log.noisy]
+
+
+def _columns(robot: Robot, log: T.LabLog, causes=()) -> np.ndarray:
+    """(N_noisy, w, p): the regressors of nominal + causes of the log's noisy rows (its targets, moments and
+    orientation), zero on the unloaded rows (no load, no deflection)."""
+    rows = np.flatnonzero(log.noisy)
+    ob = D.Observed(log.target_names, None if log.target is None else log.target[rows], log.orientation)
+    load = log.force[rows] if log.moment is None else np.hstack([log.force[rows], log.moment[rows]])
+    X = D.model_columns(robot, log.q[rows], load, causes, observed=ob)
+    X[~log.loaded[rows]] = 0.0
+    return X
 
 
 def _scaled_truth(effect: str, truth: T.Truth, base: T.Truth, robot, log, target_rms: float) -> T.Truth:
@@ -123,11 +180,11 @@ def _scaled_truth(effect: str, truth: T.Truth, base: T.Truth, robot, log, target
         if effect == "nonlinear_joint_stiffness":  # tau_max / s: a stronger softening, not linear in s
             return replace(truth, tau_max=truth.tau_max / s)
         field = {"measurement_offset": "offset", "joint_coupling": "coupling", "backlash": "gap",
-                 "link_compliance": "link_bending", "drift": "drift", "modulation": "modulation"}[effect]
+                 "link_compliance": "link_bending", "drift": "drift", "modulation": "modulation",
+                 "tilted_load": "load_tilt"}[effect]
         return replace(truth, **{field: getattr(truth, field) * s})
 
-    rows = log.loaded
-    X0 = D._stack(D.nominal_columns(robot, log.q[rows], log.force[rows]))
+    X0 = D._stack(_columns(robot, log))
     Q = np.linalg.qr(X0)[0]
 
     def rms(s):  # of the part the nominal model cannot absorb
@@ -156,11 +213,9 @@ def oracle_power(robot: Robot, log: T.LabLog, e: np.ndarray, others: list[np.nda
     cause-block oracle, which knows which catalogue cause is present but not its parameters: the F-test of
     that cause's regressors (rank r) at level alpha, without multiplicity, noncentrality = the part of e in
     their span beyond the nominal model."""
-    rows = log.loaded
-    q, f = log.q[rows], log.force[rows]
-    white = _whitening(log)
+    white = _whitening(robot, log)
     causes = D.CAUSES if against_catalogue else ()
-    X = D._stack(white(D.model_columns(robot, q, f, causes)))
+    X = D._stack(white(_columns(robot, log, causes)))
     if others:
         X = np.hstack([X, D._stack(white(np.stack(others, -1)))])
     y = D._stack(white(e[..., None]))[:, 0]
@@ -171,7 +226,7 @@ def oracle_power(robot: Robot, log: T.LabLog, e: np.ndarray, others: list[np.nda
     if block is None:
         lam, r = rss(X), 1
     else:
-        B = D._stack(white(D.cause_columns(block, robot, q, f)))
+        B = D._stack(white(_cause_block(robot, log, block)))
         r = np.linalg.matrix_rank(np.hstack([X, B])) - np.linalg.matrix_rank(X)
         lam = rss(X) - rss(np.hstack([X, B]))
         if r == 0:
@@ -180,28 +235,27 @@ def oracle_power(robot: Robot, log: T.LabLog, e: np.ndarray, others: list[np.nda
     return float(stats.ncf.sf(crit, r, df, max(lam, 0.0)))
 
 
-def _whitening(log: T.LabLog):
-    """The map A (N_loaded, d, k) -> Sigma^(-1/2) A for the true noise of the log's loaded rows: independent
-    with sigma per row, or with a shared reference (:class:`stiffcal.truth.Protocol`) the error of one reading
-    common to the rows of a configuration (and target): per configuration the Cholesky factor of
-    diag(sigma_r^2) + sigma_ref^2 J, sigma_ref the noise at the configuration's first reading."""
-    rows = np.flatnonzero(log.loaded)
-    sig = log.sigma[rows]
-    if not log.shared_reference:
-        return lambda A: A / sig[:, None, None]
-    target = np.zeros(len(log.q), int) if log.target is None else log.target
-    key = np.unique(np.column_stack([log.config, target]), axis=0, return_inverse=True)[1].ravel()
-    blocks = []
-    for k in np.unique(key[rows]):
-        mine = np.flatnonzero(key[rows] == k)
-        ref = log.sigma[np.flatnonzero(key == k)[0]]
-        chol = np.linalg.cholesky(np.diag(sig[mine] ** 2) + ref**2)
-        blocks.append((mine, np.linalg.inv(chol)))
+def _cause_block(robot: Robot, log: T.LabLog, cause: str) -> np.ndarray:
+    """(N_noisy, w, p_c): one cause's regressors on the noisy rows (zero on the unloaded ones)."""
+    n = _columns(robot, log).shape[-1]
+    return _columns(robot, log, (cause,))[..., n:]
+
+
+def _whitening(robot: Robot, log: T.LabLog):
+    """The map A (N_noisy, w, k) -> Sigma^(-1/2) A for the true covariance of the log's noisy rows
+    (:func:`stiffcal.truth.row_covariance`: independent readings, each row a reading less its reference
+    reading, the returns' pose errors shared by a visit), configuration by configuration (the inverse of the
+    Cholesky factor of each block)."""
+    where = np.full(len(log.q), -1)
+    where[np.flatnonzero(log.noisy)] = np.arange(int(log.noisy.sum()))
+    blocks = [(where[rows], np.linalg.inv(np.linalg.cholesky(S))) for rows, S in T.row_covariance(robot, log)]
 
     def white(A):
         out = np.empty_like(A, dtype=float)
+        w = A.shape[1]
         for mine, Wc in blocks:
-            out[mine] = np.einsum("ij,j...->i...", Wc, A[mine])
+            flat = A[mine].reshape(len(mine) * w, -1)
+            out[mine] = (Wc @ flat).reshape(A[mine].shape)
         return out
     return white
 
@@ -225,17 +279,27 @@ class CaseResult:
         return all(self.verdict_with_pose_id[k] == self.verdict_without[k] for k in keys)
 
     def named(self, effect: str) -> bool:
-        """The verdict names the effect: an effect outside the catalogue as ``unexplained``; a catalogue
-        cause in ``causes`` or ``indistinguishable_from`` (a span that coincides with a named cause's), in a
-        verdict that is not ``unexplained``."""
+        """The verdict names the effect: an effect outside the catalogue as ``unexplained``, or by the warning
+        that says what it is (a drift: ``diagnostics.time``; a tilted load: ``diagnostics.load_direction``, at
+        the verdict's alpha); a catalogue cause in ``causes`` or ``indistinguishable_from`` (a span that
+        coincides with a named cause's), in a verdict that is not ``unexplained``."""
         v = self.verdict_with_pose_id
         if effect in OUTSIDE:
-            return v["cause"] == "unexplained"
+            warning = {"drift": "time", "tilted_load": "load_direction"}.get(effect)
+            diag = (v.get("diagnostics") or {}).get(warning) if warning else None
+            return v["cause"] == "unexplained" or bool(diag and diag["p_value"] <= v["alpha"])
         return v["cause"] != "unexplained" and effect in {*v["causes"], *v["indistinguishable_from"]}
 
     @property
     def false_alarm(self) -> bool:
         return self.verdict_with_pose_id["cause"] != "none"
+
+    @property
+    def warned(self) -> bool:
+        """A warning of ``diagnostics`` (a drift, a tilted load) at the verdict's alpha."""
+        v = self.verdict_with_pose_id
+        diag = v.get("diagnostics") or {}
+        return any(diag.get(k) and diag[k]["p_value"] <= v["alpha"] for k in ("time", "load_direction"))
 
 
 def run_case(robot_name: str, robot: Robot, protocol: str, effects: tuple[str, ...], seed: int,
@@ -287,9 +351,10 @@ def rates(results: list[CaseResult], min_power: float = 0.9, oracle: str = "exac
     out: dict = {}
     for r in results:
         if not r.effects:
-            row = out.setdefault("clean", {"cases": 0, "false_alarms": 0})
+            row = out.setdefault("clean", {"cases": 0, "false_alarms": 0, "warnings": 0})
             row["cases"] += 1
             row["false_alarms"] += r.false_alarm
+            row["warnings"] += r.warned
         for e in r.effects:
             row = out.setdefault(e, {"cases": 0, "qualifying": 0, "named": 0})
             row["cases"] += 1

@@ -175,6 +175,22 @@ def chain_frames(chain: Chain, q: np.ndarray):
     return np.stack(origins, axis=-2), np.stack(axes, axis=-2), R @ chain.tip[:3, :3], p + R @ chain.tip[:3, 3]
 
 
+def chain_link_frames(chain: Chain, q: np.ndarray):
+    """The frame of every joint of a :class:`Chain` after its rotation, in the base frame: q (..., n) [rad] ->
+    ``(R (..., n, 3, 3), p (..., n, 3) [m])`` (for a URDF, Pinocchio's joint frames)."""
+    q = np.asarray(q, float)
+    R = np.broadcast_to(np.eye(3), q.shape[:-1] + (3, 3))
+    p = np.zeros(q.shape[:-1] + (3,))
+    Rs, ps = [], []
+    for i in range(q.shape[-1]):
+        P = chain.placements[i]
+        p = p + R @ P[:3, 3]
+        R = R @ P[:3, :3] @ rotation_about(chain.axes[i], q[..., i])
+        Rs.append(R)
+        ps.append(p)
+    return np.stack(Rs, axis=-3), np.stack(ps, axis=-2)
+
+
 def dh_jacobian(dh: np.ndarray, tool: np.ndarray, q: np.ndarray, convention: str = "standard") -> np.ndarray:
     """Position Jacobian of the tool point of a revolute DH arm: column i is ``z_i x (p - o_i)`` for the
     axis ``z_i`` through ``o_i`` of joint i (frame i-1 in the standard convention, frame i in the modified).
@@ -200,6 +216,21 @@ def cross_columns(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class MassModel:
+    """The arm's own weight as point masses rigidly attached to the frames that move with the joints:
+    kg (B,) [kg]; link (B,) int, the frame each is attached to (0-based joint j: the frame that moves with joints
+    1..j+1, :meth:`Robot.link_frames`; n: the tip frame of :meth:`Robot.tool_frame`); com_m (B, 3) [m] each
+    mass's centre in its frame; gravity_m_s2 (3,) [m/s^2] the gravitational acceleration in the base frame.
+    From a URDF's inertias (:func:`stiffcal.urdf.read_chain`) or the robot file's ``link_masses_kg``,
+    ``link_coms_m``, ``payload_kg``, ``payload_com_m`` and ``gravity_m_s2`` (docs/contracts.md)."""
+
+    kg: np.ndarray
+    link: np.ndarray
+    com_m: np.ndarray
+    gravity_m_s2: np.ndarray
+
+
+@dataclass(frozen=True)
 class Robot:
     """A serial robot read from a robot file (docs/contracts.md).
 
@@ -212,7 +243,8 @@ class Robot:
     :func:`inert_joints`); ``reference`` (the file's ``source`` field: where the dimensions come from);
     ``joint_names`` (n,) str (default "1".."n"); for URDF arms ``chain`` (:class:`Chain`) and ``urdf`` (the
     URDF file); ``targets`` {name: (3,) [m]}: further measured points (tracker targets) in the tip frame
-    (:meth:`tool_frame`), beside the tool point ``"tool"``.
+    (:meth:`tool_frame`), beside the tool point ``"tool"``; ``masses`` (:class:`MassModel`) the arm's own weight,
+    or None (no self-weight torques, :meth:`gravity_torques`).
     """
 
     name: str
@@ -232,6 +264,7 @@ class Robot:
     urdf: str = ""
     targets: dict = field(default_factory=dict)
     unlimited_joints: tuple[int, ...] = ()
+    masses: MassModel | None = None
 
     def __post_init__(self):
         if not self.joint_names:
@@ -377,6 +410,45 @@ class Robot:
         T = dh_frames(self.dh, q, self.convention)[..., -1, :, :]
         return T[..., :3, :3], T[..., :3, 3]
 
+    def link_frames(self, q: np.ndarray):
+        """The frame that moves with each joint, in the base frame: (..., n) [rad] -> ``(R (..., n, 3, 3),
+        o (..., n, 3) [m])``: for a planar arm the frame at joint j with x along link j; for a DH arm frame j
+        (after joint j's transform, either convention); for a URDF arm joint j's own frame after its rotation
+        (Pinocchio's joint frame). Frame j turns with joints 1..j."""
+        q = np.asarray(q, float)
+        if self.kind == "planar":
+            origins = as_xyz(planar_link_points(self.links_m, q)[..., :-1, :])
+            return rotation_about(np.array([0.0, 0.0, 1.0]), np.cumsum(q, axis=-1)), origins
+        if self.kind == "urdf":
+            return chain_link_frames(self.chain, q)
+        F = dh_frames(self.dh, q, self.convention)[..., 1:, :, :]
+        return F[..., :3, :3], F[..., :3, 3]
+
+    def mass_positions(self, q: np.ndarray) -> np.ndarray:
+        """(..., n) [rad] -> (..., B, 3) [m]: the base-frame position of every point mass of :attr:`masses`."""
+        m = self.masses
+        R, o = self.link_frames(q)
+        Rt, pt = self.tool_frame(q)
+        R = np.concatenate([R, Rt[..., None, :, :]], axis=-3)[..., m.link, :, :]
+        o = np.concatenate([o, pt[..., None, :]], axis=-2)[..., m.link, :]
+        return o + np.einsum("...bij,bj->...bi", R, m.com_m)
+
+    def gravity_torques(self, q: np.ndarray) -> np.ndarray:
+        """(..., n) [rad] -> (..., n) [N m]: the torques the arm's own weight applies at the joints (tau = J^T F
+        of every point mass's weight m_b g, as a load's tau; Siciliano et al., *Robotics*, eq. 7.39); zeros
+        without :attr:`masses`. The backlash and nonlinear-stiffness causes act on this plus the load's torque."""
+        q = np.asarray(q, float)
+        if self.masses is None:
+            return np.zeros(q.shape)
+        m = self.masses
+        origins, axes = self.joint_frames(q)  # (..., n, 3)
+        P = self.mass_positions(q)  # (..., B, 3)
+        weight = m.kg[:, None] * as_xyz(np.asarray(m.gravity_m_s2, float))[None, :]  # (B, 3)
+        lever = P[..., None, :, :] - origins[..., :, None, :]  # (..., n, B, 3)
+        moment = np.cross(lever, weight)  # about each joint's axis point
+        carried = m.link[None, :] >= np.arange(self.n_joints)[:, None]  # (n, B): mass b turns with joint j
+        return np.einsum("...jbk,...jk,jb->...j", moment, axes, carried)
+
     @property
     def target_names(self) -> tuple[str, ...]:
         """Names of the points whose position can be measured: ``"tool"`` (the tool point, where the load is
@@ -482,7 +554,8 @@ def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, 
 FIELD_KINDS = {"links_m": ("planar",), "dh": ("spatial",), "dh_convention": ("spatial",),
                "tool_m": ("spatial", "urdf"), "joint_limits_deg": ("planar", "spatial"),
                "joint_names": ("planar", "spatial"), "urdf": ("urdf",), "base_frame": ("urdf",),
-               "tip_frame": ("urdf",), "joints": ("urdf",), "fixed_joints_deg": ("urdf",)}
+               "tip_frame": ("urdf",), "joints": ("urdf",), "fixed_joints_deg": ("urdf",),
+               "link_masses_kg": ("planar", "spatial"), "link_coms_m": ("planar", "spatial")}
 
 
 #: the name of the tool point among the measured targets (``tool_m``; the end of the last link of a planar arm)
@@ -527,14 +600,93 @@ def load_robot(path: str | Path) -> Robot:
             raise InputError(f"'{key}' belongs to a {' or '.join(kinds)} robot, but this file says kind: "
                              f"{doc['kind']}; remove the field or change 'kind'", source=src, field=key)
     if doc["kind"] == "spatial":
-        return with_targets(_load_spatial(doc, src), doc.get("targets"), src)
-    if doc["kind"] == "urdf":
-        return with_targets(_load_urdf(doc, src), doc.get("targets"), src)
-    links = np.asarray(doc["links_m"], float)
-    limits, comp, names = _per_joint(doc, links.size, src, "link")
-    return with_targets(replace(planar_robot(links, doc["name"], limits, names),
-                                compliances=None if comp is None else np.asarray(comp, float),
-                                source=src, reference=doc.get("source", "")), doc.get("targets"), src)
+        robot = _load_spatial(doc, src)
+    elif doc["kind"] == "urdf":
+        robot = _load_urdf(doc, src)
+    else:
+        links = np.asarray(doc["links_m"], float)
+        limits, comp, names = _per_joint(doc, links.size, src, "link")
+        robot = replace(planar_robot(links, doc["name"], limits, names),
+                        compliances=None if comp is None else np.asarray(comp, float), source=src,
+                        reference=doc.get("source", ""))
+    return with_masses(with_targets(robot, doc.get("targets"), src), doc, src)
+
+
+#: default gravitational acceleration in the base frame [m/s^2]: a planar arm in a vertical plane (-y), a
+#: spatial arm standing on the floor (-z)
+GRAVITY_M_S2 = {2: (0.0, -9.81), 3: (0.0, 0.0, -9.81)}
+
+
+def with_masses(robot: Robot, doc: dict, src: str, urdf_masses: MassModel | None = None) -> Robot:
+    """``robot`` with its own weight (:class:`MassModel`) from the robot file (docs/contracts.md, "The arm's
+    own weight"): ``link_masses_kg`` (one per link) and ``link_coms_m`` (planar: the distance of each link's
+    centre of mass from its joint along the link, default half the link; spatial: [x, y, z] in frame i),
+    ``payload_kg`` and ``payload_com_m`` (the tool and fixture, in the tip frame; default the tool point),
+    ``gravity_m_s2`` (in the base frame; default -9.81 along -y planar, -z spatial); for a URDF arm the URDF's
+    inertias (``urdf_masses``, or the robot's own) and the payload; ``self_weight: false`` leaves every mass
+    out. No mass given: None (the analysis then knows no self-weight torque)."""
+    d = robot.task_dim
+    urdf_masses = urdf_masses if urdf_masses is not None else robot.masses
+    if doc.get("self_weight", True) is False:
+        return replace(robot, masses=None)
+    kg, link, com = [], [], []
+    if urdf_masses is not None:
+        kg, link, com = list(urdf_masses.kg), list(urdf_masses.link), list(urdf_masses.com_m)
+    n = robot.n_joints
+    if "link_masses_kg" in doc:
+        masses = doc["link_masses_kg"]
+        if len(masses) != n:
+            raise InputError(f"expected {n} masses [kg] (one per link), got {len(masses)}", source=src,
+                             field="link_masses_kg")
+        coms = doc.get("link_coms_m")
+        if coms is None and robot.kind != "planar":
+            raise InputError("expected link_coms_m beside link_masses_kg: the centre of mass of each link, [x, y, z] "
+                             "[m] in its DH frame", source=src, field="link_coms_m")
+        if coms is not None and len(coms) != n:
+            raise InputError(f"expected {n} centres of mass (one per link), got {len(coms)}", source=src,
+                             field="link_coms_m")
+        for j in range(n):
+            if robot.kind == "planar":
+                c = robot.links_m[j] / 2 if coms is None else coms[j]
+                if isinstance(c, list):
+                    if len(c) != 2:
+                        raise InputError(f"expected [x, y] [m] (x along the link), got {len(c)} numbers", source=src,
+                                         field=f"link_coms_m[{j}]")
+                    xyz = [c[0], c[1], 0.0]
+                else:
+                    xyz = [float(c), 0.0, 0.0]
+            else:
+                if not isinstance(coms[j], list) or len(coms[j]) != 3:
+                    raise InputError("expected [x, y, z] [m] in the link's DH frame", source=src,
+                                     field=f"link_coms_m[{j}]")
+                xyz = coms[j]
+            kg.append(float(masses[j]))
+            link.append(j)
+            com.append(np.asarray(xyz, float))
+    elif "link_coms_m" in doc:
+        raise InputError("link_coms_m needs link_masses_kg: give the mass of each link", source=src,
+                         field="link_coms_m")
+    if "payload_kg" in doc:
+        pc = doc.get("payload_com_m")
+        if pc is not None and len(pc) != d:
+            raise InputError(f"expected {d} coordinates [m] in the tip frame, got {len(pc)}", source=src,
+                             field="payload_com_m")
+        kg.append(float(doc["payload_kg"]))
+        link.append(n)
+        com.append(robot.target_point(TOOL_TARGET) if pc is None else as_xyz(np.asarray(pc, float)))
+    elif "payload_com_m" in doc:
+        raise InputError("payload_com_m needs payload_kg: give the payload's mass", source=src, field="payload_com_m")
+    g = doc.get("gravity_m_s2", GRAVITY_M_S2[d])
+    if len(g) != d:
+        raise InputError(f"expected {d} components [m/s^2] in the base frame, got {len(g)}", source=src,
+                         field="gravity_m_s2")
+    kg = np.asarray(kg, float)
+    if kg.size == 0 or not np.any(kg > 0):
+        return replace(robot, masses=None)
+    keep = kg > 0
+    model = MassModel(kg[keep], np.asarray(link, int)[keep], np.asarray(com, float).reshape(-1, 3)[keep],
+                      as_xyz(np.asarray(g, float)))
+    return replace(robot, masses=model)
 
 
 def robot_inputs(path: str | Path) -> list[str]:
@@ -588,5 +740,6 @@ def _load_urdf(doc: dict, src: str) -> Robot:
         raise InputError(f"expected {len(arm.names)} values (one per joint: {', '.join(arm.names)}), got {len(comp)}",
                          source=src, field="compliances_rad_per_Nm")
     names = check_joint_names(arm.names, len(arm.names), str(urdf), "joint names")
-    return chain_robot(arm.chain, doc.get("tool_m", [0.0, 0.0, 0.0]), arm.limits_rad, names, doc["name"], comp, src,
-                       doc.get("source", ""), str(doc["urdf"]), arm.has_limits, arm.unlimited)
+    robot = chain_robot(arm.chain, doc.get("tool_m", [0.0, 0.0, 0.0]), arm.limits_rad, names, doc["name"], comp, src,
+                        doc.get("source", ""), str(doc["urdf"]), arm.has_limits, arm.unlimited)
+    return replace(robot, masses=arm.masses)

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
-from .robot import MAX_JOINT_ANGLE_DEG, Chain, rotation_about
+from .robot import GRAVITY_M_S2, MAX_JOINT_ANGLE_DEG, Chain, MassModel, rotation_about
 
 #: largest URDF file read [bytes] (meshes are referenced, not embedded: real URDFs are far smaller)
 MAX_URDF_BYTES = 10_000_000
@@ -45,13 +45,15 @@ class UrdfArm:
     """What :func:`read_chain` returns: names (n,) of the moving joints, base to tip; chain
     (:class:`stiffcal.robot.Chain`, base frame to tip frame); limits_rad (n, 2) [rad] (continuous joints:
     [-pi, pi], a full turn); has_limits: some joint is revolute (limited); unlimited: indices of the continuous
-    joints, which have no limits."""
+    joints, which have no limits; masses: the URDF's inertias as point masses on the moving joints' frames
+    (:func:`chain_masses`), None when it has none."""
 
     names: tuple[str, ...]
     chain: Chain
     limits_rad: np.ndarray
     has_limits: bool
     unlimited: tuple[int, ...] = ()
+    masses: MassModel | None = None
 
 
 def _listing(names, near: str | None = None) -> str:
@@ -213,8 +215,50 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
             C = C @ rot
     chain = Chain(np.array(placements), np.array(chain_axes), C @ model.frames[t].placement.homogeneous)
     lim = np.array([limits.get(name, (-np.pi, np.pi)) for name in moving], float)
+    moving_ids = [j for j, name in zip(path_joints, names) if name in moving]
     return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving),
-                   tuple(i for i, name in enumerate(moving) if name not in limits))
+                   tuple(i for i, name in enumerate(moving) if name not in limits),
+                   chain_masses(model, moving_ids, {j: held[name] for j, name in zip(path_joints, names)
+                                                    if name in held}))
+
+
+def chain_masses(model, moving: list[int], held: dict[int, float]) -> MassModel | None:
+    """The URDF's inertias as point masses on the frames of the moving joints (:class:`MassModel`; gravity the
+    default, -z of the base frame, until the robot file says otherwise): every body of the model (Pinocchio
+    merges the links of fixed joints into their parent's body) whose nearest moving ancestor joint is in
+    ``moving`` (Pinocchio joint ids, base to tip), its mass and centre in that joint's frame, with the chain's
+    held joints at their angles ``held`` {joint id: rad} and other joints (off the chain: a gripper's fingers)
+    at Pinocchio's neutral configuration. Bodies before the first moving joint never move and are left out.
+    None when no such body has mass."""
+    import pinocchio as pin
+
+    q0 = pin.neutral(model)
+    for j, angle in held.items():
+        jm = model.joints[j]
+        if jm.nq == 1:
+            q0[jm.idx_q] = angle
+        else:  # a continuous joint: (cos, sin)
+            q0[jm.idx_q:jm.idx_q + 2] = [np.cos(angle), np.sin(angle)]
+    data = model.createData()
+    pin.forwardKinematics(model, data, q0)
+    index = {j: i for i, j in enumerate(moving)}
+    kg, link, com = [], [], []
+    for b in range(1, model.njoints):
+        mass = float(model.inertias[b].mass)
+        if not mass > 0:
+            continue
+        a = b
+        while a != 0 and a not in index:
+            a = model.parents[a]
+        if a == 0:
+            continue
+        centre = data.oMi[b].act(model.inertias[b].lever)
+        kg.append(mass)
+        link.append(index[a])
+        com.append(data.oMi[a].actInv(centre))
+    if not kg:
+        return None
+    return MassModel(np.array(kg), np.array(link, int), np.array(com, float), np.array(GRAVITY_M_S2[3]))
 
 
 def _moving(names: list[str], joints, source: str) -> list[str]:

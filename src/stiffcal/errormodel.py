@@ -1,0 +1,846 @@
+"""The error model of measured rows: which reference reading each displacement was taken from, the errors
+that rows share because of it (variance components, estimated by REML), and the generalised least squares
+that every fit and test of :mod:`stiffcal.discrepancy` then uses.
+
+A laser tracker logs readings; a lab's row is the difference of two: the loaded reading and the protocol's
+unloaded *reference reading* of the same target. Where a reference serves several rows, its error enters all
+of them; where a later visit of a configuration is measured against a reference read on an earlier visit,
+the robot's return error (its pose repeatability) enters every row of that visit too. Labs do all of these:
+
+- **per load**: every load its own unloaded reading just before it (rows independent);
+- **per visit**: one unloaded reading at the start of a visit, shared by the visit's loads (hanging masses, a
+  loading bar, a hand-held gauge), often with a return-to-zero row at the end;
+- **per configuration**: one reading at the first visit, the later visits (a second pass, shuffled or
+  relabelled) measured against it.
+
+**The structure** (:func:`reading_structure`) comes from the ``reference`` and ``visit`` columns when the lab
+logs them, else from what the rows show: a reference logged as a row of exact zeros starts a reference for
+its target at its configuration, and every later row of that target there (in time order: ``timestamp_s``,
+else the file's order) is measured from it, whatever the visit; a visit is a run of consecutive rows at one
+configuration (ended by a change of configuration or ``pose_id``, by an exact-zero row after loaded rows, or by
+a load repeated after a return-to-zero row). Exact-zero rows are the reference itself and never a noise
+sample. Where no exact-zero row says which reading a row was taken from, the model holds both hypotheses
+(a reference per visit and one per configuration) and lets the data weigh them.
+
+**The components**, each a random effect per group, one per measured component (x, y (, z), and the weighted
+rotation), independent between groups (Searle, Casella & McCulloch, *Variance Components*, 1992, ch. 6):
+
+- ``reference`` (a known reference reading: its rows), ``visit`` and ``configuration`` (per visit, per
+  configuration, where the reference is not known), of every target apart: the reference reading's error,
+  of variance ``lambda sigma_i^2`` relative to the row's own noise (the same tracker at the same place);
+- ``return``: the robot's pose error on a visit measured against another visit's reference, shared by all its
+  targets, of variance ``lambda sigma_0^2`` in metres whatever the tracker's noise (sigma_0 the noise of the
+  median row).
+
+Rows of different configurations are independent, so the covariance is block diagonal by configuration:
+``V_c = sigma^2 (I + sum_k lambda_k Z_ck Z_ck^T) (x) I_w`` on the rows weighted by the tracker's noise model.
+
+**Estimation** by restricted maximum likelihood (Patterson & Thompson 1971; Harville, *JASA* 72, 1977): first on
+the error contrasts of the replicate groups (every loaded group its own mean, the unloaded rows of mean zero:
+the pure-error analogue, which no effect of the robot can bias), then, for a component those contrasts cannot
+see (a reference shared by replicates measured on the spot), on the residuals of the union of every catalogue
+cause with sigma^2 fixed. Our own implementation: the block structure makes every likelihood a sum of small
+dense problems (a few milliseconds), and it is checked against statsmodels' ``MixedLM`` in the tests. A
+component's likelihood-ratio p-value is against the boundary mixture 1/2 chi^2_0 + 1/2 chi^2_1 (Self &
+Liang, *JASA* 82, 1987).
+
+**Generalised least squares.** The loaded rows are taken conditionally on the unloaded ones (which have no
+regressor, so the likelihood of the compliances factors through that conditional: y_L - B y_U with covariance
+H_LL - H_LU H_UU^-1 H_UL, B = H_LU H_UU^-1), and whitened by the symmetric inverse square root of that
+covariance per configuration (a row stays mostly itself, so residual diagnostics keep their rows). Every fit,
+F-test, interval and leave-one-configuration-out prediction of the analysis is then ordinary least squares on
+the whitened rows; the error variance on its degrees of freedom comes from the whitened pure error (with the
+unloaded rows), else from the union of all extensions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from .errors import InputError
+
+#: a component is estimated only where its groups have some row left after the fixed effects (relative norm)
+IDENTIFIABLE_RTOL = 1e-8
+#: largest variance ratio searched (a shared error 1000 times the row's own noise is not a tracker's)
+MAX_RATIO = 1e6
+#: relative singular value below which a direction of a design counts as absent (as stiffcal.discrepancy)
+RANK_RTOL = 1e-9
+
+KINDS = {"reference": "one known reference reading (its rows)",
+         "visit": "one visit (where the reference is not known)",
+         "configuration": "one configuration (where the reference is not known)",
+         "return": "the robot's return to the configuration on a visit measured against another visit's reference"}
+
+
+# --- which reading each row was taken from ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Component:
+    """One variance component: ``label`` (R,) int, the group of every model row (-1: not in it); ``absolute``:
+    its variance is in metres whatever the tracker's noise (the return's pose error; else relative to the
+    row's noise, the reference reading's error)."""
+    name: str
+    label: np.ndarray
+    absolute: bool = False
+
+    @property
+    def n_groups(self) -> int:
+        return int(self.label.max(initial=-1)) + 1
+
+
+@dataclass(frozen=True)
+class ReadingStructure:
+    """Which reference reading every row's displacement was taken from (module docstring).
+
+    Model rows (R = N + M): the loaded rows used (N, in the order of the measurements) then the unloaded rows
+    that carry noise (M: not exact zeros, at a configuration with loaded rows, not blunders); ``zero_index``
+    (M,) their indices into ``Measurements.zero_rows``; ``block`` (R,) int the configuration of every model row
+    (configurations are independent); ``visit`` (R,) int; ``components``; ``kind`` what the references are
+    ("independent", "load", "visit", "configuration", "mixed", or "unknown: from the row order"); ``source``
+    how it was found; counts: visits, configurations visited more than once, known references, exact-zero
+    reference rows; ``notes``; ``time`` (R,) [s] every model row's time (or file order) and ``ref_time`` (R,) that
+    of the reading it was taken from (the exact-zero reference row; where it is not known, the first row of
+    the visit)."""
+    n_loaded: int
+    zero_index: np.ndarray
+    block: np.ndarray
+    visit: np.ndarray
+    components: tuple[Component, ...]
+    kind: str
+    source: str
+    n_visits: int
+    n_revisited: int
+    n_references: int
+    n_exact_rows: int
+    notes: tuple[str, ...] = ()
+    time: np.ndarray | None = None
+    ref_time: np.ndarray | None = None
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.block)
+
+    def as_dict(self) -> dict:
+        return {"kind": self.kind, "source": self.source, "n_visits": int(self.n_visits),
+                "n_configurations_revisited": int(self.n_revisited), "n_known_references": int(self.n_references),
+                "n_exact_zero_rows": int(self.n_exact_rows), "n_unloaded_rows_used": int(len(self.zero_index))}
+
+
+def _file_rows(meas, keep: np.ndarray, zero_out) -> dict:
+    """Every data row the structure looks at (loaded rows ``keep``, unloaded rows but ``zero_out``), with what the
+    file says of it (:class:`stiffcal.measurements.RowLog`, or the row order for measurements made in memory)."""
+    loaded_idx = np.flatnonzero(keep)
+    zero_idx = np.setdiff1d(np.arange(len(meas.zero_rows)), np.asarray(zero_out, int))
+    log = meas.log
+    file_l, file_u = meas.rows[loaded_idx], meas.zero_rows[zero_idx]
+    n_file = max(int(np.max(meas.rows, initial=-1)), int(np.max(meas.zero_rows, initial=-1))) + 1
+    if log is None:  # in memory: the row order, one target per row, configurations as the measurements have them
+        zero_dp = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, meas.zero_rot])
+        get = {"time": np.arange(n_file, dtype=float), "label": None, "visit": None, "reference": None}
+        config = np.full(n_file, -1)
+        config[meas.rows] = meas.config
+        config[meas.zero_rows] = meas.zero_config
+        target = np.zeros(n_file, int)
+        target[meas.rows] = meas.target
+        exact = np.zeros(n_file, bool)
+        exact[meas.zero_rows] = np.all(zero_dp == 0.0, axis=1)
+        group = np.full(n_file, -1)
+        group[meas.rows] = meas.group
+    else:
+        get = {"time": log.time, "label": log.label, "visit": log.visit, "reference": log.reference}
+        config, target, exact, group = log.config, log.target, log.exact, log.group
+    rows = np.concatenate([file_l, file_u])
+    loaded = np.concatenate([np.ones(len(file_l), bool), np.zeros(len(file_u), bool)])
+    return {"rows": rows, "loaded": loaded, "loaded_idx": loaded_idx, "zero_idx": zero_idx,
+            "time": get["time"][rows], "label": None if get["label"] is None else get["label"][rows],
+            "visit": None if get["visit"] is None else get["visit"][rows],
+            "reference": None if get["reference"] is None else get["reference"][rows],
+            "config": config[rows], "target": target[rows], "exact": exact[rows], "group": group[rows]}
+
+
+def _visits(f: dict) -> np.ndarray:
+    """(n,) int: the visit of every row of :func:`_file_rows` (module docstring), numbered in time order."""
+    n = len(f["rows"])
+    order = np.lexsort((f["rows"], f["time"]))
+    visit = np.full(n, -1)
+    if f["visit"] is not None:
+        keys = {}
+        for i in order:
+            visit[i] = keys.setdefault((int(f["config"][i]), f["visit"][i]), len(keys))
+        return visit
+    cur, prev, seen, closed = -1, None, set(), False
+    for i in order:
+        new = (prev is None or f["config"][i] != f["config"][prev]
+               or (f["label"] is not None and f["label"][i] != f["label"][prev])
+               or (f["exact"][i] and f["loaded"][prev])
+               or (f["loaded"][i] and closed and f["group"][i] in seen))
+        if new:
+            cur, seen, closed = cur + 1, set(), False
+        if f["loaded"][i]:
+            seen.add(int(f["group"][i]))
+        elif seen and not f["exact"][i]:
+            closed = True  # a return-to-zero row: a load repeated after it starts the next visit
+        visit[i] = cur
+        prev = i
+    return visit
+
+
+def _references(f: dict, visit: np.ndarray) -> tuple[np.ndarray, np.ndarray, str | None]:
+    """(reference (n,) int, -1 where not known; visit holding each reference's reading; how they were found)."""
+    n = len(f["rows"])
+    ref = np.full(n, -1)
+    holder = []
+    order = np.lexsort((f["rows"], f["time"]))
+    if f["reference"] is not None:
+        keys = {}
+        for i in order:
+            k = (int(f["config"][i]), int(f["target"][i]), f["reference"][i])
+            if k not in keys:
+                keys[k] = len(keys)
+                holder.append(visit[i])
+            ref[i] = keys[k]
+        return ref, np.array(holder, int), "the reference column"
+    if not f["exact"].any():
+        return ref, np.zeros(0, int), None
+    current = {}
+    for i in order:
+        k = (int(f["config"][i]), int(f["target"][i]))
+        if f["exact"][i]:
+            current[k] = len(holder)
+            holder.append(visit[i])
+        if k in current:
+            ref[i] = current[k]
+    return ref, np.array(holder, int), "the exact-zero reference rows"
+
+
+def _renumber(label: np.ndarray) -> np.ndarray:
+    """Labels (-1: none) renumbered 0.. in order of first appearance, -1 kept."""
+    out = np.full(len(label), -1)
+    keys = {}
+    for i, v in enumerate(label.tolist() if label.dtype != object else label):
+        if v == -1 or v is None:
+            continue
+        out[i] = keys.setdefault(v if not isinstance(v, np.ndarray) else tuple(v), len(keys))
+    return out
+
+
+def _pairs(a: np.ndarray, b: np.ndarray, where: np.ndarray) -> np.ndarray:
+    """Group labels of the pairs (a_i, b_i) where ``where``, -1 elsewhere."""
+    lab = np.full(len(a), -1)
+    keys = {}
+    for i in np.flatnonzero(where):
+        lab[i] = keys.setdefault((int(a[i]), int(b[i])), len(keys))
+    return lab
+
+
+def reading_structure(meas, keep: np.ndarray, zero_out=()) -> ReadingStructure:
+    """The :class:`ReadingStructure` of the loaded rows ``keep`` (bool (N,)) of ``meas`` and its unloaded rows but
+    ``zero_out`` (indices into ``zero_rows``: blunders among them), from the ``reference`` and ``visit``
+    columns, the exact-zero reference rows, the ``pose_id`` labels and the time order (module docstring)."""
+    f = _file_rows(meas, np.asarray(keep, bool), zero_out)
+    loaded_cfg = set(f["config"][f["loaded"]].tolist())
+    at_loaded = np.array([c in loaded_cfg for c in f["config"]])
+    visit = _visits(f)
+    ref, holder, how = _references(f, visit)
+    model = f["loaded"] | (~f["exact"] & at_loaded)  # rows with noise, at a configuration with loads
+    first_visit = {}
+    for i in np.lexsort((f["rows"], f["time"])):
+        first_visit.setdefault(int(f["config"][i]), visit[i])
+    known = ref >= 0
+    comps = []
+    if known.any():
+        comps.append(Component("reference", _renumber(np.where(known & model, ref, -1))))
+    unknown = ~known & model
+    if unknown.any():
+        comps.append(Component("visit", _pairs(visit, f["target"], unknown)))
+        comps.append(Component("configuration", _pairs(f["config"], f["target"], unknown)))
+    away = np.where(known, visit != np.where(known, holder[np.maximum(ref, 0)] if len(holder) else -1, -1),
+                    visit != np.array([first_visit[int(c)] for c in f["config"]]))
+    comps.append(Component("return", _renumber(np.where(away & model, visit, -1)), absolute=True))
+    # the model rows: loaded first (in the measurements' order), then the unloaded rows with noise
+    idx = np.flatnonzero(model)
+    comps = [Component(c.name, _renumber(c.label[idx]), c.absolute) for c in comps]
+    comps = _pruned(comps)
+    cfg = f["config"][idx]
+    block = _renumber(cfg)
+    kind = _kind(f, ref, visit, known, holder) if comps else "independent"
+    source = (how or ("the visit column" if f["visit"] is not None else "the row order"
+                      + (" (timestamp_s)" if meas.log is not None and meas.log.has_time else "")))
+    visits_at = {}
+    for c, v in zip(f["config"][f["loaded"]], visit[f["loaded"]]):
+        visits_at.setdefault(int(c), set()).add(int(v))
+    zero_model = model[~f["loaded"]]
+    start = {}
+    for i in np.lexsort((f["rows"], f["time"])):
+        start.setdefault(int(visit[i]), f["time"][i])
+    ref_time = np.array([start[int(v)] for v in visit], float)
+    for r in np.unique(ref[known]):
+        rows = ref == r
+        ref_time[rows] = f["time"][rows & f["exact"]].min() if (rows & f["exact"]).any() else f["time"][rows].min()
+    return ReadingStructure(int(f["loaded"].sum()), f["zero_idx"][zero_model], block, _renumber(visit[idx]),
+                            tuple(comps), kind, source, len(set(visit[f["loaded"]].tolist())),
+                            sum(len(v) > 1 for v in visits_at.values()), len(holder), int(f["exact"].sum()),
+                            (), np.asarray(f["time"][idx], float), ref_time[idx])
+
+
+def independent(n_loaded: int) -> ReadingStructure:
+    """The structure of n_loaded rows taken as independent (no shared reference, no unloaded row)."""
+    t = np.arange(n_loaded, dtype=float)
+    return ReadingStructure(n_loaded, np.zeros(0, int), np.zeros(n_loaded, int), np.arange(n_loaded), (),
+                            "independent", "given", n_loaded, 0, 0, 0, (), t, t)
+
+
+def _pruned(comps: list[Component]) -> list[Component]:
+    """The components that can share an error: some group of two or more rows (a group of one is noise of its
+    own row), each partition once (a visit that is the whole configuration is one component)."""
+    out, seen = [], []
+    for c in comps:
+        counts = np.bincount(c.label[c.label >= 0]) if (c.label >= 0).any() else np.zeros(0, int)
+        if not np.any(counts >= 2):
+            continue
+        key = (c.absolute, tuple(c.label.tolist()))
+        if key in seen:
+            continue
+        seen.append(key)
+        out.append(c)
+    return out
+
+
+def _kind(f: dict, ref: np.ndarray, visit: np.ndarray, known: np.ndarray, holder: np.ndarray) -> str:
+    """What the references are: per load, per visit, per configuration (across visits), mixed, or unknown."""
+    if not known.any():
+        return "unknown: from the row order"
+    kinds = set()
+    for r in np.unique(ref[known]):
+        rows = (ref == r) & f["loaded"]
+        if rows.sum() <= 1:
+            kinds.add("load")
+        elif len(np.unique(visit[ref == r])) > 1:
+            kinds.add("configuration")
+        else:
+            kinds.add("visit")
+    if (~known & f["loaded"]).any():
+        kinds.add("unknown")
+    if kinds == {"visit", "configuration"}:  # a configuration's reference; some configurations visited once
+        return "configuration"
+    return kinds.pop() if len(kinds) == 1 else "mixed"
+
+
+# --- restricted maximum likelihood -------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _Batch:
+    """Blocks of one size m after the fixed effects local to each block are taken out (error contrasts):
+    Y (B, m, w); ZZ (K, B, m, m) the components' Z Z^T; X (B, m, w, p) or None (global fixed effects)."""
+    Y: np.ndarray
+    ZZ: np.ndarray
+    X: np.ndarray | None
+
+
+def _contrasts(L: np.ndarray | None, n: int) -> np.ndarray:
+    """(n, m): an orthonormal basis of the rows' space orthogonal to the columns of L (n, l) (all of it without)."""
+    if L is None or L.shape[1] == 0:
+        return np.eye(n)
+    U, sv, _ = np.linalg.svd(L, full_matrices=True)
+    r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+    return U[:, r:]
+
+
+@dataclass
+class _Likelihood:
+    """The REML log-likelihood of a variance-components model over independent blocks (module docstring)."""
+    batches: list
+    n_obs: int
+    rank: int
+    width: int
+
+    @classmethod
+    def of(cls, blocks: list[dict], comps: list[int], local: bool, use_x: bool) -> "_Likelihood":
+        """blocks: per configuration ``Y`` (n, w), ``Z`` {k: (n, g)}, ``L`` (n, l) local fixed effects, ``X``
+        (n, w, p); comps: the components' indices; local: take out L; use_x: global fixed effects X."""
+        by_size: dict[int, list] = {}
+        width = blocks[0]["Y"].shape[1]
+        scale = None
+        if use_x:  # columns to unit norm, as stiffcal.discrepancy.fit scales them, for the same rank decision
+            scale = np.sqrt(sum(np.einsum("nwp,nwp->p", b["X"], b["X"]) for b in blocks))
+            scale[scale == 0] = 1.0
+        for b in blocks:
+            A = _contrasts(b["L"] if local else None, len(b["Y"]))
+            if A.shape[1] == 0:
+                continue
+            Y = A.T @ b["Y"]
+            ZZ = np.stack([(A.T @ b["Z"][k]) @ (A.T @ b["Z"][k]).T if k in b["Z"] else np.zeros((A.shape[1],) * 2)
+                           for k in comps]) if comps else np.zeros((0, A.shape[1], A.shape[1]))
+            X = np.einsum("nm,nwp->mwp", A, b["X"]) / scale if use_x else None
+            by_size.setdefault(A.shape[1], []).append((Y, ZZ, X))
+        batches = []
+        for parts in by_size.values():
+            batches.append(_Batch(np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts], axis=1),
+                                  None if not use_x else np.stack([p[2] for p in parts])))
+        n_obs = sum(bt.Y.shape[0] * bt.Y.shape[1] for bt in batches) * width
+        rank = 0
+        if use_x and batches:
+            stacked = np.concatenate([bt.X.reshape(-1, bt.X.shape[-1]) for bt in batches])
+            sv = np.linalg.svd(stacked, compute_uv=False)
+            rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+        return cls(batches, n_obs, rank, width)
+
+    def parts(self, lam: np.ndarray):
+        """(sum of log|H| over blocks (per coordinate), log pdet M, residual quadratic form Q)."""
+        logdet, Q = 0.0, 0.0
+        M, b = None, None
+        for bt in self.batches:
+            m = bt.Y.shape[1]
+            H = np.eye(m) + np.einsum("k,kbij->bij", lam, bt.ZZ)
+            L = np.linalg.cholesky(H)
+            logdet += 2.0 * float(np.log(np.diagonal(L, axis1=1, axis2=2)).sum())
+            HY = np.linalg.solve(H, bt.Y)
+            Q += float(np.einsum("bmw,bmw->", bt.Y, HY))
+            if bt.X is not None:
+                B, _, w, p = bt.X.shape
+                HX = np.linalg.solve(H, bt.X.reshape(B, m, w * p)).reshape(bt.X.shape)
+                Mi = np.einsum("bmwp,bmwq->pq", bt.X, HX)
+                bi = np.einsum("bmwp,bmw->p", bt.X, HY)
+                M, b = (Mi, bi) if M is None else (M + Mi, b + bi)
+        logdet_M = 0.0
+        if M is not None and self.rank:
+            ev, V = np.linalg.eigh(M)
+            top = np.argsort(ev)[::-1][: self.rank]
+            logdet_M = float(np.log(ev[top]).sum())
+            Q -= float(b @ (V[:, top] @ ((V[:, top].T @ b) / ev[top])))
+        return logdet, logdet_M, max(Q, 1e-300)
+
+    @property
+    def df(self) -> int:
+        return self.n_obs - self.rank
+
+    def loglik(self, lam: np.ndarray, sigma2: float | None = None) -> float:
+        """The REML log-likelihood (constants dropped) at the variance ratios lam (K,), sigma^2 profiled out (or
+        fixed at ``sigma2``)."""
+        logdet, logdet_M, Q = self.parts(lam)
+        if sigma2 is None:
+            return -0.5 * (self.width * logdet + logdet_M + self.df * np.log(Q / self.df))
+        return -0.5 * (self.width * logdet + logdet_M + self.df * np.log(sigma2) + Q / sigma2)
+
+    def sigma2(self, lam: np.ndarray) -> float:
+        return self.parts(lam)[2] / max(self.df, 1)
+
+
+def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict | None = None) -> tuple[np.ndarray, float]:
+    """(lam (k,), log-likelihood) at the REML estimate over lam >= 0 (L-BFGS-B from two starts, on
+    log(1 + lam) so that both small and large ratios are found); ``fixed`` {index: value} held."""
+    from scipy.optimize import minimize
+
+    fixed = fixed or {}
+    free = [i for i in range(k) if i not in fixed]
+
+    def full(x):
+        lam = np.zeros(k)
+        for i, v in fixed.items():
+            lam[i] = v
+        lam[free] = np.expm1(np.clip(x, 0.0, np.log1p(MAX_RATIO)))
+        return lam
+
+    def objective(x):
+        try:
+            return -lik.loglik(full(x), sigma2)
+        except np.linalg.LinAlgError:
+            return np.inf
+
+    if not free:
+        lam = full(np.zeros(0))
+        return lam, lik.loglik(lam, sigma2)
+    best = None
+    for start in (np.zeros(len(free)), np.full(len(free), np.log(2.0))):
+        res = minimize(objective, start, method="L-BFGS-B", bounds=[(0.0, np.log1p(MAX_RATIO))] * len(free),
+                       options={"ftol": 1e-12, "gtol": 1e-8, "maxiter": 200})
+        if best is None or res.fun < best.fun:
+            best = res
+    lam = full(best.x)
+    lam[np.abs(lam) < 1e-9] = 0.0
+    return lam, -float(best.fun)
+
+
+# --- the error model -------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ErrorModel:
+    """The fitted error model of one data set (module docstring).
+
+    structure: :class:`ReadingStructure`; ratios (K,): lambda of each component (0: not needed, or not
+    estimable); estimable (K,) bool; p_values (K,): likelihood-ratio p of each component (None where not
+    estimable); stage: what the variance components were estimated on; sigma2 [m^2 of the median row], df,
+    source: the error variance the tests use; ss_pe, df_pe: the whitened pure error of the loaded rows;
+    blocks: per configuration ``(loaded rows (n_L,), unloaded model rows (n_U,), W (n_L, n_L), B (n_L, n_U))``
+    with W = H_{L|U}^{-1/2} and B = H_LU H_UU^-1 (only for configurations whose rows share an error);
+    q_unloaded: the unloaded rows' quadratic form y_U^T H_UU^-1 y_U, on df_unloaded; notes."""
+    structure: ReadingStructure
+    ratios: np.ndarray
+    estimable: np.ndarray
+    p_values: tuple
+    stage: str
+    sigma2: float
+    df: int
+    source: str
+    ss_pe: float
+    df_pe: int
+    blocks: tuple
+    q_unloaded: float
+    df_unloaded: int
+    notes: tuple[str, ...] = ()
+    zero_y: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+
+    @property
+    def shared(self) -> bool:
+        """Some rows share an error (the fits are generalised least squares)."""
+        return bool(np.any(self.ratios > 0))
+
+    def whiten(self, A: np.ndarray) -> np.ndarray:
+        """(N, w, ...) the loaded rows (weighted by the noise model) -> W A per configuration (GLS; a regressor
+        is zero on the unloaded rows, so it needs no conditioning)."""
+        out = np.array(A, float, copy=True)
+        for rows, _, W, _ in self.blocks:
+            out[rows] = np.einsum("ij,j...->i...", W, A[rows])
+        return out
+
+    def whiten_observations(self, Y: np.ndarray) -> np.ndarray:
+        """(N, w) the loaded rows' observations (weighted) -> W (y_L - B y_U): conditional on the unloaded rows."""
+        return self.whiten(self.adjusted(Y))
+
+    def adjusted(self, Y: np.ndarray) -> np.ndarray:
+        """(N, w): y_L - B y_U, the loaded rows less the shared error the unloaded rows predict (weighted)."""
+        out = np.array(Y, float, copy=True)
+        for rows, zrows, _, B in self.blocks:
+            if len(zrows):
+                out[rows] -= B @ self.zero_y[zrows]
+        return out
+
+    def blups(self, resid: np.ndarray, weights: np.ndarray) -> dict:
+        """The best linear unbiased predictions of every component's group effects (Henderson 1975; Searle et al.
+        1992, sec. 7.4): {name: (G, w) [weighted m]} from the residuals ``resid`` (R, w) of every model row (loaded
+        rows less the fit, unloaded rows as they are; weighted by ``weights`` (R,) as :func:`estimate` took them):
+        u_k = lambda_k Z_k^T H^-1 r per configuration."""
+        st = self.structure
+        out = {c.name: np.zeros((c.n_groups, resid.shape[1])) for c in st.components}
+        groups = np.zeros(len(resid), int)
+        for b in _block_arrays(st, resid, groups[: st.n_loaded], None, weights):
+            rows = b["rows"]
+            H = np.eye(len(rows))
+            for k, Z in b["Z"].items():
+                H += self.ratios[k] * (Z @ Z.T)
+            Hr = np.linalg.solve(H, b["Y"])
+            for k, Z in b["Z"].items():
+                comp = st.components[k]
+                lab = np.unique(comp.label[rows][comp.label[rows] >= 0])
+                out[comp.name][lab] = self.ratios[k] * (Z.T @ Hr)
+        return out
+
+    def components(self) -> dict:
+        """The verdict's ``error_model.components``: per component its groups, sd [m of the median row]
+        (sqrt(lambda) sigma), ratio, likelihood-ratio p and whether it could be estimated."""
+        out = {}
+        for c, lam, est, p in zip(self.structure.components, self.ratios, self.estimable, self.p_values):
+            out[c.name] = {"groups": c.n_groups, "what": KINDS[c.name], "ratio": float(lam),
+                           "sd_m": float(np.sqrt(lam * self.sigma2)), "p_value": p, "estimable": bool(est)}
+        return out
+
+    def as_dict(self) -> dict:
+        return {**self.structure.as_dict(), "components": self.components(), "estimated_on": self.stage,
+                "method": "REML (variance components; generalised least squares for every fit)",
+                "shared_error": self.shared}
+
+
+def _block_arrays(structure: ReadingStructure, Y: np.ndarray, groups: np.ndarray, X: np.ndarray | None,
+                  weights: np.ndarray) -> list[dict]:
+    """Per configuration: rows, Y (n, w), Z {k: (n, g)} (entries 1, or the row's weight for a component in
+    metres), L (n, l) the replicate groups of the loaded rows (zero on the unloaded rows), X (n, w, p)."""
+    N = structure.n_loaded
+    blocks = []
+    for c in range(int(structure.block.max(initial=-1)) + 1):
+        rows = np.flatnonzero(structure.block == c)
+        Z = {}
+        for k, comp in enumerate(structure.components):
+            lab = comp.label[rows]
+            if not (lab >= 0).any():
+                continue
+            g, inv = np.unique(lab[lab >= 0], return_inverse=True)
+            M = np.zeros((len(rows), len(g)))
+            M[np.flatnonzero(lab >= 0), inv.ravel()] = weights[rows][lab >= 0] if comp.absolute else 1.0
+            Z[k] = M
+        lr = rows[rows < N]
+        gl, inv = np.unique(groups[lr], return_inverse=True)
+        L = np.zeros((len(rows), len(gl)))
+        L[np.arange(len(lr)), inv.ravel()] = 1.0
+        Xb = None
+        if X is not None:
+            Xb = np.zeros((len(rows), Y.shape[1], X.shape[-1]))
+            Xb[: len(lr)] = X[lr]
+        blocks.append({"rows": rows, "Y": Y[rows], "Z": Z, "L": L, "X": Xb})
+    return blocks
+
+
+def _estimable(blocks: list[dict], k: int, local: bool, use_x: bool) -> bool:
+    """Component k has rows left after the fixed effects (its Z not in their span)."""
+    total, left = 0.0, 0.0
+    Xs, Zs = [], []
+    for b in blocks:
+        if k not in b["Z"]:
+            continue
+        A = _contrasts(b["L"] if local else None, len(b["Y"]))
+        Zt = A.T @ b["Z"][k]
+        total += float((b["Z"][k] ** 2).sum())
+        if use_x:
+            Xs.append(np.einsum("nm,nwp->mwp", A, b["X"]))
+            Zs.append(Zt)
+        else:
+            left += float((Zt ** 2).sum())
+    if use_x and Zs:  # project the components' columns (one per group and coordinate) on the complement of X
+        w = Xs[0].shape[1]
+        Xall = np.concatenate([x.reshape(-1, x.shape[-1]) for x in Xs])
+        cols = []
+        at = 0
+        for Zt in Zs:
+            for j in range(w):
+                C = np.zeros((Zt.shape[0], w, Zt.shape[1]))
+                C[:, j, :] = Zt
+                cols.append((at, C.reshape(-1, Zt.shape[1])))
+            at += Zt.shape[0] * w
+        Zall = np.zeros((Xall.shape[0], sum(c.shape[1] for _, c in cols)))
+        col = 0
+        for start, C in cols:
+            Zall[start:start + C.shape[0], col:col + C.shape[1]] = C
+            col += C.shape[1]
+        norm = np.linalg.norm(Xall, axis=0)
+        U, sv, _ = np.linalg.svd(Xall / np.where(norm > 0, norm, 1.0), full_matrices=False)
+        Q = U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
+        resid = Zall - Q @ (Q.T @ Zall)
+        left = float((resid**2).sum())
+    return total > 0 and left > IDENTIFIABLE_RTOL * total
+
+
+def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, groups: np.ndarray,
+             X_union: np.ndarray | None) -> ErrorModel:
+    """The :class:`ErrorModel` of the model rows (module docstring).
+
+    Y (R, w): every model row's measured components, weighted by the noise model (rows multiplied by
+    ``weights`` (R,), 1/sigma_i relative to the median row) and the rotation by sigma_m / sigma_rad; groups
+    (N,) the loaded rows' replicate groups; X_union (N, w, p): the loaded rows' regressors of the union of
+    every catalogue cause, weighted. Raises :class:`InputError` when no degree of freedom is left for the noise.
+    """
+    N, R = structure.n_loaded, structure.n_rows
+    K = len(structure.components)
+    w = Y.shape[1]
+    blocks = _block_arrays(structure, Y, groups, X_union, weights)
+    replicated = np.bincount(groups).max(initial=0) >= 2 if len(groups) else False
+    lam = np.zeros(K)
+    estimable = np.zeros(K, bool)
+    pvals: list = [None] * K
+    notes = []
+    if replicated:  # stage A: the error contrasts of the replicate groups (the pure error), then the union's
+        est_a = [k for k in range(K) if _estimable(blocks, k, local=True, use_x=False)]
+        lik_a = _Likelihood.of(blocks, est_a, local=True, use_x=False)
+        if lik_a.df <= 0:
+            replicated = False
+    if replicated:
+        lam_a, ll_a = _maximise(lik_a, len(est_a))
+        lam[est_a] = lam_a
+        estimable[est_a] = True
+        for i, k in enumerate(est_a):
+            pvals[k] = _lrt(lik_a, lam_a, ll_a, i, None)
+        sigma2 = lik_a.sigma2(lam_a)
+        stage = "the error contrasts of the replicate groups and the unloaded rows (pure error)"
+        rest = [k for k in range(K) if k not in est_a]
+        if rest and X_union is not None:
+            est_b = [k for k in rest if _estimable(blocks, k, local=False, use_x=True)]
+            if est_b:
+                order = est_a + est_b
+                lik_b = _Likelihood.of(blocks, order, local=False, use_x=True)
+                fixed = {i: lam[k] for i, k in enumerate(est_a)}
+                lam_b, ll_b = _maximise(lik_b, len(order), sigma2, fixed)
+                for i, k in enumerate(order):
+                    if k in est_b:
+                        lam[k] = lam_b[i]
+                        estimable[k] = True
+                        pvals[k] = _lrt(lik_b, lam_b, ll_b, i, sigma2, fixed)
+                stage += ("; " + ", ".join(structure.components[k].name for k in est_b)
+                          + " on the residuals of the union of all extensions (the replicates repeat it)")
+        source = "replicates (pure error)"
+    else:
+        if X_union is None:
+            raise InputError("no replicates and no regressors: the noise cannot be estimated")
+        est = [k for k in range(K) if _estimable(blocks, k, local=False, use_x=True)]
+        lik = _Likelihood.of(blocks, est, local=False, use_x=True)
+        if lik.df <= 0:
+            raise InputError("no degree of freedom is left to estimate the noise")
+        lam_u, ll_u = _maximise(lik, len(est))
+        lam[est] = lam_u
+        estimable[est] = True
+        for i, k in enumerate(est):
+            pvals[k] = _lrt(lik, lam_u, ll_u, i, None)
+        sigma2 = lik.sigma2(lam_u)
+        stage = "the residuals of the union of all extensions" + (" and the unloaded rows" if R > N else "")
+        source = "residuals of the union of all extensions" + (" and the unloaded rows" if R > N else "")
+    for k in range(K):
+        if not estimable[k]:
+            notes.append(f"a shared error per {KINDS[structure.components[k].name]} cannot be estimated from these "
+                         "data (the fixed effects absorb it): it is left out")
+    return _finish(structure, blocks, lam, estimable, tuple(pvals), stage, sigma2, None if replicated else lik.df,
+                   source, w, notes, Y[N:])
+
+
+def _lrt(lik: _Likelihood, lam: np.ndarray, ll: float, i: int, sigma2, fixed: dict | None = None) -> float:
+    """The likelihood-ratio p-value of component i (lam_i = 0) against 1/2 chi^2_0 + 1/2 chi^2_1."""
+    if lam[i] == 0:
+        return 1.0
+    _, ll0 = _maximise(lik, len(lam), sigma2, {**(fixed or {}), i: 0.0})
+    stat = max(2.0 * (ll - ll0), 0.0)
+    return float(0.5 * stats.chi2.sf(stat, 1)) if stat > 0 else 1.0
+
+
+def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, source, w, notes,
+            zero_y) -> ErrorModel:
+    """The whitening of every block, the whitened pure error and the unloaded rows' quadratic form; the error
+    variance: with replicates the whitened pure error and the unloaded rows (their REML estimate), else the
+    union's (``sigma2`` on ``df_union``)."""
+    N = structure.n_loaded
+    out_blocks = []
+    ss_pe, df_pe, q_u, df_u = 0.0, 0, 0.0, 0
+    for b in blocks:
+        rows = b["rows"]
+        n = len(rows)
+        H = np.eye(n)
+        for k, Z in b["Z"].items():
+            H += lam[k] * (Z @ Z.T)
+        loaded = rows < N
+        iL, iU = np.flatnonzero(loaded), np.flatnonzero(~loaded)
+        HLL, HLU, HUU = H[np.ix_(iL, iL)], H[np.ix_(iL, iU)], H[np.ix_(iU, iU)]
+        if len(iU):
+            Bm = np.linalg.solve(HUU, HLU.T).T
+            C = HLL - Bm @ HLU.T
+            q_u += float(np.einsum("uw,uw->", b["Y"][iU], np.linalg.solve(HUU, b["Y"][iU])))
+            df_u += len(iU) * w
+        else:
+            Bm, C = np.zeros((len(iL), 0)), HLL
+        shared = not np.allclose(H, np.eye(n))
+        if shared:
+            ev, V = np.linalg.eigh(C)
+            W = (V / np.sqrt(ev)) @ V.T
+        else:
+            W = np.eye(len(iL))
+        yL = b["Y"][iL] - Bm @ b["Y"][iU]
+        wy = W @ yL
+        G = W @ b["L"][iL]
+        if G.shape[1]:
+            U, sv, _ = np.linalg.svd(G, full_matrices=False)
+            r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+            resid = wy - U[:, :r] @ (U[:, :r].T @ wy)
+        else:
+            r, resid = 0, wy
+        ss_pe += float((resid**2).sum())
+        df_pe += (len(iL) - r) * w
+        if shared:
+            out_blocks.append((rows[iL], rows[iU] - N, W, Bm))
+    if df_union is None:
+        df, s2 = df_pe + df_u, (ss_pe + q_u) / max(df_pe + df_u, 1)
+    else:
+        df, s2, df_pe, ss_pe = df_union, sigma2, 0, 0.0
+    return ErrorModel(structure, lam, estimable, pvals, stage, float(s2), int(df), source, ss_pe, df_pe,
+                      tuple(out_blocks), q_u, df_u, tuple(notes), np.asarray(zero_y, float))
+
+
+# --- the unloaded rows: blunders among them, and a zero point that moved ------------------------------------------
+
+def _full_roots(em: ErrorModel, blocks: list[dict]) -> list[np.ndarray]:
+    """Per block the symmetric inverse square root of its rows' H (every model row, loaded and unloaded)."""
+    out = []
+    for b in blocks:
+        n = len(b["rows"])
+        H = np.eye(n)
+        for k, Z in b["Z"].items():
+            H += em.ratios[k] * (Z @ Z.T)
+        ev, V = np.linalg.eigh(H)
+        out.append((V / np.sqrt(ev)) @ V.T)
+    return out
+
+
+def unloaded_tests(em: ErrorModel, Y: np.ndarray, groups: np.ndarray, X_union: np.ndarray | None,
+                   weights: np.ndarray) -> tuple[np.ndarray, float | None, tuple[int, float]]:
+    """F-tests on the unloaded model rows in the fitted error model, against the fixed effects the noise was
+    estimated with (the replicate groups' means, else the union of all extensions), in the whitened rows:
+
+    - each unloaded row against the others (a mean shift of that row alone: Cook & Weisberg, *Residuals and
+      Influence in Regression*, 1982, sec. 2.2), F(w, df - w) with w its components: (N_U,) p-values;
+    - all unloaded rows shifted together (the zero point moved): F(w, df - w), its p-value (None without
+      unloaded rows);
+    and (w, df) of the tests. Y (R, w), groups (N,), X_union (N, w, p), weights (R,) as :func:`estimate`."""
+    st = em.structure
+    N, w = st.n_loaded, Y.shape[1]
+    blocks = _block_arrays(st, Y, groups, X_union, weights)
+    roots = _full_roots(em, blocks)
+    local = em.df_pe > 0 or em.stage.startswith("the error contrasts")
+    resid, basis, where = [], [], []
+    if not local:
+        Xw = np.concatenate([np.einsum("ij,jwp->iwp", S, b["X"]) for S, b in zip(roots, blocks)])
+        Q0 = np.linalg.svd(Xw.reshape(-1, Xw.shape[-1]), full_matrices=False)[0]
+        sv = np.linalg.svd(Xw.reshape(-1, Xw.shape[-1]), compute_uv=False)
+        Q0 = Q0[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else Q0[:, :0]
+        Yw = np.concatenate([S @ b["Y"] for S, b in zip(roots, blocks)]).ravel()
+        r_all = (Yw - Q0 @ (Q0.T @ Yw)).reshape(-1, w)
+        Q0 = Q0.reshape(-1, w, Q0.shape[1])
+    at = 0
+    stats_rows = {}
+    shift_num = np.zeros(w)
+    shift_den = 0.0
+    shift_G = None
+    total = 0.0
+    for S, b in zip(roots, blocks):
+        n = len(b["rows"])
+        if local:
+            Lw = S @ b["L"]
+            U, sv, _ = np.linalg.svd(Lw, full_matrices=False)
+            Qb = U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
+            r = S @ b["Y"]
+            r = r - Qb @ (Qb.T @ r)
+        else:
+            r = r_all[at:at + n]
+            Qb = Q0[at:at + n]
+        total += float((r**2).sum())
+        for i in np.flatnonzero(b["rows"] >= N):
+            a = S[:, i]
+            num = a @ r  # (w,)
+            if local:
+                v = float(a @ a - (Qb.T @ a) @ (Qb.T @ a))
+                stats_rows[int(b["rows"][i]) - N] = float((num**2).sum() / v) if v > 0 else 0.0
+            else:
+                G = np.einsum("r,rjp->pj", a, Qb)
+                V = float(a @ a) * np.eye(w) - G.T @ G
+                stats_rows[int(b["rows"][i]) - N] = float(num @ np.linalg.solve(V, num))
+        u = (b["rows"] >= N).astype(float)
+        if u.any():
+            a = S @ u
+            shift_num += a @ r
+            if local:
+                shift_den += float(a @ a - (Qb.T @ a) @ (Qb.T @ a))
+            else:
+                G = np.einsum("r,rjp->pj", a, Qb)
+                shift_den += float(a @ a)
+                shift_G = G if shift_G is None else shift_G + G
+        at += n
+    df = em.df
+    p_rows = np.ones(st.n_rows - N)
+    for i, ss in stats_rows.items():
+        F = (ss / w) / (max(total - ss, 1e-300) / max(df - w, 1))
+        p_rows[i] = float(stats.f.sf(F, w, max(df - w, 1)))
+    p_shift = None
+    if st.n_rows > N:
+        if local:
+            ss = float((shift_num**2).sum() / shift_den) if shift_den > 0 else 0.0
+        else:
+            V = shift_den * np.eye(w) - shift_G.T @ shift_G
+            ss = float(shift_num @ np.linalg.solve(V, shift_num))
+        F = (ss / w) / (max(total - ss, 1e-300) / max(df - w, 1))
+        p_shift = float(stats.f.sf(F, w, max(df - w, 1)))
+    return p_rows, p_shift, (w, max(df - w, 1))
