@@ -317,9 +317,14 @@ def test_two_effects_at_once_are_both_named(arm, protocol, effects, arms, tmp_pa
 
 
 def test_an_effect_outside_the_catalogue_is_unexplained(arms, tmp_path):
-    results = [R.run_case("2-link", arms["2-link"], "hanging x4, repeated", ("drift",), seed, size_range=(0.5, 1.0),
-                          workdir=str(tmp_path)) for seed in range(5)]
-    assert sum(r.verdict_with_pose_id["cause"] == "unexplained" for r in results) >= 4
+    """A compliance that varies over the joint's turn (a gear whose stiffness is not constant) is no catalogue
+    cause: where the oracle that knows its shape finds it (power >= 0.9) the verdict says unexplained. (A drift
+    and a tilted load, which the catalogue absorbs, are warned of: tests/test_errormodel.py.)"""
+    results = [R.run_case("2-link", arms["2-link"], "hanging x4, repeated", ("modulation",), seed,
+                          size_range=(0.5, 1.0), workdir=str(tmp_path)) for seed in range(5)]
+    strong = [r for r in results if r.power["modulation"] >= 0.9]
+    assert len(strong) >= 4
+    assert sum(r.verdict_with_pose_id["cause"] == "unexplained" for r in strong) >= len(strong) - 1
 
 
 def test_link_compliance_and_coupling_are_indistinguishable_for_a_2_link_arm(arms, tmp_path):
@@ -647,56 +652,7 @@ def test_a_blunder_in_an_unloaded_row_of_the_ur10_file_is_named(ur10_verdict):
     assert "row 42 (data row 40) stands out" in zp["note"] and "zero point moved" not in zp["note"]
 
 
-def _unloaded(rng, n0=30, sigma=8e-6, shift=None, blunder=None):
-    z = rng.normal(0.0, sigma, (n0, 3)) + (0.0 if shift is None else shift)
-    row = int(rng.integers(n0))
-    if blunder is not None:
-        z[row] += blunder
-    return z, row
-
-
-def test_unloaded_row_outliers_rates_over_seeds():
-    """Simulated unloaded rows (30 rows, 3 components, noise 8 um known on 200 df), 400 seeds each: a blunder of
-    6 or 7 sigma in one component of one row is named at the rate the noncentral F distribution predicts for the
-    first step of the test (within 3 binomial standard deviations; at 7 sigma at least 95 %), and no other row
-    beside it beyond alpha; clean rows, and rows with a common shift of 5 sigma (the zero point moved), have some
-    row named in at most alpha of the seeds (binomial: alpha n + 3 standard deviations)."""
-    sigma, alpha, n, n0, df = 8e-6, 0.01, 400, 30, 200
-    rng = np.random.default_rng(7)
-    limit = alpha * n + 3 * np.sqrt(n * alpha * (1 - alpha))
-    for size in (6, 7):
-        found = wrong = 0
-        for _ in range(n):
-            z, row = _unloaded(rng, n0, sigma, blunder=np.array([size * sigma, 0, 0]))
-            named, _ = D.zero_point_outliers(z, sigma**2, df, alpha)
-            found += row in named
-            wrong += any(r != row for r in named)
-        # the first step: F = |d|^2 / (3 s2 (1 + 1/29)), noncentral with lambda = (size sigma)^2 / (s2 (1 + 1/29))
-        crit = stats.f.isf(alpha / n0, 3, df)
-        power = stats.ncf.sf(crit, 3, df, size**2 / (1 + 1 / (n0 - 1)))
-        assert abs(found / n - power) <= 3 * np.sqrt(power * (1 - power) / n) + 1 / n, (size, found, power)
-        assert wrong <= limit
-    assert found >= 0.95 * n
-    for shift in (None, np.array([5 * sigma, -5 * sigma, 0.0])):
-        false = sum(bool(D.zero_point_outliers(_unloaded(rng, n0, sigma, shift=shift)[0], sigma**2, df, alpha)[0])
-                    for _ in range(n))
-        assert false <= limit
-
-
-def test_a_common_shift_of_the_unloaded_rows_is_the_zero_point_that_moved():
-    """All unloaded rows shifted together: no row is named and the note says the zero point moved; the same rows
-    with one blunder added name that row (file row numbers) and still say the zero point moved."""
-    rng = np.random.default_rng(11)
-    sigma = 8e-6
-    z, _ = _unloaded(rng, 20, sigma, shift=np.array([6 * sigma, 0.0, 0.0]))
-    meas = Measurements(np.zeros((1, 6)), np.ones((1, 3)), np.zeros((1, 3)), np.zeros(1, int), "<memory>",
-                        zero_rows=np.arange(20) * 2, zero_dp=z, zero_config=np.zeros(20, int))
-    zp = D.zero_point(meas, sigma**2, df=100)
-    assert zp["outlier_rows"] == [] and "the zero point moved" in zp["note"]
-    z[5] += [0.0, 20 * sigma, 0.0]
-    zp = D.zero_point(replace(meas, zero_dp=z), sigma**2, df=100)
-    assert zp["outlier_rows"] == [10] and "row 12 (data row 10) stands out" in zp["note"]
-    assert "the other unloaded rows scatter" in zp["note"] and "the zero point moved" in zp["note"]
+# (the unloaded rows' blunder screen and zero-point test over seeds: tests/test_errormodel.py)
 
 
 # --- common file mistakes the reader names ------------------------------------------------------------------------
@@ -863,26 +819,11 @@ def test_a_shared_reference_reading_is_modelled_not_taken_for_an_effect(arms, tm
              for arm in ("2-link", "3-link") for s in range(6)]
     assert _binomial_consistent(sum(r.false_alarm for r in clean), len(clean), 0.01), [r.verdict_with_pose_id["cause"]
                                                                                        for r in clean]
-    assert all(any("share an error" in n for n in r.verdict_with_pose_id["notes"]) for r in clean)
+    assert all(any("share the errors of their reference readings" in n for n in r.verdict_with_pose_id["notes"])
+               for r in clean)
     hidden = [R.run_case("2-link", arms["2-link"], protocol, ("backlash",), 7100 + s, size_range=(0.3, 1.0),
                          workdir=str(tmp_path)) for s in range(4)]
     assert all(r.named("backlash") and r.agree for r in hidden if r.power["backlash"] >= 0.9)
-
-
-def test_the_oracle_whitens_by_the_true_covariance_of_a_shared_reference(paper_robot):
-    """The oracle's whitening W (per configuration) against the dense covariance it stands for:
-    W^T W = Sigma^-1, Sigma = diag(sigma_r^2) + sigma_ref^2 J per configuration."""
-    rng = np.random.default_rng(0)
-    log = T.lab_log(paper_robot, R.PROTOCOLS["4 directions x 2, shared reference"], rng, 5)
-    rows = np.flatnonzero(log.loaded)
-    A = rng.standard_normal((len(rows), 2, 3))
-    W = R._whitening(log)(A)
-    S = np.diag(log.sigma[rows] ** 2)
-    for c in np.unique(log.config):
-        mine = np.flatnonzero(log.config[rows] == c)
-        S[np.ix_(mine, mine)] += log.sigma[np.flatnonzero(log.config == c)[0]] ** 2
-    for k in range(2):
-        assert np.allclose(W[:, k].T @ W[:, k], A[:, k].T @ np.linalg.solve(S, A[:, k]))
 
 
 NEWUSER = Path(__file__).parent / "data" / "newuser"

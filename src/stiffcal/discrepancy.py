@@ -1342,7 +1342,13 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     """
     if not 0 < alpha < 1:
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
-    pre = prepare(robot, meas, alpha, sigma_m, sigma_rad)
+    return verdict_of(robot, prepare(robot, meas, alpha, sigma_m, sigma_rad), alpha, test_pose, test_force, gain)
+
+
+def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None, test_force=None,
+               gain: bool = True) -> dict:
+    """The verdict of :func:`analyse` from the analysis prepared by :func:`prepare` (the same arguments)."""
+    meas = pre.meas
     m, ob, ob_full, des, noise, w, keep = pre.m, pre.ob, pre.ob_full, pre.des, pre.noise, pre.w, pre.keep
     blunders, dropped, rw, vm, zp, notes = pre.blunders, pre.dropped, pre.rw, pre.vm, pre.zero_point, list(pre.notes)
 
@@ -1443,23 +1449,18 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
     return out
 
 
-#: fewest groups of a shared error whose predicted effects are compared with the time since their reference
-MIN_DRIFT_GROUPS = 5
-
-
 def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: float) -> tuple[dict, list[str]]:
     """The verdict's ``diagnostics`` and their notes: what a careful analyst checks beside the catalogue (each a
     warning at ``alpha``, Bonferroni within it; none changes the verdict):
 
     - ``one_load_per_configuration``: every configuration is measured under one load only, so at each the load-
       deflection curve is seen at one point;
-    - ``time``: the residuals of the chosen model (whitened) against the time and the time since each row's
-      reference reading, and the predicted shared errors of the revisits and references against the time since
-      their reference (Spearman; a drift of the tracker over the campaign, which the catalogue only absorbs in
-      ``measurement_offset`` or the shared errors);
+    - ``time``: a linear drift of the tracker, rate (t - t_ref) on every row, added to the chosen model (F-test;
+      a drift over the campaign, which the catalogue only absorbs in ``measurement_offset`` or the shared errors);
     - ``load_direction``: the F-test of a load turned by a small angle from its logged direction (a pulley, a
-      tilted fixture: regressors A(q, a x F) k for the axes a, with the chosen model's compliances k), with the
-      angle it finds.
+      tilted fixture: regressors A(q, a x F) k for the axes a, with the nominal fit's compliances k) against the
+      nominal model, with the angle it finds, and whether the chosen causes add anything beyond it (warned when
+      they do not: the tilt then explains the data as well as they do).
     Returns (dict, notes)."""
     m, des, em, noise = pre.m, pre.des, pre.error, pre.noise
     out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
@@ -1473,10 +1474,7 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
                      "reference reading all look like compliance there, and the data tell them apart only by how they "
                      "vary across configurations (the compliances' intervals assume the model is right); measure two "
                      "or more loads of different size per configuration")
-    N, d = m.n_rows, des.d
-    X = des.model(chosen)
-    resid = (des.y - X @ f.beta).reshape(N, d)
-    out["time"], note = _time_diagnostic(pre, chosen, f, resid, alpha)
+    out["time"], note = _time_diagnostic(pre, chosen, f, alpha)
     notes += [note] if note else []
     out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, alpha)
     notes += [note] if note else []
@@ -1484,80 +1482,88 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     return out, notes
 
 
-def _time_diagnostic(pre: Prepared, chosen, f: Fit, resid: np.ndarray, alpha: float):
-    """(``diagnostics.time`` or None, note): the time tests of :func:`diagnostics`."""
+def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
+    """(``diagnostics.time`` or None, note): the time tests of :func:`diagnostics`: the F-test of a linear drift of
+    the tracker, rate (t - t_ref) on every position of every row (loaded and unloaded), t_ref the time of the
+    reading the row was taken from, added to the chosen model, with the rows' error model refitted with the drift
+    as a fixed effect (a drift between visits would otherwise be read as their shared error); the rate it finds.
+    The clock is ``timestamp_s``, else the row order."""
     st = pre.error.structure
     N, d = pre.m.n_rows, pre.des.d
+    pos = pre.m.dp.shape[1]
+    since = st.time - st.ref_time
     tests = {}
-    t, since = st.time[:N], (st.time - st.ref_time)[:N]
-    for name, feat in (("time", t), ("time since the reference reading", since)):
-        if np.ptp(feat) <= 0 or N < 4:
-            continue
-        for j in range(d):
-            if np.ptp(resid[:, j]) > 0:
-                rho, p = stats.spearmanr(feat, resid[:, j])
-                tests[f"{'xyz'[j] if j < 3 else 'r'} residual vs {name}"] = (float(rho), float(p))
-    if pre.error.shared:  # the shared errors' predictions (BLUPs) against the time since their reference
-        w = pre.weighted
-        rl = w.y.reshape(N, d) - (w.model(chosen) @ f.beta).reshape(N, d)
-        z = pre.meas.zero_dp if pre.meas.zero_rot is None else np.hstack([pre.meas.zero_dp, pre.rw * pre.meas.zero_rot])
+    if np.ptp(since) > 0:  # the error model refitted with the drift as a fixed effect (else a drift between
+        from . import errormodel as EM  # visits is read as the returns' shared error), then the F-test
+
         idx = st.zero_index
-        R = np.vstack([rl, z[idx] * pre.w0[idx, None]]) if len(idx) else rl
-        u = pre.error.blups(R, np.concatenate([pre.w, pre.w0[idx]]))
-        for comp in st.components:
-            if comp.name == "visit" or comp.n_groups < MIN_DRIFT_GROUPS:
-                continue
-            lab = comp.label
-            elapsed = np.array([np.mean((st.time - st.ref_time)[lab == g]) for g in range(comp.n_groups)])
-            if np.ptp(elapsed) <= 0:
-                continue
-            for j in range(d):
-                if np.ptp(u[comp.name][:, j]) > 0:
-                    rho, p = stats.spearmanr(elapsed, u[comp.name][:, j])
-                    tests[f"shared error per {comp.name} ({'xyz'[j] if j < 3 else 'r'}) vs time since its "
-                          "reference"] = (float(rho), float(p))
+        weights = np.concatenate([pre.w, pre.w0[idx]])
+        C = np.zeros((st.n_rows, d, pos))
+        C[:, np.arange(pos), np.arange(pos)] = (since * weights)[:, None]
+        em = pre.error
+        if st.components:
+            z = pre.meas.zero_dp if pre.meas.zero_rot is None else np.hstack([pre.meas.zero_dp,
+                                                                               pre.rw * pre.meas.zero_rot])
+            Y = np.vstack([pre.weighted.y.reshape(N, d), z[idx] * pre.w0[idx, None]])
+            groups = np.unique(pre.m.group, return_inverse=True)[1].ravel()
+            em = EM.estimate(st, Y, weights, groups, pre.weighted.union().reshape(N, d, -1), drift=C)
+        des = gls_design(pre.weighted, em)
+        CL = em.whiten_columns(C[:N], C[N:]) if em.blocks else C[:N]
+        X = des.model(chosen)
+        f0, f1 = fit(X, des.y), fit(np.hstack([X, CL.reshape(N * d, pos)]), des.y)
+        if f1.rank > f0.rank:
+            tests["drift"] = (f1.beta[X.shape[1]:], f_test(f0.rss, f0.df, f1.rss, f1.df, em.sigma2, em.df))
     if not tests:
         return None, None
-    worst = min(tests, key=lambda k: tests[k][1])
-    p = min(1.0, tests[worst][1] * len(tests))
-    out = {"p_value": p, "strongest": worst, "spearman": tests[worst][0], "n_tests": len(tests)}
+    (rate, p), = tests.values()
+    out = {"p_value": p, "rate_m_per_h": None if rate is None else [float(r) * 3600 for r in rate],
+           "clock": "timestamp_s" if pre.meas.log is not None and pre.meas.log.has_time else "row order"}
     if p > alpha:
         return out, None
-    return out, (f"the residuals follow the time ({worst}: Spearman rho {tests[worst][0]:.2f}, adjusted p = {p:.2g}): "
-                 "a drift of the tracker (or of the zero point) over the campaign? No catalogue cause describes it: "
-                 "measurement_offset and the rows' shared errors only absorb part of it; re-measure the reference "
-                 "readings more often, or log the tracker's drift check")
+    per = "m/h" if out["clock"] == "timestamp_s" else "m per 3600 rows"
+    return out, (f"the rows drift with the time since their reference reading (a linear drift of "
+                 f"{np.linalg.norm(out['rate_m_per_h']) * 1e6:.3g} u{per}, F-test p = {p:.2g}; the clock: "
+                 f"{out['clock']}): a drift of the tracker (or of the zero point) over the campaign? No catalogue cause "
+                 "describes it: measurement_offset and the rows' shared errors only absorb part of it; re-measure the "
+                 "reference readings more often, or log the tracker's drift check")
 
 
 def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
-    """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`."""
+    """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`: the load turned by
+    a small angle added to the nominal model (the columns A(q, a x F) k of the nominal fit's k), its F-test and the
+    angle; then whether the chosen causes still add anything beyond it (when they do not, the tilt explains the data
+    as well as they do, and the warning says so)."""
     m, des, noise = pre.m, pre.des, pre.noise
     N, d = m.n_rows, des.d
-    n = des.X0.shape[1]
-    k = f.beta[:n]
-    force = m.force
+    f0 = fit(des.X0, des.y)
+    k = f0.beta
     axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
     cols = []
     for a in axes:
-        turned = np.cross(a, as_xyz(force))[:, : robot.task_dim]
+        turned = np.cross(a, as_xyz(m.force))[:, : robot.task_dim]
         load = np.hstack([turned, np.zeros_like(m.moment)]) if m.has_moment else turned
         cols.append(np.einsum("ndp,p->nd", nominal_columns(robot, m.q, load, pre.ob), k))
     T = np.stack(cols, -1) * pre.w[:, None, None]
-    T = pre.error.whiten(T).reshape(N * d, -1) if pre.error.blocks else T.reshape(N * d, -1)
-    X = des.model(chosen)
-    f1 = fit(np.hstack([X, T]), des.y)
-    if f1.rank <= f.rank:
+    T = (pre.error.whiten(T) if pre.error.blocks else T).reshape(N * d, -1)
+    f1 = fit(np.hstack([des.X0, T]), des.y)
+    if f1.rank <= f0.rank:
         return None, None
-    p = f_test(f.rss, f.df, f1.rss, f1.df, noise.s2, noise.df)
-    angle = f1.beta[X.shape[1]:]
+    p = f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df)
+    angle = f1.beta[des.X0.shape[1]:]
     size = float(np.degrees(np.linalg.norm(angle)))
-    out = {"p_value": p, "angle_deg": size, "axis": (angle / np.linalg.norm(angle)).tolist() if size > 0 else None}
-    if p > alpha:
+    out = {"p_value": p, "angle_deg": size, "axis": (angle / np.linalg.norm(angle)).tolist() if size > 0 else None,
+           "chosen_beyond_p": None}
+    if chosen:
+        f2 = fit(np.hstack([des.model(chosen), T]), des.y)
+        out["chosen_beyond_p"] = f_test(f1.rss, f1.df, f2.rss, f2.df, noise.s2, noise.df)
+    if p > alpha or (out["chosen_beyond_p"] is not None and out["chosen_beyond_p"] <= alpha):
         return out, None
-    return out, (f"the residuals follow the load turned by {size:.2g} deg from its logged direction (F-test p = {p:.2g}): "
-                 "the load's real direction differs from the logged one (a pulley, a tilted fixture, a frame "
-                 "mismatch between the load cell and the tracker?); no catalogue cause describes it: the compliances "
-                 "and measurement_offset absorb it")
+    label = "+".join(sorted(chosen, key=CAUSES.index))
+    return out, (f"the nominal model's residuals follow the load turned by {size:.2g} deg from its logged direction "
+                 f"(F-test p = {p:.2g}{f'; {label} adds nothing beyond it, p = ' + format(out['chosen_beyond_p'], '.2g') if chosen else ''}): "
+                 "the load's real direction may differ from the logged one (a pulley, a tilted fixture, a frame "
+                 "mismatch between the load cell and the tracker?); no catalogue cause describes it"
+                 + (f", and {label} may only absorb it" if chosen else ""))
 
 
 def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dict, alpha: float) -> str:

@@ -352,7 +352,10 @@ class RivalModels:
     combination (the extended model, for O_t); old: the measurements the analysis used (blunders left out);
     weights (N_old,): the analysis's row weights (1 without a variance model); sigma [m] and noise_df: the
     verdict's noise; pure_error: whether the noise comes from replicates (then new replicates add to its
-    degrees of freedom); alpha; verdict: the verdict itself."""
+    degrees of freedom); alpha; verdict: the verdict itself; observed: what the old rows measure (their targets
+    and the tool's orientation, with the tool point's parameters); error: the analysis's error model of the old
+    rows (:class:`stiffcal.errormodel.ErrorModel`: their shared reference readings), whose generalised least
+    squares the old rows enter every fit with."""
 
     robot: Robot
     old: Measurements
@@ -364,6 +367,8 @@ class RivalModels:
     pure_error: bool
     alpha: float
     verdict: dict
+    observed: D.Observed | None = None
+    error: object = None
 
     @property
     def truth(self) -> Rival:
@@ -374,12 +379,24 @@ class RivalModels:
         return self.models[1:]
 
     def old_rows(self, causes) -> np.ndarray:
-        """(N_old d, p): the weighted stacked regressors of the old data for nominal + causes."""
-        X = D.model_columns(self.robot, self.old.q, D.load_of(self.old), causes)
-        return D._stack(X * self.weights[:, None, None])
+        """(N_old r, p): the weighted, whitened stacked regressors of the old data for nominal + causes (every
+        measured quantity of the old rows, generalised least squares for their shared errors)."""
+        X = D.model_columns(self.robot, self.old.q, D.load_of(self.old), causes, observed=self.observed)
+        X = X * self.weights[:, None, None]
+        if self.error is not None and self.error.blocks:
+            X = self.error.whiten(X)
+        return D._stack(X)
+
+    def old_y(self) -> np.ndarray:
+        """(N_old r,): the old rows' observations, weighted and whitened as :meth:`old_rows`."""
+        ob = self.observed or D.Observed()
+        y = D.observations(self.old, ob) * self.weights[:, None]
+        if self.error is not None and self.error.blocks:
+            y = self.error.whiten_observations(y)
+        return y.ravel()
 
     def old_mean(self, model: Rival | None = None) -> np.ndarray:
-        """(N_old d,): the weighted fitted mean of ``model`` (default the truth) on the old rows."""
+        """(N_old r,): the weighted fitted mean of ``model`` (default the truth) on the old rows."""
         m = model or self.truth
         return self.old_rows(m.causes) @ m.beta
 
@@ -389,33 +406,34 @@ def _combination(c) -> tuple[str, ...]:
 
 
 def rivals_from_verdict(robot: Robot, meas: Measurements, verdict: dict,
-                        combinations: list | None = None) -> RivalModels:
+                        combinations: list | None = None, prepared: "D.Prepared | None" = None) -> RivalModels:
     """The rival models of ``verdict`` (from :func:`stiffcal.discrepancy.analyse` on ``meas``): its
     combination and every equivalent combination (or the given ``combinations``), each fitted to the rows
-    the analysis used, weighted as it weighted them. The first (the truth of a T-optimal plan) is the
-    verdict's own combination, chosen by the closed test for the fewest causes and parameters: the smallest
-    residual sum of squares would reward the rival with the most parameters (on clean data, after a false
-    alarm, 15 coupling terms of a 6-axis arm fit the noise best). Given ``combinations``: in their order."""
-    keep = ~np.isin(meas.rows, verdict["outlier_rows"])
-    old = meas.subset(keep)
-    vm = D.variance_model(robot, old) if verdict["nominal"]["noise_varies"] else None
-    w = np.ones(old.n_rows) if vm is None else vm.weights
+    the analysis used, weighted and whitened as it weighted and whitened them (its noise model and its error
+    model of the rows' shared reference readings: :func:`stiffcal.discrepancy.prepare`, recomputed unless
+    ``prepared`` is given), with every joint's compliance (a joint the data's loads never turn stays an
+    unknown; measurement_offset one bias per position axis, as the plan's rows have). The first (the truth of a
+    T-optimal plan) is the verdict's own combination, chosen by the closed
+    test for the fewest causes and parameters: the smallest residual sum of squares would reward the rival
+    with the most parameters (on clean data, after a false alarm, 15 coupling terms of a 6-axis arm fit the
+    noise best). Given ``combinations``: in their order."""
+    pre = prepared or D.prepare(robot, meas, float(verdict["alpha"]))
+    old = pre.m
+    ob = replace(pre.ob_full.take(pre.keep), params=None, n_offsets=robot.task_dim)
     combos = combinations or [verdict["causes"], *verdict["equivalent_combinations"]]
     combos = list(dict.fromkeys(_combination(c) for c in combos))
     testable = [c for c in D.CAUSES if c not in verdict["absorbed_by_nominal"]]
     lof = 1 if verdict.get("lack_of_fit_adjusted_p") is not None else 0
-    y = (old.dp * w[:, None]).ravel()
+    pure = verdict["nominal"]["sigma_source"].startswith("replicates")
+    rm = RivalModels(robot, old, pre.w, (), _combination(verdict["causes"]), float(verdict["nominal"]["sigma_m"]),
+                     int(verdict["nominal"]["sigma_df"]), pure, float(verdict["alpha"]), verdict, ob, pre.error)
+    y = rm.old_y()
     models = []
     for S in combos:
-        X = D._stack(D.model_columns(robot, old.q, D.load_of(old), S) * w[:, None, None])
-        f = D.fit(X, y)
+        f = D.fit(rm.old_rows(S), y)
         k = max(len([c for c in testable if c not in S]) + lof, 1)
         models.append(Rival(S, f.beta, f.rss, k))
-    order = range(len(models))  # the verdict's combination first, then its equivalents as the verdict lists them
-    pure = verdict["nominal"]["sigma_source"].startswith("replicates")
-    return RivalModels(robot, old, w, tuple(models[i] for i in order), _combination(verdict["causes"]),
-                       float(verdict["nominal"]["sigma_m"]), int(verdict["nominal"]["sigma_df"]), pure,
-                       float(verdict["alpha"]), verdict)
+    return replace(rm, models=tuple(models))
 
 
 # --- the criteria on stacked rows ----------------------------------------------------------------------------
@@ -1110,9 +1128,10 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
         else:
             notes.append(f"the data's loads carry moments (a loading bar) but the loads given ({loads.spec}) are "
                          "pure forces: the plan applies them without a moment")
+    pre = D.prepare(robot, meas, alpha if verdict is None else float(verdict["alpha"]))
     if verdict is None:
-        verdict = D.analyse(robot, meas, alpha, gain=False)
-    rm = rivals_from_verdict(robot, meas, verdict)
+        verdict = D.verdict_of(robot, pre, alpha, gain=False)
+    rm = rivals_from_verdict(robot, meas, verdict, prepared=pre)
     pool = make_pool(robot, pose_pool(robot, effort.pool_step_deg, effort.pool_log2), loads.forces,
                      {c for mdl in rm.models for c in mdl.causes})
     seps = separability(rm, pool, measurement)

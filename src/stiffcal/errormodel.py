@@ -20,7 +20,10 @@ else the file's order) is measured from it, whatever the visit; a visit is a run
 configuration (ended by a change of configuration or ``pose_id``, by an exact-zero row after loaded rows, or by
 a load repeated after a return-to-zero row). Exact-zero rows are the reference itself and never a noise
 sample. Where no exact-zero row says which reading a row was taken from, the model holds both hypotheses
-(a reference per visit and one per configuration) and lets the data weigh them.
+(a reference per visit and one per configuration) and lets the data weigh them, at the configurations whose
+rows can show a shared error (unloaded rows with noise, or several visits); rows of other configurations
+(one visit, no unloaded row) are taken as independent, as nothing in them could tell a shared reference
+from a misfit of the model.
 
 **The components**, each a random effect per group, one per measured component (x, y (, z), and the weighted
 rotation), independent between groups (Searle, Casella & McCulloch, *Variance Components*, 1992, ch. 6):
@@ -253,12 +256,20 @@ def reading_structure(meas, keep: np.ndarray, zero_out=()) -> ReadingStructure:
     comps = []
     if known.any():
         comps.append(Component("reference", _renumber(np.where(known & model, ref, -1))))
-    unknown = ~known & model
+    # where no exact-zero row or column says which reading a row was taken from, a shared reference is modelled
+    # only at configurations whose rows show one: unloaded rows with noise (readings against the reference), or
+    # several visits; elsewhere nothing in the data could tell it from the model's own misfit
+    evidence = set()
+    for c in np.unique(f["config"][model]):
+        at = f["config"] == c
+        if (at & ~f["loaded"] & ~f["exact"]).any() or len(np.unique(visit[at & f["loaded"]])) > 1:
+            evidence.add(int(c))
+    unknown = ~known & model & np.array([int(c) in evidence for c in f["config"]])
     if unknown.any():
         comps.append(Component("visit", _pairs(visit, f["target"], unknown)))
         comps.append(Component("configuration", _pairs(f["config"], f["target"], unknown)))
     away = np.where(known, visit != np.where(known, holder[np.maximum(ref, 0)] if len(holder) else -1, -1),
-                    visit != np.array([first_visit[int(c)] for c in f["config"]]))
+                    unknown & (visit != np.array([first_visit[int(c)] for c in f["config"]])))
     comps.append(Component("return", _renumber(np.where(away & model, visit, -1)), absolute=True))
     # the model rows: loaded first (in the measurements' order), then the unloaded rows with noise
     idx = np.flatnonzero(model)
@@ -349,6 +360,13 @@ def _contrasts(L: np.ndarray | None, n: int) -> np.ndarray:
     return U[:, r:]
 
 
+def _global(block: dict, use_x: bool) -> np.ndarray | None:
+    """A block's global fixed effects: X (when used) and D (when given), side by side; None without either."""
+    parts = ([block["X"]] if use_x and block["X"] is not None else []) + (
+        [block["D"]] if block.get("D") is not None else [])
+    return np.concatenate(parts, axis=-1) if parts else None
+
+
 @dataclass
 class _Likelihood:
     """The REML log-likelihood of a variance-components model over independent blocks (module docstring)."""
@@ -360,7 +378,10 @@ class _Likelihood:
     @classmethod
     def of(cls, blocks: list[dict], comps: list[int], local: bool, use_x: bool) -> "_Likelihood":
         """blocks: per configuration ``Y`` (n, w), ``Z`` {k: (n, g)}, ``L`` (n, l) local fixed effects, ``X``
-        (n, w, p); comps: the components' indices; local: take out L; use_x: global fixed effects X."""
+        (n, w, p), ``D`` (n, w, k) or None; comps: the components' indices; local: take out L; use_x: global
+        fixed effects X; the blocks' D are global fixed effects whenever given."""
+        blocks = [{**b, "X": _global(b, use_x)} for b in blocks]
+        use_x = blocks[0]["X"] is not None
         by_size: dict[int, list] = {}
         width = blocks[0]["Y"].shape[1]
         scale = None
@@ -510,6 +531,15 @@ class ErrorModel:
         """(N, w) the loaded rows' observations (weighted) -> W (y_L - B y_U): conditional on the unloaded rows."""
         return self.whiten(self.adjusted(Y))
 
+    def whiten_columns(self, A: np.ndarray, A_unloaded: np.ndarray) -> np.ndarray:
+        """(N, w, k) regressors of the loaded rows with their values on the unloaded model rows (M, w, k) (a
+        regressor that is not zero there, such as a drift) -> W (A_L - B A_U) per configuration."""
+        out = np.array(A, float, copy=True)
+        for rows, zrows, W, B in self.blocks:
+            block = A[rows] - np.einsum("iu,u...->i...", B, A_unloaded[zrows]) if len(zrows) else A[rows]
+            out[rows] = np.einsum("ij,j...->i...", W, block)
+        return out
+
     def adjusted(self, Y: np.ndarray) -> np.ndarray:
         """(N, w): y_L - B y_U, the loaded rows less the shared error the unloaded rows predict (weighted)."""
         out = np.array(Y, float, copy=True)
@@ -554,9 +584,10 @@ class ErrorModel:
 
 
 def _block_arrays(structure: ReadingStructure, Y: np.ndarray, groups: np.ndarray, X: np.ndarray | None,
-                  weights: np.ndarray) -> list[dict]:
+                  weights: np.ndarray, drift: np.ndarray | None = None) -> list[dict]:
     """Per configuration: rows, Y (n, w), Z {k: (n, g)} (entries 1, or the row's weight for a component in
-    metres), L (n, l) the replicate groups of the loaded rows (zero on the unloaded rows), X (n, w, p)."""
+    metres), L (n, l) the replicate groups of the loaded rows (zero on the unloaded rows), X (n, w, p), D (n, w, k)
+    further fixed effects on every model row (``drift``, (R, w, k)) or None."""
     N = structure.n_loaded
     blocks = []
     for c in range(int(structure.block.max(initial=-1)) + 1):
@@ -578,7 +609,8 @@ def _block_arrays(structure: ReadingStructure, Y: np.ndarray, groups: np.ndarray
         if X is not None:
             Xb = np.zeros((len(rows), Y.shape[1], X.shape[-1]))
             Xb[: len(lr)] = X[lr]
-        blocks.append({"rows": rows, "Y": Y[rows], "Z": Z, "L": L, "X": Xb})
+        blocks.append({"rows": rows, "Y": Y[rows], "Z": Z, "L": L, "X": Xb,
+                       "D": None if drift is None else drift[rows]})
     return blocks
 
 
@@ -586,6 +618,7 @@ def _estimable(blocks: list[dict], k: int, local: bool, use_x: bool) -> bool:
     """Component k has rows left after the fixed effects (its Z not in their span)."""
     total, left = 0.0, 0.0
     Xs, Zs = [], []
+    use_x = use_x or blocks[0].get("D") is not None
     for b in blocks:
         if k not in b["Z"]:
             continue
@@ -593,7 +626,7 @@ def _estimable(blocks: list[dict], k: int, local: bool, use_x: bool) -> bool:
         Zt = A.T @ b["Z"][k]
         total += float((b["Z"][k] ** 2).sum())
         if use_x:
-            Xs.append(np.einsum("nm,nwp->mwp", A, b["X"]))
+            Xs.append(np.einsum("nm,nwp->mwp", A, _global(b, True)))
             Zs.append(Zt)
         else:
             left += float((Zt ** 2).sum())
@@ -622,18 +655,20 @@ def _estimable(blocks: list[dict], k: int, local: bool, use_x: bool) -> bool:
 
 
 def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, groups: np.ndarray,
-             X_union: np.ndarray | None) -> ErrorModel:
+             X_union: np.ndarray | None, drift: np.ndarray | None = None) -> ErrorModel:
     """The :class:`ErrorModel` of the model rows (module docstring).
 
     Y (R, w): every model row's measured components, weighted by the noise model (rows multiplied by
     ``weights`` (R,), 1/sigma_i relative to the median row) and the rotation by sigma_m / sigma_rad; groups
     (N,) the loaded rows' replicate groups; X_union (N, w, p): the loaded rows' regressors of the union of
-    every catalogue cause, weighted. Raises :class:`InputError` when no degree of freedom is left for the noise.
+    every catalogue cause, weighted; drift (R, w, k): further fixed effects on every model row, in every stage (a
+    tracker's drift, so that it is not read as a shared error). Raises :class:`InputError` when no degree of
+    freedom is left for the noise.
     """
     N, R = structure.n_loaded, structure.n_rows
     K = len(structure.components)
     w = Y.shape[1]
-    blocks = _block_arrays(structure, Y, groups, X_union, weights)
+    blocks = _block_arrays(structure, Y, groups, X_union, weights, drift)
     replicated = np.bincount(groups).max(initial=0) >= 2 if len(groups) else False
     lam = np.zeros(K)
     estimable = np.zeros(K, bool)

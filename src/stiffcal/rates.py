@@ -338,7 +338,8 @@ def run_case(robot_name: str, robot: Robot, protocol: str, effects: tuple[str, .
 
 def _merge(a: T.Truth, b: T.Truth) -> T.Truth:
     """The truth with the effects of both (the fields b sets that a does not)."""
-    fields = {f: getattr(b, f) for f in ("coupling", "tau_max", "gap", "link_bending", "offset", "drift", "modulation")
+    fields = {f: getattr(b, f) for f in ("coupling", "tau_max", "gap", "link_bending", "offset", "drift", "modulation",
+                                         "load_tilt")
               if getattr(b, f) is not None}
     return replace(a, **fields)
 

@@ -43,7 +43,8 @@ class Truth:
     link_bending: (n,) 1/(E I) of each link [1/(N m^2)];
     offset: (d,) constant bias of the measuring system on the loaded readings [m] (a target nest that shifts
     when the load goes on);
-    drift: (d,) drift of the measuring system per reading (in time order) [m];
+    drift: (d,) drift of the measuring system [m/s] over the campaign's clock (:func:`lab_log`'s times; per row
+    index for rows simulated without a log, :func:`physics`);
     modulation: (n,) relative change of each joint's compliance with its own angle,
     k_i (1 + modulation_i cos q_i) (a gear whose stiffness varies over its turn; outside the catalogue);
     load_tilt: (3,) [rad] the real load is the logged one turned by this small rotation vector (a pulley or a
@@ -364,7 +365,7 @@ class LabLog:
 
     Readings (R of them): r_q (R, n) [rad], r_force (R, d) [N] the load really applied (r_moment (R, d_m) or
     None), r_target (R,) int, r_visit (R,) int, r_loaded (R,) bool, r_sigma (R,) [m], r_order (R,) int (time
-    order); visit_config (V,) int; visit_scale (V,) [rad]: the standard deviation of each visit's joint error (the
+    order), r_time (R,) [s] its time; visit_config (V,) int; visit_scale (V,) [rad]: the standard deviation of each visit's joint error (the
     robot's pose repeatability: :func:`measure` draws N(0, visit_scale_v^2) per joint and visit);
     timestamps: the log has times to write."""
 
@@ -392,6 +393,7 @@ class LabLog:
     r_loaded: np.ndarray | None = None
     r_sigma: np.ndarray | None = None
     r_order: np.ndarray | None = None
+    r_time: np.ndarray | None = None
     visit_config: np.ndarray | None = None
     visit_scale: np.ndarray | None = None
     timestamps: bool = False
@@ -590,7 +592,7 @@ def _assemble(robot, protocol, rng, configs, visits, rd: _Readings, measured, na
                   None if r_moment is None else r_moment[reading], None if plain else r_target[reading], names,
                   protocol.orientation, protocol.sigma_rad, r_visit[reading], clock[r_order[reading]],
                   np.array(labels), reading, reference, exact, r_q, r_force, r_moment, r_target, r_visit, r_loaded,
-                  r_sigma, r_order, visit_config, scale, protocol.timestamps)
+                  r_sigma, r_order, clock[r_order], visit_config, scale, protocol.timestamps)
 
 
 def _reading_motion(robot: Robot, log: LabLog, dq: np.ndarray) -> np.ndarray:
@@ -605,7 +607,7 @@ def _reading_motion(robot: Robot, log: LabLog, dq: np.ndarray) -> np.ndarray:
 def reading_means(robot: Robot, truth: Truth, log: LabLog) -> np.ndarray:
     """(R, d (+ d_r)): every reading's noise-free value less the target's unloaded position at its commanded
     pose, without the pose errors of the returns: the deflection of a loaded reading (:func:`deflection`), the
-    measuring system's offset (loaded readings) and drift (time order)."""
+    measuring system's offset (loaded readings) and drift (over the clock of the readings, [s])."""
     width = robot.task_dim * 1 + ((1 if robot.task_dim == 2 else 3) if log.orientation else 0)
     out = np.zeros((len(log.r_q), width))
     on = log.r_loaded
@@ -618,7 +620,7 @@ def reading_means(robot: Robot, truth: Truth, log: LabLog) -> np.ndarray:
     if truth.offset is not None:
         out[on, :d] += np.asarray(truth.offset, float)
     if truth.drift is not None:
-        out[:, :d] += log.r_order[:, None] * np.asarray(truth.drift, float)
+        out[:, :d] += log.r_time[:, None] * np.asarray(truth.drift, float)
     return out
 
 
