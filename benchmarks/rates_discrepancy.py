@@ -13,10 +13,11 @@ for two effects at once, the rate at which both are named.
 Run: .venv/bin/python benchmarks/rates_discrepancy.py [SEEDS] [ALPHA] [JOBS] [CLEAN_SEEDS]     (defaults 20
 seeds, alpha 0.01, 1 process, clean cells with SEEDS seeds too; JOBS processes share the cells, with the same
 seeds and output; CLEAN_SEEDS: more seeds for the clean cells, whose false-alarm rate per protocol needs several
-hundred cases for its 95 % interval to end below 2 alpha). Prints one row per robot x protocol x effect: named / qualifying (rate), or for clean data false
-alarms / cases; then the totals per effect and the share of cases where the two CSV variants give the same
-verdict. Requirements (issue 12): every catalogue cause >= 95 %, clean data
-<= alpha, the variants agree.
+hundred cases for its 95 % interval to end below 2 alpha). Prints one row per robot x protocol x effect: named /
+qualifying (rate), or for clean data false alarms / cases; then the totals per effect, the false alarms and
+rates per protocol, and the share of cases where the two CSV variants give the same verdict. Requirements
+(issues 12, 23): every catalogue cause >= 95 %; on every protocol, clean data at most alpha with the upper end
+of the 95 % interval below 2 alpha; the variants agree.
 """
 
 import multiprocessing
@@ -37,7 +38,7 @@ PAIRS = {"2-link": ("backlash", "measurement_offset"), "3-link": ("joint_couplin
 
 
 def _cell(args):
-    """The cases of one robot x protocol x effects cell (seeds as in the serial order: cell index x 1000 x seeds + s)."""
+    """The cases of one robot x protocol x effects cell (seeds: cell index x 1000 x the largest seeds + s)."""
     index, arm, protocol, effects, seeds, alpha, base = args
     robot = R.robots(ROOT)[arm]
     with tempfile.TemporaryDirectory() as tmp:

@@ -7,15 +7,17 @@ k = (1.5, 3.0) 1e-6 rad/(N m), plus a hidden backlash of 5e-5 rad in each joint 
 follows the torque). Protocol: 30 random configurations within the joint limits, at each a push of 300 N
 in four directions 90 deg apart (from a random start), the sequence measured twice on the spot, an
 unloaded reference row (zero force, zero displacement) logged before every loaded one, pose_id numbering
-the configurations; laser-tracker noise of 10 micrometres per coordinate, and one gross blunder (+1 mm in x
-on the loaded row that is data row 17 of the file). The analysis should name backlash and list row 17.
+the configurations; laser-tracker readings with 10 micrometres of noise per coordinate (every displacement is a
+loaded reading less the unloaded reading just before it, the one the reference row logs as zeros), and one gross
+blunder (+1 mm in x on the loaded row that is data row 17 of the file). The analysis should name backlash and
+list row 17.
 
 Also data/synthetic_paper_2r_hanging.csv: the same arm with a hidden backlash of 1e-4 rad in each joint,
 measured the way a lab with hanging weights only would: one mass of 300 N (force -y) at 12 configurations,
-twice, 10 micrometres of noise. With one load per configuration the data cannot tell the backlash from a
+twice, each displacement from its own unloaded reading, 10 micrometres of noise per reading. With one load per configuration the data cannot tell the backlash from a
 nonlinear joint stiffness (the verdict lists both): the example of `stiffcal discriminate`.
 
-Run: .venv/bin/python data/make_synthetic.py   (deterministic: seeds 20261130 and 20261132)
+Run: .venv/bin/python data/make_synthetic.py   (deterministic: seeds 20261130 and 20261136)
 """
 
 from pathlib import Path
@@ -31,7 +33,7 @@ PROTOCOL = Protocol("4 pushes of 300 N, twice, unloaded rows", loads="directions
                     repeats=2, unloaded_rows=True, sigma_m=1e-5)
 
 
-HANGING_SEED = 20261132
+HANGING_SEED = 20261136
 HANGING = Protocol("one hanging mass of 300 N, twice", loads="hanging", magnitudes_N=(300.0,), repeats=2, sigma_m=1e-5)
 
 

@@ -270,7 +270,7 @@ def test_backlash_preloaded_by_the_weight_is_the_simulators(rng):
     assert np.mean(np.sign(tau) == np.sign(robot.gravity_torques(q))) > 0.6  # mostly preloaded: few flank changes
 
 
-# --- the handed lab logs -----------------------------------------------------------------------------------------------
+# --- the handed lab logs -------------------------------------------------------------------------------------------
 
 CASES = {"P3_none_2": "none", "C3_none_2": "none", "S1_none_3": "none", "P1_none_2": "none",
          "P3_backlash_1": "backlash", "C3_measurement_offset_1": "measurement_offset",

@@ -440,8 +440,9 @@ def build_design(robot: Robot, meas: Measurements, observed: Observed | None = N
 
 
 def find_blunders(des: Design, n_rows: int, alpha: float, max_fraction: float = 0.1) -> list[int]:
-    """Rows whose residual from the union model exceeds a Bonferroni threshold on a robust scale, removed
-    one at a time (largest first) and refitted. Returns row indices (into the measurements)."""
+    """Rows whose residual from the union model exceeds a Bonferroni threshold on a robust scale (Student's t on
+    the fit's degrees of freedom, plus a margin of 2), removed one at a time (largest first) and refitted.
+    Returns row indices (into the measurements)."""
     keep = np.ones(n_rows, bool)
     out = []
     X = des.union()
@@ -457,7 +458,7 @@ def find_blunders(des: Design, n_rows: int, alpha: float, max_fraction: float = 
         if not scale > 0:
             break
         per_row = np.abs(resid).reshape(-1, des.d).max(axis=1) / scale
-        threshold = stats.norm.isf(alpha / (2 * len(resid))) + 2.0
+        threshold = stats.t.isf(alpha / (2 * len(resid)), f.df) + 2.0  # the scale is estimated on f.df
         worst = int(np.argmax(per_row))
         if per_row[worst] <= threshold:
             break
@@ -1145,7 +1146,8 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     return em, _zero_point_summary(meas, em, out, p_out, p_shift, alpha, rw)
 
 
-def _zero_point_summary(meas: Measurements, em, out: list, p_out: list, p_shift, alpha: float, rw: float) -> dict | None:
+def _zero_point_summary(meas: Measurements, em, out: list, p_out: list, p_shift, alpha: float,
+                        rw: float) -> dict | None:
     """The verdict's ``zero_point`` (docs/measured-data.md)."""
     from .measurements import _rows_text
 
@@ -1161,8 +1163,8 @@ def _zero_point_summary(meas: Measurements, em, out: list, p_out: list, p_shift,
           "outlier_rows": sorted(int(meas.zero_rows[i]) for i in out), "p_value": p_shift}
     parts = []
     if exact.any():
-        parts.append(f"{int(exact.sum())} unloaded row(s) hold exactly zero: the reference readings themselves, the rows "
-                     "after each measured from it (not noise samples)")
+        parts.append(f"{int(exact.sum())} unloaded row(s) hold exactly zero: the reference readings themselves, the "
+                     "rows after each measured from it (not noise samples)")
     if out:
         order = np.argsort(out)
         rows = np.array(out)[order]
@@ -1173,10 +1175,10 @@ def _zero_point_summary(meas: Measurements, em, out: list, p_out: list, p_shift,
                      f"{'that row' if len(rows) == 1 else 'those rows'}, left out")
     if p_shift is not None:
         moved = p_shift < alpha
-        parts.append(f"the {'other ' if out else ''}{len(used)} unloaded row(s) with noise scatter by {rms * 1e6:.3g} um "
-                     "RMS about zero" + (f", shifted from zero as a whole (p = {p_shift:.2g}): the zero point moved (a "
-                                         "drift, or a disturbed target)" if moved else
-                                         f", as the error model expects (shift from zero: p = {p_shift:.2g})"))
+        how = (f", shifted from zero as a whole (p = {p_shift:.2g}): the zero point moved (a drift, or a disturbed "
+               "target)" if moved else f", as the error model expects (shift from zero: p = {p_shift:.2g})")
+        parts.append(f"the {'other ' if out else ''}{len(used)} unloaded row(s) with noise scatter by "
+                     f"{rms * 1e6:.3g} um RMS about zero" + how)
     zp["note"] = "; ".join(parts) if parts else None
     return zp
 
@@ -1462,7 +1464,7 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
       nominal model, with the angle it finds, and whether the chosen causes add anything beyond it (warned when
       they do not: the tilt then explains the data as well as they do).
     Returns (dict, notes)."""
-    m, des, em, noise = pre.m, pre.des, pre.error, pre.noise
+    m = pre.m
     out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
                  "extended_not_better_held_out": False}
     notes = []
@@ -1478,7 +1480,6 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     notes += [note] if note else []
     out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, alpha)
     notes += [note] if note else []
-    del noise, em
     return out, notes
 
 
@@ -1523,9 +1524,9 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
     per = "m/h" if out["clock"] == "timestamp_s" else "m per 3600 rows"
     return out, (f"the rows drift with the time since their reference reading (a linear drift of "
                  f"{np.linalg.norm(out['rate_m_per_h']) * 1e6:.3g} u{per}, F-test p = {p:.2g}; the clock: "
-                 f"{out['clock']}): a drift of the tracker (or of the zero point) over the campaign? No catalogue cause "
-                 "describes it: measurement_offset and the rows' shared errors only absorb part of it; re-measure the "
-                 "reference readings more often, or log the tracker's drift check")
+                 f"{out['clock']}): a drift of the tracker (or of the zero point) over the campaign? No catalogue "
+                 "cause describes it: measurement_offset and the rows' shared errors only absorb part of it; "
+                 "re-measure the reference readings more often, or log the tracker's drift check")
 
 
 def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
@@ -1559,11 +1560,11 @@ def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
     if p > alpha or (out["chosen_beyond_p"] is not None and out["chosen_beyond_p"] <= alpha):
         return out, None
     label = "+".join(sorted(chosen, key=CAUSES.index))
+    beyond = f"; {label} adds nothing beyond it, p = {out['chosen_beyond_p']:.2g}" if chosen else ""
     return out, (f"the nominal model's residuals follow the load turned by {size:.2g} deg from its logged direction "
-                 f"(F-test p = {p:.2g}{f'; {label} adds nothing beyond it, p = ' + format(out['chosen_beyond_p'], '.2g') if chosen else ''}): "
-                 "the load's real direction may differ from the logged one (a pulley, a tilted fixture, a frame "
-                 "mismatch between the load cell and the tracker?); no catalogue cause describes it"
-                 + (f", and {label} may only absorb it" if chosen else ""))
+                 f"(F-test p = {p:.2g}{beyond}): the load's real direction may differ from the logged one (a pulley, a "
+                 "tilted fixture, a frame mismatch between the load cell and the tracker?); no catalogue cause "
+                 "describes it" + (f", and {label} may only absorb it" if chosen else ""))
 
 
 def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dict, alpha: float) -> str:

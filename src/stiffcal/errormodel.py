@@ -450,7 +450,8 @@ class _Likelihood:
         return self.parts(lam)[2] / max(self.df, 1)
 
 
-def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict | None = None) -> tuple[np.ndarray, float]:
+def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None,
+              fixed: dict | None = None) -> tuple[np.ndarray, float]:
     """(lam (k,), log-likelihood) at the REML estimate over lam >= 0 (L-BFGS-B from two starts, on
     log(1 + lam) so that both small and large ratios are found); ``fixed`` {index: value} held."""
     from scipy.optimize import minimize
@@ -816,7 +817,6 @@ def unloaded_tests(em: ErrorModel, Y: np.ndarray, groups: np.ndarray, X_union: n
     blocks = _block_arrays(st, Y, groups, X_union, weights)
     roots = _full_roots(em, blocks)
     local = em.df_pe > 0 or em.stage.startswith("the error contrasts")
-    resid, basis, where = [], [], []
     if not local:
         Xw = np.concatenate([np.einsum("ij,jwp->iwp", S, b["X"]) for S, b in zip(roots, blocks)])
         Q0 = np.linalg.svd(Xw.reshape(-1, Xw.shape[-1]), full_matrices=False)[0]

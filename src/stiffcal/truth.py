@@ -365,9 +365,9 @@ class LabLog:
 
     Readings (R of them): r_q (R, n) [rad], r_force (R, d) [N] the load really applied (r_moment (R, d_m) or
     None), r_target (R,) int, r_visit (R,) int, r_loaded (R,) bool, r_sigma (R,) [m], r_order (R,) int (time
-    order), r_time (R,) [s] its time; visit_config (V,) int; visit_scale (V,) [rad]: the standard deviation of each visit's joint error (the
-    robot's pose repeatability: :func:`measure` draws N(0, visit_scale_v^2) per joint and visit);
-    timestamps: the log has times to write."""
+    order), r_time (R,) [s] its time; visit_config (V,) int; visit_scale (V,) [rad]: the standard deviation of
+    each visit's joint error (the robot's pose repeatability: :func:`measure` draws N(0, visit_scale_v^2) per
+    joint and visit); timestamps: the log has times to write."""
 
     q: np.ndarray
     force: np.ndarray
@@ -545,7 +545,7 @@ def lab_log(robot: Robot, protocol: Protocol, rng: np.random.Generator, n_config
 
 def _assemble(robot, protocol, rng, configs, visits, rd: _Readings, measured, names, has_moment) -> LabLog:
     """The :class:`LabLog` of the readings and rows :func:`lab_log` built."""
-    d, n = robot.task_dim, robot.n_joints
+    d = robot.task_dim
     dm = 1 if d == 2 else 3
     R = rd.readings
     r_visit = np.array([r[0] for r in R])
