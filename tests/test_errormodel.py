@@ -113,9 +113,9 @@ def _nested(seed, n_configs=12, visits=3, rows=4, s=(1.0, 0.7, 1.3), p=3):
 @pytest.mark.parametrize("replicates", [False, True])
 def test_reml_equals_statsmodels_mixedlm(replicates):
     """Our REML (variance ratios and sigma^2) against statsmodels' MixedLM (REML): rows with a random effect per
-    configuration and per visit within it and global fixed effects (the union stage); and, with one mean per
-    replicate group (the pure-error stage: each group a position in the visits of its configuration, MixedLM with
-    the groups as dummy regressors), the visits' random effect (the configuration's is absorbed by the groups)."""
+    configuration and per visit within it and global fixed effects; and, with one mean per replicate group as the
+    fixed effects (each group a position in the visits of its configuration; MixedLM with the groups as dummy
+    regressors), the visits' random effect (the configuration's is absorbed by the groups)."""
     import pandas as pd
     import statsmodels.api as sm
 
@@ -128,7 +128,8 @@ def test_reml_equals_statsmodels_mixedlm(replicates):
                                                                   EM.Component("visit", visit))
     st = EM.ReadingStructure(n, np.zeros(0, int), block, visit, comps, "test", "test", int(visit.max()) + 1, 0, 0, 0,
                              (), np.arange(n, dtype=float), np.zeros(n))
-    em = EM.estimate(st, y[:, None], np.ones(n), np.unique(groups, return_inverse=True)[1], X[:, None, :])
+    fixed = np.eye(groups.max() + 1)[groups] if replicates else X  # the fixed effects REML takes out
+    em = EM.estimate(st, y[:, None], np.ones(n), np.unique(groups, return_inverse=True)[1], fixed[:, None, :])
     ours = dict(zip([c.name for c in comps], em.ratios))
     df = pd.DataFrame({"y": y, "block": block, "visit": visit, "g": groups, **{f"x{j}": X[:, j] for j in range(3)}})
     if replicates:
@@ -138,7 +139,8 @@ def test_reml_equals_statsmodels_mixedlm(replicates):
         res = sm.MixedLM.from_formula("y ~ 0 + x0 + x1 + x2", df, groups="block", re_formula="1",
                                       vc_formula={"visit": "0 + C(visit)"}).fit(reml=True)
         theirs = {"configuration": float(res.cov_re.iloc[0, 0]) / res.scale, "visit": float(res.vcomp[0]) / res.scale}
-    assert abs(em.sigma2 / res.scale - 1) < 2e-3
+    sigma2 = em.sigma2 if not replicates else em.ss_pe / em.df_pe  # the tests' noise: the whitened pure error
+    assert abs(sigma2 / res.scale - 1) < 2e-3
     for name, lam in theirs.items():
         assert abs(ours[name] - lam) < 2e-3 * max(1.0, lam), (name, ours[name], lam)
 
