@@ -346,27 +346,16 @@ def _kind(f: dict, ref: np.ndarray, visit: np.ndarray, known: np.ndarray, holder
 
 @dataclass(frozen=True)
 class _Batch:
-    """Blocks of one size m after the fixed effects local to each block are taken out (error contrasts):
-    Y (B, m, w); ZZ (K, B, m, m) the components' Z Z^T; X (B, m, w, p) or None (global fixed effects)."""
+    """Blocks of one size m: Y (B, m, w); ZZ (K, B, m, m) the components' Z Z^T; X (B, m, w, p) the fixed effects
+    (columns scaled to unit norm over all blocks)."""
     Y: np.ndarray
     ZZ: np.ndarray
-    X: np.ndarray | None
+    X: np.ndarray
 
 
-def _contrasts(L: np.ndarray | None, n: int) -> np.ndarray:
-    """(n, m): an orthonormal basis of the rows' space orthogonal to the columns of L (n, l) (all of it without)."""
-    if L is None or L.shape[1] == 0:
-        return np.eye(n)
-    U, sv, _ = np.linalg.svd(L, full_matrices=True)
-    r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
-    return U[:, r:]
-
-
-def _global(block: dict, use_x: bool) -> np.ndarray | None:
-    """A block's global fixed effects: X (when used) and D (when given), side by side; None without either."""
-    parts = ([block["X"]] if use_x and block["X"] is not None else []) + (
-        [block["D"]] if block.get("D") is not None else [])
-    return np.concatenate(parts, axis=-1) if parts else None
+def _fixed(block: dict) -> np.ndarray:
+    """A block's fixed effects: the union's regressors X and the further ones D (when given), side by side."""
+    return block["X"] if block.get("D") is None else np.concatenate([block["X"], block["D"]], axis=-1)
 
 
 @dataclass
@@ -378,37 +367,24 @@ class _Likelihood:
     width: int
 
     @classmethod
-    def of(cls, blocks: list[dict], comps: list[int], local: bool, use_x: bool) -> "_Likelihood":
-        """blocks: per configuration ``Y`` (n, w), ``Z`` {k: (n, g)}, ``L`` (n, l) local fixed effects, ``X``
-        (n, w, p), ``D`` (n, w, k) or None; comps: the components' indices; local: take out L; use_x: global
-        fixed effects X; the blocks' D are global fixed effects whenever given."""
-        blocks = [{**b, "X": _global(b, use_x)} for b in blocks]
-        use_x = blocks[0]["X"] is not None
-        by_size: dict[int, list] = {}
+    def of(cls, blocks: list[dict], comps: list[int]) -> "_Likelihood":
+        """blocks: per configuration ``Y`` (n, w), ``Z`` {k: (n, g)}, ``X`` (n, w, p) and ``D`` (n, w, k) or None
+        (the fixed effects, :func:`_fixed`); comps: the components' indices."""
+        fixed = [_fixed(b) for b in blocks]
         width = blocks[0]["Y"].shape[1]
-        scale = None
-        if use_x:  # columns to unit norm, as stiffcal.discrepancy.fit scales them, for the same rank decision
-            scale = np.sqrt(sum(np.einsum("nwp,nwp->p", b["X"], b["X"]) for b in blocks))
-            scale[scale == 0] = 1.0
-        for b in blocks:
-            A = _contrasts(b["L"] if local else None, len(b["Y"]))
-            if A.shape[1] == 0:
-                continue
-            Y = A.T @ b["Y"]
-            ZZ = np.stack([(A.T @ b["Z"][k]) @ (A.T @ b["Z"][k]).T if k in b["Z"] else np.zeros((A.shape[1],) * 2)
-                           for k in comps]) if comps else np.zeros((0, A.shape[1], A.shape[1]))
-            X = np.einsum("nm,nwp->mwp", A, b["X"]) / scale if use_x else None
-            by_size.setdefault(A.shape[1], []).append((Y, ZZ, X))
-        batches = []
-        for parts in by_size.values():
-            batches.append(_Batch(np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts], axis=1),
-                                  None if not use_x else np.stack([p[2] for p in parts])))
+        scale = np.sqrt(sum(np.einsum("nwp,nwp->p", X, X) for X in fixed))  # unit norm, as discrepancy.fit
+        scale[scale == 0] = 1.0
+        by_size: dict[int, list] = {}
+        for b, X in zip(blocks, fixed):
+            n = len(b["Y"])
+            ZZ = np.stack([b["Z"][k] @ b["Z"][k].T if k in b["Z"] else np.zeros((n, n)) for k in comps]) \
+                if comps else np.zeros((0, n, n))
+            by_size.setdefault(n, []).append((b["Y"], ZZ, X / scale))
+        batches = [_Batch(np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts], axis=1),
+                          np.stack([p[2] for p in parts])) for parts in by_size.values()]
         n_obs = sum(bt.Y.shape[0] * bt.Y.shape[1] for bt in batches) * width
-        rank = 0
-        if use_x and batches:
-            stacked = np.concatenate([bt.X.reshape(-1, bt.X.shape[-1]) for bt in batches])
-            sv = np.linalg.svd(stacked, compute_uv=False)
-            rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+        sv = np.linalg.svd(np.concatenate([bt.X.reshape(-1, bt.X.shape[-1]) for bt in batches]), compute_uv=False)
+        rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
         return cls(batches, n_obs, rank, width)
 
     def parts(self, lam: np.ndarray):
@@ -617,44 +593,29 @@ def _block_arrays(structure: ReadingStructure, Y: np.ndarray, groups: np.ndarray
     return blocks
 
 
-def _estimable(blocks: list[dict], k: int, local: bool, use_x: bool) -> bool:
-    """Component k has rows left after the fixed effects (its Z not in their span)."""
-    total, left = 0.0, 0.0
-    Xs, Zs = [], []
-    use_x = use_x or blocks[0].get("D") is not None
+def _estimable(blocks: list[dict], k: int) -> bool:
+    """Component k has rows left after the fixed effects (its Z, one column per group and coordinate, not in
+    their span)."""
+    mine = [b for b in blocks if k in b["Z"]]
+    if not mine:
+        return False
+    w = mine[0]["Y"].shape[1]
+    X = np.concatenate([_fixed(b).reshape(-1, _fixed(b).shape[-1]) for b in blocks])
+    Z = np.zeros((X.shape[0], sum(b["Z"][k].shape[1] for b in mine) * w))
+    row, col = 0, 0
     for b in blocks:
-        if k not in b["Z"]:
-            continue
-        A = _contrasts(b["L"] if local else None, len(b["Y"]))
-        Zt = A.T @ b["Z"][k]
-        total += float((b["Z"][k] ** 2).sum())
-        if use_x:
-            Xs.append(np.einsum("nm,nwp->mwp", A, _global(b, True)))
-            Zs.append(Zt)
-        else:
-            left += float((Zt ** 2).sum())
-    if use_x and Zs:  # project the components' columns (one per group and coordinate) on the complement of X
-        w = Xs[0].shape[1]
-        Xall = np.concatenate([x.reshape(-1, x.shape[-1]) for x in Xs])
-        cols = []
-        at = 0
-        for Zt in Zs:
-            for j in range(w):
-                C = np.zeros((Zt.shape[0], w, Zt.shape[1]))
-                C[:, j, :] = Zt
-                cols.append((at, C.reshape(-1, Zt.shape[1])))
-            at += Zt.shape[0] * w
-        Zall = np.zeros((Xall.shape[0], sum(c.shape[1] for _, c in cols)))
-        col = 0
-        for start, C in cols:
-            Zall[start:start + C.shape[0], col:col + C.shape[1]] = C
-            col += C.shape[1]
-        norm = np.linalg.norm(Xall, axis=0)
-        U, sv, _ = np.linalg.svd(Xall / np.where(norm > 0, norm, 1.0), full_matrices=False)
-        Q = U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
-        resid = Zall - Q @ (Q.T @ Zall)
-        left = float((resid**2).sum())
-    return total > 0 and left > IDENTIFIABLE_RTOL * total
+        n = len(b["Y"])
+        if k in b["Z"]:
+            Zk = b["Z"][k]
+            for j in range(w):  # rows ordered row by row, coordinate by coordinate
+                Z[row + j: row + n * w: w, col: col + Zk.shape[1]] = Zk
+                col += Zk.shape[1]
+        row += n * w
+    norm = np.linalg.norm(X, axis=0)
+    U, sv, _ = np.linalg.svd(X / np.where(norm > 0, norm, 1.0), full_matrices=False)
+    Q = U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
+    total = float((Z**2).sum())
+    return total > 0 and float(((Z - Q @ (Q.T @ Z)) ** 2).sum()) > IDENTIFIABLE_RTOL * total
 
 
 def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, groups: np.ndarray,
@@ -679,8 +640,8 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     notes = []
     if X_union is None:
         raise InputError("no regressors: the noise cannot be estimated")
-    est = [k for k in range(K) if _estimable(blocks, k, local=False, use_x=True)]
-    lik = _Likelihood.of(blocks, est, local=False, use_x=True)
+    est = [k for k in range(K) if _estimable(blocks, k)]
+    lik = _Likelihood.of(blocks, est)
     if lik.df <= 0:
         raise InputError("no degree of freedom is left to estimate the noise")
     lam_u, ll_u = _maximise(lik, len(est))
