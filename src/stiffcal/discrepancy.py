@@ -1113,11 +1113,11 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     zw = z * w0[:, None] if len(z) else z.reshape(0, d)
     out, p_out = [], []
 
-    def model(excluded):
+    def model(excluded, lrt=True):
         st = EM.reading_structure(meas, keep, excluded)
         Y = np.vstack([Yl, zw[st.zero_index]]) if len(st.zero_index) else Yl
         weights = np.concatenate([w, w0[st.zero_index]])
-        return st, Y, weights, EM.estimate(st, Y, weights, groups, Xu)
+        return st, Y, weights, EM.estimate(st, Y, weights, groups, Xu, lrt=lrt)
 
     while True:
         st, Y, weights, em = model(out)
@@ -1132,7 +1132,7 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
         cand = int(np.argmin(p0))
         limit = max(1, int(ZERO_POINT_MAX_OUTLIERS * (n_u + len(out))))
         if min(1.0, n_u * float(p0[cand])) <= alpha and len(out) < limit:
-            without = model(out + [int(st.zero_index[cand])])[3]
+            without = model(out + [int(st.zero_index[cand])], lrt=False)[3]
             ratios = {c.name: lam for c, lam in zip(without.structure.components, without.ratios)}
             deleted = replace(em, ratios=np.array([ratios.get(c.name, 0.0) for c in st.components]),
                               sigma2=without.sigma2, df=without.df)
@@ -1507,7 +1507,7 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
                                                                                pre.rw * pre.meas.zero_rot])
             Y = np.vstack([pre.weighted.y.reshape(N, d), z[idx] * pre.w0[idx, None]])
             groups = np.unique(pre.m.group, return_inverse=True)[1].ravel()
-            em = EM.estimate(st, Y, weights, groups, pre.weighted.union().reshape(N, d, -1), drift=C)
+            em = EM.estimate(st, Y, weights, groups, pre.weighted.union().reshape(N, d, -1), drift=C, lrt=False)
         des = gls_design(pre.weighted, em)
         CL = em.whiten_columns(C[:N], C[N:]) if em.blocks else C[:N]
         X = des.model(chosen)

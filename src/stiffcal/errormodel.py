@@ -346,11 +346,13 @@ def _kind(f: dict, ref: np.ndarray, visit: np.ndarray, known: np.ndarray, holder
 
 @dataclass(frozen=True)
 class _Batch:
-    """Blocks of one size m: Y (B, m, w); ZZ (K, B, m, m) the components' Z Z^T; X (B, m, w, p) the fixed effects
-    (columns scaled to unit norm over all blocks)."""
-    Y: np.ndarray
-    ZZ: np.ndarray
-    X: np.ndarray
+    """Blocks with the same number g of random-effect groups, reduced once for the Woodbury identity
+    H^-1 = I - Z D (I + D Z^T Z D)^-1 D Z^T, D = diag(sqrt(lambda)) per group (Henderson; Searle et al. 1992,
+    sec. 6.9): comp (g,) the component of each group; ZtZ (B, g, g); ZtY (B, g, w); ZtX (B, g, w, p)."""
+    comp: np.ndarray
+    ZtZ: np.ndarray
+    ZtY: np.ndarray
+    ZtX: np.ndarray
 
 
 def _fixed(block: dict) -> np.ndarray:
@@ -360,8 +362,13 @@ def _fixed(block: dict) -> np.ndarray:
 
 @dataclass
 class _Likelihood:
-    """The REML log-likelihood of a variance-components model over independent blocks (module docstring)."""
+    """The REML log-likelihood of a variance-components model over independent blocks (module docstring),
+    from sufficient statistics reduced once: with H = I + Z Lambda Z^T per block, every term needs only the small
+    matrices of :class:`_Batch` and the totals Y^T Y, X^T Y, X^T X (columns of X scaled to unit norm)."""
     batches: list
+    yty: float
+    xty: np.ndarray
+    xtx: np.ndarray
     n_obs: int
     rank: int
     width: int
@@ -369,47 +376,58 @@ class _Likelihood:
     @classmethod
     def of(cls, blocks: list[dict], comps: list[int]) -> "_Likelihood":
         """blocks: per configuration ``Y`` (n, w), ``Z`` {k: (n, g)}, ``X`` (n, w, p) and ``D`` (n, w, k) or None
-        (the fixed effects, :func:`_fixed`); comps: the components' indices."""
+        (the fixed effects, :func:`_fixed`); comps: the components' indices (their lambdas, in this order)."""
         fixed = [_fixed(b) for b in blocks]
         width = blocks[0]["Y"].shape[1]
         scale = np.sqrt(sum(np.einsum("nwp,nwp->p", X, X) for X in fixed))  # unit norm, as discrepancy.fit
         scale[scale == 0] = 1.0
-        by_size: dict[int, list] = {}
-        for b, X in zip(blocks, fixed):
-            n = len(b["Y"])
-            ZZ = np.stack([b["Z"][k] @ b["Z"][k].T if k in b["Z"] else np.zeros((n, n)) for k in comps]) \
-                if comps else np.zeros((0, n, n))
-            by_size.setdefault(n, []).append((b["Y"], ZZ, X / scale))
-        batches = [_Batch(np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts], axis=1),
-                          np.stack([p[2] for p in parts])) for parts in by_size.values()]
-        n_obs = sum(bt.Y.shape[0] * bt.Y.shape[1] for bt in batches) * width
-        sv = np.linalg.svd(np.concatenate([bt.X.reshape(-1, bt.X.shape[-1]) for bt in batches]), compute_uv=False)
+        stacked = np.concatenate([(X / scale).reshape(-1, X.shape[-1]) for X in fixed])
+        _, sv, Vt = np.linalg.svd(stacked, full_matrices=False)
         rank = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
-        return cls(batches, n_obs, rank, width)
+        T = Vt[:rank].T / sv[:rank] / scale[:, None]  # X T: an orthonormal basis of the fixed effects' span
+        yty, xty = 0.0, np.zeros(rank)
+        by_size: dict[tuple, list] = {}
+        for b, X in zip(blocks, fixed):
+            X = X @ T
+            Y = b["Y"]
+            yty += float((Y**2).sum())
+            xty += np.einsum("nwp,nw->p", X, Y)
+            parts = [(i, b["Z"][k]) for i, k in enumerate(comps) if k in b["Z"]]
+            if not parts:
+                continue
+            Z = np.hstack([z for _, z in parts])
+            comp = np.concatenate([np.full(z.shape[1], i) for i, z in parts])
+            by_size.setdefault(tuple(comp), []).append((Z.T @ Z, Z.T @ Y, np.einsum("ng,nwp->gwp", Z, X)))
+        batches = [_Batch(np.array(key, int), np.stack([p[0] for p in v]), np.stack([p[1] for p in v]),
+                          np.stack([p[2] for p in v])) for key, v in by_size.items()]
+        n_obs = sum(len(b["Y"]) for b in blocks) * width
+        return cls(batches, yty, xty, np.eye(rank), n_obs, rank, width)
 
     def parts(self, lam: np.ndarray):
-        """(sum of log|H| over blocks (per coordinate), log pdet M, residual quadratic form Q)."""
-        logdet, Q = 0.0, 0.0
-        M, b = None, None
+        """(sum of log|H| over blocks (per coordinate), log det M up to a constant, residual quadratic form Q),
+        M = X^T H^-1 X in the orthonormal basis of the fixed effects (full rank)."""
+        logdet, Q = 0.0, self.yty
+        M, b = self.xtx.copy(), self.xty.copy()
         for bt in self.batches:
-            m = bt.Y.shape[1]
-            H = np.eye(m) + np.einsum("k,kbij->bij", lam, bt.ZZ)
-            L = np.linalg.cholesky(H)
+            d = np.sqrt(np.asarray(lam, float)[bt.comp])  # (g,)
+            C = np.eye(len(d)) + d[None, :, None] * bt.ZtZ * d[None, None, :]
+            L = np.linalg.cholesky(C)
             logdet += 2.0 * float(np.log(np.diagonal(L, axis1=1, axis2=2)).sum())
-            HY = np.linalg.solve(H, bt.Y)
-            Q += float(np.einsum("bmw,bmw->", bt.Y, HY))
-            if bt.X is not None:
-                B, _, w, p = bt.X.shape
-                HX = np.linalg.solve(H, bt.X.reshape(B, m, w * p)).reshape(bt.X.shape)
-                Mi = np.einsum("bmwp,bmwq->pq", bt.X, HX)
-                bi = np.einsum("bmwp,bmw->p", bt.X, HY)
-                M, b = (Mi, bi) if M is None else (M + Mi, b + bi)
+            a = d[None, :, None] * bt.ZtY  # (B, g, w)
+            bx = d[None, :, None, None] * bt.ZtX  # (B, g, w, p)
+            B, g, w, p = bx.shape
+            sol = np.linalg.solve(C, np.concatenate([a, bx.reshape(B, g, w * p)], axis=2))
+            sa, sx = sol[:, :, :w], sol[:, :, w:]
+            Q -= float((a * sa).sum())
+            flat = bx.reshape(-1, p)
+            M -= flat.T @ sx.reshape(-1, p)
+            b -= flat.T @ sa.reshape(-1)
         logdet_M = 0.0
-        if M is not None and self.rank:
-            ev, V = np.linalg.eigh(M)
-            top = np.argsort(ev)[::-1][: self.rank]
-            logdet_M = float(np.log(ev[top]).sum())
-            Q -= float(b @ (V[:, top] @ ((V[:, top].T @ b) / ev[top])))
+        if self.rank:
+            LM = np.linalg.cholesky(M)
+            logdet_M = 2.0 * float(np.log(np.diagonal(LM)).sum())
+            z = np.linalg.solve(LM, b)
+            Q -= float(z @ z)
         return logdet, logdet_M, max(Q, 1e-300)
 
     @property
@@ -428,10 +446,11 @@ class _Likelihood:
         return self.parts(lam)[2] / max(self.df, 1)
 
 
-def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None,
-              fixed: dict | None = None) -> tuple[np.ndarray, float]:
+def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict | None = None,
+              start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
     """(lam (k,), log-likelihood) at the REML estimate over lam >= 0 (L-BFGS-B from two starts, on
-    log(1 + lam) so that both small and large ratios are found); ``fixed`` {index: value} held."""
+    log(1 + lam) so that both small and large ratios are found; from ``start`` alone when given); ``fixed``
+    {index: value} held."""
     from scipy.optimize import minimize
 
     fixed = fixed or {}
@@ -454,8 +473,9 @@ def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None,
         lam = full(np.zeros(0))
         return lam, lik.loglik(lam, sigma2)
     best = None
-    for start in (np.zeros(len(free)), np.full(len(free), np.log(2.0))):
-        res = minimize(objective, start, method="L-BFGS-B", bounds=[(0.0, np.log1p(MAX_RATIO))] * len(free),
+    starts = (np.zeros(len(free)), np.full(len(free), np.log(2.0))) if start is None else (np.log1p(start[free]),)
+    for x0 in starts:
+        res = minimize(objective, x0, method="L-BFGS-B", bounds=[(0.0, np.log1p(MAX_RATIO))] * len(free),
                        options={"ftol": 1e-12, "gtol": 1e-8, "maxiter": 200})
         if best is None or res.fun < best.fun:
             best = res
@@ -593,41 +613,45 @@ def _block_arrays(structure: ReadingStructure, Y: np.ndarray, groups: np.ndarray
     return blocks
 
 
-def _estimable(blocks: list[dict], k: int) -> bool:
-    """Component k has rows left after the fixed effects (its Z, one column per group and coordinate, not in
-    their span)."""
-    mine = [b for b in blocks if k in b["Z"]]
-    if not mine:
-        return False
-    w = mine[0]["Y"].shape[1]
+def _estimable(blocks: list[dict], K: int) -> list[int]:
+    """The components (of K) that have rows left after the fixed effects (their Z, one column per group and
+    coordinate, not in the fixed effects' span)."""
+    w = blocks[0]["Y"].shape[1]
     X = np.concatenate([_fixed(b).reshape(-1, _fixed(b).shape[-1]) for b in blocks])
-    Z = np.zeros((X.shape[0], sum(b["Z"][k].shape[1] for b in mine) * w))
-    row, col = 0, 0
-    for b in blocks:
-        n = len(b["Y"])
-        if k in b["Z"]:
-            Zk = b["Z"][k]
-            for j in range(w):  # rows ordered row by row, coordinate by coordinate
-                Z[row + j: row + n * w: w, col: col + Zk.shape[1]] = Zk
-                col += Zk.shape[1]
-        row += n * w
     norm = np.linalg.norm(X, axis=0)
     U, sv, _ = np.linalg.svd(X / np.where(norm > 0, norm, 1.0), full_matrices=False)
     Q = U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
-    total = float((Z**2).sum())
-    return total > 0 and float(((Z - Q @ (Q.T @ Z)) ** 2).sum()) > IDENTIFIABLE_RTOL * total
+    out = []
+    for k in range(K):
+        mine = [b for b in blocks if k in b["Z"]]
+        if not mine:
+            continue
+        Z = np.zeros((X.shape[0], sum(b["Z"][k].shape[1] for b in mine) * w))
+        row, col = 0, 0
+        for b in blocks:
+            n = len(b["Y"])
+            if k in b["Z"]:
+                Zk = b["Z"][k]
+                for j in range(w):  # rows ordered row by row, coordinate by coordinate
+                    Z[row + j: row + n * w: w, col: col + Zk.shape[1]] = Zk
+                    col += Zk.shape[1]
+            row += n * w
+        total = float((Z**2).sum())
+        if total > 0 and float(((Z - Q @ (Q.T @ Z)) ** 2).sum()) > IDENTIFIABLE_RTOL * total:
+            out.append(k)
+    return out
 
 
 def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, groups: np.ndarray,
-             X_union: np.ndarray | None, drift: np.ndarray | None = None) -> ErrorModel:
+             X_union: np.ndarray | None, drift: np.ndarray | None = None, lrt: bool = True) -> ErrorModel:
     """The :class:`ErrorModel` of the model rows (module docstring).
 
     Y (R, w): every model row's measured components, weighted by the noise model (rows multiplied by
     ``weights`` (R,), 1/sigma_i relative to the median row) and the rotation by sigma_m / sigma_rad; groups
     (N,) the loaded rows' replicate groups; X_union (N, w, p): the loaded rows' regressors of the union of
     every catalogue cause, weighted; drift (R, w, k): further fixed effects on every model row, in every stage (a
-    tracker's drift, so that it is not read as a shared error). Raises :class:`InputError` when no degree of
-    freedom is left for the noise.
+    tracker's drift, so that it is not read as a shared error); lrt: compute each component's likelihood-ratio
+    p-value (else None). Raises :class:`InputError` when no degree of freedom is left for the noise.
     """
     N, R = structure.n_loaded, structure.n_rows
     K = len(structure.components)
@@ -640,7 +664,7 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     notes = []
     if X_union is None:
         raise InputError("no regressors: the noise cannot be estimated")
-    est = [k for k in range(K) if _estimable(blocks, k)]
+    est = _estimable(blocks, K)
     lik = _Likelihood.of(blocks, est)
     if lik.df <= 0:
         raise InputError("no degree of freedom is left to estimate the noise")
@@ -648,7 +672,7 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     lam[est] = lam_u
     estimable[est] = True
     for i, k in enumerate(est):
-        pvals[k] = _lrt(lik, lam_u, ll_u, i, None)
+        pvals[k] = _lrt(lik, lam_u, ll_u, i, None) if lrt else None
     sigma2 = lik.sigma2(lam_u)
     stage = "the residuals of the union of all extensions" + (", with the unloaded rows" if R > N else "")
     source = ("replicates (pure error)" + (" and the unloaded rows" if R > N else "") if replicated
@@ -662,10 +686,11 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
 
 
 def _lrt(lik: _Likelihood, lam: np.ndarray, ll: float, i: int, sigma2, fixed: dict | None = None) -> float:
-    """The likelihood-ratio p-value of component i (lam_i = 0) against 1/2 chi^2_0 + 1/2 chi^2_1."""
+    """The likelihood-ratio p-value of component i (lam_i = 0) against 1/2 chi^2_0 + 1/2 chi^2_1 (the others
+    re-estimated from their values at the full estimate)."""
     if lam[i] == 0:
         return 1.0
-    _, ll0 = _maximise(lik, len(lam), sigma2, {**(fixed or {}), i: 0.0})
+    _, ll0 = _maximise(lik, len(lam), sigma2, {**(fixed or {}), i: 0.0}, start=lam)
     stat = max(2.0 * (ll - ll0), 0.0)
     return float(0.5 * stats.chi2.sf(stat, 1)) if stat > 0 else 1.0
 
