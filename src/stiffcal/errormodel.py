@@ -43,10 +43,13 @@ residuals of the union of every catalogue cause, the unloaded rows (of mean zero
 catalogue effect, so none of them is read as a shared error, and the whole data set informs the components (the
 pure error's contrasts alone hold too little of a reference shared by a configuration: the lack-of-fit tests on
 them were anticonservative, 7 % at 1 % on a protocol with a reference per configuration). An effect outside the
-catalogue can only make a component larger, never a false alarm. Our own implementation: the block structure
-makes every likelihood a sum of small dense problems (a few milliseconds), and it is checked against
-statsmodels' ``MixedLM`` in the tests. A component's likelihood-ratio p-value is against the boundary mixture
-1/2 chi^2_0 + 1/2 chi^2_1 (Self & Liang, *JASA* 82, 1987).
+catalogue can only make a component larger (its lack of fit then harder to see), not smaller. Our own
+implementation, for speed and for the structure statsmodels' ``MixedLM`` (univariate, unweighted) does not
+take: per configuration H = I + Z Lambda Z^T has a few groups, so every likelihood is the Woodbury identity on
+sufficient statistics reduced once (Z^T Z, Z^T Y, Z^T X per block; the fixed effects in an orthonormal basis),
+about a millisecond for a 6-axis data set; it is checked against ``MixedLM`` in the tests. A component's
+likelihood-ratio p-value is against the boundary mixture 1/2 chi^2_0 + 1/2 chi^2_1 (Self & Liang, *JASA* 82,
+1987).
 
 **Generalised least squares.** The loaded rows are taken conditionally on the unloaded ones (which have no
 regressor, so the likelihood of the compliances factors through that conditional: y_L - B y_U with covariance
