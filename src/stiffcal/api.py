@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, short_repr
+from .limits import (MAX_DESIGN_EXPERIMENTS, MAX_DISCRIMINATE_EXPERIMENTS, MAX_FORCE_N, MAX_MOMENT_NM, MIN_LOAD)
 from .robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
 
 __all__ = ["DesignResult", "design", "analyse_measurements", "load_robot", "float_list"]
@@ -88,13 +89,16 @@ def positive_number(value, field: str, low: float = MIN_SIGMA, high: float = MAX
     return x
 
 
-def whole_number(value, field: str, low: int, high: int) -> int:
-    """An integer in [low, high] (a bool or a float with a fraction is refused); InputError naming ``field``."""
+def whole_number(value, field: str, low: int, high: int, bound: str | None = None) -> int:
+    """An integer in [low, high] (a bool or a float with a fraction is refused); InputError naming ``field``.
+    ``bound``: what the upper bound limits, for the message (docs/contracts.md, "Limits")."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) and not (
             isinstance(value, float) and value.is_integer()):
-        raise InputError(f"expected a whole number, got {value!r}", field=field)
+        raise InputError(f"expected a whole number, got {short_repr(value)}", field=field)
     if not low <= int(value) <= high:
-        raise InputError(f"expected a whole number in [{low}, {high}], got {int(value)}", field=field)
+        why = (f" (at most {high} {bound}: the work grows with them; docs/contracts.md, 'Limits')"
+               if bound and int(value) > high else "")
+        raise InputError(f"expected a whole number in [{low}, {high}]{why}, got {int(value)}", field=field)
     return int(value)
 
 
@@ -219,6 +223,15 @@ def _path(value, field: str, what: str) -> str | os.PathLike:
     return value
 
 
+def _input_file(path):
+    """``path`` if it is a regular file; a FIFO, a device or a directory is refused at once (never read: a FIFO
+    blocks), and so is a missing file (:func:`stiffcal.safeio.regular_file`)."""
+    from .safeio import regular_file
+
+    regular_file(path)
+    return path
+
+
 def _flag(value, field: str) -> bool:
     """True or False (not a string: bool('no') is True); InputError naming ``field``."""
     if not isinstance(value, (bool, np.bool_)):
@@ -241,12 +254,25 @@ def _with_limits(robot: Robot, joint_limits_deg) -> Robot:
     return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True, unlimited_joints=())
 
 
-def _stages(progress, total: int):
-    """A tqdm bar on stderr over the stages of a computation; ``progress`` None shows it only on a terminal."""
-    from tqdm.auto import tqdm
+def design_estimate_s(robot: Robot, m: int) -> list[tuple[str, float]]:
+    """The stages of :func:`design` with a rough estimate of their CPU seconds on one core of a 2-core machine
+    like CI's (fitted to runs of 2-12-joint planar and 6-10-joint spatial arms: within a factor of about 2;
+    the progress lines scale it by how the finished stages compared)."""
+    n = robot.n_joints
+    if robot.kind == "planar":
+        single, approx, plan = 0.3 + 2.0 * (n / 12) ** 4.5, 0.5 + 16.0 * (n / 12) ** 4.5, 15.0 * (n / 12) ** 4.5
+    else:
+        single, approx, plan = 0.5 + 4.0 * (n / 10) ** 7, 1.0 + 16.0 * (n / 10) ** 7, 15.0 * (n / 10) ** 7
+    stages = [("single pose", single), ("approximate design and certificate", approx)]
+    return stages + ([(f"plan of {m} poses", plan + 0.05 * m)] if m > 1 else [])
 
-    return tqdm(total=total, disable=None if progress is None else not progress, unit="stage", leave=False,
-                bar_format="{desc}: {n_fmt}/{total_fmt} stages {bar} {elapsed}")
+
+def _stages(progress, stages):
+    """The progress of :func:`design` on stderr (:class:`stiffcal.progress.Progress`): a bar on a terminal, a
+    line every few seconds otherwise; ``progress`` False: nothing."""
+    from .progress import Progress
+
+    return Progress("design", stages, enabled=progress)
 
 
 def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1, criterion: str = "ot",
@@ -267,8 +293,9 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     orientation is measured too, with the noise sigma_rad [rad] (weighted least squares); test_target: the
     target whose error O_t measures; orientation_length_m: a length scale [m] > 0 adds the tool's rotation
     to that error (``|dp|^2 + L^2 |dr|^2``); joint_limits_deg: (n, 2) [deg] replaces the robot file's limits;
-    seed: seed of the random starts of M-pose plans (results are deterministic for a seed); progress: a
-    progress bar on stderr (None: only on a terminal).
+    seed: seed of the random starts of M-pose plans (results are deterministic for a seed); progress: the
+    progress on stderr, a bar on a terminal and a line every few seconds elsewhere, with an estimate of the time
+    left (None or True; False: none; :mod:`stiffcal.progress`).
 
     M = 1 is an exhaustive global search over one pose; M > 1 a Fedorov exchange over a candidate pool
     started from the rounded optimal approximate design, polished in the continuum. For 'ot', the
@@ -290,7 +317,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     force, moment, field_ = load_arguments(robot, force_N, wrench)
     q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG), force,
                             "test_pose_deg", field_, None, moment, field_)
-    m = whole_number(experiments, "experiments", 1, 1000)
+    m = whole_number(experiments, "experiments", 1, MAX_DESIGN_EXPERIMENTS, "poses")
     sigma = positive_number(sigma, "sigma")
     sigma_rad = None if sigma_rad is None else positive_number(sigma_rad, "sigma_rad")
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
@@ -306,8 +333,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         raise InputError(f"expected at least {base.min_poses} poses: {m} give {m * base.rows_per_pose} equations "
                          f"for {base.n_params} compliances", field="experiments")
     notes, optimal_set, degenerate, single = [], np.zeros((0, robot.n_joints)), False, None
-    with _stages(progress, 2 if m == 1 else 3) as bar:
-        bar.set_description("single pose")
+    with _stages(progress if progress is None else _flag(progress, "progress"), design_estimate_s(robot, m)) as bar:
         try:
             res1 = optimal_single_pose(base)
             single, notes, degenerate = res1.pose_deg, list(res1.notes), res1.degenerate
@@ -315,19 +341,17 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         except InputError:
             if m == 1:
                 raise
-        bar.update()
-        bar.set_description("approximate design and certificate")
+        bar.advance()
         approx = approximate_design(study.problem("ot"))
-        bar.update()
+        bar.advance()
         if m == 1:
             poses = single[None, :]
         else:
-            bar.set_description(f"plan of {m} poses")
             prob = study.problem(criterion, m)
             starts = design_starts(prob, approx, m) + ([np.repeat(single[None], m, 0)] if single is not None else [])
             poses = optimise_plan(prob, starts=starts, seed=seed).poses_deg
             optimal_set, degenerate = np.zeros((0, robot.n_joints)), False
-            bar.update()
+            bar.advance()
     summ = plan_summary(study, poses)
     bound = approx.lower_bound(m, sigma) if criterion == "ot" else None
     notes += [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
@@ -382,20 +406,45 @@ def load_arguments(robot: Robot, force_N, wrench, required: bool = True):
             names = "fx, fy, mz" if robot.kind == "planar" else "fx, fy, fz, mx, my, mz"
             raise InputError(f"expected {dw} wrench components ({names}) for a {robot.kind} robot, got {w.size}",
                              field="wrench")
+        check_load(w[:d], w[d:], "wrench")
         return w[:d], w[d:], "wrench"
     if force_N is None:
         if required:
             raise InputError("expected the force (force_N) or the wrench", field="force_N")
         return None, None, "force_N"
-    return float_list(force_N, "force_N"), None, "force_N"
+    force = float_list(force_N, "force_N")
+    check_load(force, None, "force_N")
+    return force, None, "force_N"
+
+
+def check_load(force: np.ndarray, moment: np.ndarray | None, field: str) -> None:
+    """A load within the physical range (:mod:`stiffcal.limits`): every force component at most
+    :data:`~stiffcal.limits.MAX_FORCE_N` [N], every moment component at most
+    :data:`~stiffcal.limits.MAX_MOMENT_NM` [N m], and the load as a whole (a zero load is left to the callers'
+    own, more specific, message) either zero or at least :data:`~stiffcal.limits.MIN_LOAD`; InputError naming
+    ``field`` and the component."""
+    parts = [(np.asarray(force, float), MAX_FORCE_N, "N", 0)]
+    if moment is not None and np.size(moment):
+        parts.append((np.asarray(moment, float), MAX_MOMENT_NM, "N m", np.size(force)))
+    for values, high, unit, start in parts:
+        big = np.flatnonzero(np.abs(values) > high)
+        if big.size:
+            raise InputError(f"expected at most {high:g} {unit} in magnitude (the physical range of loads; "
+                             f"docs/contracts.md, 'Limits'), got {float(values[big[0]]):g}",
+                             field=f"{field}[{start + int(big[0])}]")
+    size = float(np.sqrt(sum(float(np.sum(np.square(v))) for v, *_ in parts)))
+    if 0.0 < size < MIN_LOAD:
+        raise InputError(f"expected a load of at least {MIN_LOAD:g} N (N m) in magnitude (the physical range of "
+                         f"loads; docs/contracts.md, 'Limits'), got {size:g}", field=field)
 
 
 def check_out_dir(out) -> Path:
-    """An output directory that does not exist or is a directory; an existing file is refused at once."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("expected a directory to write into, but a file of that name exists", source=str(out))
-    return out
+    """An output directory that can be written (:func:`stiffcal.safeio.check_out_dir`: it is a directory or does
+    not exist, no folder on its way is a file, and its nearest existing folder is writable), checked before any
+    work; InputError naming ``out`` otherwise."""
+    from .safeio import check_out_dir as check
+
+    return check(out)
 
 
 def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None, force_N=None, wrench=None,
@@ -422,9 +471,9 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     from . import measurements as M
 
     robot = _robot(robot)
-    data = _path(data, "data", "a measured-data CSV")
+    data = _input_file(_path(data, "data", "a measured-data CSV"))
     if out is not None:
-        out = _path(out, "out", "an output directory")
+        out = check_out_dir(_path(out, "out", "an output directory"))
     alpha = positive_number(alpha, "alpha", 1e-12, 1 - 1e-12)
     res = _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm)
     if (sigma_m is None) != (sigma_rad is None):
@@ -504,12 +553,12 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     from . import measurements as M
 
     robot = _robot(robot)
-    data = _path(data, "data", "a measured-data CSV")
+    data = _input_file(_path(data, "data", "a measured-data CSV"))
     if out is not None:
-        out = _path(out, "out", "an output directory")
+        out = check_out_dir(_path(out, "out", "an output directory"))
     if loads is not None and not isinstance(loads, str):
         raise InputError(f"expected a load set such as 'hanging:100,300', got {short_repr(loads)}", field="loads")
-    experiments = whole_number(experiments, "experiments", 1, 10_000)
+    experiments = whole_number(experiments, "experiments", 1, MAX_DISCRIMINATE_EXPERIMENTS, "measurements")
     repeats = whole_number(repeats, "repeats", 1, 1000)
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
     weight = positive_number(weight, "weight", 0.0, 1.0)
