@@ -254,17 +254,18 @@ def _with_limits(robot: Robot, joint_limits_deg) -> Robot:
     return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True, unlimited_joints=())
 
 
-def design_estimate_s(robot: Robot, m: int) -> list[tuple[str, float]]:
-    """The stages of :func:`design` with a rough estimate of their CPU seconds on one core of a 2-core machine
-    like CI's (fitted to runs of 2-12-joint planar and 6-10-joint spatial arms: within a factor of about 2;
-    the progress lines scale it by how the finished stages compared)."""
+def design_estimate_s(robot: Robot, m: int, single: bool = True) -> list[tuple[str, float]]:
+    """The stages of :func:`design` with a rough estimate of their seconds on one core of a 2-core machine like
+    CI's (fitted to runs of 2-20-joint planar and 3-10-joint spatial arms: within a factor of about 3; the
+    progress lines scale what is left by how the stages so far compared with their estimates). single: the
+    single-pose search runs (one pose identifies every compliance)."""
     n = robot.n_joints
     if robot.kind == "planar":
-        single, approx, plan = 0.3 + 2.0 * (n / 12) ** 4.5, 0.5 + 16.0 * (n / 12) ** 4.5, 15.0 * (n / 12) ** 4.5
+        approx, plan = 0.3 + 0.75 * n, 19.0 * (n / 10) ** 3.85
     else:
-        single, approx, plan = 0.5 + 4.0 * (n / 10) ** 7, 1.0 + 16.0 * (n / 10) ** 7, 15.0 * (n / 10) ** 7
-    stages = [("single pose", single), ("approximate design and certificate", approx)]
-    return stages + ([(f"plan of {m} poses", plan + 0.05 * m)] if m > 1 else [])
+        approx, plan = 1.5 + 30.0 * (n / 10) ** 8, 0.5 + 5.0 * (n / 10) ** 8
+    stages = [("single pose", 0.6 if single else 0.05), ("approximate design and certificate", approx)]
+    return stages + ([(f"plan of {m} poses", plan + 0.01 * m)] if m > 1 else [])
 
 
 def _stages(progress, stages):
@@ -333,8 +334,10 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         raise InputError(f"expected at least {base.min_poses} poses: {m} give {m * base.rows_per_pose} equations "
                          f"for {base.n_params} compliances", field="experiments")
     notes, optimal_set, degenerate, single = [], np.zeros((0, robot.n_joints)), False, None
-    with _stages(progress if progress is None else _flag(progress, "progress"), design_estimate_s(robot, m)) as bar:
+    stages = design_estimate_s(robot, m, base.min_poses == 1)
+    with _stages(progress if progress is None else _flag(progress, "progress"), stages) as bar:
         try:
+            _check_single_pose_identifies(base)
             res1 = optimal_single_pose(base)
             single, notes, degenerate = res1.pose_deg, list(res1.notes), res1.degenerate
             optimal_set = res1.optimal_set_deg
@@ -379,6 +382,26 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         test_target=test_target, orientation_length_m=length)
 
 
+def _check_single_pose_identifies(problem, samples: int = 256) -> None:
+    """Refuse (InputError) a criterion that needs the inverse of the information matrix when no single pose
+    identifies every compliance: at 256 random poses within the limits the rows of a pose never reach full rank
+    (e.g. every joint axis through one point: the measured point then moves on a sphere, two directions for three
+    compliances). The single-pose search would find no finite value anywhere."""
+    from . import criteria
+
+    if problem.criterion not in criteria.NEEDS_INVERSE or problem.rows_per_pose < problem.n_params:
+        return  # the search says so itself (too few equations), or the criterion is finite without an inverse
+    lo, hi = problem.robot.joint_limits_rad.T
+    q = np.random.default_rng(0).uniform(lo, hi, (samples, problem.robot.n_joints))
+    A = problem.rows(q)
+    s = np.linalg.svd(A, compute_uv=False)
+    full = s[:, -1] > 1e-9 * np.maximum(s[:, 0], 1e-300)
+    if not full.any():
+        raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every pose: no single pose "
+                         f"identifies all {problem.n_params} compliances (the rows of one pose never reach full rank, "
+                         "e.g. every joint axis meets in one point); use at least 2 poses", field="experiments")
+
+
 def _names(value, field: str) -> list[str]:
     """A list of names from a list or a comma-separated string; InputError naming ``field``."""
     if isinstance(value, str):
@@ -400,7 +423,7 @@ def load_arguments(robot: Robot, force_N, wrench, required: bool = True):
     if force_N is not None and wrench is not None:
         raise InputError("expected the force or the wrench, not both", field="wrench")
     if wrench is not None:
-        w = float_list(wrench, "wrench")
+        w = float_list(wrench, "wrench", limit=math.inf)  # the physical range is check_load's
         d, dw = force_dim(robot), wrench_dim(robot)
         if w.size != dw:
             names = "fx, fy, mz" if robot.kind == "planar" else "fx, fy, fz, mx, my, mz"
@@ -412,27 +435,29 @@ def load_arguments(robot: Robot, force_N, wrench, required: bool = True):
         if required:
             raise InputError("expected the force (force_N) or the wrench", field="force_N")
         return None, None, "force_N"
-    force = float_list(force_N, "force_N")
+    force = float_list(force_N, "force_N", limit=math.inf)
     check_load(force, None, "force_N")
     return force, None, "force_N"
 
 
-def check_load(force: np.ndarray, moment: np.ndarray | None, field: str) -> None:
+def check_load(force: np.ndarray, moment: np.ndarray | None, field: str, moment_field: str | None = None) -> None:
     """A load within the physical range (:mod:`stiffcal.limits`): every force component at most
     :data:`~stiffcal.limits.MAX_FORCE_N` [N], every moment component at most
     :data:`~stiffcal.limits.MAX_MOMENT_NM` [N m], and the load as a whole (a zero load is left to the callers'
     own, more specific, message) either zero or at least :data:`~stiffcal.limits.MIN_LOAD`; InputError naming
-    ``field`` and the component."""
-    parts = [(np.asarray(force, float), MAX_FORCE_N, "N", 0)]
+    ``field`` and the component (a moment's components ``moment_field[i]``, or, without it, ``field[d + i]``: a
+    wrench's)."""
+    parts = [(np.asarray(force, float), MAX_FORCE_N, "N", field, 0)]
     if moment is not None and np.size(moment):
-        parts.append((np.asarray(moment, float), MAX_MOMENT_NM, "N m", np.size(force)))
-    for values, high, unit, start in parts:
+        parts.append((np.asarray(moment, float), MAX_MOMENT_NM, "N m", moment_field or field,
+                      0 if moment_field else np.size(force)))
+    for values, high, unit, name, start in parts:
         big = np.flatnonzero(np.abs(values) > high)
         if big.size:
             raise InputError(f"expected at most {high:g} {unit} in magnitude (the physical range of loads; "
                              f"docs/contracts.md, 'Limits'), got {float(values[big[0]]):g}",
-                             field=f"{field}[{start + int(big[0])}]")
-    size = float(np.sqrt(sum(float(np.sum(np.square(v))) for v, *_ in parts)))
+                             field=f"{name}[{start + int(big[0])}]")
+    size = math.hypot(*(float(x) for v, *_ in parts for x in v))  # no underflow of tiny components
     if 0.0 < size < MIN_LOAD:
         raise InputError(f"expected a load of at least {MIN_LOAD:g} N (N m) in magnitude (the physical range of "
                          f"loads; docs/contracts.md, 'Limits'), got {size:g}", field=field)
@@ -495,9 +520,9 @@ def _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm=
     return (M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None
             else positive_number(angle_resolution_deg, "angle_resolution_deg", 1e-12, 360.0),
             M.FORCE_RESOLUTION_N if force_resolution_N is None
-            else positive_number(force_resolution_N, "force_resolution_N", 1e-12, 1e9),
+            else positive_number(force_resolution_N, "force_resolution_N", 1e-12, MAX_FORCE_N),
             M.MOMENT_RESOLUTION_NM if moment_resolution_Nm is None
-            else positive_number(moment_resolution_Nm, "moment_resolution_Nm", 1e-12, 1e9))
+            else positive_number(moment_resolution_Nm, "moment_resolution_Nm", 1e-12, MAX_MOMENT_NM))
 
 
 def _test_pose(robot: Robot, test_pose_deg, force_N, wrench=None):

@@ -67,6 +67,8 @@ MAX_LOADS = 64
 #: the address-space cap of a command or a workflow job [MB], unless STIFFCAL_MAX_MEMORY_MB says otherwise
 DEFAULT_MAX_MEMORY_MB = 4096
 MEMORY_VARIABLE = "STIFFCAL_MAX_MEMORY_MB"
+#: the smallest cap accepted [MB]
+MIN_MEMORY_MB = 1024
 
 
 def memory_cap_mb() -> int | None:
@@ -83,9 +85,9 @@ def memory_cap_mb() -> int | None:
         mb = int(text)
     except ValueError:
         mb = -1
-    if mb < 256:
-        raise InputError(f"expected a whole number of megabytes >= 256 (or 0 for no cap), got {text!r}",
-                         field=MEMORY_VARIABLE)
+    if mb < MIN_MEMORY_MB:
+        raise InputError(f"expected a whole number of megabytes >= {MIN_MEMORY_MB} (the libraries alone map about "
+                         f"600 MB), or 0 for no cap, got {text!r}", field=MEMORY_VARIABLE)
     return mb
 
 

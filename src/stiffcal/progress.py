@@ -57,18 +57,19 @@ class Progress:
     left is the sum of the stages to come, scaled by how the finished ones compared with their estimates), or
     None for a job without stages (the lines then say how long it has run); enabled: None or True shows it
     (a bar when ``stream`` is a terminal, lines otherwise), False nothing; interval: seconds between lines
-    (:func:`interval_s`)."""
+    (:func:`interval_s`); clock: the time in seconds (``time.monotonic``)."""
 
     def __init__(self, label: str, stages=None, *, enabled: bool | None = None, stream=None,
-                 interval: float | None = None):
+                 interval: float | None = None, clock=time.monotonic):
         self.label = label
+        self.clock = clock
         self.stages = [(str(n), max(float(w), 1e-3)) for n, w in (stages or [])]
         self.stream = sys.stderr if stream is None else stream
         self.enabled = enabled is not False
         self.interval = interval_s() if interval is None else float(interval)
         self.index = 0  # the stage running
         self.steps_done = self.steps_total = 0
-        self.t0 = self.stage_t0 = time.monotonic()
+        self.t0 = self.stage_t0 = clock()
         self.finished_estimate = self.finished_actual = 0.0
         self._stop = threading.Event()
         self._thread = None
@@ -80,23 +81,26 @@ class Progress:
     def stage(self) -> str:
         return self.stages[self.index][0] if self.index < len(self.stages) else ""
 
-    def remaining_s(self) -> float | None:
-        """Estimated seconds left (None: no estimate: no stages, or no step counts)."""
-        now = time.monotonic()
-        if not self.stages:
-            if self.steps_total and self.steps_done:
-                rate = (now - self.stage_t0) / self.steps_done
-                return rate * (self.steps_total - self.steps_done)
-            return None
-        speed = self.finished_actual / self.finished_estimate if self.finished_estimate else 1.0
+    def remaining_s(self) -> tuple[float | None, bool]:
+        """(estimated seconds left, or None without an estimate (no stages, no step counts); whether the current
+        stage has run past its estimate, when what is left counts only the stages after it). The stages to come
+        are scaled by how the stages so far compared with their estimates."""
+        now = self.clock()
         in_stage = now - self.stage_t0
-        left = sum(w for _, w in self.stages[self.index + 1:]) * speed
-        if self.index < len(self.stages):
-            if self.steps_total and self.steps_done:
-                left += in_stage / self.steps_done * (self.steps_total - self.steps_done)
-            else:
-                left += max(self.stages[self.index][1] * speed - in_stage, 0.0)
-        return left
+        counted = self.steps_total and self.steps_done
+        current = in_stage / self.steps_done * (self.steps_total - self.steps_done) if counted else None
+        if not self.stages:
+            return current, False
+        est = self.stages[self.index][1] if self.index < len(self.stages) else 0.0
+        over = current is None and in_stage > est
+        if over:
+            speed = (self.finished_actual + in_stage) / (self.finished_estimate + est)
+        else:
+            speed = self.finished_actual / self.finished_estimate if self.finished_estimate else 1.0
+        later = sum(w for _, w in self.stages[self.index + 1:]) * speed
+        if over:
+            return later, True
+        return later + (current if current is not None else max(est * speed - in_stage, 0.0)), False
 
     def estimate_s(self) -> float:
         """The whole job's estimate [s] (the stages' estimates)."""
@@ -104,24 +108,26 @@ class Progress:
 
     def line(self) -> str:
         """The progress line for now."""
-        elapsed = time.monotonic() - self.t0
+        elapsed = self.clock() - self.t0
         what = self.label
         if self.stages and self.index < len(self.stages):
             what += f": {self.stage} (stage {self.index + 1}/{len(self.stages)})"
         if self.steps_total:
             what += f" {self.steps_done}/{self.steps_total}"
         text = f"[stiffcal {time.strftime('%H:%M:%S')}] {what}, {duration(elapsed)} elapsed"
-        left = self.remaining_s()
-        if left is not None:
-            text += (f", about {duration(left)} left (estimate)" if left >= 0.5 else
-                     ", taking longer than estimated")
+        left, over = self.remaining_s()
+        if over:
+            text += ", this stage taking longer than estimated" + (
+                f"; about {duration(left)} left after it (estimate)" if left >= 0.5 else "")
+        elif left is not None:
+            text += f", about {duration(left)} left (estimate)"
         return text
 
     # --- reporting ------------------------------------------------------------------------------------------
     def advance(self, stage: str | None = None) -> None:
         """The current stage is done; the next one (named ``stage`` if given, which must be one of ``stages``)
         begins."""
-        now = time.monotonic()
+        now = self.clock()
         if self.index < len(self.stages):
             self.finished_estimate += self.stages[self.index][1]
             self.finished_actual += now - self.stage_t0
@@ -161,11 +167,12 @@ class Progress:
     def _refresh_bar(self) -> None:
         if self._bar is not None:
             with _LOCK:
-                left = self.remaining_s()
+                left, over = self.remaining_s()
                 self._bar.set_description_str(f"{self.label}: {self.stage}" if self.stage else self.label,
                                               refresh=False)
                 self._bar.n = self.index if self.stages else self.steps_done
-                self._bar.set_postfix_str("" if left is None else f"about {duration(left)} left", refresh=False)
+                self._bar.set_postfix_str("" if left is None else f"about {duration(left)} left"
+                                          + (" after this stage" if over else ""), refresh=False)
                 self._bar.refresh()
 
     def _run(self) -> None:
@@ -195,8 +202,7 @@ class Progress:
             self._refresh_bar()
         elif self.estimate_s() >= ANNOUNCE_S:
             self._print(f"[stiffcal {time.strftime('%H:%M:%S')}] {self.label}: estimated about "
-                        f"{duration(self.estimate_s())} (a line every {duration(self.interval)}; --quiet turns "
-                        "these off)")
+                        f"{duration(self.estimate_s())}, a progress line every {duration(self.interval)}")
         self._thread = threading.Thread(target=self._run, name=f"stiffcal-progress-{self.label}", daemon=True)
         self._thread.start()
         return self
