@@ -187,7 +187,8 @@ def test_a_comment_that_mentions_a_doctype_is_fine_and_so_is_an_expanded_xacro(t
     np.testing.assert_array_equal(robot.jacobian(q), plain.jacobian(q))
     expanded = chain_urdf(3).replace('<robot name="r">',
                                      '<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro">')
-    np.testing.assert_array_equal(load_robot(urdf_robot(tmp_path, expanded, 3, "x.urdf")).jacobian(q), plain.jacobian(q))
+    expanded_robot = load_robot(urdf_robot(tmp_path, expanded, 3, "x.urdf"))
+    np.testing.assert_array_equal(expanded_robot.jacobian(q), plain.jacobian(q))
 
 
 def test_many_joints_off_the_chain_are_read_without_pinocchio_data_of_the_whole_model(tmp_path):
