@@ -38,3 +38,11 @@ def paper_study(paper_config):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Say that the browser test ran (CI's output shows it), and with which browser."""
+    for rep in terminalreporter.stats.get("passed", []):
+        if rep.nodeid.endswith("test_report_renders_in_headless_chromium") and rep.when == "call":
+            browser = dict(rep.user_properties).get("browser", "a browser")
+            terminalreporter.write_line(f"browser test ran and passed in {browser}: {rep.nodeid}")
