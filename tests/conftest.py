@@ -5,6 +5,9 @@ from pathlib import Path
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # before numpy is imported: small
     os.environ.setdefault(_var, "1")  # matrices, a shared machine (as the Makefile and the CLI do)
+# progress lines (stiffcal.progress) every hour in the tests, not every 5 s: a slow run on a loaded machine must
+# not add lines to the stderr that a test reads; the tests of progress set their own interval
+os.environ.setdefault("STIFFCAL_PROGRESS_S", "3600")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402

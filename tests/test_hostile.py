@@ -148,6 +148,9 @@ NJ = limits.MAX_JOINTS + 1
     (chain_urdf(3, origin="1e300 0 0"), ["joint 'j1': <origin xyz> 1e+300 m", "at most 1000 m"]),  # was 'tool_m'
     (chain_urdf(3, links_extra='<link name="l2"/>'), ["two links named 'l2'"]),
     (chain_urdf(3).replace('name="j3"', 'name="j2"'), ["two joints named 'j2'"]),
+    (chain_urdf(3).replace('<parent link="l0"/>', '<parent link="l3"/>'), ["the joints form a loop through link"]),
+    (chain_urdf(3).replace('<child link="l3"/>', '<child link="l2"/>'), ["link 'l2' is the child of two joints"]),
+    (chain_urdf(3).replace('<parent link="l1"/>', '<parent link="l9"/>'), ["joint 'j2': <parent link> 'l9'"]),
     (chain_urdf(3, extra=limits.MAX_URDF_ELEMENTS), [f"expected at most {limits.MAX_URDF_ELEMENTS} in all"]),
     (chain_urdf(NJ), [f"{NJ} joints move between 'l0' and 'l{NJ}'", f"at most {limits.MAX_JOINTS}"]),
     ('<robot name="r" xmlns:xacro="http://www.ros.org/wiki/xacro"><xacro:macro name="m"/><link name="l0"/></robot>',
@@ -416,6 +419,32 @@ def test_the_command_reports_progress_when_stderr_is_not_a_terminal(tmp_path):
     assert any("design: " in line and "(stage " in line and "estimate" in line for line in lines)
     res = subprocess.run([*args, "--quiet"], capture_output=True, text=True, env=env, timeout=300)
     assert res.returncode == 0 and res.stderr == ""
+
+
+def test_a_workflow_job_writes_progress_lines_into_its_log_and_runs_under_the_memory_cap(tmp_path):
+    """pipeline.run (every rule's script): a line every STIFFCAL_PROGRESS_S in the job's log while its step runs,
+    and the address space capped (the step sees the limit)."""
+    code = f"""
+import resource, time
+from types import SimpleNamespace
+from stiffcal import pipeline
+
+def step(out):
+    time.sleep(0.5)
+    open(out, "w").write(str(resource.getrlimit(resource.RLIMIT_AS)[0]))
+
+sm = SimpleNamespace(log=[{str(tmp_path / "job.log")!r}], input=[], output=[{str(tmp_path / "out.txt")!r}],
+                     rule="slow_rule", wildcards={{}})
+pipeline.run(sm, step, {str(tmp_path / "out.txt")!r})
+"""
+    env = {**os.environ, "STIFFCAL_PROGRESS_S": "0.1", "STIFFCAL_MAX_MEMORY_MB": "2500"}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env,
+                         cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    log = (tmp_path / "job.log").read_text().splitlines()
+    beats = [line for line in log if line.startswith("[stiffcal ") and "] rule slow_rule, " in line]
+    assert beats and all("elapsed" in line for line in beats) and log[-1].startswith("[stiffcal] cpu rule=slow_rule")
+    assert (tmp_path / "out.txt").read_text() == str(2500 * 1024**2)
 
 
 def test_every_command_runs_under_the_memory_cap_and_reports_reaching_it_in_one_line(monkeypatch):

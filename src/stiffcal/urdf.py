@@ -133,6 +133,37 @@ def _numbers(element, attribute: str, default: str, what: str, bad) -> np.ndarra
     return vals
 
 
+def _check_tree(links, joints, bad) -> None:
+    """The joints join declared links into a tree: every joint's parent and child are ``<link>`` s, no link is
+    the child of two joints, and following parents never comes back to a link (no loop). Linear in the size."""
+    names = {e.get("name") for e in links}
+    parent_of = {}
+    for j in joints:
+        name = j.get("name")[:80]
+        ends = {}
+        for end in ("parent", "child"):
+            e = j.find(end)
+            ends[end] = None if e is None else e.get("link")
+            if ends[end] not in names:
+                given = "none" if ends[end] is None else repr(str(ends[end])[:80])
+                raise bad(f"joint {name!r}: <{end} link> {given}: expected one of the URDF's links")
+        child = ends["child"]
+        if child in parent_of:
+            raise bad(f"link {child[:80]!r} is the child of two joints, {parent_of[child][0]!r} and {name!r}: expected "
+                      "a tree (each link hangs from one joint)")
+        parent_of[child] = (name, ends["parent"])
+    reaches_root = set()
+    for start in parent_of:
+        path, link = set(), start
+        while link in parent_of and link not in reaches_root:
+            if link in path:
+                raise bad(f"the joints form a loop through link {link[:80]!r} (joint {parent_of[link][0]!r}): "
+                          "expected a tree from one root link")
+            path.add(link)
+            link = parent_of[link][1]
+        reaches_root |= path
+
+
 def _check_elements(root, bad) -> None:
     """The URDF's links and joints before Pinocchio reads them (:mod:`stiffcal.limits`): at most
     :data:`~stiffcal.limits.MAX_URDF_ELEMENTS` of them, names present and unique, every joint's origin within
@@ -153,6 +184,7 @@ def _check_elements(root, bad) -> None:
             if name in seen:
                 raise bad(f"two {tag}s named {name[:80]!r}: expected unique {tag} names")
             seen.add(name)
+    _check_tree(links, joints, bad)
     for j in joints:
         name = j.get("name")[:80]
         origin = j.find("origin")
