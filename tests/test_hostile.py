@@ -407,6 +407,22 @@ def test_progress_prints_lines_off_a_terminal_only_for_the_innermost_and_not_whe
     assert quiet.getvalue() == ""
 
 
+def test_a_note_printed_while_a_bar_is_shown_gets_a_line_of_its_own():
+    """On a terminal the bar is cleared before a note and drawn again after it (the note was glued to the bar)."""
+    from stiffcal.progress import Progress, write
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    term = Terminal()
+    with Progress("job", [("only", 100.0)], stream=term):
+        write("stiffcal job: note: something", stream=term)
+    text = term.getvalue()
+    before, after = text.split("stiffcal job: note: something\n")
+    assert "job: only" in before and before.endswith("\r") and "job: only" in after
+
+
 def test_the_command_reports_progress_when_stderr_is_not_a_terminal(tmp_path):
     """stderr to a pipe (a script, a scheduler): progress lines every STIFFCAL_PROGRESS_S; --quiet: none."""
     env = {**os.environ, "STIFFCAL_PROGRESS_S": "0.2"}

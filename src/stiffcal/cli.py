@@ -23,6 +23,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # b
 
 from . import __version__  # noqa: E402
 from .errors import MAX_MESSAGE, InputError  # noqa: E402
+from .progress import write  # noqa: E402
 
 #: a value that starts with '-' but is a number or a comma-separated list of numbers
 _NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
@@ -76,7 +77,7 @@ def discrepancy(args) -> dict:
                              moment_resolution_Nm=args.moment_resolution_Nm, sigma_m=args.sigma_m,
                              sigma_rad=args.sigma_rad)
     for note in v["notes"]:
-        print(f"stiffcal discrepancy: note: {note}", file=sys.stderr)
+        write(f"stiffcal discrepancy: note: {note}")
     return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
         "verdict": f"{args.out}/verdict.json"}
 
@@ -92,7 +93,7 @@ def discriminate(args) -> dict:
                               angle_resolution_deg=args.angle_resolution_deg,
                               force_resolution_N=args.force_resolution_N, seed=args.seed)
     for note in out["notes"]:
-        print(f"stiffcal discriminate: note: {note}", file=sys.stderr)
+        write(f"stiffcal discriminate: note: {note}")
     plan, comp = out["plan"] or {}, out["compound"] or {}
     cert = plan.get("certificate") or {}
     return {"truth": out["models"][0]["causes"], "rivals": [m["causes"] for m in out["models"][1:]],
@@ -111,7 +112,7 @@ def verify_archive(args) -> dict:
 
     ok, problems = verify(args.file)
     for p in problems:
-        print(f"stiffcal verify-archive: {args.file}: {p}", file=sys.stderr)
+        write(f"stiffcal verify-archive: {args.file}: {p}")
     return {"archive": args.file, "verified_files": ok, "problems": problems, "ok": not problems}
 
 

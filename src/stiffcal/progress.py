@@ -91,7 +91,9 @@ class Progress:
         current = in_stage / self.steps_done * (self.steps_total - self.steps_done) if counted else None
         if not self.stages:
             return current, False
-        est = self.stages[self.index][1] if self.index < len(self.stages) else 0.0
+        if self.index >= len(self.stages):
+            return 0.0, False
+        est = self.stages[self.index][1]
         over = current is None and in_stage > est
         if over:
             speed = (self.finished_actual + in_stage) / (self.finished_estimate + est)
@@ -175,12 +177,26 @@ class Progress:
                                           + (" after this stage" if over else ""), refresh=False)
                 self._bar.refresh()
 
+    def _new_bar(self):
+        from tqdm.auto import tqdm
+
+        return tqdm(total=len(self.stages) or None, file=self.stream, leave=False, unit="stage",
+                    bar_format="{desc}: {n_fmt}/{total_fmt} stages {bar} {elapsed} {postfix}"
+                    if self.stages else "{desc}: {elapsed} elapsed")
+
     def _run(self) -> None:
-        tty = self._bar is not None
+        tty = self._is_tty()
         period = 1.0 if tty else self.interval
         while not self._stop.wait(period):
             with _LOCK:
                 innermost = bool(_ACTIVE) and _ACTIVE[-1] is self
+            if tty and not self.stages:  # a heartbeat's bar only while no inner progress shows its own
+                with _LOCK:
+                    if innermost and self._bar is None:
+                        self._bar = self._new_bar()
+                    elif not innermost and self._bar is not None:
+                        self._bar.close()
+                        self._bar = None
             if not innermost:
                 continue
             if tty:
@@ -194,12 +210,9 @@ class Progress:
         with _LOCK:
             _ACTIVE.append(self)
         if self._is_tty():
-            from tqdm.auto import tqdm
-
-            self._bar = tqdm(total=len(self.stages) or None, file=self.stream, leave=False, unit="stage",
-                             bar_format="{desc}: {n_fmt}/{total_fmt} stages {bar} {elapsed} {postfix}"
-                             if self.stages else "{desc}: {elapsed}")
-            self._refresh_bar()
+            if self.stages:  # a heartbeat's bar comes after a second, if nothing inner shows one (_run)
+                self._bar = self._new_bar()
+                self._refresh_bar()
         elif self.estimate_s() >= ANNOUNCE_S:
             self._print(f"[stiffcal {time.strftime('%H:%M:%S')}] {self.label}: estimated about "
                         f"{duration(self.estimate_s())}, a progress line every {duration(self.interval)}")
@@ -222,3 +235,16 @@ class Progress:
         if self._bar is not None:
             self._bar.close()
             self._bar = None
+
+
+def write(text: str, stream=None) -> None:
+    """Print a line (a note, a warning) on ``stream`` (default stderr) without mixing it into a progress bar
+    shown there: the bars are cleared first and drawn again after it."""
+    stream = sys.stderr if stream is None else stream
+    with _LOCK:
+        bars = [p._bar for p in _ACTIVE if p._bar is not None and p.stream is stream]
+        for bar in bars:
+            bar.clear()
+        print(text, file=stream, flush=True)
+        for bar in bars:
+            bar.refresh()
