@@ -5,6 +5,9 @@ from pathlib import Path
 
 for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # before numpy is imported: small
     os.environ.setdefault(_var, "1")  # matrices, a shared machine (as the Makefile and the CLI do)
+# progress lines (stiffcal.progress) every hour in the tests, not every 5 s: a slow run on a loaded machine must
+# not add lines to the stderr that a test reads; the tests of progress set their own interval
+os.environ.setdefault("STIFFCAL_PROGRESS_S", "3600")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
@@ -38,3 +41,11 @@ def paper_study(paper_config):
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def pytest_terminal_summary(terminalreporter):
+    """Say that the browser test ran (CI's output shows it), and with which browser."""
+    for rep in terminalreporter.stats.get("passed", []):
+        if rep.nodeid.endswith("test_report_renders_in_headless_chromium") and rep.when == "call":
+            browser = dict(rep.user_properties).get("browser", "a browser")
+            terminalreporter.write_line(f"browser test ran and passed in {browser}: {rep.nodeid}")

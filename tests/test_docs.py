@@ -55,3 +55,32 @@ def test_licence_and_citation(root):
     assert paper["title"] == ("Optimality criteria for measurement poses selection in calibration of robot stiffness "
                               "parameters")
     assert [a["family-names"] for a in paper["authors"]] == ["Wu", "Klimchik", "Pashkevich", "Caro", "Furet"]
+
+
+def test_every_limit_is_documented_with_its_value(root):
+    """docs/contracts.md, "Limits": a row for every bound of stiffcal.limits (and the archive's and robot's), with
+    the value the code uses."""
+    from stiffcal import archive, limits, robot
+
+    text = (root / "docs/contracts.md").read_text(encoding="utf-8")
+    section = text[text.index("## Limits"):]
+    rows = {}
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) >= 2 and cells[0].startswith("`"):
+            for name in re.findall(r"`([A-Z_]+)`", cells[0]):
+                rows[name] = cells[1]
+    constants = {k: getattr(limits, k) for k in dir(limits)
+                 if k.isupper() and isinstance(getattr(limits, k), (int, float))}
+    constants |= {"MIN_COMPLIANCE": robot.MIN_COMPLIANCE, "MAX_UNPACKED_BYTES": archive.MAX_UNPACKED_BYTES,
+                  "MAX_MEMBERS": archive.MAX_MEMBERS}
+    scale = {"MAX_URDF_BYTES": 1e6, "MAX_UNPACKED_BYTES": 2**30}
+    missing = sorted(set(constants) - set(rows) - {"MIN_MEMORY_MB"})
+    assert missing == [], "limits not in the docs' table"
+    assert "`MIN_MEMORY_MB` = 1024" in section and limits.MIN_MEMORY_MB == 1024
+    for name, value in constants.items():
+        if name not in rows:
+            continue
+        found = re.findall(r"\d[\d,]*(?:\.\d+)?(?:e-?\d+)?", rows[name])
+        numbers = [float(x.replace(",", "")) * scale.get(name, 1) for x in found]
+        assert any(abs(x - value) <= 1e-9 * abs(value) for x in numbers), (name, value, rows[name])

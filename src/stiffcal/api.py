@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, short_repr
+from .limits import (MAX_DESIGN_EXPERIMENTS, MAX_DISCRIMINATE_EXPERIMENTS, MAX_FORCE_N, MAX_MOMENT_NM, MIN_LOAD)
 from .robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
 
 __all__ = ["DesignResult", "design", "analyse_measurements", "load_robot", "float_list"]
@@ -88,13 +89,16 @@ def positive_number(value, field: str, low: float = MIN_SIGMA, high: float = MAX
     return x
 
 
-def whole_number(value, field: str, low: int, high: int) -> int:
-    """An integer in [low, high] (a bool or a float with a fraction is refused); InputError naming ``field``."""
+def whole_number(value, field: str, low: int, high: int, bound: str | None = None) -> int:
+    """An integer in [low, high] (a bool or a float with a fraction is refused); InputError naming ``field``.
+    ``bound``: what the upper bound limits, for the message (docs/contracts.md, "Limits")."""
     if isinstance(value, bool) or not isinstance(value, (int, np.integer)) and not (
             isinstance(value, float) and value.is_integer()):
-        raise InputError(f"expected a whole number, got {value!r}", field=field)
+        raise InputError(f"expected a whole number, got {short_repr(value)}", field=field)
     if not low <= int(value) <= high:
-        raise InputError(f"expected a whole number in [{low}, {high}], got {int(value)}", field=field)
+        why = (f" (at most {high} {bound}: the work grows with them; docs/contracts.md, 'Limits')"
+               if bound and int(value) > high else "")
+        raise InputError(f"expected a whole number in [{low}, {high}]{why}, got {int(value)}", field=field)
     return int(value)
 
 
@@ -219,6 +223,15 @@ def _path(value, field: str, what: str) -> str | os.PathLike:
     return value
 
 
+def _input_file(path):
+    """``path`` if it is a regular file; a FIFO, a device or a directory is refused at once (never read: a FIFO
+    blocks), and so is a missing file (:func:`stiffcal.safeio.regular_file`)."""
+    from .safeio import regular_file
+
+    regular_file(path)
+    return path
+
+
 def _flag(value, field: str) -> bool:
     """True or False (not a string: bool('no') is True); InputError naming ``field``."""
     if not isinstance(value, (bool, np.bool_)):
@@ -241,12 +254,26 @@ def _with_limits(robot: Robot, joint_limits_deg) -> Robot:
     return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True, unlimited_joints=())
 
 
-def _stages(progress, total: int):
-    """A tqdm bar on stderr over the stages of a computation; ``progress`` None shows it only on a terminal."""
-    from tqdm.auto import tqdm
+def design_estimate_s(robot: Robot, m: int, single: bool = True) -> list[tuple[str, float]]:
+    """The stages of :func:`design` with a rough estimate of their seconds on one core of a 2-core machine like
+    CI's (fitted to runs of 2-20-joint planar and 3-10-joint spatial arms: within a factor of about 3; the
+    progress lines scale what is left by how the stages so far compared with their estimates). single: the
+    single-pose search runs (one pose identifies every compliance)."""
+    n = robot.n_joints
+    if robot.kind == "planar":
+        approx, plan = 0.3 + 0.75 * n, 19.0 * (n / 10) ** 3.85
+    else:
+        approx, plan = 1.5 + 30.0 * (n / 10) ** 8, 0.5 + 5.0 * (n / 10) ** 8
+    stages = [("single pose", 0.6 if single else 0.05), ("approximate design and certificate", approx)]
+    return stages + ([(f"plan of {m} poses", plan + 0.01 * m)] if m > 1 else [])
 
-    return tqdm(total=total, disable=None if progress is None else not progress, unit="stage", leave=False,
-                bar_format="{desc}: {n_fmt}/{total_fmt} stages {bar} {elapsed}")
+
+def _stages(progress, stages):
+    """The progress of :func:`design` on stderr (:class:`stiffcal.progress.Progress`): a bar on a terminal, a
+    line every few seconds otherwise; ``progress`` False: nothing."""
+    from .progress import Progress
+
+    return Progress("design", stages, enabled=progress)
 
 
 def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1, criterion: str = "ot",
@@ -267,8 +294,9 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     orientation is measured too, with the noise sigma_rad [rad] (weighted least squares); test_target: the
     target whose error O_t measures; orientation_length_m: a length scale [m] > 0 adds the tool's rotation
     to that error (``|dp|^2 + L^2 |dr|^2``); joint_limits_deg: (n, 2) [deg] replaces the robot file's limits;
-    seed: seed of the random starts of M-pose plans (results are deterministic for a seed); progress: a
-    progress bar on stderr (None: only on a terminal).
+    seed: seed of the random starts of M-pose plans (results are deterministic for a seed); progress: the
+    progress on stderr, a bar on a terminal and a line every few seconds elsewhere, with an estimate of the time
+    left (None or True; False: none; :mod:`stiffcal.progress`).
 
     M = 1 is an exhaustive global search over one pose; M > 1 a Fedorov exchange over a candidate pool
     started from the rounded optimal approximate design, polished in the continuum. For 'ot', the
@@ -290,7 +318,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     force, moment, field_ = load_arguments(robot, force_N, wrench)
     q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG), force,
                             "test_pose_deg", field_, None, moment, field_)
-    m = whole_number(experiments, "experiments", 1, 1000)
+    m = whole_number(experiments, "experiments", 1, MAX_DESIGN_EXPERIMENTS, "poses")
     sigma = positive_number(sigma, "sigma")
     sigma_rad = None if sigma_rad is None else positive_number(sigma_rad, "sigma_rad")
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
@@ -306,28 +334,27 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         raise InputError(f"expected at least {base.min_poses} poses: {m} give {m * base.rows_per_pose} equations "
                          f"for {base.n_params} compliances", field="experiments")
     notes, optimal_set, degenerate, single = [], np.zeros((0, robot.n_joints)), False, None
-    with _stages(progress, 2 if m == 1 else 3) as bar:
-        bar.set_description("single pose")
+    stages = design_estimate_s(robot, m, base.min_poses == 1)
+    with _stages(progress if progress is None else _flag(progress, "progress"), stages) as bar:
         try:
+            _check_single_pose_identifies(base)
             res1 = optimal_single_pose(base)
             single, notes, degenerate = res1.pose_deg, list(res1.notes), res1.degenerate
             optimal_set = res1.optimal_set_deg
         except InputError:
             if m == 1:
                 raise
-        bar.update()
-        bar.set_description("approximate design and certificate")
+        bar.advance()
         approx = approximate_design(study.problem("ot"))
-        bar.update()
+        bar.advance()
         if m == 1:
             poses = single[None, :]
         else:
-            bar.set_description(f"plan of {m} poses")
             prob = study.problem(criterion, m)
             starts = design_starts(prob, approx, m) + ([np.repeat(single[None], m, 0)] if single is not None else [])
             poses = optimise_plan(prob, starts=starts, seed=seed).poses_deg
             optimal_set, degenerate = np.zeros((0, robot.n_joints)), False
-            bar.update()
+            bar.advance()
     summ = plan_summary(study, poses)
     bound = approx.lower_bound(m, sigma) if criterion == "ot" else None
     notes += [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
@@ -355,6 +382,26 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         test_target=test_target, orientation_length_m=length)
 
 
+def _check_single_pose_identifies(problem, samples: int = 256) -> None:
+    """Refuse (InputError) a criterion that needs the inverse of the information matrix when no single pose
+    identifies every compliance: at 256 random poses within the limits the rows of a pose never reach full rank
+    (e.g. every joint axis through one point: the measured point then moves on a sphere, two directions for three
+    compliances). The single-pose search would find no finite value anywhere."""
+    from . import criteria
+
+    if problem.criterion not in criteria.NEEDS_INVERSE or problem.rows_per_pose < problem.n_params:
+        return  # the search says so itself (too few equations), or the criterion is finite without an inverse
+    lo, hi = problem.robot.joint_limits_rad.T
+    q = np.random.default_rng(0).uniform(lo, hi, (samples, problem.robot.n_joints))
+    A = problem.rows(q)
+    s = np.linalg.svd(A, compute_uv=False)
+    full = s[:, -1] > 1e-9 * np.maximum(s[:, 0], 1e-300)
+    if not full.any():
+        raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every pose: no single pose "
+                         f"identifies all {problem.n_params} compliances (the rows of one pose never reach full rank, "
+                         "e.g. every joint axis meets in one point); use at least 2 poses", field="experiments")
+
+
 def _names(value, field: str) -> list[str]:
     """A list of names from a list or a comma-separated string; InputError naming ``field``."""
     if isinstance(value, str):
@@ -376,26 +423,53 @@ def load_arguments(robot: Robot, force_N, wrench, required: bool = True):
     if force_N is not None and wrench is not None:
         raise InputError("expected the force or the wrench, not both", field="wrench")
     if wrench is not None:
-        w = float_list(wrench, "wrench")
+        w = float_list(wrench, "wrench", limit=math.inf)  # the physical range is check_load's
         d, dw = force_dim(robot), wrench_dim(robot)
         if w.size != dw:
             names = "fx, fy, mz" if robot.kind == "planar" else "fx, fy, fz, mx, my, mz"
             raise InputError(f"expected {dw} wrench components ({names}) for a {robot.kind} robot, got {w.size}",
                              field="wrench")
+        check_load(w[:d], w[d:], "wrench")
         return w[:d], w[d:], "wrench"
     if force_N is None:
         if required:
             raise InputError("expected the force (force_N) or the wrench", field="force_N")
         return None, None, "force_N"
-    return float_list(force_N, "force_N"), None, "force_N"
+    force = float_list(force_N, "force_N", limit=math.inf)
+    check_load(force, None, "force_N")
+    return force, None, "force_N"
+
+
+def check_load(force: np.ndarray, moment: np.ndarray | None, field: str, moment_field: str | None = None) -> None:
+    """A load within the physical range (:mod:`stiffcal.limits`): every force component at most
+    :data:`~stiffcal.limits.MAX_FORCE_N` [N], every moment component at most
+    :data:`~stiffcal.limits.MAX_MOMENT_NM` [N m], and the load as a whole (a zero load is left to the callers'
+    own, more specific, message) either zero or at least :data:`~stiffcal.limits.MIN_LOAD`; InputError naming
+    ``field`` and the component (a moment's components ``moment_field[i]``, or, without it, ``field[d + i]``: a
+    wrench's)."""
+    parts = [(np.asarray(force, float), MAX_FORCE_N, "N", field, 0)]
+    if moment is not None and np.size(moment):
+        parts.append((np.asarray(moment, float), MAX_MOMENT_NM, "N m", moment_field or field,
+                      0 if moment_field else np.size(force)))
+    for values, high, unit, name, start in parts:
+        big = np.flatnonzero(np.abs(values) > high)
+        if big.size:
+            raise InputError(f"expected at most {high:g} {unit} in magnitude (the physical range of loads; "
+                             f"docs/contracts.md, 'Limits'), got {float(values[big[0]]):g}",
+                             field=f"{name}[{start + int(big[0])}]")
+    size = math.hypot(*(float(x) for v, *_ in parts for x in v))  # no underflow of tiny components
+    if 0.0 < size < MIN_LOAD:
+        raise InputError(f"expected a load of at least {MIN_LOAD:g} N (N m) in magnitude (the physical range of "
+                         f"loads; docs/contracts.md, 'Limits'), got {size:g}", field=field)
 
 
 def check_out_dir(out) -> Path:
-    """An output directory that does not exist or is a directory; an existing file is refused at once."""
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("expected a directory to write into, but a file of that name exists", source=str(out))
-    return out
+    """An output directory that can be written (:func:`stiffcal.safeio.check_out_dir`: it is a directory or does
+    not exist, no folder on its way is a file, and its nearest existing folder is writable), checked before any
+    work; InputError naming ``out`` otherwise."""
+    from .safeio import check_out_dir as check
+
+    return check(out)
 
 
 def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None, force_N=None, wrench=None,
@@ -422,9 +496,9 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     from . import measurements as M
 
     robot = _robot(robot)
-    data = _path(data, "data", "a measured-data CSV")
+    data = _input_file(_path(data, "data", "a measured-data CSV"))
     if out is not None:
-        out = _path(out, "out", "an output directory")
+        out = check_out_dir(_path(out, "out", "an output directory"))
     alpha = positive_number(alpha, "alpha", 1e-12, 1 - 1e-12)
     res = _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm)
     if (sigma_m is None) != (sigma_rad is None):
@@ -446,9 +520,9 @@ def _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm=
     return (M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None
             else positive_number(angle_resolution_deg, "angle_resolution_deg", 1e-12, 360.0),
             M.FORCE_RESOLUTION_N if force_resolution_N is None
-            else positive_number(force_resolution_N, "force_resolution_N", 1e-12, 1e9),
+            else positive_number(force_resolution_N, "force_resolution_N", 1e-12, MAX_FORCE_N),
             M.MOMENT_RESOLUTION_NM if moment_resolution_Nm is None
-            else positive_number(moment_resolution_Nm, "moment_resolution_Nm", 1e-12, 1e9))
+            else positive_number(moment_resolution_Nm, "moment_resolution_Nm", 1e-12, MAX_MOMENT_NM))
 
 
 def _test_pose(robot: Robot, test_pose_deg, force_N, wrench=None):
@@ -504,12 +578,12 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     from . import measurements as M
 
     robot = _robot(robot)
-    data = _path(data, "data", "a measured-data CSV")
+    data = _input_file(_path(data, "data", "a measured-data CSV"))
     if out is not None:
-        out = _path(out, "out", "an output directory")
+        out = check_out_dir(_path(out, "out", "an output directory"))
     if loads is not None and not isinstance(loads, str):
         raise InputError(f"expected a load set such as 'hanging:100,300', got {short_repr(loads)}", field="loads")
-    experiments = whole_number(experiments, "experiments", 1, 10_000)
+    experiments = whole_number(experiments, "experiments", 1, MAX_DISCRIMINATE_EXPERIMENTS, "measurements")
     repeats = whole_number(repeats, "repeats", 1, 1000)
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
     weight = positive_number(weight, "weight", 0.0, 1.0)

@@ -22,10 +22,15 @@ import tarfile
 from importlib import metadata
 from pathlib import Path
 
-from .errors import InputError
+from .errors import InputError, short_repr
 
-PACKAGES = ("stiffcal", "numpy", "scipy", "pandas", "matplotlib", "Jinja2", "PyYAML", "jsonschema", "snakemake",
-            "weasyprint", "fonttools", "pydyf")
+#: every library that reads, computes or writes the data (their versions go into provenance.json): the numerics,
+#: Pinocchio (``pin``, with the C++ library and urdfdom, its URDF parser: every URDF robot file is read by them),
+#: python-flint (exact root isolation in the maps), statsmodels (the discrepancy analysis), the readers of robot
+#: files, configs and URDFs, the figures, the report and the PDF
+PACKAGES = ("stiffcal", "numpy", "scipy", "pandas", "statsmodels", "matplotlib", "pillow", "pin", "libpinocchio",
+            "cmeel-urdfdom", "cmeel-tinyxml2", "python-flint", "Jinja2", "PyYAML", "jsonschema", "defusedxml",
+            "snakemake", "weasyprint", "fonttools", "pydyf", "tqdm")
 SUMS = "SHA256SUMS"
 PROVENANCE = "provenance.json"
 
@@ -49,19 +54,52 @@ def source_date_epoch(root: str | Path = ".") -> int:
     return int(t) if t else 0
 
 
-def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".") -> dict:
-    """What made the archive: commit and whether the tree was dirty, Python and package versions, platform,
-    config hash, start and end times (ISO 8601, UTC)."""
+def input_status(inputs, root: str | Path = ".") -> dict[str, list[str]]:
+    """Which of ``inputs`` (the config file, robot files, URDFs, data: paths relative to ``root`` or absolute) git
+    does not vouch for: ``untracked`` (not in the current commit: new, ignored, staged only, or outside the
+    repository) and ``modified`` (in the commit, but changed since), each sorted, as given. Outside a git work
+    tree every input is untracked."""
+    root = Path(root)
+    names = sorted({Path(p).as_posix() for p in inputs})
+    top = _git(["rev-parse", "--show-toplevel"], root) if names else None
+    if top is None:
+        return {"untracked": names, "modified": []}
+    rel = {}
+    for n in names:
+        full = (root / n).resolve()
+        if full.is_relative_to(Path(top).resolve()):
+            rel[n] = Path(os.path.relpath(full, root.resolve())).as_posix()
+    paths = sorted(set(rel.values()))
+
+    def listed(args):
+        out = _git([*args, "--", *paths], root) if paths else ""
+        return {Path(x).as_posix() for x in (out or "").split("\0") if x}
+
+    committed = listed(["ls-tree", "-r", "-z", "--name-only", "HEAD"])
+    changed = listed(["diff", "--name-only", "-z", "--relative", "HEAD"])
+    return {"untracked": sorted(n for n in names if rel.get(n) not in committed),
+            "modified": sorted(n for n in names if rel.get(n) in committed and rel[n] in changed)}
+
+
+def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".", inputs=()) -> dict:
+    """What made the archive: commit and whether the tree was dirty, the run's inputs that git does not vouch
+    for (:func:`input_status`: ``untracked_inputs``, ``modified_inputs``; any of them makes ``dirty`` true),
+    Python and the versions of every library that touched the data (:data:`PACKAGES`), platform, config hash,
+    start and end times (ISO 8601, UTC). inputs: the files the run read (the config file, and
+    :func:`config_files`)."""
     root = Path(root)
     commit = _git(["rev-parse", "HEAD"], root)
-    dirty = None if commit is None else bool(_git(["status", "--porcelain", "--untracked-files=no"], root))
+    status = input_status(inputs, root)
+    dirty = None if commit is None else bool(_git(["status", "--porcelain", "--untracked-files=no"], root)
+                                             or status["untracked"] or status["modified"])
     versions = {}
     for name in PACKAGES:
         try:
             versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             versions[name] = None
-    return {"commit": commit or "unknown", "dirty": dirty, "python": sys.version.split()[0],
+    return {"commit": commit or "unknown", "dirty": dirty, "untracked_inputs": status["untracked"],
+            "modified_inputs": status["modified"], "python": sys.version.split()[0],
             "packages": versions, "platform": platform.platform(), "machine": platform.machine(),
             "config_hash": config_hash, "started": started, "ended": ended,
             "source_date_epoch": source_date_epoch(root)}
@@ -139,41 +177,122 @@ def write_archive(out: str | Path, files: list[Path], prov: dict, root: str | Pa
     return out
 
 
+#: the most a checked archive may hold once decompressed [bytes], and the most members it may have: a results
+#: archive is tens of megabytes; beyond these it is refused as not a stiffcal archive (a gzip bomb)
+MAX_UNPACKED_BYTES = 2 * 1024**3
+MAX_MEMBERS = 100_000
+#: the largest SHA256SUMS read [bytes]
+MAX_SUMS_BYTES = 16 * 1024**2
+_CHUNK = 1 << 20
+
+
+def _gzip_problem(path: Path) -> str | None:
+    """Decompress the whole gzip stream once, discarding its bytes, to check its own CRC-32 and length (every
+    member); refuse (InputError) a stream that expands beyond :data:`MAX_UNPACKED_BYTES`. Returns the problem
+    ('damaged: ...') or None."""
+    import zlib
+
+    total = 0
+    try:
+        with gzip.open(path, "rb") as gz:
+            while block := gz.read(_CHUNK):
+                total += len(block)
+                if total > MAX_UNPACKED_BYTES:
+                    raise InputError(f"expands to more than {MAX_UNPACKED_BYTES // 1024**3} GiB when decompressed: not "
+                                     "a stiffcal archive (refused before reading further: the largest checked; "
+                                     "docs/contracts.md, 'Limits')", source=str(path))
+    except (OSError, EOFError, zlib.error) as err:
+        return f"damaged: the compressed stream fails gzip's own check ({err}); no file in it can be trusted"
+    return None
+
+
+def _read_sums(data: bytes) -> tuple[dict[str, str], str | None]:
+    """({name: sha256 hex digest}, problem) from the bytes of SHA256SUMS; a line that is not UTF-8 or not
+    ``<64 hex digits>  <name>`` makes the problem ('damaged: ...'), naming the line."""
+    import re
+
+    listed = {}
+    for k, line in enumerate(data.split(b"\n"), start=1):
+        if not line:
+            continue
+        try:
+            text = line.decode("utf-8")
+        except UnicodeDecodeError as err:
+            return listed, (f"damaged: {SUMS} line {k} is not UTF-8 text (byte 0x{line[err.start]:02x}); no file in "
+                            "the archive can be trusted")
+        digest, sep, name = text.partition("  ")
+        if not sep or not name or not re.fullmatch(r"[0-9a-f]{64}", digest):
+            return listed, (f"damaged: {SUMS} line {k} is not '<SHA-256>  <file>' ({short_repr(text, 60)}); no file in "
+                            "the archive can be trusted")
+        listed[name] = digest
+    return listed, None
+
+
 def verify_archive(path: str | Path) -> tuple[int, list[str]]:
     """Check every member against SHA256SUMS. Returns (files verified, problems): one line per changed,
     missing or unlisted file, or one line saying that the compressed stream itself is damaged (gzip's own
-    CRC-32 and length, checked over the whole stream first: a flipped byte or a damaged trailer). Raises
-    :class:`InputError` when the file cannot be read or is not a stiffcal archive."""
-    import zlib
+    CRC-32 and length, checked over the whole stream first: a flipped byte or a damaged trailer) or that
+    SHA256SUMS is unreadable. Raises :class:`InputError` when the file cannot be read (a FIFO, a device or a
+    directory is refused at once), is not a gzip stream, expands beyond :data:`MAX_UNPACKED_BYTES` or holds more
+    than :data:`MAX_MEMBERS` members (a gzip bomb), or is not a stiffcal archive. Members are read one at a time
+    and hashed in blocks: memory stays small whatever the archive holds."""
+    from .safeio import regular_file
 
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as err:
-        raise InputError(f"cannot read file ({err.strerror})", source=str(path)) from None
-    if raw[:2] != b"\x1f\x8b":
+    path = regular_file(path, expected="a results archive (.tar.gz)")
+    if read_bounded_head(path) != b"\x1f\x8b":
         raise InputError("not a readable .tar.gz archive (no gzip header)", source=str(path))
+    damaged = _gzip_problem(path)
+    if damaged:
+        return 0, [damaged]
+    digests, sums, odd = {}, None, []
     try:
-        tar_bytes = gzip.decompress(raw)
-    except (OSError, EOFError, zlib.error) as err:
-        return 0, [f"damaged: the compressed stream fails gzip's own check ({err}); no file in it can be trusted"]
-    try:
-        with tarfile.open(fileobj=io.BytesIO(tar_bytes), mode="r:") as tar:
-            data = {m.name.split("/", 1)[1]: tar.extractfile(m).read() for m in tar.getmembers()
-                    if m.isfile() and "/" in m.name}
+        with tarfile.open(path, mode="r|gz") as tar:
+            for count, m in enumerate(tar, start=1):
+                if count > MAX_MEMBERS:
+                    raise InputError(f"more than {MAX_MEMBERS:,} members: not a stiffcal archive (docs/contracts.md, "
+                                     "'Limits')", source=str(path))
+                if "/" not in m.name:
+                    continue
+                name = m.name.split("/", 1)[1]
+                if not m.isfile():
+                    if not m.isdir():
+                        odd.append(name)
+                    continue
+                fh = tar.extractfile(m)
+                if name == SUMS:
+                    if m.size > MAX_SUMS_BYTES:
+                        raise InputError(f"its {SUMS} has {m.size:,} bytes (at most {MAX_SUMS_BYTES:,}): not a "
+                                         "stiffcal archive", source=str(path))
+                    sums = fh.read()
+                    continue
+                h = hashlib.sha256()
+                while block := fh.read(_CHUNK):
+                    h.update(block)
+                digests[name] = h.hexdigest()
     except (OSError, tarfile.TarError, EOFError) as err:
         return 0, [f"damaged: the tar stream inside cannot be read ({err}); no file in it can be trusted"]
-    if SUMS not in data:
+    if sums is None:
         raise InputError(f"no {SUMS} in the archive: not a stiffcal archive", source=str(path))
-    listed = {}
-    for line in data[SUMS].decode().splitlines():
-        digest, _, name = line.partition("  ")
-        listed[name] = digest
+    listed, bad_sums = _read_sums(sums)
+    if bad_sums:
+        return 0, [bad_sums]
     problems = []
     for name, digest in sorted(listed.items()):
-        if name not in data:
-            problems.append(f"missing: {name}")
-        elif _sha256(data[name]) != digest:
+        if name not in digests:
+            problems.append(f"missing: {name}" + (" (not a regular file in the archive)" if name in odd else ""))
+        elif digests[name] != digest:
             problems.append(f"changed: {name}")
-    problems += [f"not listed in {SUMS}: {name}" for name in sorted(set(data) - set(listed) - {SUMS})]
+    problems += [f"not listed in {SUMS}: {name}" for name in sorted(set(digests) - set(listed))]
+    problems += [f"not a regular file (a link or a device) in the archive: {name}"
+                 for name in sorted(set(odd) - set(listed))]
     return len(listed) - sum(p.startswith(("missing", "changed")) for p in problems), problems
+
+
+def read_bounded_head(path: Path, size: int = 2) -> bytes:
+    """The first ``size`` bytes of a regular file (opened without blocking); InputError if it cannot be read."""
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+        with os.fdopen(fd, "rb") as fh:
+            return fh.read(size)
+    except OSError as err:
+        raise InputError(f"cannot read file ({err.strerror})", source=str(path)) from None

@@ -23,6 +23,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # b
 
 from . import __version__  # noqa: E402
 from .errors import MAX_MESSAGE, InputError  # noqa: E402
+from .progress import write  # noqa: E402
 
 #: a value that starts with '-' but is a number or a comma-separated list of numbers
 _NEGATIVE_VALUE = re.compile(r"^-(\d|\.\d|inf|nan)", re.IGNORECASE)
@@ -76,7 +77,7 @@ def discrepancy(args) -> dict:
                              moment_resolution_Nm=args.moment_resolution_Nm, sigma_m=args.sigma_m,
                              sigma_rad=args.sigma_rad)
     for note in v["notes"]:
-        print(f"stiffcal discrepancy: note: {note}", file=sys.stderr)
+        write(f"stiffcal discrepancy: note: {note}")
     return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
         "verdict": f"{args.out}/verdict.json"}
 
@@ -92,7 +93,7 @@ def discriminate(args) -> dict:
                               angle_resolution_deg=args.angle_resolution_deg,
                               force_resolution_N=args.force_resolution_N, seed=args.seed)
     for note in out["notes"]:
-        print(f"stiffcal discriminate: note: {note}", file=sys.stderr)
+        write(f"stiffcal discriminate: note: {note}")
     plan, comp = out["plan"] or {}, out["compound"] or {}
     cert = plan.get("certificate") or {}
     return {"truth": out["models"][0]["causes"], "rivals": [m["causes"] for m in out["models"][1:]],
@@ -111,8 +112,17 @@ def verify_archive(args) -> dict:
 
     ok, problems = verify(args.file)
     for p in problems:
-        print(f"stiffcal verify-archive: {args.file}: {p}", file=sys.stderr)
+        write(f"stiffcal verify-archive: {args.file}: {p}")
     return {"archive": args.file, "verified_files": ok, "problems": problems, "ok": not problems}
+
+
+def _with_progress(args):
+    """``args.func(args)``, with a progress line every few seconds on stderr while it runs (a bar on a terminal;
+    :mod:`stiffcal.progress`) unless ``--quiet``; a step that reports its own progress (design) silences it."""
+    from .progress import Progress
+
+    with Progress(args.command, enabled=False if getattr(args, "quiet", False) else None):
+        return args.func(args)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -143,7 +153,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--orientation-length-m", default=0.0,
                    help="length scale L [m] that adds the tool's rotation to the test pose's error (default 0)")
     d.add_argument("--seed", type=int, default=0, help="seed of the random starts of M-pose plans (default 0)")
-    d.add_argument("--quiet", action="store_true", help="no progress bar on stderr (none is shown off a terminal)")
+    d.add_argument("--quiet", action="store_true", help="no progress on stderr (a bar on a terminal, else a line "
+                                                        "every few seconds with an estimate)")
     d.set_defaults(func=design)
     x = sub.add_parser("discrepancy",
                        help="what the stiffness model gets wrong in measured data (writes DIR/verdict.json)")
@@ -163,6 +174,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="moments within this (per component) are one load (default 0.05)")
     x.add_argument("--sigma-m", default=None, help="position noise [m] (with --sigma-rad: weights the rotation rows)")
     x.add_argument("--sigma-rad", default=None, help="rotation noise [rad] (default: the ratio is estimated)")
+    x.add_argument("--quiet", action="store_true", help="no progress on stderr")
     x.set_defaults(func=discrepancy)
     t = sub.add_parser("discriminate", help="the next experiment that tells rival causes apart (writes DIR/plan.json)")
     t.add_argument("--robot", required=True, help="robot YAML file")
@@ -182,20 +194,32 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--angle-resolution-deg", default=None, help="encoder resolution (default 0.01)")
     t.add_argument("--force-resolution-N", default=None, help="load-cell resolution (default 0.5)")
     t.add_argument("--seed", type=int, default=0, help="seed of the random starts of the exchange (default 0)")
+    t.add_argument("--quiet", action="store_true", help="no progress on stderr")
     t.set_defaults(func=discriminate)
     v = sub.add_parser("verify-archive",
                        help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
     v.add_argument("file", help="results/archive/stiffcal-<commit>.tar.gz")
+    v.add_argument("--quiet", action="store_true", help="no progress on stderr")
     v.set_defaults(func=verify_archive)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
+    command_line = argv is None  # the installed command (not a call from Python: a test, a notebook)
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(join_negative_values(argv, parser))
     try:
-        out = args.func(args)
+        if command_line:
+            from .limits import cap_memory
+
+            cap_memory()  # a hard cap per command (docs/contracts.md, 'Limits'); an allocation past it is one line
+        out = _with_progress(args)
+    except MemoryError:
+        from .limits import memory_message
+
+        print(f"stiffcal {args.command}: error: {memory_message()}", file=sys.stderr)
+        return 2
     except InputError as err:
         if err.source is None:  # an argument of the API: name it as the option it came from
             err = err.renamed(_option_name(err.field))

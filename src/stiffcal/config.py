@@ -109,6 +109,36 @@ def _fill(doc, schema: dict) -> None:
 
 
 
+def _check_load_ranges(config: dict, source: str) -> None:
+    """Every load of the config within the physical range (:func:`stiffcal.api.check_load`)."""
+    from .api import check_load
+
+    entries = [("study", config["study"])] + [(f"studies[{i}]", e) for i, e in enumerate(config.get("studies") or [])]
+    entries += [(f"measured_data[{i}]", e) for i, e in enumerate(config.get("measured_data") or [])]
+    for where, entry in entries:
+        if entry.get("force_N") is not None:
+            try:
+                check_load(np.asarray(entry["force_N"], float), np.asarray(entry.get("moment_Nm") or [], float),
+                           f"{where}.force_N", f"{where}.moment_Nm")
+            except InputError as err:
+                raise err.renamed(source=source) from None
+
+
+def _check_lab_loads(entry: dict, robot, source: str, where: str) -> None:
+    """The load set a data set's next experiment may use (``discriminate.loads``), parsed and bounded as the job
+    will parse it (:func:`stiffcal.discrimination.load_set`); the loads of the data need no check."""
+    spec = (entry.get("discriminate") or {}).get("loads")
+    if spec is None or spec.strip().partition(":")[0] == "data":
+        return
+    from .discrimination import load_set
+    from .measurements import FORCE_RESOLUTION_N
+
+    try:
+        load_set(spec, robot.task_dim, None, entry.get("force_resolution_N", FORCE_RESOLUTION_N))
+    except InputError as err:
+        raise err.renamed(f"{where}.discriminate.loads", source) from None
+
+
 def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) -> None:
     """Check a workflow config completely (module docstring); raise :class:`InputError` naming ``source`` and
     the field."""
@@ -119,6 +149,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
     from .validation import validate
 
     validate(config, "config", source)
+    _check_load_ranges(config, source)
     study = study_from_config(config, root, source)
     robot = study.robot
     if robot.n_joints != 2 or study.problem("ot").min_poses != 1:
@@ -141,10 +172,14 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
         data_robot = load_robot(Path(root) / entry["robot"])
         data = Path(root) / entry["data"]
         if not data.is_file():
+            from .safeio import regular_file  # a FIFO, a device or a directory is named as such
+
+            regular_file(data, source=source, field=f"{where}.data")
             raise InputError(f"no such file: {entry['data']}", source=source, field=f"{where}.data")
         from .measurements import read_measurements
 
         read_measurements(data, data_robot)  # the data themselves (the message names the CSV, row and column)
+        _check_lab_loads(entry, data_robot, source, where)
         force = entry.get("force_N", config["study"]["force_N"])
         moment = entry.get("moment_Nm", config["study"].get("moment_Nm"))
         field = f"{where}.force_N" if "force_N" in entry else "study.force_N"

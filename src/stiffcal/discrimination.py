@@ -78,6 +78,7 @@ from scipy import optimize, stats
 from . import discrepancy as D
 from .design import grid_size, is_sampled, joint_grids, sample_joint_space, sampled_minimise
 from .errors import InputError
+from .limits import MAX_FORCE_N, MAX_LOADS
 from .measurements import Measurements
 from .robot import Robot
 from .truth import Truth, _gravity, physics
@@ -186,8 +187,10 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
       when the data have moments, merged within ``resolution_N`` and ``moment_resolution_Nm``): a loading bar's
       moments stay with their forces.
 
-    Raises :class:`InputError` naming ``field_name`` for anything else, a magnitude that is not > 0, or a
-    zero force."""
+    Raises :class:`InputError` naming ``field_name`` for anything else, more than
+    :data:`~stiffcal.limits.MAX_LOADS` loads, or a load outside the physical range: below ``resolution_N`` (the
+    load-cell resolution: such a load cannot be told from no load) or above :data:`~stiffcal.limits.MAX_FORCE_N`
+    (:func:`check_lab_loads`)."""
     text = "data" if spec is None else spec.strip()
     kind, _, rest = text.partition(":")
     if kind == "data":
@@ -206,6 +209,7 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
         mags = _numbers(rest, "the hanging weights [N]", field_name)
         if np.any(mags <= 0):
             raise InputError(f"expected weights > 0 N, got {rest!r}", field=field_name)
+        check_lab_loads(mags, len(mags), resolution_N, field_name, "weight")
         forces = mags[:, None] * _gravity(d)
     elif kind == "directions":
         count, _, mtext = rest.partition(":")
@@ -218,6 +222,7 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
         mags = _numbers(mtext, "the push magnitudes [N]", field_name)
         if np.any(mags <= 0):
             raise InputError(f"expected magnitudes > 0 N, got {mtext!r}", field=field_name)
+        check_lab_loads(mags, k * len(mags), resolution_N, field_name, "magnitude")
         if d == 2:
             ang = 2 * np.pi * np.arange(k) / k
             u = np.stack([np.cos(ang), np.sin(ang)], -1)
@@ -228,13 +233,35 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
         rows = [_numbers(r, "a force [N]", field_name) for r in rest.split(";") if r.strip()]
         if not rows or any(len(r) != d for r in rows):
             raise InputError(f"expected forces of {d} components separated by ';', got {rest!r}", field=field_name)
+        if len(rows) > MAX_LOADS:
+            check_lab_loads(np.ones(1), len(rows), resolution_N, field_name, "force")
         forces = np.array(rows)
-        if np.any(np.linalg.norm(forces, axis=1) == 0):
+        if np.any(np.all(forces == 0, axis=1)):
             raise InputError(f"expected nonzero forces, got {rest!r}", field=field_name)
+        big = np.abs(forces).max(axis=1)
+        check_lab_loads(np.where(big > MAX_FORCE_N, big, np.hypot.reduce(forces, axis=1)), len(rows), resolution_N,
+                        field_name, "force")
     else:
         raise InputError(f"expected 'hanging:M1,M2', 'directions:K:M1,M2', 'forces:FX,FY;...' or 'data', got {text!r}",
                          field=field_name)
     return LoadSet(np.asarray(forces, float), kind, text, d)
+
+
+def check_lab_loads(magnitudes: np.ndarray, count: int, resolution_N: float, field_name: str, what: str) -> None:
+    """The loads of a load set within the bounds of :mod:`stiffcal.limits`: at most
+    :data:`~stiffcal.limits.MAX_LOADS` of them (``count``: directions times magnitudes), each magnitude [N] at
+    least the load-cell resolution ``resolution_N`` and at most :data:`~stiffcal.limits.MAX_FORCE_N`."""
+    if count > MAX_LOADS:
+        raise InputError(f"{count} loads: expected at most {MAX_LOADS} (each load is a candidate at every pose of the "
+                         "pool; docs/contracts.md, 'Limits')", field=field_name)
+    low, high = float(np.min(magnitudes)), float(np.max(magnitudes))
+    if high > MAX_FORCE_N:
+        raise InputError(f"expected each {what} at most {MAX_FORCE_N:g} N (the physical range of loads), got {high:g}",
+                         field=field_name)
+    if low < resolution_N:
+        raise InputError(f"expected each {what} at least the load-cell resolution {resolution_N:g} N "
+                         f"(--force-resolution-N): a smaller load cannot be told from no load, got {low:g}",
+                         field=field_name)
 
 
 # --- candidate pool ---------------------------------------------------------------------------------------

@@ -530,22 +530,26 @@ def effective_config(config: dict, out: str) -> None:
                       f"provenance.json)\n{text}")
 
 
-def archive(config: dict, started: str, out_tgz: str, files: list[str]) -> None:
+def archive(config: dict, started: str, out_tgz: str, files: list[str], config_source: str | None = None) -> None:
     """results/archive/stiffcal-<commit>.tar.gz: the files of this config's run (``files``: its outputs, the
     logs of their jobs, the report, the effective config) and every file the config refers to
     (:func:`stiffcal.archive.config_files`), with provenance.json and SHA256SUMS (``stiffcal verify-archive``
-    checks it)."""
+    checks it). provenance.json names every input git does not vouch for (``config_source``, the config file the
+    run read, and the files the config names; :func:`stiffcal.archive.input_status`)."""
     import datetime
 
     from . import archive as arc
     from . import report
 
-    members = sorted({*map(Path, files), *arc.config_files(config, ".")}, key=lambda p: p.as_posix())
+    inputs = arc.config_files(config, ".")
+    members = sorted({*map(Path, files), *inputs}, key=lambda p: p.as_posix())
     ended = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
-    prov = arc.provenance(report.config_hash(config), started, ended)
+    prov = arc.provenance(report.config_hash(config), started, ended, ".",
+                          [*inputs, *([config_source] if config_source else [])])
     arc.write_archive(out_tgz, members, prov)
     _log(f"{out_tgz}: {len(members)} files + provenance.json + SHA256SUMS (commit {prov['commit'][:12]}, "
-         f"dirty: {prov['dirty']})")
+         f"dirty: {prov['dirty']}; untracked inputs: {', '.join(prov['untracked_inputs']) or 'none'}; modified "
+         f"inputs: {', '.join(prov['modified_inputs']) or 'none'})")
 
 
 def cpu_line(rule: str, wildcards: dict, before_step: float) -> str:
@@ -574,6 +578,9 @@ def run(snakemake, step, *args) -> None:
 
     import os
 
+    from .limits import cap_memory, memory_message
+    from .progress import Progress
+
     before_step = time.process_time()
     integrity.watch_parent()
     log = Path(snakemake.log[0]) if snakemake.log else None
@@ -582,9 +589,15 @@ def run(snakemake, step, *args) -> None:
     with open(log, "w", encoding="utf-8") if log else contextlib.nullcontext(sys.stdout) as fh:
         with contextlib.redirect_stdout(fh):
             try:
+                cap_memory()  # the hard cap per job (docs/contracts.md, 'Limits')
                 integrity.verify([str(p) for p in snakemake.input])
-                step(*args)
+                with Progress(f"rule {snakemake.rule}", stream=fh):  # a line every few seconds in the log
+                    step(*args)
                 integrity.record([str(p) for p in snakemake.output], snakemake.rule)
+            except MemoryError:
+                print(f"stiffcal: error: {memory_message()}", file=fh)
+                print(f"stiffcal: error: rule {snakemake.rule}: {memory_message()}", file=sys.stderr)
+                sys.exit(1)
             except InputError as err:
                 print(f"stiffcal: error: {err}", file=fh)
                 print(f"stiffcal: error: {err}", file=sys.stderr)

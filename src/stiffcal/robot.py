@@ -36,7 +36,11 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, short_repr
+from .limits import MAX_JOINTS, MIN_LINK_M
 from .validation import read_yaml, validate
+
+#: the smallest joint compliance accepted [rad/(N m)]
+MIN_COMPLIANCE = 1e-12
 
 
 def planar_fk(links: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -529,9 +533,21 @@ def chain_robot(chain: Chain, tool_m, joint_limits_rad, joint_names, name: str =
 
 
 def _with_geometry(robot: Robot, advice: str) -> Robot:
-    """A spatial robot with its drawn link lengths and inert joints filled in; refused if no joint moves the
-    measured point."""
+    """A spatial robot with its drawn link lengths and inert joints filled in; refused if it has more than
+    :data:`~stiffcal.limits.MAX_JOINTS` joints, if its lengths are below the physical range (the measured point
+    within :data:`~stiffcal.limits.MIN_LINK_M` of the base whatever the pose), or if no joint moves the measured
+    point."""
     n = robot.n_joints
+    field_ = "dh" if robot.kind == "spatial" else "urdf"
+    if n > MAX_JOINTS:
+        raise InputError(f"{n} joints: expected at most {MAX_JOINTS} (docs/contracts.md, 'Limits')",
+                         source=robot.source, field=field_)
+    if robot.reach_m < MIN_LINK_M:
+        what = ("the dh table's a_m and d_m and tool_m" if robot.kind == "spatial"
+                else "the URDF's joint origins and tool_m")
+        raise InputError(f"the arm's lengths add up to {robot.reach_m:g} m: expected at least {MIN_LINK_M:g} m (the "
+                         f"physical range of lengths; docs/contracts.md, 'Limits'); check {what}", source=robot.source,
+                         field=field_)
     links = np.linalg.norm(np.diff(robot.link_points(np.zeros(n)), axis=0), axis=-1)
     inert = inert_joints(robot)
     if len(inert) == n:
@@ -594,7 +610,13 @@ def load_robot(path: str | Path) -> Robot:
     doc = read_yaml(path)
     if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
         raise InputError("missing required field 'kind' (planar, spatial or urdf)", source=src, field="kind")
+    for key in ("links_m", "dh", "joints"):  # before the schema: its message would not say why
+        if isinstance(doc, dict) and isinstance(doc.get(key), list) and len(doc[key]) > MAX_JOINTS:
+            raise InputError(f"{len(doc[key])} joints: expected at most {MAX_JOINTS} (every industrial arm has at most "
+                             "7; the design's searches grow exponentially with the joints; docs/contracts.md, "
+                             "'Limits')", source=src, field=key)
     validate(doc, "robot", src)
+    check_ranges(doc, src)
     for key, kinds in FIELD_KINDS.items():
         if key in doc and doc["kind"] not in kinds:
             raise InputError(f"'{key}' belongs to a {' or '.join(kinds)} robot, but this file says kind: "
@@ -687,6 +709,21 @@ def with_masses(robot: Robot, doc: dict, src: str, urdf_masses: MassModel | None
     model = MassModel(kg[keep], np.asarray(link, int)[keep], np.asarray(com, float).reshape(-1, 3)[keep],
                       as_xyz(np.asarray(g, float)))
     return replace(robot, masses=model)
+
+
+def check_ranges(doc: dict, src: str) -> None:
+    """The physical ranges the schema cannot say (:mod:`stiffcal.limits`): planar links at least
+    :data:`~stiffcal.limits.MIN_LINK_M` long, compliances at least :data:`MIN_COMPLIANCE`; InputError naming the
+    field."""
+    for i, v in enumerate(doc.get("links_m") or []):
+        if v < MIN_LINK_M:
+            raise InputError(f"expected a link length of at least {MIN_LINK_M:g} m (the physical range of lengths; "
+                             f"docs/contracts.md, 'Limits'), got {v:g}", source=src, field=f"links_m[{i}]")
+    for i, v in enumerate(doc.get("compliances_rad_per_Nm") or []):
+        if v < MIN_COMPLIANCE:
+            raise InputError(f"expected a compliance of at least {MIN_COMPLIANCE:g} rad/(N m) (the physical range: "
+                             f"a stiffer joint does not deflect measurably), got {v:g}", source=src,
+                             field=f"compliances_rad_per_Nm[{i}]")
 
 
 def robot_inputs(path: str | Path) -> list[str]:

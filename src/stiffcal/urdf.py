@@ -21,6 +21,7 @@ cannot be in the chain (stiffcal's model is one compliance per revolute joint).
 
 from __future__ import annotations
 
+import math
 import os
 import tempfile
 from dataclasses import dataclass
@@ -29,10 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError
+from .limits import MAX_JOINTS, MAX_URDF_BYTES
 from .robot import GRAVITY_M_S2, MAX_JOINT_ANGLE_DEG, Chain, MassModel, rotation_about
 
-#: largest URDF file read [bytes] (meshes are referenced, not embedded: real URDFs are far smaller)
-MAX_URDF_BYTES = 10_000_000
 #: Pinocchio joint types (``JointModel.shortname()``) of revolute joints with limits, and of continuous ones
 REVOLUTE = ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelRevoluteUnaligned")
 CONTINUOUS = ("JointModelRUBX", "JointModelRUBY", "JointModelRUBZ", "JointModelRevoluteUnboundedUnaligned")
@@ -68,31 +68,152 @@ def _listing(names, near: str | None = None) -> str:
     return ", ".join(names[:_MAX_LISTED]) + more
 
 
-def _check_text(path: Path, source: str) -> str:
-    """The URDF's text, refused (naming the robot file's field ``urdf``) when missing, too large, not UTF-8,
-    not well-formed XML, with entity declarations, or not a ``<robot>``."""
-    import xml.etree.ElementTree as ET
+#: XML namespaces of xacro (ROS's XML macro language), whose files must be expanded into a URDF first
+XACRO_NAMESPACES = ("http://www.ros.org/wiki/xacro", "http://ros.org/wiki/xacro", "http://wiki.ros.org/xacro")
+
+
+def _check_text(path: Path, source: str):
+    """The URDF's parsed XML (its root element), refused (naming the robot file's field ``urdf``) when missing,
+    not a regular file (a directory, a FIFO, a device), too large, not UTF-8, a xacro file, not well-formed XML,
+    with a DOCTYPE or entity declarations (parsed with ``defusedxml``, so a comment that mentions them is fine),
+    not a ``<robot>``, or when its links and joints (:func:`_check_elements`) are out of range."""
+    import defusedxml.ElementTree as DET
+    from defusedxml import DefusedXmlException
+
+    from .safeio import file_kind
 
     def bad(msg):
         return InputError(f"{msg} (the URDF {path})", source=source, field="urdf")
 
-    if not path.is_file():
-        raise bad("no such file")
-    if path.stat().st_size > MAX_URDF_BYTES:
-        raise bad(f"larger than {MAX_URDF_BYTES // 1_000_000} MB")
     try:
-        text = path.read_text(encoding="utf-8")
+        st = path.stat()
+    except OSError:
+        raise bad("no such file") from None
+    kind = file_kind(st.st_mode)
+    if kind:
+        raise bad(f"expected a URDF file, but it is {kind}: refused without reading it")
+    if st.st_size > MAX_URDF_BYTES:
+        raise bad(f"larger than {MAX_URDF_BYTES // 1_000_000} MB (the largest URDF read; docs/contracts.md, 'Limits')")
+    from .safeio import read_bounded
+
+    raw = read_bounded(path, MAX_URDF_BYTES, source=source, field="urdf", what="URDF")
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as err:
         raise bad(f"not UTF-8 text ({err.reason} at byte {err.start})") from None
-    if "<!ENTITY" in text or "<!DOCTYPE" in text:
-        raise bad("XML entity or DOCTYPE declarations are not allowed")
+    xacro = bad("a xacro file (ROS's XML macros and ${...} expressions), not a URDF: expand it first, e.g. 'xacro "
+                "FILE.urdf.xacro > FILE.urdf' (ROS's xacro package), and name the .urdf")
+    if "xacro" in path.name.lower().split(".")[1:]:
+        raise xacro
     try:
-        root = ET.fromstring(text)
-    except ET.ParseError as err:
+        root = DET.fromstring(text, forbid_dtd=True, forbid_entities=True, forbid_external=True)
+    except DefusedXmlException:
+        raise bad("XML entity or DOCTYPE declarations are not allowed") from None
+    except DET.ParseError as err:
+        if "<xacro:" in text:  # macros without their namespace declared
+            raise xacro from None
         raise bad(f"not well-formed XML: {err}") from None
+    if any(str(e.tag).startswith(tuple("{" + ns + "}" for ns in XACRO_NAMESPACES)) for e in root.iter()) or any(
+            "${" in v or "$(" in v for e in root.iter() for v in e.attrib.values()):
+        raise xacro  # an expanded file keeps the namespace declaration (harmless), never its elements
     if root.tag != "robot":
-        raise bad(f"expected the root element <robot>, got <{root.tag}>")
-    return text
+        raise bad(f"expected the root element <robot>, got <{str(root.tag)[:80]}>")
+    _check_elements(root, bad)
+    return root
+
+
+def _numbers(element, attribute: str, default: str, what: str, bad) -> np.ndarray:
+    """The 3 finite numbers of ``element``'s ``attribute`` (``default`` when the element or attribute is
+    absent), or InputError from ``bad``."""
+    text = default if element is None else element.get(attribute, default)
+    try:
+        vals = np.array([float(v) for v in text.split()], float)
+    except ValueError:
+        vals = np.zeros(0)
+    if vals.size != 3 or not np.all(np.isfinite(vals)):
+        raise bad(f"{what}: expected 3 finite numbers, got {text[:80]!r}")
+    return vals
+
+
+def _check_tree(links, joints, bad) -> None:
+    """The joints join declared links into a tree: every joint's parent and child are ``<link>`` s, no link is
+    the child of two joints, and following parents never comes back to a link (no loop). Linear in the size."""
+    names = {e.get("name") for e in links}
+    parent_of = {}
+    for j in joints:
+        name = j.get("name")[:80]
+        ends = {}
+        for end in ("parent", "child"):
+            e = j.find(end)
+            ends[end] = None if e is None else e.get("link")
+            if ends[end] not in names:
+                given = "none" if ends[end] is None else repr(str(ends[end])[:80])
+                raise bad(f"joint {name!r}: <{end} link> {given}: expected one of the URDF's links")
+        child = ends["child"]
+        if child in parent_of:
+            raise bad(f"link {child[:80]!r} is the child of two joints, {parent_of[child][0]!r} and {name!r}: expected "
+                      "a tree (each link hangs from one joint)")
+        parent_of[child] = (name, ends["parent"])
+    reaches_root = set()
+    for start in parent_of:
+        path, link = set(), start
+        while link in parent_of and link not in reaches_root:
+            if link in path:
+                raise bad(f"the joints form a loop through link {link[:80]!r} (joint {parent_of[link][0]!r}): "
+                          "expected a tree from one root link")
+            path.add(link)
+            link = parent_of[link][1]
+        reaches_root |= path
+
+
+def _check_elements(root, bad) -> None:
+    """The URDF's links and joints before Pinocchio reads them (:mod:`stiffcal.limits`): at most
+    :data:`~stiffcal.limits.MAX_URDF_ELEMENTS` of them, names present and unique, every joint's origin within
+    +-:data:`~stiffcal.limits.MAX_LENGTH_M` m and +-:data:`~stiffcal.limits.MAX_RPY_RAD` rad, every axis of a
+    joint that moves a direction (not the zero vector), every limit a finite number."""
+    from .limits import MAX_AXIS_NORM, MAX_LENGTH_M, MAX_RPY_RAD, MAX_URDF_ELEMENTS, MIN_AXIS_NORM
+
+    links, joints = root.findall("link"), root.findall("joint")
+    if len(links) + len(joints) > MAX_URDF_ELEMENTS:
+        raise bad(f"{len(links)} links and {len(joints)} joints: expected at most {MAX_URDF_ELEMENTS} in all (the "
+                  "largest URDF read; docs/contracts.md, 'Limits')")
+    for tag, elements in (("link", links), ("joint", joints)):
+        seen = set()
+        for e in elements:
+            name = e.get("name")
+            if not name or not name.strip():
+                raise bad(f"a <{tag}> without a name")
+            if name in seen:
+                raise bad(f"two {tag}s named {name[:80]!r}: expected unique {tag} names")
+            seen.add(name)
+    _check_tree(links, joints, bad)
+    for j in joints:
+        name = j.get("name")[:80]
+        origin = j.find("origin")
+        xyz = _numbers(origin, "xyz", "0 0 0", f"joint {name!r}: <origin xyz>", bad)
+        if np.abs(xyz).max() > MAX_LENGTH_M:
+            raise bad(f"joint {name!r}: <origin xyz> {np.abs(xyz).max():g} m: expected coordinates of at most "
+                      f"{MAX_LENGTH_M:g} m (the physical range of lengths)")
+        rpy = _numbers(origin, "rpy", "0 0 0", f"joint {name!r}: <origin rpy>", bad)
+        if np.abs(rpy).max() > MAX_RPY_RAD:
+            raise bad(f"joint {name!r}: <origin rpy> {np.abs(rpy).max():g} rad: expected angles of at most "
+                      f"{MAX_RPY_RAD:g} rad")
+        if j.get("type") in ("revolute", "continuous", "prismatic"):
+            axis = _numbers(j.find("axis"), "xyz", "1 0 0", f"joint {name!r}: <axis xyz>", bad)
+            norm = math.hypot(*axis)  # no overflow for large components
+            if not MIN_AXIS_NORM <= norm <= MAX_AXIS_NORM:
+                raise bad(f"joint {name!r}: <axis xyz> {' '.join(f'{v:g}' for v in axis)}: expected a direction "
+                          f"(a vector of length between {MIN_AXIS_NORM:g} and {MAX_AXIS_NORM:g}, such as '0 0 1')"
+                          + (", not the zero vector" if norm == 0 else ""))
+        limit = j.find("limit")
+        if limit is not None:
+            for key in ("lower", "upper"):
+                try:
+                    ok = key not in limit.attrib or np.isfinite(float(limit.get(key)))
+                except ValueError:
+                    ok = False
+                if not ok:
+                    raise bad(f"joint {name!r}: <limit {key}> {limit.get(key)[:40]!r}: expected a finite number [rad]")
 
 
 def _build_model(path: Path, source: str):
@@ -119,6 +240,17 @@ def _build_model(path: Path, source: str):
     return model
 
 
+def _joint_axis(model, j: int, neutral: np.ndarray) -> np.ndarray:
+    """The unit axis (3,) of the revolute or continuous joint ``j`` of a Pinocchio model in its own frame: the
+    angular part of its motion subspace at its neutral angle, from the joint's own data (no Data of the whole
+    model is made: its matrices grow with the square of the URDF's joints)."""
+    joint = model.joints[j]
+    data = joint.createData()
+    joint.calc(data, neutral[model.idx_qs[j]:model.idx_qs[j] + joint.nq])
+    axis = np.asarray(data.S.matrix() if hasattr(data.S, "matrix") else data.S, float).reshape(6, -1)[3:, 0]
+    return axis / np.linalg.norm(axis)
+
+
 def _frame(model, name: str, source: str, field: str) -> int:
     """Index of the frame called ``name`` (a link's body frame first, else a joint's or another frame)."""
     found = [i for i, f in enumerate(model.frames) if f.name == name]
@@ -139,10 +271,8 @@ def _ancestors(model, joint: int) -> list[int]:
     return out[::-1]
 
 
-def _mimic_joints(text: str) -> set[str]:
-    import xml.etree.ElementTree as ET
-
-    return {j.get("name") for j in ET.fromstring(text).iter("joint") if j.find("mimic") is not None}
+def _mimic_joints(root) -> set[str]:
+    return {j.get("name") for j in root.iter("joint") if j.find("mimic") is not None}
 
 
 def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=None, fixed_joints_deg=None,
@@ -156,10 +286,8 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
     ``source`` (the robot file) and its field: a URDF that cannot be read, an unknown frame, a base that is
     not on the tip's path, a prismatic, floating or mimic joint in the chain, a joint name that is not in the
     chain or out of order, a held angle outside its joint's limits, limits wider than
-    :data:`~stiffcal.robot.MAX_JOINT_ANGLE_DEG`.
+    :data:`~stiffcal.robot.MAX_JOINT_ANGLE_DEG`, more than :data:`~stiffcal.limits.MAX_JOINTS` moving joints.
     """
-    import pinocchio as pin
-
     path = Path(urdf_path)
     mimic = _mimic_joints(_check_text(path, source))
     model = _build_model(path, source)
@@ -175,9 +303,9 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
     if not path_joints:
         raise InputError(f"no joint moves {tip_frame!r} relative to {base_frame!r}", source=source, field="tip_frame")
 
-    data = model.createData()
-    pin.computeJointJacobians(model, data, pin.neutral(model))
-    axes, limits = {}, {}
+    import pinocchio as pin
+
+    axes, limits, neutral = {}, {}, pin.neutral(model)
     for j, name in zip(path_joints, names):
         kind = model.joints[j].shortname()
         if name in mimic:
@@ -187,8 +315,7 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
             raise InputError(f"joint {name!r} of the chain from {base_frame!r} to {tip_frame!r} is not revolute or "
                              f"continuous (Pinocchio: {kind}); stiffcal models one compliance per revolute joint",
                              source=source, field="urdf")
-        axis = pin.getJointJacobian(model, data, j, pin.ReferenceFrame.LOCAL)[3:, model.idx_vs[j]]
-        axes[name] = axis / np.linalg.norm(axis)
+        axes[name] = _joint_axis(model, j, neutral)
         if kind in REVOLUTE:
             lo, hi = model.lowerPositionLimit[model.idx_qs[j]], model.upperPositionLimit[model.idx_qs[j]]
             if not lo < hi:
@@ -200,6 +327,11 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
             limits[name] = (lo, hi)
 
     moving = _moving(names, joints, source)
+    if len(moving) > MAX_JOINTS:
+        raise InputError(f"{len(moving)} joints move between {base_frame!r} and {tip_frame!r}: expected at most "
+                         f"{MAX_JOINTS} (the design's searches grow exponentially with the joints; docs/contracts.md, "
+                         "'Limits'); name the joints that move in 'joints' and hold the others with "
+                         "'fixed_joints_deg'", source=source, field="joints" if joints is not None else "tip_frame")
     held = _held(names, moving, limits, fixed_joints_deg, source)
     C = model.frames[b].placement.inverse().homogeneous
     placements, chain_axes = [], []
@@ -239,10 +371,18 @@ def chain_masses(model, moving: list[int], held: dict[int, float]) -> MassModel 
             q0[jm.idx_q] = angle
         else:  # a continuous joint: (cos, sin)
             q0[jm.idx_q:jm.idx_q + 2] = [np.cos(angle), np.sin(angle)]
-    data = model.createData()
-    pin.forwardKinematics(model, data, q0)
     index = {j: i for i, j in enumerate(moving)}
     kg, link, com = [], [], []
+    placed: dict[int, object] = {0: pin.SE3.Identity()}
+
+    def placement(j):  # joint j's frame at q0 in the model's root frame, joint by joint (no Data of the whole
+        if j not in placed:  # model: its matrices grow with the square of the URDF's joints)
+            joint = model.joints[j]
+            jd = joint.createData()
+            joint.calc(jd, q0[joint.idx_q:joint.idx_q + joint.nq])
+            placed[j] = placement(model.parents[j]) * model.jointPlacements[j] * jd.M
+        return placed[j]
+
     for b in range(1, model.njoints):
         mass = float(model.inertias[b].mass)
         if not mass > 0:
@@ -252,10 +392,10 @@ def chain_masses(model, moving: list[int], held: dict[int, float]) -> MassModel 
             a = model.parents[a]
         if a == 0:
             continue
-        centre = data.oMi[b].act(model.inertias[b].lever)
+        centre = placement(b).act(model.inertias[b].lever)
         kg.append(mass)
         link.append(index[a])
-        com.append(data.oMi[a].actInv(centre))
+        com.append(placement(a).actInv(centre))
     if not kg:
         return None
     return MassModel(np.array(kg), np.array(link, int), np.array(com, float), np.array(GRAVITY_M_S2[3]))

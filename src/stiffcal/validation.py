@@ -3,7 +3,8 @@ one clear, bounded message per error naming the file and the field.
 
 :func:`read_yaml` reads text that people write by hand, and possibly hostile text, safely:
 
-* the file must be UTF-8 and at most :data:`MAX_BYTES` long;
+* the file must be a regular file (a FIFO, a device or a directory is refused without reading it), UTF-8 and
+  at most :data:`MAX_BYTES` long;
 * the YAML is parsed with PyYAML's safe loader, changed to read scalars as YAML 1.2 (core schema) does:
   ``1e-6`` and ``.5`` are numbers (YAML 1.1 reads ``1e-6`` as a string), ``010`` is ten, ``yes``/``no``
   are strings, ``1:30`` is a string;
@@ -124,14 +125,16 @@ def check_finite(document: Any, source: str, path: tuple = ()) -> None:
 
 def read_yaml(path: str | Path) -> Any:
     """Parse a YAML file safely (module docstring); every problem is an :class:`InputError` naming the file."""
+    from .safeio import file_kind, read_bounded
+
     path = Path(path)
     try:
-        size = path.stat().st_size
-        if size > MAX_BYTES:
-            raise InputError(f"expected a YAML file of at most {MAX_BYTES:,} bytes, got {size:,}", source=str(path))
-        raw = path.read_bytes()
+        kind = file_kind(path.stat().st_mode)
     except OSError as err:
         raise InputError(f"cannot read file ({err.strerror})", source=str(path)) from None
+    if kind:  # a FIFO would block the read forever, a directory is no YAML file
+        raise InputError(f"expected a YAML file, but it is {kind}: refused without reading it", source=str(path))
+    raw = read_bounded(path, MAX_BYTES, what="YAML file")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as err:

@@ -23,6 +23,7 @@ rule archive:
         started=RUN_STARTED,
         config=config,
         files=archive_files,
+        config_source=CONFIG_SOURCE,
     log:
         f"{LOGS}/archive.log",
     conda:

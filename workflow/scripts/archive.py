@@ -2,4 +2,4 @@
 from stiffcal import pipeline
 
 pipeline.run(snakemake, pipeline.archive, snakemake.params.config, snakemake.params.started, snakemake.output.tgz,
-             snakemake.params.files)
+             snakemake.params.files, snakemake.params.config_source)
