@@ -84,3 +84,12 @@ def test_every_limit_is_documented_with_its_value(root):
         found = re.findall(r"\d[\d,]*(?:\.\d+)?(?:e-?\d+)?", rows[name])
         numbers = [float(x.replace(",", "")) * scale.get(name, 1) for x in found]
         assert any(abs(x - value) <= 1e-9 * abs(value) for x in numbers), (name, value, rows[name])
+
+
+def test_cell_keys_in_the_docs_are_the_schemas(root):
+    """docs/contracts.md, "The cell": one row per key of cell.schema.yaml, no more."""
+    text = (root / "docs/contracts.md").read_text(encoding="utf-8")
+    section = text[text.index("## The cell"):]
+    section = section[:section.index("\n## ", 10)]
+    documented = set(re.findall(r"^\| `([^`]+)` \|", section, flags=re.M))
+    assert documented == set(load_schema("cell")["properties"])

@@ -237,6 +237,7 @@ def test_self_weight_torques_equal_pinocchio_and_finite_differences(rng):
 
     ur10 = load_robot(LAB / "ur10.yaml")
     model = pin.buildModelFromUrdf(str(LAB / "ur10.urdf"))
+    model.gravity.linear = np.array([0.0, 0.0, -9.80665])  # standard gravity, as the robot file's weight uses
     data = model.createData()
     q = rng.uniform(-3, 3, (20, 6))
     ours = ur10.gravity_torques(q)
@@ -251,7 +252,7 @@ def test_self_weight_torques_equal_pinocchio_and_finite_differences(rng):
         assert np.allclose(robot.gravity_torques(q), fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
     two = with_masses(planar_robot([0.6, 0.4]), {"link_masses_kg": [10.0, 5.0], "link_coms_m": [0.3, 0.15]}, "<test>")
     q = rng.uniform(-3, 3, (10, 2))
-    g = 9.81
+    g = 9.80665
     t2 = -g * 5.0 * 0.15 * np.cos(q[:, 0] + q[:, 1])
     t1 = -g * (10.0 * 0.3 * np.cos(q[:, 0]) + 5.0 * (0.6 * np.cos(q[:, 0]) + 0.15 * np.cos(q[:, 0] + q[:, 1])))
     assert np.allclose(two.gravity_torques(q), np.column_stack([t1, t2]))

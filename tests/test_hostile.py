@@ -425,7 +425,7 @@ def test_a_note_printed_while_a_bar_is_shown_gets_a_line_of_its_own():
 
 def test_the_command_reports_progress_when_stderr_is_not_a_terminal(tmp_path):
     """stderr to a pipe (a script, a scheduler): progress lines every STIFFCAL_PROGRESS_S; --quiet: none."""
-    env = {**os.environ, "STIFFCAL_PROGRESS_S": "0.2"}
+    env = {**os.environ, "STIFFCAL_PROGRESS_S": "0.02"}
     args = [str(STIFFCAL), "design", "--robot", PAPER, "--test-pose-deg", "60,30", "--force-N", "0,-1",
             "--experiments", "3"]
     res = subprocess.run(args, capture_output=True, text=True, env=env, timeout=300)

@@ -256,7 +256,10 @@ MIMIC = PRISMATIC.replace('type="prismatic"', 'type="revolute"').replace(
     (GOOD + "joints: [a2, a1, a3, a4, a5, a6]\n", None, "joints", "in their order from base to tip"),
     (GOOD + "joints: [a1, a9]\n", None, "joints[1]", "joint 'a9' is not in the chain"),
     (GOOD + "joints: [a1, a2, a3, a4, a5]\nfixed_joints_deg: {a5: 0}\n", None, "fixed_joints_deg.a5", "moves"),
-    (GOOD + "joint_limits_deg: [[-1, 1]]\n", None, "joint_limits_deg", "belongs to a planar or spatial robot"),
+    # a URDF file may narrow its URDF's limits (issue 24): one pair per moving joint, each within the URDF's
+    (GOOD + "joint_limits_deg: [[-1, 1]]\n", None, "joint_limits_deg", "expected 6 [lower, upper] pairs"),
+    (GOOD + "joint_limits_deg: [[-200, 1], [-10, -6], [-1, 1], [-1, 1], [-1, 1], [-1, 1]]\n", None,
+     "joint_limits_deg[0]", "within joint a1's URDF limits"),
     (GOOD + "compliances_rad_per_Nm: [1.0e-6]\n", None, "compliances_rad_per_Nm", "expected 6 values"),
     (GOOD, "<robot name='x'><link name='a'>", "urdf", "not well-formed XML"),
     (GOOD, "<!DOCTYPE r [<!ENTITY a 'b'>]><robot name='x'/>", "urdf", "entity or DOCTYPE"),
@@ -301,7 +304,8 @@ def test_the_workflow_lists_the_urdf_as_an_input_of_its_robot(root):
     assert robot_inputs(KUKA_URDF) == ["config/robots/kuka_kr210_r2700.urdf"]
     assert robot_inputs(KUKA_DH) == [] and robot_inputs("no/such/robot.yaml") == []
     rules = (root / "workflow/rules/studies.smk").read_text() + (root / "workflow/rules/discrepancy.smk").read_text()
-    assert rules.count("urdf=lambda wc: robot_inputs(") == 5  # design, plans, summary; discrepancy, discriminate
+    assert rules.count("urdf=lambda wc: robot_inputs(") == 2  # discrepancy, discriminate
+    assert rules.count("urdf=study_files,") == 3  # design, plans, summary (robot_inputs and the cell's files)
 
 
 def test_a_continuous_joint_has_no_limits(root):

@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -30,9 +31,16 @@ def _workdir(root: Path, tmp: Path, **study) -> Path:
     (tmp / "config/robots/added_rrr.yaml").write_text(ADDED_ROBOT)
     cfg["studies"].append({"name": "added-rrr", "robot": "config/robots/added_rrr.yaml", "test_pose_deg": [30, -40, 60],
                            "force_N": [100, 50, -200], "sigma_m": 1e-5, "m_values": [1, 2]})
+    # a robot in a cell, measured under pushes in three directions (issue 24)
+    cfg["studies"].append({"name": "paper-cell", **CELL_STUDY})
     (tmp / "config" / "test.yaml").write_text(yaml.safe_dump(cfg))
     return tmp
 
+
+CELL_STUDY = {"robot": "config/robots/paper_2r.yaml", "test_pose_deg": [60, 30], "force_N": [0, -300],
+              "loads": "directions:3:100", "m_values": [2, 3],
+              "cell": {"floor_m": -0.1, "clearance_m": 0.02, "link_radius_m": 0.04,
+                       "boxes": [{"name": "fixture", "center_m": [0.45, 0.25], "size_m": [0.3, 0.2]}]}}
 
 ADDED_ROBOT = """name: added-rrr
 kind: spatial
@@ -114,6 +122,34 @@ def test_every_design_study_gets_plans_figures_and_a_report_section(built):
             assert (built / f"figures/studies/{name}/{fig}.png").stat().st_size > 0
         assert f"Design study: {name}" in html
     assert "modified convention" in html and "standard convention" in html
+
+
+def test_a_study_in_a_cell_keeps_every_pose_feasible_and_is_the_api_s_plan(built):
+    """The design study in a cell (capsules, the floor, a fixture; pushes in three directions): plans.csv gains
+    each pose's clearance, versus_m.csv the feasible bound, every pose passes the dense-sample check written in
+    tests/test_workcell.py, the report describes the cell, and stiffcal.design gives the same plans (one answer
+    per input)."""
+    import pandas as pd
+
+    import stiffcal
+    from stiffcal.robot import load_robot
+    from test_workcell import _planar_violations, _points_along
+
+    long = pd.read_csv(built / "results/studies/paper-cell/plans.csv")
+    assert list(long.columns) == ["plan", "m", "pose", "q1_deg", "q2_deg", "clearance_m", "closest"]
+    vm = pd.read_csv(built / "results/studies/paper-cell/versus_m.csv")
+    assert vm.feasible.all() and (vm.O_t >= vm.lower_bound).all() and "feasible_lower_bound" in vm.columns
+    robot = load_robot(built / "config/robots/paper_2r.yaml")
+    for q in long[["q1_deg", "q2_deg"]].to_numpy(float):
+        assert _planar_violations(_points_along(robot, q)) == (False, False), q
+    html = (built / "paper/build/report.html").read_text()
+    assert "The robot stands in a cell" in html and "clearance [mm]" in html
+    s = CELL_STUDY
+    cell = {**s["cell"]}
+    for m in s["m_values"]:
+        api = stiffcal.design(built / s["robot"], s["test_pose_deg"], s["force_N"], experiments=m, loads=s["loads"],
+                              cell=cell)
+        assert np.allclose(api.poses_deg, long[long.m == m][["q1_deg", "q2_deg"]].to_numpy(float), atol=5e-5)
 
 
 def _dry_run_jobs(wd: Path, env: dict | None = None) -> dict[str, int]:
@@ -218,7 +254,7 @@ def test_dry_run_after_a_library_edit_reruns_the_jobs_that_use_it(built, root, t
     plots = pkg / "stiffcal/plots.py"
     plots.write_text(plots.read_text() + "\n# an edit\n")
     jobs = _dry_run_jobs(built, {"PYTHONPATH": str(pkg)})
-    assert jobs == {"paper_figures": 1, "map_figures": 1, "study_summary": 2, "discrepancy": 2, "discriminate": 2,
+    assert jobs == {"paper_figures": 1, "map_figures": 1, "study_summary": 3, "discrepancy": 2, "discriminate": 2,
                     **REPORT}
 
 

@@ -18,7 +18,8 @@ Names are imported on first use, so ``import stiffcal`` (and every workflow job)
 __version__ = "0.1.0"
 
 _LAZY = {"load_robot": "robot", "Robot": "robot", "design": "api", "DesignResult": "api",
-         "analyse_measurements": "api", "plan_discrimination": "api", "InputError": "errors"}
+         "analyse_measurements": "api", "plan_discrimination": "api", "predict_deflection": "api",
+         "compensate_path": "api", "InputError": "errors"}
 __all__ = ["__version__", *_LAZY]
 
 

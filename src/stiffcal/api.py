@@ -19,7 +19,7 @@ import math
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -142,11 +142,17 @@ class DesignResult:
     whether the approximate design behind the bound reached the equivalence theorem's tolerance (None without a
     bound; when False the bound is labelled not converged in ``notes``); optimal_set_deg
     (k, n): every equally optimal single pose (M = 1); degenerate: the criterion does not prefer any pose;
-    approximate_design: support_deg (k, n), weights (k,), equivalence_gap, converged; notes; sigma, seed,
+    approximate_design: support_deg (k, n), weights (k,), equivalence_gap, converged, region; notes; sigma, seed,
     test_pose_deg (n,), force_N (d,), moment_Nm (d_m,) or None, targets, orientation, sigma_rad, test_target,
     orientation_length_m: the inputs; joint_names (n,): the robot's joint names, in the order of every pose and
     of cov_diag. Every pose lies within the joint limits, written in the limits' own range (-229.51, not
-    130.49, for a range of -230 to 50 deg).
+    130.49, for a range of -230 to 50 deg). lower_bound_over: the set of plans ``lower_bound`` holds for;
+    feasible_lower_bound, feasible_gap, feasible_lower_bound_over: in a cell, the bound exact over the finite
+    set of feasible candidate poses and the plan's own (None without a cell); clearance_m (M,) [m] and closest:
+    each pose's smallest distance over the cell's checked pairs and which pair (None and () without a cell);
+    loads: the measurement loads as given (None: force_N in every measurement) and loads_N (L, w) their wrenches
+    (a loading bar's at the tool, before it turns); cell: the cell's description; joint_limits_deg (n, 2) the
+    limits the plan kept.
     """
 
     criterion: str
@@ -176,6 +182,16 @@ class DesignResult:
     sigma_rad: float | None = None
     test_target: str = "tool"
     orientation_length_m: float = 0.0
+    lower_bound_over: str | None = None
+    feasible_lower_bound: float | None = None
+    feasible_gap: float | None = None
+    feasible_lower_bound_over: str | None = None
+    clearance_m: np.ndarray | None = None
+    closest: tuple[str, ...] = ()
+    loads: str | None = None
+    loads_N: np.ndarray | None = None
+    cell: str | None = None
+    joint_limits_deg: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         """The JSON object of ``stiffcal design``, strict JSON (:func:`json_safe`: inf as the string 'inf' in
@@ -200,6 +216,14 @@ class DesignResult:
             "moment_Nm": None if self.moment_Nm is None else self.moment_Nm.tolist(),
             "targets": list(self.targets), "orientation": self.orientation, "sigma_rad": self.sigma_rad,
             "test_target": self.test_target, "orientation_length_m": self.orientation_length_m,
+            "lower_bound_over": self.lower_bound_over, "feasible_lower_bound": self.feasible_lower_bound,
+            "feasible_gap": None if self.feasible_gap is None else _json_number(self.feasible_gap),
+            "feasible_lower_bound_over": self.feasible_lower_bound_over,
+            "clearance_m": None if self.clearance_m is None else [round(float(c), 6) for c in self.clearance_m],
+            "closest": list(self.closest), "loads": self.loads,
+            "loads_N": None if self.loads_N is None else np.round(self.loads_N, 9).tolist(),
+            "cell": self.cell,
+            "joint_limits_deg": None if self.joint_limits_deg is None else np.round(self.joint_limits_deg, 9).tolist(),
         })
 
 
@@ -239,21 +263,6 @@ def _flag(value, field: str) -> bool:
     return bool(value)
 
 
-def _with_limits(robot: Robot, joint_limits_deg) -> Robot:
-    """``robot`` with its joint limits replaced by ``joint_limits_deg`` (n, 2) [deg], checked."""
-    if isinstance(joint_limits_deg, np.ndarray):
-        joint_limits_deg = list(joint_limits_deg)
-    if not isinstance(joint_limits_deg, (list, tuple)) or len(joint_limits_deg) != robot.n_joints:
-        raise InputError(f"expected {robot.n_joints} [lower, upper] pairs (one per joint), got "
-                         f"{short_repr(joint_limits_deg)}", field="joint_limits_deg")
-    lim = np.array([float_list(p, f"joint_limits_deg[{j}]", 2) for j, p in enumerate(joint_limits_deg)])
-    for j, (lo, hi) in enumerate(lim):
-        if not -MAX_JOINT_ANGLE_DEG <= lo < hi <= MAX_JOINT_ANGLE_DEG:
-            raise InputError(f"expected -{MAX_JOINT_ANGLE_DEG:g} <= lower < upper <= {MAX_JOINT_ANGLE_DEG:g} deg, got "
-                             f"[{lo:g}, {hi:g}]", field=f"joint_limits_deg[{j}]")
-    return replace(robot, joint_limits_rad=np.radians(lim), has_joint_limits=True, unlimited_joints=())
-
-
 def design_estimate_s(robot: Robot, m: int, single: bool = True) -> list[tuple[str, float]]:
     """The stages of :func:`design` with a rough estimate of their seconds on one core of a 2-core machine like
     CI's (fitted to runs of 2-20-joint planar and 3-10-joint spatial arms: within a factor of about 3; the
@@ -278,8 +287,8 @@ def _stages(progress, stages):
 
 def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1, criterion: str = "ot",
            sigma: float = 1.0, targets=None, orientation: bool = False, sigma_rad: float | None = None,
-           test_target: str = "tool", orientation_length_m: float = 0.0, joint_limits_deg=None, seed: int = 0,
-           progress: bool | None = None) -> DesignResult:
+           test_target: str = "tool", orientation_length_m: float = 0.0, joint_limits_deg=None, loads=None,
+           cell=None, candidates=None, seed: int = 0, progress: bool | None = None) -> DesignResult:
     """Optimal measurement poses for stiffness calibration at a test pose (the paper's method).
 
     robot: a :class:`~stiffcal.robot.Robot` or the path of a robot file (docs/contracts.md); test_pose_deg:
@@ -294,9 +303,16 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     orientation is measured too, with the noise sigma_rad [rad] (weighted least squares); test_target: the
     target whose error O_t measures; orientation_length_m: a length scale [m] > 0 adds the tool's rotation
     to that error (``|dp|^2 + L^2 |dr|^2``); joint_limits_deg: (n, 2) [deg] replaces the robot file's limits;
-    seed: seed of the random starts of M-pose plans (results are deterministic for a seed); progress: the
-    progress on stderr, a bar on a terminal and a line every few seconds elsewhere, with an estimate of the time
-    left (None or True; False: none; :mod:`stiffcal.progress`).
+    loads: the loads every measurement pose is measured under (the SPEC of ``discriminate``: 'hanging:M1,M2'
+    [N] along the robot file's gravity, 'directions:K:M1,M2', 'forces:FX,FY,FZ;...', 'wrenches:FX,..,MZ;...',
+    'bar:AX,AY,AZ:M1,M2'), force_N or wrench being then the test pose's load only (default: that load in every
+    measurement too); cell: where the robot stands (a mapping of the cell's keys, a
+    :class:`~stiffcal.workcell.WorkCell` or the path of a YAML file; replaces the robot file's ``cell``): every
+    pose of the plan is feasible in it; candidates: the path of a CSV of candidate poses (columns q1_deg.. or
+    the joint names in radians): the plan is chosen among those the cell allows, and the bound is exact over
+    them; seed: seed of the random starts of M-pose plans (results are deterministic for a seed, whatever the
+    BLAS thread count); progress: the progress on stderr, a bar on a terminal and a line every few seconds
+    elsewhere, with an estimate of the time left (None or True; False: none; :mod:`stiffcal.progress`).
 
     M = 1 is an exhaustive global search over one pose; M > 1 a Fedorov exchange over a candidate pool
     started from the rounded optimal approximate design, polished in the continuum. For 'ot', the
@@ -304,15 +320,20 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     Raises :class:`InputError` for bad arguments or a file that does not hold a valid robot.
     """
     from . import criteria
-    from .certificate import approximate_design
+    from .certificate import approximate_design, unconstrained
     from .design import optimal_single_pose
-    from .plans import design_starts, optimise_plan
+    from .plans import best_plan
+    from .robot import narrowed_limits
     from .study import Study, check_sensing, check_test_inputs
     from .tables import plan_summary
+    from .threads import one_blas_thread
+    from .workcell import cell_notes, clearance, read_candidates, with_cell
 
     robot = _robot(robot)
     if joint_limits_deg is not None:
-        robot = _with_limits(robot, joint_limits_deg)
+        robot = narrowed_limits(robot, joint_limits_deg, None, "joint_limits_deg")
+    if cell is not None:
+        robot = with_cell(robot, _cell_value(cell), None, "cell")
     if criterion not in criteria.CRITERIA_KEYS:
         raise InputError(f"expected one of {', '.join(criteria.CRITERIA_KEYS)}, got {criterion!r}", field="criterion")
     force, moment, field_ = load_arguments(robot, force_N, wrench)
@@ -327,46 +348,78 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     sensing, test_target, length = check_sensing(
         robot, [TOOL_TARGET] if targets is None else _names(targets, "targets"), _flag(orientation, "orientation"),
         sigma, sigma_rad, test_target, positive_number(orientation_length_m, "orientation_length_m", 0.0), "", None)
+    from .observation import measurement_loads
+
+    meas_loads = None if loads is None else measurement_loads(robot, loads, "loads")
+    pool = None if candidates is None else read_candidates(_path(candidates, "candidates", "a CSV of candidate poses"),
+                                                           robot)
     study = Study(robot.name, robot, np.radians(q_t), force, sigma, (criterion,), 1.0, 1.0, moment, sensing,
-                  test_target, length)
+                  test_target, length, meas_loads, pool)
     base = study.problem(criterion)
+    base.check_test_load(field_)
     if m < base.min_poses:
         raise InputError(f"expected at least {base.min_poses} poses: {m} give {m * base.rows_per_pose} equations "
                          f"for {base.n_params} compliances", field="experiments")
-    notes, optimal_set, degenerate, single = [], np.zeros((0, robot.n_joints)), False, None
-    stages = design_estimate_s(robot, m, base.min_poses == 1)
-    with _stages(progress if progress is None else _flag(progress, "progress"), stages) as bar:
-        try:
+    notes, optimal_set, degenerate = [], np.zeros((0, robot.n_joints)), False
+    continuum = None
+    stages = design_estimate_s(robot, m, m == 1)
+    with one_blas_thread(), _stages(progress if progress is None else _flag(progress, "progress"), stages) as bar:
+        if m == 1:
             _check_single_pose_identifies(base)
             res1 = optimal_single_pose(base)
-            single, notes, degenerate = res1.pose_deg, list(res1.notes), res1.degenerate
-            optimal_set = res1.optimal_set_deg
-        except InputError:
-            if m == 1:
-                raise
+            notes, degenerate, optimal_set = list(res1.notes), res1.degenerate, res1.optimal_set_deg
+            poses = res1.pose_deg[None, :]
         bar.advance()
         approx = approximate_design(study.problem("ot"))
+        if approx.exact_over_candidates and robot.cell is not None and base.continuous:
+            continuum = approximate_design(unconstrained(study.problem("ot")))
         bar.advance()
-        if m == 1:
-            poses = single[None, :]
-        else:
-            prob = study.problem(criterion, m)
-            starts = design_starts(prob, approx, m) + ([np.repeat(single[None], m, 0)] if single is not None else [])
-            poses = optimise_plan(prob, starts=starts, seed=seed).poses_deg
-            optimal_set, degenerate = np.zeros((0, robot.n_joints)), False
+        if m > 1:
+            poses = best_plan(study.problem(criterion, m), approx, seed).poses_deg
             bar.advance()
     summ = plan_summary(study, poses)
-    bound = approx.lower_bound(m, sigma) if criterion == "ot" else None
+    bound = feasible_bound = None
+    over = feasible_over = None
+    converged = approx.converged
+    if criterion == "ot":
+        if continuum is not None:
+            bound, converged = continuum.lower_bound(m, sigma), continuum.converged
+            over = "every plan within the joint limits, so every plan the cell allows (the cell ignored: valid, loose)"
+            feasible_bound = approx.bound_with(study.problem("ot"), np.radians(poses), m, sigma)
+            feasible_over = (f"every plan of the {approx.n_candidates} feasible pool poses, the feasible search "
+                             "points, the maxima of phi found from them and this plan's poses (exact over these; not "
+                             "a bound for plans of other feasible poses)")
+        elif approx.region == "candidate poses":
+            bound = approx.lower_bound(m, sigma)
+            over = f"every plan of the {approx.n_candidates} candidate poses the cell allows (exact)"
+        else:
+            bound = approx.lower_bound(m, sigma)
+            over = "every plan within the joint limits"
+    params_note = base.sensed
     notes += [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
               "compliance never deflects them, cannot be identified from their positions and is left out of the "
               "model (cov_diag 'inf'); measure a point off that axis (tool_m, targets) or the orientation to "
-              "identify it" if j not in base.sensed else
+              "identify it" if j not in params_note else
+              f"joint {robot.joint_names[j]} is never turned by the measurement loads ({_load_words(base)}) at any "
+              "pose, nor by the test load: its compliance cannot be identified and is left out of the model "
+              "(cov_diag 'inf'), as the measured-data analysis does; a load that turns it (a push sideways, a "
+              "moment) identifies it" if j in base.unturned else
               f"joint {robot.joint_names[j]}'s axis passes through the tool point, where the force is applied: "
               "without a moment the load never turns that joint, whose compliance cannot be identified and is "
               "left out of the model (cov_diag 'inf'); apply a moment (--wrench) to identify it"
               for j in range(robot.n_joints) if j not in base.params]
-    if not approx.converged:
-        notes.append(approx.convergence_note())
+    if not converged:
+        notes.append((continuum or approx).convergence_note())
+    if continuum is not None and not approx.converged:
+        notes.append("over its feasible candidates, " + approx.convergence_note())
+    clear, closest = None, ()
+    if robot.cell is not None:
+        notes += cell_notes(robot)
+        c, names = clearance(robot, np.radians(poses))
+        clear, closest = c, tuple(names)
+        if not base.feasible(np.radians(q_t)[None])[0]:
+            notes.append("the test pose itself cannot be taken in the cell (a body within the clearance of an obstacle "
+                         "or of another body): the plan predicts its compensation error all the same")
     ot = float(summ["O_t"])
     return DesignResult(
         criterion=criterion, criterion_label=criteria.label(criterion), robot=robot.name, experiments=m,
@@ -375,11 +428,34 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         lower_bound=bound, gap=None if bound is None else ot / bound - 1.0,
         optimal_set_deg=np.asarray(optimal_set, float).reshape(-1, robot.n_joints), degenerate=bool(degenerate),
         approximate_design={"support_deg": approx.support_deg, "weights": approx.weights,
-                            "equivalence_gap": approx.equivalence_gap, "converged": approx.converged},
+                            "equivalence_gap": approx.equivalence_gap, "converged": approx.converged,
+                            "region": approx.region},
         notes=tuple(notes), sigma=sigma, seed=seed, test_pose_deg=q_t, force_N=force, joint_names=robot.joint_names,
-        lower_bound_converged=None if bound is None else approx.converged, moment_Nm=moment,
+        lower_bound_converged=None if bound is None else converged, moment_Nm=moment,
         targets=sensing.targets, orientation=sensing.orientation, sigma_rad=sensing.sigma_rad,
-        test_target=test_target, orientation_length_m=length)
+        test_target=test_target, orientation_length_m=length, lower_bound_over=over,
+        feasible_lower_bound=feasible_bound, feasible_gap=None if feasible_bound is None else ot / feasible_bound - 1.0,
+        feasible_lower_bound_over=feasible_over, clearance_m=clear, closest=closest,
+        loads=None if meas_loads is None else meas_loads.spec,
+        loads_N=None if meas_loads is None else meas_loads.wrenches,
+        cell=None if robot.cell is None else robot.cell.describe(),
+        joint_limits_deg=np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None)
+
+
+def _load_words(problem) -> str:
+    return problem.loads.spec if problem.loads is not None else f"the force {problem.force.tolist()} N"
+
+
+def _cell_value(cell):
+    """The ``cell`` argument: a mapping, a WorkCell, or the path of a YAML file (str or path)."""
+    from .workcell import WorkCell
+
+    if isinstance(cell, (dict, WorkCell)):
+        return cell
+    if isinstance(cell, (str, os.PathLike)):
+        return os.fspath(cell)
+    raise InputError(f"expected a cell: a mapping of its keys or the path of a YAML file holding them, got "
+                     f"{type(cell).__name__} {short_repr(cell)}", field="cell")
 
 
 def _check_single_pose_identifies(problem, samples: int = 256) -> None:
@@ -475,7 +551,8 @@ def check_out_dir(out) -> Path:
 def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None, force_N=None, wrench=None,
                          out=None, label: str | None = None, angle_resolution_deg: float | None = None,
                          force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
-                         sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
+                         sigma_m: float | None = None, sigma_rad: float | None = None, joint_limits_deg=None,
+                         cell=None) -> dict:
     """What the stiffness model gets wrong in measured deflections (``stiffcal discrepancy``).
 
     robot: a Robot or a robot file; data: the measured-data CSV (docs/measured-data.md); alpha: family-wise
@@ -487,7 +564,8 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     that agree within these are one configuration and one load (encoder and load-cell resolution; defaults
     0.01 deg, 0.5 N and 0.05 N m, docs/measured-data.md). sigma_m [m] and sigma_rad [rad]: the noise levels
     of positions and rotations, whose ratio weights the rotation rows (both or neither; default: estimated
-    from the data).
+    from the data). joint_limits_deg (n, 2) [deg] and cell (as :func:`design`): where the robot stands, for the
+    verdict's O_t-optimal plan of the extended model (``optimal_plan_extended_deg``: every pose feasible).
 
     Returns the verdict (docs/measured-data.md: cause, causes, indistinguishable_from, p_value, structure,
     nominal, extended, gain, outlier_rows, notes, ...). Raises :class:`InputError` for bad arguments or data.
@@ -495,7 +573,7 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     from . import discrepancy
     from . import measurements as M
 
-    robot = _robot(robot)
+    robot = _placed(_robot(robot), joint_limits_deg, cell)
     data = _input_file(_path(data, "data", "a measured-data CSV"))
     if out is not None:
         out = check_out_dir(_path(out, "out", "an output directory"))
@@ -510,6 +588,18 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
         return discrepancy.analyse(robot, M.read_measurements(data, robot, *res), alpha, qt, ft, sigma_m=sig[0],
                                    sigma_rad=sig[1])
     return _written_whole(out, lambda tmp: discrepancy.run(robot, str(data), tmp, alpha, qt, ft, label, *res, *sig))
+
+
+def _placed(robot: Robot, joint_limits_deg=None, cell=None) -> Robot:
+    """``robot`` with the joint limits and the cell given as arguments (None keeps the robot file's)."""
+    from .robot import narrowed_limits
+    from .workcell import with_cell
+
+    if joint_limits_deg is not None:
+        robot = narrowed_limits(robot, joint_limits_deg, None, "joint_limits_deg")
+    if cell is not None:
+        robot = with_cell(robot, _cell_value(cell), None, "cell")
+    return robot
 
 
 def _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm=None) -> tuple[float, float, float]:
@@ -558,7 +648,8 @@ def _written_whole(out, write) -> dict:
 
 def plan_discrimination(robot, data, experiments, *, loads: str | None = None, repeats=1, weight=0.5,
                         truth: str = "best", alpha=0.01, test_pose_deg=None, force_N=None, out=None,
-                        angle_resolution_deg=None, force_resolution_N=None, seed=0) -> dict:
+                        angle_resolution_deg=None, force_resolution_N=None, seed=0, joint_limits_deg=None,
+                        cell=None) -> dict:
     """The next experiment that tells a verdict's rival causes apart (``stiffcal discriminate``; issue 18,
     :mod:`stiffcal.discrimination`): the M-point plan (poses within the joint limits, loads from ``loads``)
     that maximises the T-criterion of the rivals (Atkinson & Fedorov 1975), its predicted power, its
@@ -569,7 +660,9 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     repeats: times each point is measured; weight: kappa of the discrimination in the compound plan, in [0, 1];
     truth: 'best' (the best-fitting model as the truth) or 'each'; alpha: family-wise rate; test_pose_deg (n,)
     [deg] and force_N (d,) [N]: for the compound plan's O_t; out: a directory for plan.json and plan.png/svg
-    (None: nothing written; files moved in only on success); resolutions as :func:`analyse_measurements`.
+    (None: nothing written; files moved in only on success); resolutions as :func:`analyse_measurements`;
+    joint_limits_deg and cell (as :func:`design`): every measurement of every plan is feasible in the cell, with
+    a hanging mass's cable free.
     Returns the plan.json dict (docs/measured-data.md). Raises :class:`InputError` for bad arguments or data.
     """
     import json
@@ -577,7 +670,7 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     from . import discrimination
     from . import measurements as M
 
-    robot = _robot(robot)
+    robot = _placed(_robot(robot), joint_limits_deg, cell)
     data = _input_file(_path(data, "data", "a measured-data CSV"))
     if out is not None:
         out = check_out_dir(_path(out, "out", "an output directory"))
@@ -600,7 +693,79 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     if out is not None:
         return _written_whole(out, write)
     meas = M.read_measurements(data, robot, *res[:2])
-    ls = discrimination.load_set(loads, robot.task_dim, meas.force, meas.resolutions[1])
+    ls = discrimination.load_set(loads, robot.task_dim, meas.force, meas.resolutions[1], gravity=robot.gravity)
     result = discrimination.discriminate(robot, meas, experiments, ls, repeats=repeats, weight=weight, truth=truth,
                                          test_pose=qt, test_force=ft, alpha=alpha, seed=seed)
     return json.loads(json.dumps(discrimination.to_json(result, str(data)), allow_nan=False))
+
+
+def predict_deflection(robot, poses, *, out=None, orientation: bool = False) -> dict:
+    """The calibrated model's deflection at given poses under given loads (``stiffcal predict``;
+    :func:`stiffcal.calibrated.predict`).
+
+    robot: a calibrated robot file (``calibrated.yaml`` of ``stiffcal discrepancy``) or Robot (one with only
+    ``compliances_rad_per_Nm`` predicts with those, no extension, no interval); poses: a CSV of poses and loads
+    (:func:`stiffcal.calibrated.read_poses`); out: a CSV to write (the poses with ``dx_m`` .. and their standard
+    deviations ``sd_dx_m`` ..; None: nothing written); orientation: predict the tool's rotation too.
+    Returns ``{"rows", "causes", "max_deflection_m", "max_sd_m", "out", "notes"}``; raises :class:`InputError`."""
+    from . import calibrated as C
+
+    robot = _robot(robot)
+    pf = C.read_poses(_input_file(_path(poses, "poses", "a CSV of poses and loads")), robot)
+    out_path = None if out is None else _out_file(out, "out")
+    pred = C.predict(robot, pf.q, pf.load, pf.target, _flag(orientation, "orientation"))
+    if out_path is not None:
+        _write_whole(out_path, C.prediction_csv(robot, pf, pred))
+    size = np.linalg.norm(pred.displacement, axis=1)
+    return json_safe({"rows": len(pf.q), "causes": list(pred.causes), "max_deflection_m": float(size.max()),
+                      "max_sd_m": float(np.linalg.norm(pred.sd, axis=1).max()),
+                      "out": None if out_path is None else str(out_path), "notes": list(pred.notes)})
+
+
+def compensate_path(robot, path, *, out=None) -> dict:
+    """Compensate a path with the calibrated model (``stiffcal compensate``; :func:`stiffcal.calibrated.compensate`):
+    for every row of ``path`` (a CSV of poses and loads) the predicted deflection of the tool point, the corrected
+    target and the corrected joint angles (iterated, and first order), and the predicted residual error.
+    out: a CSV to write (None: nothing written). Returns ``{"rows", "causes", "max_deflection_m",
+    "max_residual_m", "max_first_order_residual_m", "max_band95_m", "converged", "out", "notes"}``; raises
+    :class:`InputError`."""
+    from . import calibrated as C
+
+    robot = _robot(robot)
+    pf = C.read_poses(_input_file(_path(path, "path", "a CSV of poses and loads")), robot)
+    if pf.target is not None and np.any(pf.target != 0):
+        raise InputError("a path is compensated at the tool point: remove the target column (or give 'tool')",
+                         field="path")
+    out_path = None if out is None else _out_file(out, "out")
+    comp = C.compensate(robot, pf.q, pf.load)
+    if out_path is not None:
+        _write_whole(out_path, C.compensation_csv(robot, pf, comp))
+    return json_safe({"rows": len(pf.q), "causes": list(_calibration_causes(robot)),
+                      "max_deflection_m": float(np.linalg.norm(comp.deflection, axis=1).max()),
+                      "max_residual_m": float(comp.residual_m.max()),
+                      "max_first_order_residual_m": float(comp.first_order_residual_m.max()),
+                      "max_band95_m": float(comp.band95_m.max()),
+                      "converged": bool(comp.converged.all()), "out": None if out_path is None else str(out_path),
+                      "notes": list(comp.notes)})
+
+
+def _calibration_causes(robot: Robot) -> tuple:
+    cal = getattr(robot, "calibration", None)
+    return () if cal is None else cal.causes
+
+
+def _out_file(out, field: str) -> Path:
+    """An output file path whose folder can be written (checked before any work)."""
+    path = Path(_path(out, field, "an output file"))
+    if path.is_dir():
+        raise InputError(f"expected a file to write, got the folder {path}", field=field)
+    check_out_dir(path.parent if str(path.parent) else Path("."))
+    return path
+
+
+def _write_whole(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file beside it (no partial output)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(path)

@@ -53,6 +53,7 @@ from .design import (SAMPLES_LOG2, Problem, angle_diff, grid_local_minima, into_
                      sample_joint_space, _is_full_turn, _turn_start)
 from .robot import Robot
 from .stiffness import pose_information
+from .threads import single_threaded
 
 
 #: candidate pool of a sampled joint space (4+ joints): 2**POOL_LOG2 scrambled-Sobol poses
@@ -62,7 +63,7 @@ POOL_LOG2 = 13
 def has_planar_symmetry(robot: Robot, problem: Problem | None = None) -> bool:
     """Whether a pose's half-turn and mirror copies carry the same information (planar arm, no limits, and
     for ``problem`` no moment and no measured target beside the last link's line: :attr:`Problem.symmetric`)."""
-    return robot.kind == "planar" and robot.n_joints >= 2 and all(
+    return robot.kind == "planar" and robot.n_joints >= 2 and robot.cell is None and all(
         _is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad) and (problem is None or problem.symmetric)
 
 
@@ -70,19 +71,38 @@ def candidate_pool(robot: Robot, step_deg: float, problem: Problem | None = None
     """Candidate poses [rad], (N, n): a grid over the joint space, restricted to one symmetry cell
     (q1 in [-90, 90), first nonzero of q2..qn >= 0) when the arm is planar and every joint turns fully
     (both the half-turn and the mirror copy of a pose carry the same information). For 4+ joints
-    (:func:`stiffcal.design.is_sampled`): ``2**POOL_LOG2`` scrambled-Sobol poses within the limits."""
+    (:func:`stiffcal.design.is_sampled`): ``2**POOL_LOG2`` scrambled-Sobol poses within the limits. With a
+    candidate file (``problem.candidates``) its poses. In a cell (:mod:`stiffcal.workcell`) only the feasible
+    poses (:meth:`stiffcal.design.Problem.feasible`); :class:`InputError` when none is."""
+    if problem is not None and problem.candidates is not None:
+        return _feasible_only(problem.candidates, robot, problem, "of the candidate file")
     if is_sampled(robot, step_deg):
-        return sample_joint_space(robot, POOL_LOG2, seed=0)
+        return _feasible_only(sample_joint_space(robot, POOL_LOG2, seed=0), robot, problem)
     grids = joint_grids(robot, step_deg)
     q = np.stack(np.meshgrid(*grids, indexing="ij"), -1).reshape(-1, robot.n_joints)
     if not has_planar_symmetry(robot, problem):
-        return q
+        return _feasible_only(q, robot, problem)
     eps = 1e-12
     rest = q[:, 1:]
     nz = np.abs(rest) > eps
     first = np.where(nz.any(1), rest[np.arange(len(q)), np.argmax(nz, axis=1)], 0.0)
     keep = (q[:, 0] >= -np.pi / 2 - eps) & (q[:, 0] < np.pi / 2 - eps) & (first >= -eps)
     return q[keep]
+
+
+def _feasible_only(q: np.ndarray, robot: Robot, problem: Problem | None, what: str = "of the candidate pool"):
+    """The poses q (N, n) [rad] the robot can take in its cell (all of them without a cell)."""
+    if robot.cell is None:
+        return q
+    from .errors import InputError
+    from .workcell import feasible
+
+    ok = problem.feasible(q) if problem is not None else feasible(robot, q)
+    if not ok.any():
+        raise InputError(f"none of the {len(q)} poses {what} can be taken in the cell ({robot.cell.describe()}): "
+                         "lower the clearance, move the obstacles or widen the joint limits",
+                         source=robot.cell.source, field="cell")
+    return q[ok]
 
 
 def default_pool_step(n: int) -> float:
@@ -106,9 +126,12 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
               for j in np.flatnonzero(np.abs(v) > 0.1 * np.abs(v).max())]
     what = (f"the compliance of joint {joints[0]}" if len(joints) == 1 else
             "a combination of the compliances of joints " + ", ".join(map(str, joints)))
-    raise InputError(f"{what} cannot be identified with the force {problem.force.tolist()} N at any pose: the force "
-                     "never loads it (zero torque about that axis, or the same effect as other joints); use a force "
-                     "with another direction", source=problem.robot.source)
+    load = (f"the loads {problem.loads.spec}" if problem.loads is not None else
+            f"the force {problem.force.tolist()} N")
+    where = "at any pose" if problem.robot.cell is None else "at any pose the cell allows"
+    raise InputError(f"{what} cannot be identified with {load} {where}: the loads never load it (zero torque "
+                     "about that axis, or the same effect as other joints); use a load with another direction",
+                     source=problem.robot.source)
 
 
 def _phi_design(W, M):
@@ -136,6 +159,24 @@ class ApproximateDesign:
     max_phi: float
     phi_lower: float
     iterations: int
+    region: str = "joint space"
+    n_candidates: int = 0
+
+    @property
+    def exact_over_candidates(self) -> bool:
+        """The maximum of phi (and so the bound) is over a finite set of feasible candidate poses, exactly (a cell
+        or a candidate file), not over the whole joint space (:attr:`region` says which)."""
+        return self.region != "joint space"
+
+    def bound_with(self, problem: Problem, poses_rad: np.ndarray, m: int, sigma: float = 1.0) -> float:
+        """The lower bound on O_t of m-pose plans over the candidate set with the poses ``poses_rad`` (k, n) added
+        (a plan's own poses, polished off the candidates): phi's maximum taken over both."""
+        X = np.radians(np.asarray(self.support_deg, float))
+        M = np.einsum("k,kij->ij", np.asarray(self.weights, float), _info(problem, X))
+        C = np.linalg.inv(M) @ problem.At.T
+        extra = float(np.max(np.sum((problem.rows(np.atleast_2d(poses_rad)) @ C) ** 2, axis=(-2, -1)),
+                             initial=0.0))
+        return sigma**2 * self.phi**2 / max(self.max_phi, extra) / m
 
     @property
     def equivalence_gap(self) -> float:
@@ -288,14 +329,16 @@ def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, 
 
 
 def newton_maximise(fun, robot: Robot, X0: np.ndarray, h: float = 1e-4, max_iter: int = 100,
-                    xtol: float = 1e-9, drop_below: float = -np.inf):
+                    xtol: float = 1e-9, drop_below: float = -np.inf, feasible=None):
     """Local maxima of a smooth batched function ``fun`` (q (k, n) [rad] -> (k,)) from every start X0 (k, n)
     at once: Newton's method with central-difference gradient and Hessian (1 + n^2 evaluations per start and
     step, in one call of ``fun``), the Hessian's eigenvalues made negative (ascent), a trust radius per
     start, within the joint limits (projected: a joint at a limit with the gradient pointing out is held).
     Joints with a full turn of range are free. A start stops at a step shorter than ``xtol`` [rad] (the value
     is then exact to about its square), after 4 steps while below ``drop_below``, or when it comes within
-    1e-3 rad (every joint) of another start still climbing (which goes on to their common maximum). Returns (X (k, n),
+    1e-3 rad (every joint) of another start still climbing (which goes on to their common maximum). With
+    ``feasible`` (q (k, n) -> (k,) bool, a cell), a step to a pose that cannot be taken is refused like one that
+    does not climb (the trust radius shrinks), so every start stays feasible. Returns (X (k, n),
     f (k,)) in the order of X0, each never worse than its start.
     """
     X = np.array(X0, float)
@@ -341,6 +384,8 @@ def newton_maximise(fun, robot: Robot, X0: np.ndarray, h: float = 1e-4, max_iter
         moved = np.linalg.norm(Xn - Xa, axis=1)
         fn = np.asarray(fun(Xn), float)
         better = fn > f0
+        if feasible is not None and better.any():
+            better[better] = feasible(Xn[better])
         X[idx[better]] = Xn[better]
         f[idx[better]] = fn[better]
         radius[idx] = np.where(better, np.maximum(radius[idx], 2 * moved), radius[idx] / 4)
@@ -392,6 +437,34 @@ class PhiSearch:
             self.Q = np.stack(np.meshgrid(*grids, indexing="ij"), -1).reshape(-1, robot.n_joints)
             self.group = np.zeros(len(self.Q), int)
         self.V = np.concatenate([vech(_info(problem, self.Q[i:i + 8192])) for i in range(0, len(self.Q), 8192)])
+        # in a cell: which search points the robot can take (1, 0; -1 not checked yet: a sample is checked lazily,
+        # best points first, since only the best feasible ones are used)
+        self.ok = None
+        if robot.cell is not None:
+            self.ok = np.full(len(self.Q), -1, np.int8)
+            if not self.sampled:
+                self.ok[:] = problem.feasible(self.Q)
+
+    def feasible_in_order(self, order: np.ndarray, count: int) -> np.ndarray:
+        """The first ``count`` indices of ``order`` (into the search points) whose poses are feasible, checked
+        lazily in chunks; every index of ``order`` without a cell."""
+        order = np.asarray(order, int)
+        if self.ok is None:
+            return order[:count]
+        out, pos = [], 0
+        while len(out) < count and pos < len(order):
+            chunk = order[pos:pos + 512]
+            pos += 512
+            unknown = chunk[self.ok[chunk] < 0]
+            if unknown.size:
+                self.ok[unknown] = self.problem.feasible(self.Q[unknown])
+            out.extend(chunk[self.ok[chunk] == 1][:count - len(out)].tolist())
+        return np.array(out, int)
+
+    def max_feasible(self, phi: np.ndarray) -> float:
+        """The largest phi over the feasible search points."""
+        best = self.feasible_in_order(np.argsort(-phi, kind="stable"), 1)
+        return float(phi[best[0]]) if best.size else -np.inf
 
     def cell_best(self, phi: np.ndarray, cells: int = 729) -> np.ndarray:
         """Indices of the search point of largest phi in each cell of a partition of the joint space into about
@@ -410,6 +483,8 @@ class PhiSearch:
         """The starting poses (k, n) [rad] for the polish, from phi at every search point."""
         if not self.sampled:
             periodic = [_is_full_turn(lo, hi) for lo, hi in self.robot.joint_limits_rad]
+            if self.ok is not None:
+                phi = np.where(self.ok == 1, phi, -np.inf)
             mask = grid_local_minima(-phi.reshape(self.shape), periodic).ravel()
             cand = np.flatnonzero(mask)
             return self.Q[cand[np.argsort(-phi[cand], kind="stable")[:n_refine]]]
@@ -419,7 +494,7 @@ class PhiSearch:
         per = -(-n_refine // len(groups))
         for k in groups:
             idx = np.flatnonzero(self.group == k)
-            cand = self.Q[idx[np.argsort(-phi[idx], kind="stable")[:8 * per]]]
+            cand = self.Q[self.feasible_in_order(idx[np.argsort(-phi[idx], kind="stable")], 8 * per)]
             mine: list[int] = []
             for i in range(len(cand)):  # greedily, each more than sep from every one taken (on some joint)
                 if len(mine) == per:
@@ -441,6 +516,9 @@ class PhiSearch:
         starts = self.starts(phi, n_refine)
         extra = np.atleast_2d(extra_starts).reshape(-1, self.robot.n_joints)
         rows = self.problem.rows
+        feasible = None
+        if self.ok is not None:  # in a cell: no climbing (it does not know the cell), Newton steps stay feasible
+            climb, feasible = 0, self.problem.feasible
 
         def fun(q):
             return np.sum((rows(q) @ C) ** 2, axis=(-2, -1))
@@ -450,7 +528,8 @@ class PhiSearch:
             _, first = np.unique(np.round(np.degrees(Xc)), axis=0, return_index=True)
             first = first[np.argsort(-fc[first], kind="stable")[:n_climbed]]
             starts = np.vstack([starts, Xc[first]])
-        X, f = newton_maximise(fun, self.robot, np.vstack([starts, extra]), xtol=xtol, drop_below=drop_below)
+        X, f = newton_maximise(fun, self.robot, np.vstack([starts, extra]), xtol=xtol, drop_below=drop_below,
+                               feasible=feasible)
         k = len(starts)
         order = np.argsort(-f[:k], kind="stable")
         return X[:k][order], f[:k][order], X[k:], f[k:]
@@ -493,6 +572,7 @@ def coordinate_ascent(fun, robot: Robot, X0: np.ndarray, sweeps: int = 2, step_d
     return X, np.asarray(fun(X), float)
 
 
+@single_threaded
 def approximate_design(problem: Problem, pool_step_deg: float | None = None, search_step_deg: float | None = None,
                        iters: int = 100, target_gap: float = 1e-6, max_rounds: int = 60, n_refine: int = 16,
                        n_certify: int = 256) -> ApproximateDesign:
@@ -506,6 +586,14 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     n_certify: search points polished in the thorough search that certifies the final design (and confirms
     that the target gap is reached), which also climbs from every cell of the joint space
     (:meth:`PhiSearch.maximise` with ``climb``).
+
+    In a cell (:mod:`stiffcal.workcell`) the design is over the poses the robot can take: the feasible pool,
+    the feasible search points and the maxima of phi reached from them by Newton steps that stay feasible (no
+    climbing: the coordinate ascent does not know the cell); its maximum of phi, and so its bound, is exact over
+    that finite set of feasible candidates (``region``), not over the feasible continuum (a plan of other feasible
+    poses may do better; the bound over the whole joint space, :func:`unconstrained`, holds for every plan).
+    With a candidate file (``problem.candidates``) the design is over those poses alone, and the bound exact
+    for every plan of them (:func:`_candidate_design`).
     """
     robot = problem.robot
     step = pool_step_deg or default_pool_step(robot.n_joints)
@@ -514,7 +602,11 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     pool = candidate_pool(robot, step, problem)
     P = _info(problem, pool)
     check_identifiable(problem, P)
+    if not problem.continuous:
+        return _candidate_design(problem, pool, P, W, target_gap, max_rounds)
     search = PhiSearch(problem, search_step_deg or min(step, 2.0))
+    if robot.cell is not None:
+        return _feasible_design(problem, pool, P, W, search, iters, max(target_gap, FEASIBLE_TARGET_GAP), max_rounds)
     w, it = multiplicative(P, W, iters)
     top = np.argsort(-w, kind="stable")[:MAX_START_SUPPORT]
     top = top[w[top] >= 1e-3 * w[top[0]]]
@@ -557,6 +649,114 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     return ApproximateDesign(into_limits(robot, np.degrees(X[order])), wS[order], Phi, max_phi, Phi**2 / max_phi, it)
 
 
+def _feasible_design(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.ndarray, search: "PhiSearch",
+                     iters: int, target_gap: float, max_rounds: int, n_refine: int = 24) -> ApproximateDesign:
+    """The optimal approximate design over the poses a cell allows (column generation with exact weights, as
+    :func:`approximate_design`, on a candidate set that stays feasible): the candidates are the feasible pool
+    poses, the feasible search points (:class:`PhiSearch`: a grid, or 2**15 Sobol poses and as many on the faces
+    of the joint-limit box; checked lazily, best phi first, so that only the few that matter are checked) and
+    every local maximum of phi reached from the best of them and from the support by Newton steps that stay
+    feasible (:func:`newton_maximise` with ``feasible``). phi is known at every candidate exactly (the pool's and
+    the search points' information computed once), so the maximum over them, and the bound, is exact for every
+    plan of these poses (:meth:`ApproximateDesign.bound_with` adds a plan's own, polished, poses); a plan of
+    other feasible poses could do better (the feasible continuum is not searched exhaustively: no climbing,
+    which does not know the cell)."""
+    robot = problem.robot
+    n = robot.n_joints
+    P2 = P.reshape(len(P), -1)
+    w, it = multiplicative(P, W, iters)
+    top = np.argsort(-w, kind="stable")[:MAX_START_SUPPORT]
+    top = top[w[top] >= 1e-3 * w[top[0]]]
+    X, PS, wS = pool[top], P[top], w[top] / w[top].sum()
+    found = np.zeros((0, n))  # the maxima of phi found so far: candidates too
+    rows = problem.rows
+    for _ in range(max_rounds):
+        wS = optimal_weights(PS, W, wS)
+        keep = wS > MIN_WEIGHT
+        X, PS, wS = X[keep], PS[keep], wS[keep] / wS[keep].sum()
+        Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", wS, PS))
+        B = Minv @ W @ Minv
+        C = Minv @ problem.At.T
+
+        def fun(q, C=C):
+            return np.sum((rows(q) @ C) ** 2, axis=(-2, -1))
+
+        phi_pool = P2 @ B.ravel()
+        phi_q = search.V @ _vech2(B)
+        best_q = search.feasible_in_order(np.argsort(-phi_q, kind="stable"), MAX_NEW)
+        best_p = np.argsort(-phi_pool, kind="stable")[:MAX_NEW]
+        cand = np.vstack([pool[best_p], search.Q[best_q], found]).reshape(-1, n)
+        fc = np.concatenate([phi_pool[best_p], phi_q[best_q], fun(found) if len(found) else np.zeros(0)])
+        starts = cand[np.argsort(-fc, kind="stable")[:n_refine]]
+        xm, fm = newton_maximise(fun, robot, np.vstack([starts, X]), xtol=1e-6, drop_below=0.8 * Phi,
+                                 feasible=problem.feasible)
+        up = fm > Phi * (1 + 1e-9)
+        if up.any():  # the new maxima join the candidates; the best MAX_FOUND of them (by phi now) are kept
+            found = np.vstack([xm[up], found])
+            found = found[np.r_[True, ~_meets_earlier_mask(found, 1e-6)[1:]]] if len(found) > 1 else found
+            if len(found) > MAX_FOUND:
+                found = found[np.argsort(-fun(found), kind="stable")[:MAX_FOUND]]
+        top_max = max(float(phi_pool.max()), float(phi_q[best_q[0]]) if best_q.size else -np.inf,
+                      float(fm.max(initial=-np.inf)), float(fc.max(initial=-np.inf)), Phi)
+        gap = top_max / Phi - 1.0
+        if gap <= target_gap:
+            break
+        xs, fs = np.vstack([cand, xm]), np.concatenate([fc, fm])
+        pick = np.argsort(-fs, kind="stable")[:MAX_NEW]
+        new = xs[pick[fs[pick] > Phi]]
+        X, wS = _merge(problem, np.vstack([X, new]), np.append(wS, np.zeros(len(new))))
+        PS = _info(problem, X)
+    order = np.argsort(-wS, kind="stable")
+    return ApproximateDesign(into_limits(robot, np.degrees(X[order])), wS[order], Phi, top_max, Phi**2 / top_max, it,
+                             "feasible candidates", len(pool) + len(search.Q) + len(found))
+
+
+def _meets_earlier_mask(X: np.ndarray, tol: float) -> np.ndarray:
+    """(k,) bool: poses X (k, n) [rad] within ``tol`` (every joint, modulo 2 pi) of an earlier one."""
+    out = np.zeros(len(X), bool)
+    out[_meets_earlier(X, tol)] = True
+    return out
+
+
+def _candidate_design(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.ndarray, target_gap: float,
+                      max_rounds: int) -> ApproximateDesign:
+    """The optimal approximate design over a finite set of candidate poses (a candidate file): the
+    multiplicative algorithm on the whole set, then exact weights on its support with the candidates of
+    largest phi brought in (column generation) until the equivalence gap over the set, computed at every
+    candidate, is at most ``target_gap``. The bound is exact for every plan of these poses."""
+    P2 = P.reshape(len(P), -1)
+    w, it = multiplicative(P, W, 3000, tol=target_gap)
+    top = np.argsort(-w, kind="stable")[:MAX_START_SUPPORT]
+    S, wS = top[w[top] >= 1e-6 * w[top[0]]], None
+    wS = w[S] / w[S].sum()
+    for _ in range(max_rounds):
+        wS = optimal_weights(P[S], W, wS)
+        keep = wS > MIN_WEIGHT
+        S, wS = S[keep], wS[keep] / wS[keep].sum()
+        Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", wS, P[S]))
+        phi = P2 @ (Minv @ W @ Minv).ravel()
+        if phi.max() / Phi - 1.0 <= target_gap:
+            break
+        new = np.setdiff1d(np.argsort(-phi, kind="stable")[:MAX_NEW], S)
+        new = new[phi[new] > Phi]
+        if not new.size:
+            break
+        S, wS = np.concatenate([S, new]), np.append(wS, np.zeros(len(new)))
+    max_phi = max(float(phi.max()), Phi)
+    order = np.argsort(-wS, kind="stable")
+    return ApproximateDesign(into_limits(problem.robot, np.degrees(pool[S[order]])), wS[order], Phi, max_phi,
+                             Phi**2 / max_phi, it, "candidate poses", len(pool))
+
+
+def unconstrained(problem: Problem) -> Problem:
+    """The same problem without the robot's cell and without a candidate file: its approximate design bounds O_t
+    of every plan within the joint limits, so of every plan the cell allows too (a valid bound for the feasible
+    continuum; loose by what the cell excludes)."""
+    from dataclasses import replace
+
+    return replace(problem, robot=replace(problem.robot, cell=None), candidates=None)
+
+
 def _gap(found, Phi: float) -> float:
     """max_x phi / Phi - 1 from :meth:`PhiSearch.maximise`'s maxima; max_x phi >= Phi always (the mean of phi
     under xi is Phi), so the gap is never negative."""
@@ -572,6 +772,11 @@ MAX_NEW = 32
 MIN_WEIGHT = 1e-9
 #: at most this many poses of the multiplicative algorithm's pool weights start the support
 MAX_START_SUPPORT = 200
+#: in a cell, at most this many maxima of phi found by the feasible Newton steps stay among the candidates
+MAX_FOUND = 256
+#: in a cell, the equivalence gap over the feasible candidates at which the design stops (its bound is exact
+#: over them whatever the gap; a tighter design only tightens that bound, by at most the gap)
+FEASIBLE_TARGET_GAP = 1e-5
 
 
 def _merge(problem: Problem, X: np.ndarray, w: np.ndarray, pose_tol: float = 1e-6, info_rtol: float = 1e-9):

@@ -3,7 +3,8 @@ docs/contracts.md.
 
 ``stiffcal design --robot FILE --test-pose-deg Q1,Q2,... (--force-N FX,FY[,FZ] | --wrench F..,M..)
 [--experiments M] [--criterion ot|a|t|d|g|mdc|o1|o2|o3|o4] [--sigma S] [--targets A,B] [--orientation
---sigma-rad S] [--test-target T] [--orientation-length-m L] [--seed N] [--quiet]`` prints one JSON object.
+--sigma-rad S] [--test-target T] [--orientation-length-m L] [--loads SPEC] [--cell FILE] [--joint-limits-deg
+LO:HI,...] [--candidates CSV] [--seed N] [--quiet]`` prints one JSON object.
 
 Bad input gives one line on stderr naming the file or option and what was expected, and exit code 2;
 never a traceback. An internal error (a bug) is one line too, with exit code 1 (``STIFFCAL_TRACEBACK=1``
@@ -55,6 +56,25 @@ def join_negative_values(argv: list[str], parser: argparse.ArgumentParser) -> li
     return out
 
 
+def joint_limits(text: str | None, option: str = "--joint-limits-deg"):
+    """``LO:HI,LO:HI,...`` [deg] -> [[LO, HI], ...] (None stays None); InputError naming ``option``."""
+    from .errors import InputError
+
+    if text is None:
+        return None
+    out = []
+    for j, part in enumerate(text.split(",")):
+        lo, sep, hi = part.partition(":")
+        try:
+            if not sep:
+                raise ValueError
+            out.append([float(lo), float(hi)])
+        except ValueError:
+            raise InputError(f"expected LOWER:UPPER in degrees, one pair per joint, comma-separated "
+                             f"(-180:180,-90:0,...), got {part!r}", field=f"{option}[{j}]") from None
+    return out
+
+
 def design(args) -> dict:
     """Run ``stiffcal design``; returns the JSON-ready dict."""
     from .api import design as run
@@ -62,7 +82,8 @@ def design(args) -> dict:
     return run(args.robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=args.experiments,
                criterion=args.criterion, sigma=args.sigma, targets=args.targets, orientation=args.orientation,
                sigma_rad=args.sigma_rad, test_target=args.test_target,
-               orientation_length_m=args.orientation_length_m, seed=args.seed,
+               orientation_length_m=args.orientation_length_m, joint_limits_deg=joint_limits(args.joint_limits_deg),
+               loads=args.loads, cell=args.cell, candidates=args.candidates, seed=args.seed,
                progress=False if args.quiet else None).to_dict()
 
 
@@ -75,7 +96,8 @@ def discrepancy(args) -> dict:
                              force_N=args.force_N, wrench=args.wrench, out=args.out,
                              angle_resolution_deg=args.angle_resolution_deg, force_resolution_N=args.force_resolution_N,
                              moment_resolution_Nm=args.moment_resolution_Nm, sigma_m=args.sigma_m,
-                             sigma_rad=args.sigma_rad)
+                             sigma_rad=args.sigma_rad, joint_limits_deg=joint_limits(args.joint_limits_deg),
+                             cell=args.cell)
     for note in v["notes"]:
         write(f"stiffcal discrepancy: note: {note}")
     return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
@@ -91,7 +113,8 @@ def discriminate(args) -> dict:
                               weight=args.weight, truth=args.truth, alpha=args.alpha,
                               test_pose_deg=args.test_pose_deg, force_N=args.force_N, out=args.out,
                               angle_resolution_deg=args.angle_resolution_deg,
-                              force_resolution_N=args.force_resolution_N, seed=args.seed)
+                              force_resolution_N=args.force_resolution_N, seed=args.seed,
+                              joint_limits_deg=joint_limits(args.joint_limits_deg), cell=args.cell)
     for note in out["notes"]:
         write(f"stiffcal discriminate: note: {note}")
     plan, comp = out["plan"] or {}, out["compound"] or {}
@@ -104,6 +127,26 @@ def discriminate(args) -> dict:
             "compound": None if not comp else {k: comp[k] for k in ("weight", "poses_deg", "forces_N", "power",
                                                                      "O_t_rms_m", "t_efficiency", "ot_efficiency")},
             "plan": f"{args.out}/plan.json"}
+
+
+def predict(args) -> dict:
+    """``stiffcal predict``: the calibrated model's deflection at the poses of a CSV (writes --out)."""
+    from .api import predict_deflection
+
+    out = predict_deflection(args.robot, args.poses, out=args.out, orientation=args.orientation)
+    for note in out["notes"]:
+        write(f"stiffcal predict: note: {note}")
+    return out
+
+
+def compensate(args) -> dict:
+    """``stiffcal compensate``: a path compensated with the calibrated model (writes --out)."""
+    from .api import compensate_path
+
+    out = compensate_path(args.robot, args.path, out=args.out)
+    for note in out["notes"]:
+        write(f"stiffcal compensate: note: {note}")
+    return out
 
 
 def verify_archive(args) -> dict:
@@ -132,6 +175,13 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {' '.join(message.split())}\n")
 
 
+def _cell_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--cell", help="YAML file of the cell the robot stands in (docs/contracts.md, 'The cell'), "
+                                  "replacing the robot file's: every pose of the plan is feasible in it")
+    p.add_argument("--joint-limits-deg", help="joint limits LO:HI,LO:HI,... [deg], one pair per joint, replacing the "
+                                              "robot file's")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="stiffcal", description=__doc__.split("\n")[0])
     p.add_argument("--version", action="version", version=f"stiffcal {__version__}")
@@ -152,6 +202,13 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--test-target", default="tool", help="the target whose error at the test pose O_t measures")
     d.add_argument("--orientation-length-m", default=0.0,
                    help="length scale L [m] that adds the tool's rotation to the test pose's error (default 0)")
+    d.add_argument("--loads", help="loads every measurement pose is measured under (then --force-N/--wrench is the "
+                                   "test pose's only): 'hanging:M1,M2' [N] along the robot file's gravity, "
+                                   "'directions:K:M1,M2', 'forces:FX,FY,FZ;...', 'wrenches:FX,..,MZ;...', "
+                                   "'bar:AX,AY,AZ:M1,M2' (a loading bar)")
+    _cell_options(d)
+    d.add_argument("--candidates", help="CSV of candidate poses (columns q1_deg.. or the joint names in radians): the "
+                                        "plan is chosen among those the cell allows")
     d.add_argument("--seed", type=int, default=0, help="seed of the random starts of M-pose plans (default 0)")
     d.add_argument("--quiet", action="store_true", help="no progress on stderr (a bar on a terminal, else a line "
                                                         "every few seconds with an estimate)")
@@ -174,6 +231,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="moments within this (per component) are one load (default 0.05)")
     x.add_argument("--sigma-m", default=None, help="position noise [m] (with --sigma-rad: weights the rotation rows)")
     x.add_argument("--sigma-rad", default=None, help="rotation noise [rad] (default: the ratio is estimated)")
+    _cell_options(x)
     x.add_argument("--quiet", action="store_true", help="no progress on stderr")
     x.set_defaults(func=discrepancy)
     t = sub.add_parser("discriminate", help="the next experiment that tells rival causes apart (writes DIR/plan.json)")
@@ -194,8 +252,22 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--angle-resolution-deg", default=None, help="encoder resolution (default 0.01)")
     t.add_argument("--force-resolution-N", default=None, help="load-cell resolution (default 0.5)")
     t.add_argument("--seed", type=int, default=0, help="seed of the random starts of the exchange (default 0)")
+    _cell_options(t)
     t.add_argument("--quiet", action="store_true", help="no progress on stderr")
     t.set_defaults(func=discriminate)
+    r = sub.add_parser("predict", help="the calibrated model's deflection at given poses under given loads (CSV)")
+    r.add_argument("--robot", required=True, help="calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy)")
+    r.add_argument("--poses", required=True, help="CSV of poses and loads: q1_deg.., fx_N.. (mx_Nm.., target)")
+    r.add_argument("--out", help="CSV to write: the poses with dx_m.. and sd_dx_m.. (default: nothing written)")
+    r.add_argument("--orientation", action="store_true", help="predict the tool's rotation too (rx_rad..)")
+    r.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    r.set_defaults(func=predict)
+    c = sub.add_parser("compensate", help="a path compensated with the calibrated model (CSV)")
+    c.add_argument("--robot", required=True, help="calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy)")
+    c.add_argument("--path", required=True, help="CSV of the path's poses and loads: q1_deg.., fx_N.. (mx_Nm..)")
+    c.add_argument("--out", help="CSV to write: corrected targets and joint angles, residuals (default: nothing)")
+    c.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    c.set_defaults(func=compensate)
     v = sub.add_parser("verify-archive",
                        help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
     v.add_argument("file", help="results/archive/stiffcal-<commit>.tar.gz")

@@ -64,7 +64,8 @@ def _sorted(doc):
 def fill_defaults(config: dict) -> dict:
     """``config`` (checked by :func:`check_config`) with every optional key of the schema filled in, in place and
     returned, so that rules and the report's template never meet a missing key: the schema's ``default``,
-    the documented derived defaults (``measured_data[].force_N`` and ``moment_Nm``: the study's;
+    the documented derived defaults (``measured_data[].force_N`` and ``moment_Nm``: the study's; its
+    ``test_pose_deg`` is left None when not given, :func:`data_set_test_pose` resolves it;
     ``studies[].draw_m``: the largest of ``m_values``; ``plans`` and ``measured_data[].discriminate``: every
     default), and None for a key whose documented default is "none" (``moment_Nm``, ``sigma_rad``, a
     ``sigma_m`` estimated from the data, ``plans.pool_step_deg``, ``discriminate.loads``, ``maps``), an empty list
@@ -83,6 +84,14 @@ def fill_defaults(config: dict) -> dict:
             if entry[key] is None:
                 entry[key] = copy.deepcopy(study[key])
     return config
+
+
+def data_set_test_pose(entry: dict, study: dict, n_joints: int) -> list | None:
+    """A measured data set's test pose [deg]: its own ``test_pose_deg``, else the study's when the data set's robot
+    has as many joints (n_joints), else None (the gain's test-pose figures are then left out)."""
+    if entry.get("test_pose_deg") is not None:
+        return entry["test_pose_deg"]
+    return study["test_pose_deg"] if len(study["test_pose_deg"]) == n_joints else None
 
 
 def _fill(doc, schema: dict) -> None:
@@ -187,7 +196,12 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
         if ("sigma_m" in entry) != ("sigma_rad" in entry):
             raise InputError("expected both noise levels (sigma_m and sigma_rad) or neither", source=source,
                              field=f"{where}.{'sigma_rad' if 'sigma_m' in entry else 'sigma_m'}")
-        if data_robot.n_joints == robot.n_joints:  # the predicted gain at the study's test pose
+        if entry.get("test_pose_deg") is not None:  # the data set's own test pose: its robot's joints and limits
+            from .study import check_test_inputs
+
+            check_test_inputs(data_robot, entry["test_pose_deg"], np.asarray(force, float), f"{where}.test_pose_deg",
+                              field, source, None if moment is None else np.asarray(moment, float), mfield)
+        elif data_robot.n_joints == robot.n_joints:  # the predicted gain at the study's test pose
             if len(force) != data_robot.task_dim:
                 raise InputError(f"expected {data_robot.task_dim} force components for the {data_robot.kind} robot "
                                  f"{entry['robot']}, got {len(force)}", source=source, field=field)

@@ -35,9 +35,11 @@ import numpy as np
 
 from . import criteria
 from .errors import InputError
-from .observation import Sensing, as_wrench, observation_rows, sensed_params, target_offsets, test_rows
+from .observation import (Loads, Sensing, as_wrench, loaded_rows, observation_rows, sensed_params, target_offsets,
+                          test_rows)
 from .robot import TOOL_TARGET, Robot
 from .stiffness import observation_matrix, pose_information
+from .threads import single_threaded
 
 TWO_PI = 2.0 * np.pi
 
@@ -53,7 +55,11 @@ class Problem:
     test_moment: (d_m,) [N m] with ``test_force``; sensing: what is measured at every pose
     (:class:`stiffcal.observation.Sensing`; default the tool point's position); test_target: the target whose
     position error O_t measures; length_m: the length scale [m] that adds the tool's rotation to that error
-    (0: position only). The module :mod:`stiffcal.observation` gives the equations.
+    (0: position only); loads: the loads every pose is measured under (:class:`stiffcal.observation.Loads`,
+    ``--loads``; default the force and moment above, which are then the test pose's load only); candidates:
+    the only poses a plan may use (N, n) [rad] (a candidate file: plans are chosen among them, not polished
+    in the continuum), None for the whole joint space. The module :mod:`stiffcal.observation` gives the
+    equations; the robot's cell (:mod:`stiffcal.workcell`) which poses can be taken.
     """
 
     robot: Robot
@@ -68,6 +74,25 @@ class Problem:
     sensing: Sensing | None = None
     test_target: str = TOOL_TARGET
     length_m: float = 0.0
+    loads: Loads | None = None
+    candidates: np.ndarray | None = None
+
+    @property
+    def hang_offset(self) -> np.ndarray | None:
+        """Where the cable of hanging masses starts (tip frame, from the tool point), or None without them."""
+        return None if self.loads is None else self.loads.hang_offset
+
+    def feasible(self, q: np.ndarray) -> np.ndarray:
+        """(...,) bool: the poses q (..., n) [rad] the robot can take in its cell, with the cable of hanging
+        masses free (:func:`stiffcal.workcell.feasible`); all True without a cell."""
+        from .workcell import feasible
+
+        return feasible(self.robot, q, self.hang_offset)
+
+    @property
+    def continuous(self) -> bool:
+        """Plans move in the continuum of poses (False: only the candidate poses)."""
+        return self.candidates is None
 
     @cached_property
     def _sensing(self) -> Sensing:
@@ -78,7 +103,8 @@ class Problem:
     def is_default(self) -> bool:
         """The paper's problem: a force, the tool point's position measured, its error at the test pose."""
         no_moment = all(v is None or not np.any(v) for v in (self.moment, self.test_moment))
-        return no_moment and self._sensing.is_default and self.test_target == TOOL_TARGET and self.length_m == 0
+        return (no_moment and self._sensing.is_default and self.test_target == TOOL_TARGET and self.length_m == 0
+                and self.loads is None and not self.unturned)
 
     @property
     def load(self) -> np.ndarray:
@@ -97,10 +123,49 @@ class Problem:
     def params(self) -> np.ndarray:
         """Joints whose compliances the measurements see (:func:`stiffcal.observation.sensed_params`) and the
         loads turn: a force at the tool point on a joint's axis (:attr:`stiffcal.robot.Robot.inert_joints`) has
-        no torque about it, so without a moment that joint never deflects, whatever is measured."""
+        no torque about it, so without a moment that joint never deflects, whatever is measured; nor does a joint
+        that no measurement load turns at any pose (:attr:`unturned`: a vertical axis under hanging masses)."""
         if self.is_default:
             return self.robot.params
-        return np.intersect1d(self.sensed, self.robot.params) if self.unloaded_inert else self.sensed
+        base = np.intersect1d(self.sensed, self.robot.params) if self.unloaded_inert else self.sensed
+        return np.setdiff1d(base, self.unturned)
+
+    @cached_property
+    def unturned(self) -> tuple[int, ...]:
+        """Joints that no measurement load turns at any pose (zero torque at 512 random poses within the
+        limits, relative to the load times the reach): a vertical axis 1 under hanging masses. Their compliance
+        cannot be identified and is left out of the model, as the measured-data analysis does; the test load
+        must not turn them either (:meth:`check_test_load`)."""
+        from .observation import torques
+
+        lo, hi = self.robot.joint_limits_rad.T
+        q = np.random.default_rng(5).uniform(lo, hi, (512, self.robot.n_joints))
+        if self.loads is None:
+            W = np.asarray(self.load)[None]
+            tau = np.abs(torques(self.robot, q, W[0]))[None]
+        else:
+            W = self.loads.at(self.robot, q)  # (N, L, w)
+            tau = np.abs(np.stack([torques(self.robot, q, W[:, k]) for k in range(W.shape[1])]))
+        scale = np.abs(W).max() * max(self.robot.reach_m, 1.0)
+        dead = np.all(tau <= 1e-12 * scale, axis=(0, 1))
+        return tuple(int(j) for j in np.flatnonzero(dead) if j in self.robot.params)
+
+    def check_test_load(self, field: str = "force_N", source: str | None = None) -> None:
+        """Refuse a test load that turns a joint no measurement load turns (:attr:`unturned`): its compliance
+        deflects the test pose but cannot be identified, so O_t is infinite for every plan."""
+        if not self.unturned or self.test_pose is None:
+            return
+        from .observation import torques
+
+        tau = np.abs(torques(self.robot, self.test_pose, self.test_load))
+        scale = np.abs(self.test_load).max() * max(self.robot.reach_m, 1.0)
+        bad = [j for j in self.unturned if tau[j] > 1e-9 * scale]
+        if bad:
+            names = ", ".join(self.robot.joint_names[j] for j in bad)
+            raise InputError(f"the measurement loads never turn joint {names}, but the test load does "
+                             f"({tau[bad[0]]:.3g} N m): its compliance deflects the test pose and cannot be "
+                             "identified, so O_t is infinite for every plan; add a measurement load that turns it (a "
+                             "push sideways, a moment, a loading bar)", source=source, field=field)
 
     @cached_property
     def sensed(self) -> np.ndarray:
@@ -120,7 +185,8 @@ class Problem:
 
     @property
     def rows_per_pose(self) -> int:
-        return self._sensing.rows_per_pose(self.robot)
+        per = self._sensing.rows_per_pose(self.robot)
+        return per if self.loads is None else per * len(self.loads.wrenches)
 
     @property
     def min_poses(self) -> int:
@@ -132,7 +198,7 @@ class Problem:
         """Whether a pose's half-turn and mirror copies (planar arms, :func:`stiffcal.plans.symmetric_copies`)
         carry the same information: no moment (a moment about z does not turn with the arm) and every measured
         target on the last link's line (the mirror copy of a target beside it is another point)."""
-        if self.moment is not None and np.any(self.moment):
+        if self.moment is not None and np.any(self.moment) or self.loads is not None or self.robot.cell is not None:
             return False
         off = target_offsets(self.robot, self._sensing.targets)
         return bool(np.all(np.abs(off[:, 1:]) <= 1e-12))
@@ -142,6 +208,8 @@ class Problem:
         :func:`stiffcal.observation.observation_rows` (orientation rows weighted by sigma / sigma_rad)."""
         if self.is_default:
             return observation_matrix(self.robot.model_jacobian(q), self.force)
+        if self.loads is not None:
+            return loaded_rows(self.robot, q, self.loads, self._sensing, self.params)
         return observation_rows(self.robot, q, self.load, self._sensing, self.params)
 
     @cached_property
@@ -178,9 +246,13 @@ def plan_observations(problem: Problem, q: np.ndarray) -> np.ndarray:
 
 
 def plan_loss(problem: Problem, q: np.ndarray) -> np.ndarray:
-    """Criterion to minimise for plans q: (..., m, n) [rad]. Returns (...,); +inf where singular."""
-    return criteria.loss(problem.criterion, plan_observations(problem, q), problem.m, problem.At,
-                         problem.sigma)
+    """Criterion to minimise for plans q: (..., m, n) [rad]. Returns (...,); +inf where singular, and where a
+    pose cannot be taken in the robot's cell (:meth:`Problem.feasible`)."""
+    loss = criteria.loss(problem.criterion, plan_observations(problem, q), problem.m, problem.At, problem.sigma)
+    if problem.robot.cell is None:
+        return loss
+    ok = problem.feasible(q).all(axis=-1)
+    return np.where(ok, loss, np.inf)
 
 
 def plan_value(problem: Problem, q: np.ndarray) -> np.ndarray:
@@ -386,22 +458,57 @@ def grid_minimise(fun, robot: Robot, step_deg: float = 1.0, n_refine: int = 24, 
     return grids, values, xs, fs
 
 
-def polish_grid_minima(fun, robot: Robot, grids, values, n_refine: int = 24, xatol: float = 1e-10):
+def polish_grid_minima(fun, robot: Robot, grids, values, n_refine: int = 24, xatol: float = 1e-10,
+                       smooth: bool = False):
     """Polish the ``n_refine`` best grid local minima of ``values`` (module docstring, steps 2-3).
 
-    Returns (xs (k, n) [rad], fs (k,)), best first.
+    Returns (xs (k, n) [rad], fs (k,)), best first. In a cell (``robot.cell``), minima a few grid steps from a
+    better one are not polished apart (:func:`_spread_minima`), and a ``smooth`` function is polished by
+    L-BFGS-B (:func:`polish_smooth`: a step out of the cell is refused) rather than Nelder-Mead, whose simplex
+    creeps along the boundary of the feasible set for thousands of evaluations.
     """
     mask = grid_local_minima(values, [_is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad])
     idx = np.argwhere(mask)
+    if robot.cell is not None:
+        return _polish_all(fun, robot, _spread_minima(grids, values, idx, n_refine), xatol, smooth)
     order = np.argsort(values[mask], kind="stable")[:n_refine]
     starts = np.array([[g[i] for g, i in zip(grids, idx[o])] for o in order]).reshape(-1, robot.n_joints)
     return _polish_all(fun, robot, starts, xatol)
 
 
+#: in a cell, grid local minima closer than this many grid steps (every joint) to a better one are not polished
+#: apart: the boundary of the feasible set makes a row of grid minima along it, which polish to one point
+CELL_MINIMA_STEPS = 4
+
+
+def _spread_minima(grids, values, idx, n_refine: int) -> np.ndarray:
+    """The ``n_refine`` best grid local minima (indices ``idx``) at least :data:`CELL_MINIMA_STEPS` grid steps
+    from every better one chosen (on some joint, with the grid's wrap-around): the starts of the polish in a
+    cell. Returns (k, n) [rad]."""
+    order = np.argsort(values[tuple(idx.T)], kind="stable")
+    sizes = np.array([len(g) for g in grids])
+    chosen: list[np.ndarray] = []
+    for o in order:
+        if len(chosen) == n_refine:
+            break
+        i = idx[o]
+        if all(np.any(np.minimum(np.abs(i - c), sizes - np.abs(i - c)) > CELL_MINIMA_STEPS) for c in chosen):
+            chosen.append(i)
+    return np.array([[g[k] for g, k in zip(grids, i)] for i in chosen]).reshape(-1, len(grids))
+
+
 def _polish_all(fun, robot: Robot, starts: np.ndarray, xatol: float = 1e-10, smooth: bool = False):
     """Polish every start (k, n) [rad]: Nelder-Mead, or for a ``smooth`` function L-BFGS-B with batched
-    central-difference gradients (:func:`polish_smooth`). Returns (xs, fs) best first."""
-    one = polish_smooth if smooth else _polish
+    central-difference gradients (:func:`polish_smooth`; one-sided next to the poses a cell does not allow).
+    Returns (xs, fs) best first."""
+    if smooth:
+        def one(f, x0, bounds, xatol):
+            return polish_smooth(f, x0, bounds, xatol, one_sided=robot.cell is not None)
+    elif robot.cell is not None:
+        def one(f, x0, bounds, xatol):
+            return _polish(f, x0, bounds, xatol, CELL_MAXFEV * len(x0))
+    else:
+        one = _polish
     polished = [one(fun, x0, _bounds(robot), xatol) for x0 in starts]
     xs = np.array([p[0] for p in polished]).reshape(-1, robot.n_joints)
     fs = np.array([p[1] for p in polished])
@@ -451,6 +558,11 @@ def global_minimise(fun, robot: Robot, step_deg: float, n_refine: int = 8):
     return sampled_minimise(fun, robot, n_refine)
 
 
+#: criteria with kinks (a max over poses or eigenvalues): polished by Nelder-Mead even in a cell
+NONSMOOTH = ("mdc", "g")
+
+
+@single_threaded
 def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int = 24,
                         set_rtol: float = 1e-7, xatol: float = 1e-10) -> SinglePoseResult:
     """Global optimum of the criterion over one measurement pose (see the module docstring).
@@ -468,6 +580,8 @@ def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int =
     def fun(q):
         return plan_loss(problem, q[..., None, :])
 
+    if not problem.continuous:  # a candidate file: the best of its poses the cell allows
+        return _best_candidate(problem, fun, set_rtol)
     if is_sampled(robot, step_deg):
         if d < n and problem.criterion != "t":
             raise InputError(f"criterion {criteria.label(problem.criterion)} is zero at every pose: {few}")
@@ -481,7 +595,8 @@ def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int =
                              "the joint space identifies every compliance with this force")
         if finite.max() - finite.min() <= 1e-9 * max(1.0, abs(finite.min())):
             return _degenerate_result(problem, grids, values)
-        xs, fs = polish_grid_minima(fun, robot, grids, values, n_refine, xatol)
+        smooth = robot.cell is not None and problem.criterion not in NONSMOOTH
+        xs, fs = polish_grid_minima(fun, robot, grids, values, n_refine, xatol, smooth)
     best = fs[0]
     near = fs <= best + set_rtol * max(abs(best), 1e-300)
     opt_deg = into_limits(robot, np.degrees(dedupe(xs[near])))
@@ -490,19 +605,33 @@ def optimal_single_pose(problem: Problem, step_deg: float = 1.0, n_refine: int =
     return SinglePoseResult(rep, opt_deg, float(best), value)
 
 
-def polish_smooth(fun, x0: np.ndarray, bounds, xatol: float = 1e-10, h: float = 1e-6):
+def polish_smooth(fun, x0: np.ndarray, bounds, xatol: float = 1e-10, h: float = 1e-6, one_sided: bool = False):
     """L-BFGS-B from x0 on a smooth batched ``fun`` (q (k, n) -> (k,)): the value and the central-difference
-    gradient come from one call on 2n + 1 poses. Returns (x, f), never worse than x0."""
+    gradient come from one call on 2n + 1 poses. Returns (x, f), never worse than x0. ``one_sided`` (a cell,
+    where ``fun`` is +inf at the poses the robot cannot take): next to such a pose the gradient is a one-sided
+    difference, and a step onto one is refused (a finite value far above the start's, so the line search
+    backtracks)."""
     n = len(x0)
     steps = np.vstack([np.zeros(n), h * np.eye(n), -h * np.eye(n)])
+    big = [None]
 
     def fg(x):
         v = fun(x + steps)
         if not np.all(np.isfinite(v)):
-            return float(v[0]), np.zeros(n)
+            if not one_sided or big[0] is None:
+                return float(v[0]), np.zeros(n)
+            if not np.isfinite(v[0]):
+                return big[0], np.zeros(n)
+            up, down = v[1:n + 1], v[n + 1:]
+            with np.errstate(invalid="ignore"):
+                g = np.where(np.isfinite(up) & np.isfinite(down), (up - down) / (2 * h),
+                             np.where(np.isfinite(up), (up - v[0]) / h,
+                                      np.where(np.isfinite(down), (v[0] - down) / h, 0.0)))
+            return float(v[0]), g
         return float(v[0]), (v[1:n + 1] - v[n + 1:]) / (2 * h)
 
     f0 = fg(x0)[0]
+    big[0] = 1e3 * (abs(f0) + 1.0) if np.isfinite(f0) else None
     bnds = [b if b is not None else (None, None) for b in bounds]
     from scipy.optimize import minimize
 
@@ -513,8 +642,13 @@ def polish_smooth(fun, x0: np.ndarray, bounds, xatol: float = 1e-10, h: float = 
     return x0, f0
 
 
-def _polish(fun, x0: np.ndarray, bounds, xatol: float):
-    """Nelder-Mead from x0 on ``fun`` (one pose); returns (x, f), never worse than x0."""
+#: Nelder-Mead's evaluations per joint in a cell (its simplex creeps along the boundary of the feasible set)
+CELL_MAXFEV = 300
+
+
+def _polish(fun, x0: np.ndarray, bounds, xatol: float, maxfev: int | None = None):
+    """Nelder-Mead from x0 on ``fun`` (one pose), at most ``maxfev`` evaluations (default 8000 per joint);
+    returns (x, f), never worse than x0."""
     def f(x):
         return float(fun(x))
 
@@ -530,10 +664,29 @@ def _polish(fun, x0: np.ndarray, bounds, xatol: float):
 
     res = minimize(f, x0, method="Nelder-Mead", bounds=bnds,
                    options=dict(xatol=xatol, fatol=1e-15 * max(1.0, abs(f0)), maxiter=4000 * len(x0),
-                                maxfev=8000 * len(x0), initial_simplex=simplex))
+                                maxfev=maxfev or 8000 * len(x0), initial_simplex=simplex))
     if res.fun <= f0:
         return res.x, float(res.fun)
     return x0, f0
+
+
+def _best_candidate(problem: Problem, fun, set_rtol: float) -> SinglePoseResult:
+    """The single pose of a candidate file (``problem.candidates``) with the best criterion among those the cell
+    allows, and every candidate within ``set_rtol`` of it (the optimal set)."""
+    q = problem.candidates[problem.feasible(problem.candidates)]
+    if not len(q):
+        raise InputError("none of the candidate poses can be taken in the cell", source=problem.robot.source,
+                         field="candidates")
+    v = np.asarray(fun(q), float)
+    if not np.isfinite(v).any():
+        raise InputError(f"criterion {criteria.label(problem.criterion)} is infinite at every candidate pose",
+                         field="candidates")
+    best = float(np.nanmin(v))
+    near = v <= best + set_rtol * max(abs(best), 1e-300)
+    opt_deg = into_limits(problem.robot, np.degrees(q[near]))
+    pose = opt_deg[0]
+    value = float(plan_value(problem, np.radians(pose)[None, None, :])[0])
+    return SinglePoseResult(pose, opt_deg, best, value)
 
 
 def _degenerate_result(problem: Problem, grids, values) -> SinglePoseResult:

@@ -1416,7 +1416,9 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     out["diagnostics"], more = diagnostics(robot, pre, chosen, sel.fits[chosen], alpha)
     notes += more
     out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
-    out["gain"] = _gain(robot, m, des, ext, noise.s2, test_pose, test_force, ob, pre.error, w) if ext and gain else None
+    held = held_out(robot, pre, ext) if gain else None
+    out["held_out"] = None if held is None else held.as_dict()
+    out["gain"] = _gain(robot, des, ext, noise.s2, test_pose, test_force, ob, held) if ext and gain else None
     if out["gain"] is not None and out["gain"]["loco_ratio"] is None:
         notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
                      "configurations (and a nonzero error of the extended model); it is left out")
@@ -1912,14 +1914,15 @@ def parameter_names(cause: str, robot: Robot, observed: Observed | None = None) 
             "measurement_offset": [f"o{a}_m" for a in "xyz"[: robot.task_dim]] + rot}[cause]
 
 
-def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None, des: Design | None = None,
-             error=None, weights: np.ndarray | None = None) -> float | None:
-    """RMS prediction error [m] of the positions of held-out configurations: each robot configuration (all its
-    loads, targets and replicates) left out in turn and predicted from the others (fitted on every measured
-    quantity, ``observed``). With the analysis's design ``des`` (weighted by ``weights`` (N,) and whitened by the
-    error model ``error``) the fits are its generalised least squares (configurations are independent blocks,
-    so leaving one out drops its rows) and a held-out configuration's rows are compared less the shared error its
-    own unloaded rows predict. None when fewer than two configurations."""
+def loco_predictions(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None,
+                     des: Design | None = None, error=None, weights: np.ndarray | None = None):
+    """Leave-one-configuration-out predictions of the positions: each robot configuration (all its loads,
+    targets and replicates) left out in turn and predicted from the others (fitted on every measured quantity,
+    ``observed``). With the analysis's design ``des`` (weighted by ``weights`` (N,) and whitened by the error
+    model ``error``) the fits are its generalised least squares (configurations are independent blocks, so
+    leaving one out drops its rows) and a held-out configuration's measured rows are taken less the shared
+    error its own unloaded rows predict. Returns (predicted (N, d), measured (N, d)) [m], or None when fewer
+    than two configurations."""
     if meas.n_configurations < 2:
         return None
     ob = observed or Observed.of(robot, meas)
@@ -1933,20 +1936,72 @@ def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | N
         y = y if error is None else error.adjusted(y * w[:, None]) / w[:, None]
     else:
         Xw, yw = X, y
-    err = []
+    pred = np.empty((len(y), d))
     for g in range(meas.n_configurations):
         test = meas.config == g
         f = fit(_stack(Xw[~test]), yw[~test].ravel())
-        err.append((y[test] - np.einsum("ndp,p->nd", X[test], f.beta))[:, :d].ravel())
-    e = np.concatenate(err)
-    return float(np.sqrt(np.mean(e**2)))
+        pred[test] = np.einsum("ndp,p->nd", X[test], f.beta)[:, :d]
+    return pred, y[:, :d]
 
 
-def _gain(robot, meas, des, causes, s2, test_pose, test_force, observed: Observed | None = None, error=None,
-          weights=None) -> dict:
-    ob = observed or Observed.of(robot, meas)
-    nom = loco_rms(robot, meas, observed=ob, des=des, error=error, weights=weights)
-    ext = loco_rms(robot, meas, causes, ob, des, error, weights)
+def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None, des: Design | None = None,
+             error=None, weights: np.ndarray | None = None) -> float | None:
+    """RMS prediction error [m] of the positions of held-out configurations (:func:`loco_predictions`), None
+    when fewer than two configurations."""
+    out = loco_predictions(robot, meas, causes, observed, des, error, weights)
+    return None if out is None else float(np.sqrt(np.mean((out[1] - out[0]) ** 2)))
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """The held-out check (:func:`held_out`): measured (N, d) [m] the rows' positions (less the shared error
+    their unloaded rows predict), nominal and calibrated (N, d) [m] the leave-one-configuration-out predictions
+    of the nominal and the calibrated model (the extended one, else the nominal), config (N,) the rows'
+    configurations, labels: one per configuration."""
+    measured: np.ndarray
+    nominal: np.ndarray
+    calibrated: np.ndarray
+    config: np.ndarray
+    labels: tuple
+    causes: tuple
+
+    def as_dict(self) -> dict:
+        """The verdict's ``held_out``: per configuration its label, rows and the RMS error [m] of either model's
+        prediction, and the RMS over all rows."""
+        def rms(pred, rows=slice(None)):
+            return float(np.sqrt(np.mean((self.measured[rows] - pred[rows]) ** 2)))
+
+        table = [{"configuration": str(self.labels[g]) if g < len(self.labels) else str(g),
+                  "rows": int((self.config == g).sum()),
+                  "rms_nominal_m": rms(self.nominal, self.config == g),
+                  "rms_calibrated_m": rms(self.calibrated, self.config == g)}
+                 for g in np.unique(self.config)]
+        return {"method": "leave-one-configuration-out", "calibrated_causes": list(self.causes),
+                "rms_nominal_m": rms(self.nominal), "rms_calibrated_m": rms(self.calibrated),
+                "per_configuration": table}
+
+
+def held_out(robot: Robot, pre: "Prepared", causes=()) -> HeldOut | None:
+    """The held-out check of an analysis (:func:`prepare`) for the calibrated model nominal + ``causes``:
+    :func:`loco_predictions` of both models on the analysis's generalised least squares. None with fewer than
+    two configurations."""
+    args = (pre.ob, pre.des, pre.error, pre.w)
+    nom = loco_predictions(robot, pre.m, (), *args)
+    if nom is None:
+        return None
+    cal = loco_predictions(robot, pre.m, tuple(causes), *args) if causes else nom
+    m = pre.m
+    return HeldOut(nom[1], nom[0], cal[0], np.asarray(m.config), tuple(m.config_labels), tuple(causes))
+
+
+def _gain(robot, des, causes, s2, test_pose, test_force, observed: Observed, held: HeldOut | None) -> dict:
+    """The verdict's ``gain`` of the extended model nominal + ``causes``: the held-out RMS of either model
+    (``held``, :func:`held_out`), and at the test pose the RMS error of either model's prediction and the
+    O_t-optimal plans (:func:`optimal_plan`)."""
+    ob = observed
+    ho = None if held is None else held.as_dict()
+    nom = None if ho is None else ho["rms_nominal_m"]
+    ext = None if ho is None else ho["rms_calibrated_m"]
     out = {"loco_rms_nominal_m": nom, "loco_rms_extended_m": ext,
            "loco_ratio": nom / ext if nom is not None and ext else None}
     if test_pose is not None and test_force is not None:
@@ -2003,8 +2058,11 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
         label: str | None = None, angle_resolution_deg: float | None = None,
         force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
         sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
-    """Read, analyse, and write ``out_dir/verdict.json`` and ``out_dir/residuals.{png,svg}``; everything is
-    computed before anything is written, so bad data leave no partial output. Resolutions default to
+    """Read, analyse, and write ``out_dir/verdict.json``, ``out_dir/residuals.{png,svg}``,
+    ``out_dir/heldout.{png,svg}`` (:func:`stiffcal.plots.fig_held_out`) and, for a robot given
+    as a file, ``out_dir/calibrated.yaml`` (:mod:`stiffcal.calibrated`: the robot file with the identified model;
+    the verdict's ``calibrated_model`` names it); everything is computed before anything is written, so bad data
+    leave no partial output. Resolutions default to
     :data:`stiffcal.measurements.ANGLE_RESOLUTION_DEG`, :data:`~stiffcal.measurements.FORCE_RESOLUTION_N` and
     :data:`~stiffcal.measurements.MOMENT_RESOLUTION_NM`; sigma_m, sigma_rad: :func:`analyse`."""
     import json
@@ -2019,8 +2077,14 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
                                M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None else angle_resolution_deg,
                                M.FORCE_RESOLUTION_N if force_resolution_N is None else force_resolution_N,
                                M.MOMENT_RESOLUTION_NM if moment_resolution_Nm is None else moment_resolution_Nm)
-    verdict = analyse(robot, meas, alpha, test_pose, test_force, sigma_m=sigma_m, sigma_rad=sigma_rad)
+    from . import calibrated
+
+    pre = prepare(robot, meas, alpha, sigma_m, sigma_rad)
+    verdict = verdict_of(robot, pre, alpha, test_pose, test_force)
     verdict = {"data": str(data_path), "robot": robot.source, **verdict}
+    cal = calibrated.from_analysis(robot, pre, verdict, data_path)
+    calibrated_doc = calibrated.calibrated_document(robot, cal, out_dir) if Path(robot.source).is_file() else None
+    verdict["calibrated_model"] = calibrated.CALIBRATED_FILE if calibrated_doc is not None else None
     text = json.dumps(verdict, indent=2, allow_nan=False)
     keep = np.ones(meas.n_rows, bool)
     keep[np.isin(meas.rows, verdict["outlier_rows"])] = False
@@ -2032,6 +2096,10 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     plots.save(fig, out / "residuals")
+    plots.save(plots.fig_held_out(verdict.get("held_out"), verdict["nominal"]["sigma_m"],
+                                  f"Held-out configurations: {label or Path(data_path).name}"), out / "heldout")
+    if calibrated_doc is not None:
+        calibrated.write_calibrated(robot, cal, out)
     (out / "verdict.json").write_text(text + "\n", encoding="utf-8")
     return verdict
 
@@ -2054,7 +2122,8 @@ def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.nda
     pose measuring what the data measured (``observed``: its targets and orientation; default the tool point)
     and O_t the tool point's position error at the test pose: Fedorov exchange
     (:func:`stiffcal.plans.fedorov_exchange`, the engine of every plan) over a step_deg grid of poses within
-    the joint limits (4096 quasi-random poses for 4+ joints). Returns (poses [deg] (m, n), O_t / sigma^2)."""
+    the joint limits (4096 quasi-random poses for 4+ joints), those the robot's cell allows. Returns (poses [deg]
+    (m, n), O_t / sigma^2)."""
     from .plans import fedorov_exchange
 
     ob = observed or Observed()
@@ -2064,6 +2133,13 @@ def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.nda
         lims = np.degrees(robot.joint_limits_rad)
         axes = [np.arange(lo, hi + 1e-9, step_deg) for lo, hi in lims]
         pool = np.radians(np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, robot.n_joints))
+    if robot.cell is not None:  # only the poses the robot can take in its cell (stiffcal.workcell)
+        from .workcell import feasible
+
+        pool = pool[feasible(robot, pool)]
+        if not len(pool):
+            raise InputError(f"no pose of the plan's candidate grid can be taken in the cell ({robot.cell.describe()})",
+                             source=robot.cell.source, field="cell")
     Xp = pose_rows(robot, pool, np.asarray(test_force, float), causes, ob)
     Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True,
                        observed=ob.at_tool(robot))[0]

@@ -78,13 +78,13 @@ from scipy import optimize, stats
 from . import discrepancy as D
 from .design import grid_size, is_sampled, joint_grids, sample_joint_space, sampled_minimise
 from .errors import InputError
-from .limits import MAX_FORCE_N, MAX_LOADS
 from .measurements import Measurements
 from .robot import Robot
-from .truth import Truth, _gravity, physics
+from .threads import single_threaded
+from .loads import MAX_DATA_LOADS, LoadSet, _numbers, check_lab_loads, sphere_directions  # noqa: F401 (re-exported)
+from .loads import load_set as _load_set
+from .truth import Truth, physics
 
-#: most distinct loads of the data a plan is made over by default (beyond, the loads must be given)
-MAX_DATA_LOADS = 16
 #: default weight kappa of the discrimination in the compound criterion (module docstring)
 COMPOUND_WEIGHT = 0.5
 #: the measurements that can separate causes whose position spans coincide
@@ -119,149 +119,16 @@ class PositionModel:
         return D.model_columns(robot, q, force, causes)
 
 
-# --- loads --------------------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class LoadSet:
-    """The loads a lab can apply: forces (L, d) [N], or wrenches (L, d + d_m) [N, N m] (force, then the moment
-    about the tool point: the data's loads when they have moments, a loading bar); kind: 'hanging',
-    'directions', 'forces' or 'data'; spec: the text it was read from; d: the force components."""
-
-    forces: np.ndarray
-    kind: str
-    spec: str
-    d: int | None = None
-
-    @property
-    def force_part(self) -> np.ndarray:
-        """(L, d) [N]: the forces."""
-        return self.forces[:, : self.d or self.forces.shape[1]]
-
-    @property
-    def moments(self) -> np.ndarray | None:
-        """(L, d_m) [N m]: the moments about the tool point, or None for pure forces."""
-        d = self.d or self.forces.shape[1]
-        return self.forces[:, d:] if self.forces.shape[1] > d else None
-
-    def describe(self) -> str:
-        mags = sorted({round(float(np.linalg.norm(f)), 2) for f in self.force_part})
-        text = {"hanging": f"hanging weights of {', '.join(f'{m:g}' for m in mags)} N",
-                "directions": f"{len(self.forces)} pushes ({', '.join(f'{m:g}' for m in mags)} N in several "
-                              "directions)",
-                "forces": f"{len(self.forces)} given forces",
-                "data": f"the {len(self.forces)} loads of the data"}[self.kind]
-        if self.moments is not None and np.any(self.moments):
-            text += " (each a force and a moment about the tool point, as the data's loading bar applies them)"
-        return text
-
-
-def sphere_directions(count: int) -> np.ndarray:
-    """``count`` quasi-uniform unit vectors on the sphere (Fibonacci lattice), (count, 3)."""
-    i = np.arange(count) + 0.5
-    z = 1.0 - 2.0 * i / count
-    phi = np.pi * (1.0 + np.sqrt(5.0)) * i
-    r = np.sqrt(1.0 - z**2)
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1)
-
-
-def _numbers(text: str, what: str, field_name: str) -> np.ndarray:
-    try:
-        v = np.array([float(t) for t in text.split(",") if t.strip()], float)
-    except ValueError:
-        raise InputError(f"expected comma-separated numbers for {what}, got {text!r}", field=field_name) from None
-    if v.size == 0 or not np.all(np.isfinite(v)):
-        raise InputError(f"expected finite numbers for {what}, got {text!r}", field=field_name)
-    return v
-
+# --- loads: stiffcal.loads (LoadSet, sphere_directions; re-exported here) ------------------------------------
 
 def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, resolution_N: float = 0.5,
-             field_name: str = "--loads", moment_resolution_Nm: float = 0.05) -> LoadSet:
-    """Parse a load set (d = 2 or 3 force components):
+             field_name: str = "--loads", moment_resolution_Nm: float = 0.05, gravity=None) -> LoadSet:
+    """:func:`stiffcal.loads.load_set` (every kind of load set and its checks), the data's loads grouped by
+    :func:`stiffcal.measurements.cluster`."""
+    from .measurements import cluster
 
-    - ``hanging:M1,M2,...``: hanging weights, forces of M_k newtons along gravity (-y for a planar arm in its
-      vertical plane, -z for a spatial one, as :class:`stiffcal.truth.Protocol` has them);
-    - ``directions:K:M1,M2,...``: K directions (equally spaced in the plane for a planar arm, quasi-uniform on
-      the sphere for a spatial one), each at every magnitude [N];
-    - ``forces:FX,FY[,FZ];...``: the given forces [N];
-    - None or ``data``: the distinct loads of the data (``data_forces`` (N, d), or the wrenches (N, d + d_m)
-      when the data have moments, merged within ``resolution_N`` and ``moment_resolution_Nm``): a loading bar's
-      moments stay with their forces.
+    return _load_set(spec, d, data_forces, resolution_N, field_name, moment_resolution_Nm, gravity, cluster)
 
-    Raises :class:`InputError` naming ``field_name`` for anything else, more than
-    :data:`~stiffcal.limits.MAX_LOADS` loads, or a load outside the physical range: below ``resolution_N`` (the
-    load-cell resolution: such a load cannot be told from no load) or above :data:`~stiffcal.limits.MAX_FORCE_N`
-    (:func:`check_lab_loads`)."""
-    text = "data" if spec is None else spec.strip()
-    kind, _, rest = text.partition(":")
-    if kind == "data":
-        if data_forces is None or len(data_forces) == 0:
-            raise InputError("expected loads (the data have none)", field=field_name)
-        from .measurements import cluster
-
-        width = data_forces.shape[1]
-        labels = cluster(data_forces, np.r_[np.full(d, resolution_N), np.full(width - d, moment_resolution_Nm)])
-        if labels.max() + 1 > MAX_DATA_LOADS:
-            raise InputError(f"expected the loads the lab can apply: the data have {labels.max() + 1} distinct loads "
-                             f"(more than {MAX_DATA_LOADS} to plan over); give them as 'hanging:M1,M2', "
-                             "'directions:K:M1,M2' or 'forces:FX,FY;...'", field=field_name)
-        forces = np.array([data_forces[labels == g].mean(axis=0) for g in range(labels.max() + 1)])
-    elif kind == "hanging":
-        mags = _numbers(rest, "the hanging weights [N]", field_name)
-        if np.any(mags <= 0):
-            raise InputError(f"expected weights > 0 N, got {rest!r}", field=field_name)
-        check_lab_loads(mags, len(mags), resolution_N, field_name, "weight")
-        forces = mags[:, None] * _gravity(d)
-    elif kind == "directions":
-        count, _, mtext = rest.partition(":")
-        try:
-            k = int(count)
-        except ValueError:
-            k = 0
-        if k < 1:
-            raise InputError(f"expected 'directions:K:M1,M2' with K >= 1 directions, got {text!r}", field=field_name)
-        mags = _numbers(mtext, "the push magnitudes [N]", field_name)
-        if np.any(mags <= 0):
-            raise InputError(f"expected magnitudes > 0 N, got {mtext!r}", field=field_name)
-        check_lab_loads(mags, k * len(mags), resolution_N, field_name, "magnitude")
-        if d == 2:
-            ang = 2 * np.pi * np.arange(k) / k
-            u = np.stack([np.cos(ang), np.sin(ang)], -1)
-        else:
-            u = sphere_directions(k)
-        forces = (u[:, None, :] * mags[None, :, None]).reshape(-1, d)
-    elif kind == "forces":
-        rows = [_numbers(r, "a force [N]", field_name) for r in rest.split(";") if r.strip()]
-        if not rows or any(len(r) != d for r in rows):
-            raise InputError(f"expected forces of {d} components separated by ';', got {rest!r}", field=field_name)
-        if len(rows) > MAX_LOADS:
-            check_lab_loads(np.ones(1), len(rows), resolution_N, field_name, "force")
-        forces = np.array(rows)
-        if np.any(np.all(forces == 0, axis=1)):
-            raise InputError(f"expected nonzero forces, got {rest!r}", field=field_name)
-        big = np.abs(forces).max(axis=1)
-        check_lab_loads(np.where(big > MAX_FORCE_N, big, np.hypot.reduce(forces, axis=1)), len(rows), resolution_N,
-                        field_name, "force")
-    else:
-        raise InputError(f"expected 'hanging:M1,M2', 'directions:K:M1,M2', 'forces:FX,FY;...' or 'data', got {text!r}",
-                         field=field_name)
-    return LoadSet(np.asarray(forces, float), kind, text, d)
-
-
-def check_lab_loads(magnitudes: np.ndarray, count: int, resolution_N: float, field_name: str, what: str) -> None:
-    """The loads of a load set within the bounds of :mod:`stiffcal.limits`: at most
-    :data:`~stiffcal.limits.MAX_LOADS` of them (``count``: directions times magnitudes), each magnitude [N] at
-    least the load-cell resolution ``resolution_N`` and at most :data:`~stiffcal.limits.MAX_FORCE_N`."""
-    if count > MAX_LOADS:
-        raise InputError(f"{count} loads: expected at most {MAX_LOADS} (each load is a candidate at every pose of the "
-                         "pool; docs/contracts.md, 'Limits')", field=field_name)
-    low, high = float(np.min(magnitudes)), float(np.max(magnitudes))
-    if high > MAX_FORCE_N:
-        raise InputError(f"expected each {what} at most {MAX_FORCE_N:g} N (the physical range of loads), got {high:g}",
-                         field=field_name)
-    if low < resolution_N:
-        raise InputError(f"expected each {what} at least the load-cell resolution {resolution_N:g} N "
-                         f"(--force-resolution-N): a smaller load cannot be told from no load, got {low:g}",
-                         field=field_name)
 
 
 # --- candidate pool ---------------------------------------------------------------------------------------
@@ -303,6 +170,7 @@ class Pool:
     load: np.ndarray
     loads: np.ndarray
     tau_floor: np.ndarray
+    hanging: bool = False
 
     def __len__(self) -> int:
         return len(self.q)
@@ -317,8 +185,14 @@ class Pool:
                        load=np.concatenate([self.load, load[keep]]))
 
     def admissible(self, robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-        """(k,) bool: points q (k, n), force (k, d) whose joint torques are all at least :attr:`tau_floor`."""
-        return np.all(np.abs(D.torques(robot, q, force)) >= self.tau_floor, axis=-1)
+        """(k,) bool: points q (k, n), force (k, d) whose joint torques are all at least :attr:`tau_floor` and
+        whose poses the robot can take in its cell, a hanging mass's cable free (:mod:`stiffcal.workcell`)."""
+        from .workcell import feasible
+
+        ok = np.all(np.abs(D.torques(robot, q, force)) >= self.tau_floor, axis=-1)
+        if robot.cell is not None:
+            ok &= feasible(robot, q, np.zeros(3) if self.hanging else None)
+        return ok
 
 
 def _load_index(pool: Pool, forces: np.ndarray) -> np.ndarray:
@@ -327,20 +201,28 @@ def _load_index(pool: Pool, forces: np.ndarray) -> np.ndarray:
                     int)
 
 
-def make_pool(robot: Robot, poses: np.ndarray, loads: np.ndarray, causes=()) -> Pool:
+def make_pool(robot: Robot, poses: np.ndarray, loads: np.ndarray, causes=(), hanging: bool = False) -> Pool:
     """Every pose (P, n) [rad] under every load (L, d) [N]; when ``causes`` include backlash, without the
-    points below :data:`BACKLASH_TORQUE_FLOOR`. Raises :class:`InputError` when no point is left."""
+    points below :data:`BACKLASH_TORQUE_FLOOR`; in a cell only the poses the robot can take there (with
+    ``hanging`` masses, their cable free). Raises :class:`InputError` when no point is left."""
+    if robot.cell is not None:
+        from .workcell import feasible
+
+        poses = poses[feasible(robot, poses, np.zeros(3) if hanging else None)]
+        if not len(poses):
+            raise InputError(f"no pose within the joint limits can be taken in the cell ({robot.cell.describe()})",
+                             source=robot.cell.source, field="cell")
     L = len(loads)
     q, F = np.repeat(poses, L, axis=0), np.tile(loads, (len(poses), 1))
     load = np.tile(np.arange(L), len(poses))
     floor = np.zeros(robot.n_joints)
     if "backlash" in causes:
         floor = BACKLASH_TORQUE_FLOOR * np.abs(D.torques(robot, q, F)).max(axis=0)
-    pool = Pool(q, F, load, np.asarray(loads, float), floor)
-    keep = pool.admissible(robot, q, F)
+    pool = Pool(q, F, load, np.asarray(loads, float), floor, hanging)
+    keep = np.all(np.abs(D.torques(robot, q, F)) >= floor, axis=-1)  # the poses' feasibility is checked above
     if not keep.any():
         raise InputError("no pose within the joint limits loads every joint under these loads", field="--loads")
-    return Pool(q[keep], F[keep], load[keep], pool.loads, floor)
+    return Pool(q[keep], F[keep], load[keep], pool.loads, floor, hanging)
 
 
 def pose_pool(robot: Robot, step_deg: float | None = None, log2_count: int = 12) -> np.ndarray:
@@ -699,6 +581,7 @@ def polish(crit: Criterion, robot: Robot, pool: Pool, idx, max_evaluations: int 
     point's load held, a point kept above the pool's torque floor by a penalty. Returns (q (M, n) [rad],
     force (M, d) [N], value), never worse than the plan from the pool."""
     from .design import _is_full_turn
+    from .workcell import feasible
 
     q0, F = pool.q[np.asarray(idx, int)], pool.force[np.asarray(idx, int)]
     m, n = q0.shape
@@ -707,12 +590,15 @@ def polish(crit: Criterion, robot: Robot, pool: Pool, idx, max_evaluations: int 
     def value(q):
         return crit.on(q, F).value(np.arange(m))
 
+    v0 = value(q0)
+
     def f(z):
         q = z.reshape(m, n)
+        if robot.cell is not None and not feasible(robot, q, np.zeros(3) if pool.hanging else None).all():
+            return -v0 + 1e3 * (abs(v0) + 1.0)  # out of the cell: refused (the line search backtracks; checked below)
         short = np.maximum(pool.tau_floor - np.abs(D.torques(robot, q, F)), 0.0) / floor
         return -value(q) + 1e3 * float(short.sum())
 
-    v0 = value(q0)
     lims = robot.joint_limits_rad
     bounds = [(None, None) if _is_full_turn(*lims[j]) else tuple(lims[j]) for j in range(n)] * m
     res = optimize.minimize(f, q0.ravel(), method="L-BFGS-B", bounds=bounds,
@@ -1125,6 +1011,7 @@ class Discrimination:
         return None if self.plan is None else self.plan.power(self.pairs, self.rivals.models)
 
 
+@single_threaded
 def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdict: dict | None = None,
                  repeats: int = 1, weight: float = COMPOUND_WEIGHT, truth: str = "best", test_pose=None,
                  test_force=None, alpha: float = 0.01, m_curve=None, measurement=None, effort: Effort = Effort(),
@@ -1144,6 +1031,10 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
     if not 0 <= weight <= 1:
         raise InputError(f"expected a weight in [0, 1], got {weight}", field="--weight")
     wrench_dim = robot.task_dim + D.moment_dim(robot)
+    if loads.kind == "bar":
+        raise InputError("a loading bar's moment turns with the tool, so it differs from pose to pose; the next "
+                         "experiment holds each point's load fixed: give the bar's wrenches at the tool point "
+                         "('wrenches:FX,..,MZ;...'), or use stiffcal design --loads bar:...", field="--loads")
     if loads.forces.shape[1] not in (robot.task_dim, wrench_dim):
         raise InputError(f"expected loads of {robot.task_dim} components (forces) or {wrench_dim} (force and moment) "
                          f"for robot {robot.name}, got {loads.forces.shape[1]}", field="--loads")
@@ -1160,7 +1051,7 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
         verdict = D.verdict_of(robot, pre, alpha, gain=False)
     rm = rivals_from_verdict(robot, meas, verdict, prepared=pre)
     pool = make_pool(robot, pose_pool(robot, effort.pool_step_deg, effort.pool_log2), loads.forces,
-                     {c for mdl in rm.models for c in mdl.causes})
+                     {c for mdl in rm.models for c in mdl.causes}, loads.kind == "hanging")
     seps = separability(rm, pool, measurement)
     pairs = design_pairs(rm, seps, truth)
     if verdict["cause"] == "unexplained":
@@ -1229,6 +1120,10 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
             compound = _session(critc, rm, qc, Fc, measurement)
     elif pairs:
         notes.append("no test pose: the compound plan (discrimination and O_t together) is left out")
+    if robot.cell is not None:
+        from .workcell import cell_notes
+
+        notes += [f"the cell ({robot.cell.describe()}): " + n for n in cell_notes(robot)]
     return Discrimination(rm, loads, m, repeats, truth, tuple(seps), tuple(pairs), plan, cert, float(weight),
                           compound, ot_plan, ot_bound, tuple(curve), tuple(notes))
 
@@ -1347,6 +1242,13 @@ def _session_json(s: Session, res: Discrimination) -> dict:
         points[key] = points.get(key, 0) + s.repeats
     out["points"] = [{"pose_deg": list(p), "force_N": list(f), "moment_Nm": None if mo is None else list(mo),
                       "count": c} for (p, f, mo), c in points.items()]
+    robot = res.rivals.robot
+    if robot.cell is not None:  # how far each pose keeps from the cell and from itself
+        from .workcell import clearance
+
+        c, closest = clearance(robot, np.radians(s.poses_deg))
+        out["clearance_m"] = [round(float(v), 6) for v in c]
+        out["closest"] = list(closest)
     return out
 
 
@@ -1380,6 +1282,7 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
            "design_pairs": [{"truth": names[t], "rival": names[j]} for t, j in res.pairs],
            "plan": None, "compound": None, "ot_plan": None,
            "power_against_m": [{"m": m, "power": p} for m, p in res.power_against_m],
+           "cell": None if rm.robot.cell is None else rm.robot.cell.describe(),
            "notes": notes}
     if res.plan is not None:
         c = res.certificate
@@ -1388,7 +1291,11 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
             "pair": {"truth": names[c.pair[0]], "rival": names[c.pair[1]]},
             "psi_max_at_deg": np.round(c.where_deg[0], 4).tolist(),
             "psi_max_load_N": _split(c.where_load[0], rm.robot.task_dim)[0][0],
-            "psi_max_moment_Nm": (_split(c.where_load[0], rm.robot.task_dim)[1] or [None])[0]}}
+            "psi_max_moment_Nm": (_split(c.where_load[0], rm.robot.task_dim)[1] or [None])[0],
+            "bound_over": ("every plan of the pool's points (exact) and, over the joint space, the largest psi the "
+                           "search found" if rm.robot.cell is None else
+                           "every plan of the feasible pool points (exact) and, over the poses the cell allows, the "
+                           "largest psi the search found there (a search, not a guarantee, in a cell)")}}
     if res.ot_plan is not None:
         out["ot_plan"] = _session_json(res.ot_plan, res) | {"lower_bound_m2": res.ot_bound}
     if res.compound is not None:
@@ -1420,7 +1327,7 @@ def run(robot: Robot, data_path: str, out_dir: str, experiments: int, loads: str
                                M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None else angle_resolution_deg,
                                M.FORCE_RESOLUTION_N if force_resolution_N is None else force_resolution_N)
     ls = load_set(loads, robot.task_dim, D.load_of(meas), meas.resolutions[1],
-                  moment_resolution_Nm=meas.resolutions[2])
+                  moment_resolution_Nm=meas.resolutions[2], gravity=robot.gravity)
     res = discriminate(robot, meas, experiments, ls, repeats=repeats, weight=weight, truth=truth, test_pose=test_pose,
                        test_force=test_force, alpha=alpha, effort=effort, seed=seed)
     out = to_json(res, str(data_path))

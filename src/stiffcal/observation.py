@@ -208,6 +208,78 @@ def observation_rows(robot: Robot, q: np.ndarray, load: np.ndarray, sensing: Sen
     return A if params is None else A[..., params]
 
 
+@dataclass(frozen=True)
+class Loads:
+    """The loads every measurement pose is measured under, apart from the test pose's wrench (``--loads``): a
+    lab's load sequence at each configuration (hanging masses, pushes in a few directions, given wrenches, a
+    loading bar), as the measured-data CSV logs it.
+
+    wrenches: (L, w) [N, N m] at the tool point in the base frame (the moment about the tool point), or for a
+    loading bar the forces (L, d) of its masses, hung at ``arm`` (3,) [m] from the tool point in the tip frame,
+    so that their moment about the tool point turns with the tool; hanging: the loads hang from a cable (masses),
+    whose path below the tool point (or the bar's end) must be free (:mod:`stiffcal.workcell`); spec: the text
+    they were read from."""
+
+    wrenches: np.ndarray
+    arm: np.ndarray | None = None
+    hanging: bool = False
+    spec: str = ""
+
+    def at(self, robot: Robot, q: np.ndarray) -> np.ndarray:
+        """The wrenches (..., L, w) [N, N m] at poses q (..., n) [rad] (the same at every pose but a bar's)."""
+        q = np.asarray(q, float)
+        if self.arm is None:
+            W = as_wrench(robot, self.wrenches)
+            return np.broadcast_to(W, q.shape[:-1] + W.shape)
+        R, _ = robot.tool_frame(q)
+        r = R @ self.arm  # (..., 3): the bar's end from the tool point, base frame
+        d = force_dim(robot)
+        F = np.asarray(self.wrenches, float)[:, :d]
+        F3 = F if d == 3 else np.concatenate([F, np.zeros((len(F), 1))], axis=1)
+        M = np.cross(r[..., None, :], F3)  # (..., L, 3)
+        M = M if d == 3 else M[..., 2:]
+        return np.concatenate([np.broadcast_to(F, M.shape[:-1] + (d,)), M], axis=-1)
+
+    @property
+    def hang_offset(self) -> np.ndarray | None:
+        """Where the cable of hanging masses starts, from the tool point in the tip frame [m] (None: no cable)."""
+        if not self.hanging:
+            return None
+        return np.zeros(3) if self.arm is None else np.asarray(self.arm, float)
+
+
+def measurement_loads(robot: Robot, spec: str, field: str = "loads", source: str | None = None) -> Loads:
+    """The :class:`Loads` of a load-set text (:func:`stiffcal.loads.load_set`, the SPEC of ``discriminate``:
+    ``hanging:M1,M2``, ``directions:K:M1,M2``, ``forces:FX,FY[,FZ];...``, ``wrenches:...;...``,
+    ``bar:AX,AY[,AZ]:M1,M2``), hanging masses along the robot's gravity. Raises :class:`InputError` naming
+    ``source`` and ``field``."""
+    from .loads import load_set
+
+    if not isinstance(spec, str):
+        raise InputError(f"expected a load set such as 'hanging:49,98', got {spec!r}", source=source, field=field)
+    if spec.strip().partition(":")[0] == "data":
+        raise InputError("expected the loads the lab applies ('hanging:M1,M2', 'directions:K:M1,M2', 'forces:...', "
+                         "'wrenches:...', 'bar:...'): a design has no data to take them from", source=source,
+                         field=field)
+    try:
+        ls = load_set(spec, force_dim(robot), field_name=field, gravity=robot.gravity)
+    except InputError as err:
+        raise err.renamed(field=field, source=source) if source else err from None
+    return Loads(np.asarray(ls.forces, float), ls.arm, ls.kind in ("hanging", "bar"), ls.spec)
+
+
+def loaded_rows(robot: Robot, q: np.ndarray, loads: Loads, sensing: Sensing,
+                params: np.ndarray | None = None) -> np.ndarray:
+    """The observation rows of poses q (..., n) [rad] measured under every load of ``loads``, stacked load by load
+    (:func:`observation_rows` for each): (..., L r, p)."""
+    Jy, J6 = sensed_jacobian(robot, q, sensing)
+    W = _lift6(robot, loads.at(robot, q))  # (..., L, 6)
+    tau = np.einsum("...wn,...lw->...ln", J6, W)
+    A = Jy[..., None, :, :] * tau[..., :, None, :]  # (..., L, r, n)
+    A = A.reshape(A.shape[:-3] + (-1, A.shape[-1]))
+    return A if params is None else A[..., params]
+
+
 def sensed_params(robot: Robot, sensing: Sensing, samples: int = 512, seed: int = 0) -> np.ndarray:
     """Indices of the joints whose rotation changes some measured quantity at some pose (the model's
     parameters): a joint whose axis passes through every measured target at every pose, with the orientation

@@ -119,22 +119,40 @@ def approximate_design(p: dict, robot: str, out_json: str, out_support_csv: str,
     from .certificate import approximate_design as compute
     from .integrity import atomic_write
 
-    study = _study(p, robot)
+    from .certificate import unconstrained
+
+    study = _study(p, robot, "study" if name is None else f"studies.{name}")
     if out_pool_npy:
         _save_pool(out_pool_npy, study)
     _log(f"approximate design for {name or 'the paper study'} ({study.robot.n_joints} joints): multiplicative "
          "algorithm, polish, equivalence-theorem bound")
     d = compute(study.problem("ot"), pool_step_deg=p.get("pool_step_deg"))
-    _log(f"Phi = {d.phi:.9g}, bound Phi* >= {d.phi_lower:.9g}, equivalence gap {d.equivalence_gap:.2e}, "
-         f"{len(d.weights)} support poses")
+    continuum = None
+    if study.robot.cell is not None and study.candidates is None:
+        _log(f"the cell: {study.robot.cell.describe()}; the design over its feasible candidates, and without it")
+        continuum = compute(unconstrained(study.problem("ot")), pool_step_deg=p.get("pool_step_deg"))
+    for dd in (continuum, d):
+        if dd is not None:
+            _log(f"{dd.region}: Phi = {dd.phi:.9g}, bound Phi* >= {dd.phi_lower:.9g}, equivalence gap "
+                 f"{dd.equivalence_gap:.2e}, {len(dd.weights)} support poses")
     phi = tables.phi_map(study, d) if out_phi_csv else None
     _write(tables.design_table(d, study.robot), out_support_csv)
-    _write(tables.certificate_table(d, study.sigma), out_certificate_csv)
+    _write(tables.certificate_table(d, study.sigma, continuum), out_certificate_csv)
     if phi is not None:
         _write(phi, out_phi_csv)
-    atomic_write(out_json, json.dumps({"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(),
-                                       "phi": d.phi, "max_phi": d.max_phi, "phi_lower": d.phi_lower,
-                                       "iterations": d.iterations}, indent=1, allow_nan=False) + "\n")
+    doc = _design_doc(d)
+    if continuum is not None:
+        doc["continuum"] = _design_doc(continuum)
+    atomic_write(out_json, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+
+
+def _design_doc(d) -> dict:
+    """An approximate design as the JSON of approximate_design.json (read back by :func:`_design`)."""
+    doc = {"support_deg": d.support_deg.tolist(), "weights": d.weights.tolist(), "phi": d.phi, "max_phi": d.max_phi,
+           "phi_lower": d.phi_lower, "iterations": d.iterations}
+    if d.region != "joint space":
+        doc |= {"region": d.region, "n_candidates": d.n_candidates}
+    return doc
 
 
 def _save_pool(path: str, study) -> None:
@@ -168,7 +186,9 @@ def _pool(path: str, n_joints: int):
     return pool
 
 
-def _design(path: str):
+def _design(path: str, part: str | None = None):
+    """The approximate design of approximate_design.json (``part`` 'continuum': the design without the cell, or
+    None when the file has none)."""
     import json
 
     import numpy as np
@@ -176,8 +196,12 @@ def _design(path: str):
     from .certificate import ApproximateDesign
 
     d = json.loads(Path(path).read_text(encoding="utf-8"))
+    if part is not None:
+        d = d.get(part)
+        if d is None:
+            return None
     return ApproximateDesign(np.array(d["support_deg"]), np.array(d["weights"]), d["phi"], d["max_phi"],
-                             d["phi_lower"], d["iterations"])
+                             d["phi_lower"], d["iterations"], d.get("region", "joint space"), d.get("n_candidates", 0))
 
 
 def study_plans(p: dict, robot: str, m_values: list[int], seed: int, design_json: str, pool_npy: str,
@@ -189,15 +213,17 @@ def study_plans(p: dict, robot: str, m_values: list[int], seed: int, design_json
 
     from . import tables
 
-    study = _study(p, robot)
-    design = _design(design_json)
+    study = _study(p, robot, f"studies.{p['name']}")
+    design, continuum = _design(design_json), _design(design_json, "continuum")
     pool = _pool(pool_npy, study.robot.n_joints)
     rows = []
     for m in sorted(int(m) for m in m_values):
         _log(f"{p['name']}: best plan of {m} poses")
-        row = tables.best_plan_row(study, m, seed, design, pool=pool)
+        row = tables.study_plan_row(study, m, seed, design, pool, continuum)
         _log(f"{p['name']}: m = {m}, O_t = {row['O_t']:.6g} (RMS {row['rms_m']:.4g}), bound "
-             f"{row['lower_bound']:.6g}, gap {100 * row['gap']:.2f} %, within limits: {row['within_limits']}")
+             f"{row['lower_bound']:.6g}, gap {100 * row['gap']:.2f} %, within limits: {row['within_limits']}"
+             + (f", feasible: {row['feasible']}, smallest clearance {row['min_clearance_m']:.4f} m"
+                if "feasible" in row else ""))
         rows.append(row)
     _write(pd.DataFrame(rows), out_csv)
 
@@ -210,14 +236,18 @@ def study_summary(p: dict, robot: str, plans_csv: str, out_versus_m_csv: str, ou
     :func:`study_plans`."""
     from . import plots, tables
 
-    study = _study(p, robot)
+    study = _study(p, robot, f"studies.{p['name']}")
     df = _read(plans_csv)
     plans = {("best", int(r.m)): tables.parse_plan(r.poses_deg) for r in df.itertuples()}
+    clear = None
+    if "clearance_m" in df.columns:  # a robot in a cell: each pose's smallest distance, from the plans job
+        clear = {("best", int(r.m)): ([float(v) for v in str(r.clearance_m).split()], str(r.closest).split(";"))
+                 for r in df.itertuples()}
     m = int(p["draw_m"])
-    fig_plan = plots.fig_study_plan(study, plans[("best", m)], m)
+    fig_plan = plots.fig_study_plan(study, plans[("best", m)], m, None if clear is None else clear[("best", m)][0])
     fig_m = plots.fig_study_versus_m(df, study.sigma)
-    _write(df.drop(columns="poses_deg"), out_versus_m_csv)
-    _write(tables.plans_long(plans, study.robot), out_plans_csv)
+    _write(df.drop(columns=[c for c in ("poses_deg", "clearance_m", "closest") if c in df.columns]), out_versus_m_csv)
+    _write(tables.plans_long(plans, study.robot, clear), out_plans_csv)
     plots.save(fig_plan, Path(out_plan_png).with_suffix(""))
     plots.save(fig_m, Path(out_versus_m_png).with_suffix(""))
 
@@ -381,20 +411,35 @@ def map_figures(maps_by_figure: dict, out_pngs: dict, pairs_npz: str | None = No
         plots.save(fig, Path(png).with_suffix(""))
 
 
+def _test_pose_rad(p: dict, robot):
+    """A data set's test pose [rad] (:func:`stiffcal.config.data_set_test_pose`: its own, else the study's,
+    ``study_test_pose_deg``, when the robot has that many joints), or None."""
+    import numpy as np
+
+    from .config import data_set_test_pose
+
+    pose = data_set_test_pose(p, {"test_pose_deg": p["study_test_pose_deg"]}, robot.n_joints)
+    return None if pose is None else np.radians(np.asarray(pose, float))
+
+
 def discrepancy(p: dict, out_verdict: str) -> None:
-    """One measured data set: verdict.json and residuals.png/svg beside it (stiffcal discrepancy).
+    """One measured data set: verdict.json, residuals.png/svg, heldout.png/svg and calibrated.yaml beside it
+    (stiffcal discrepancy).
     p = the data set's entry (name, data, robot, synthetic, force_N, moment_Nm, alpha, angle_resolution_deg,
-    force_resolution_N, moment_resolution_Nm, sigma_m, sigma_rad) and the study's test_pose_deg."""
+    force_resolution_N, moment_resolution_Nm, sigma_m, sigma_rad, test_pose_deg) and the study's test pose
+    (``study_test_pose_deg``: the default of the data set's, :func:`_test_pose_rad`)."""
     import numpy as np
 
     from .discrepancy import run
     from .robot import load_robot
 
     robot = load_robot(p["robot"])
-    qt_deg = np.asarray(p["test_pose_deg"], float)
-    qt = np.radians(qt_deg) if robot.n_joints == qt_deg.size else None
+    qt = _test_pose_rad(p, robot)
     load = p["force_N"] + list(p.get("moment_Nm") or [])
     force = np.asarray(load, float) if qt is not None else None
+    if qt is None:
+        _log(f"{p['name']}: note: no test pose for this data set (its robot has another number of joints than the "
+             "study's): the gain's test-pose figures are left out; give measured_data[].test_pose_deg")
     label = f"{p['name']} ({'SYNTHETIC data' if p.get('synthetic') else p['data']})"
     v = run(robot, p["data"], str(Path(out_verdict).parent), float(p["alpha"]), qt, force, label,
             p.get("angle_resolution_deg"), p.get("force_resolution_N"), p.get("moment_resolution_Nm"),
@@ -411,8 +456,8 @@ DISCRIMINATE_DEFAULTS = {"experiments": 6, "loads": None, "repeats": 1, "weight"
 
 def discriminate(p: dict, out_plan: str) -> None:
     """One measured data set: plan.json and plan.png/svg beside it (stiffcal discriminate). p = the data set's
-    entry (name, data, robot, synthetic, alpha, resolutions, ``discriminate`` settings), its force_N and the
-    study's test_pose_deg (used when the robot has that many joints)."""
+    entry (name, data, robot, synthetic, alpha, resolutions, ``discriminate`` settings, test_pose_deg), its force_N
+    and the study's test pose (``study_test_pose_deg``: :func:`_test_pose_rad`)."""
     import numpy as np
 
     from .discrimination import run
@@ -420,8 +465,7 @@ def discriminate(p: dict, out_plan: str) -> None:
 
     robot = load_robot(p["robot"])
     s = {**DISCRIMINATE_DEFAULTS, **p.get("discriminate", {})}
-    qt_deg = np.asarray(p["test_pose_deg"], float)
-    qt = np.radians(qt_deg) if robot.n_joints == qt_deg.size else None
+    qt = _test_pose_rad(p, robot)
     force = np.asarray(p["force_N"], float) if qt is not None else None
     label = f"{p['name']} ({'SYNTHETIC data' if p.get('synthetic') else p['data']})"
     out = run(robot, p["data"], str(Path(out_plan).parent), int(s["experiments"]), s["loads"], int(s["repeats"]),
@@ -462,7 +506,7 @@ def report_inputs(named: dict[str, str]) -> tuple[dict, dict, dict, dict]:
 
     tables = {k: named[k] for k in REPORT_TABLES if k in named}
     figures = {k: named[k] for k in REPORT_FIGURES if k in named}
-    figures |= {k: v for k, v in named.items() if k.startswith(("residuals__", "planfig__"))}
+    figures |= {k: v for k, v in named.items() if k.startswith(("residuals__", "heldout__", "planfig__"))}
     parts = {part: prefixed(part) for part in STUDY_PARTS}
     studies = {name: {part: parts[part][name] for part in STUDY_PARTS} for name in parts["studyplans"]}
     return tables, figures, prefixed("verdict"), studies
@@ -591,7 +635,9 @@ def run(snakemake, step, *args) -> None:
             try:
                 cap_memory()  # the hard cap per job (docs/contracts.md, 'Limits')
                 integrity.verify([str(p) for p in snakemake.input])
-                with Progress(f"rule {snakemake.rule}", stream=fh):  # a line every few seconds in the log
+                from .threads import one_blas_thread
+
+                with Progress(f"rule {snakemake.rule}", stream=fh), one_blas_thread():  # a line every few seconds
                     step(*args)
                 integrity.record([str(p) for p in snakemake.output], snakemake.rule)
             except MemoryError:

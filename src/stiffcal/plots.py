@@ -380,9 +380,83 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
         return fig
 
 
-def fig_study_plan(study: Study, plan_deg: np.ndarray, m: int):
+def draw_cell(ax, robot, lo: np.ndarray, hi: np.ndarray) -> None:
+    """The robot's cell (:mod:`stiffcal.workcell`) on 3-D axes spanning [lo, hi] (3,) [m]: each half-space as a
+    translucent patch of its plane, boxes and cylinders as wire frames (a planar arm's in its plane z = 0)."""
+    cell = robot.cell
+    if cell is None:
+        return
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    planar = robot.kind == "planar"
+    for o in cell.obstacles:
+        if o.kind == "half_space":
+            n = o.normal
+            if planar:  # a line in the plane
+                t = np.array([-n[1], n[0], 0.0])
+                p0 = n * o.offset
+                s = np.linspace(-1, 1, 2)[:, None] * np.max(hi - lo) * 1.5
+                pts = p0 + s * t
+                ax.plot(*pts.T, "-", color="0.45", lw=2)
+                continue
+            a = np.eye(3)[np.argmin(np.abs(n))]
+            u = np.cross(n, a)
+            u /= np.linalg.norm(u)
+            v = np.cross(n, u)
+            c = 0.5 * (lo + hi)
+            c = c - (c @ n - o.offset) * n
+            r = 0.75 * np.max(hi - lo)
+            quad = [c + r * (x * u + y * v) for x, y in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+            ax.add_collection3d(Poly3DCollection([quad], alpha=0.12, facecolor="0.5", edgecolor="0.5"))
+        elif o.kind == "box":
+            half = o.half.copy()
+            if planar:
+                half[2] = 0.0
+            corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
+            corners = o.center + corners @ o.rotation.T
+            for i in range(8):
+                for j in range(i + 1, 8):
+                    if bin(i ^ j).count("1") == 1:
+                        ax.plot(*corners[[i, j]].T, "-", color="0.35", lw=0.8)
+        else:
+            a = np.eye(3)[np.argmin(np.abs(o.axis))]
+            u = np.cross(o.axis, a)
+            u /= np.linalg.norm(u)
+            v = np.cross(o.axis, u)
+            t = np.linspace(0, 2 * np.pi, 48)
+            ring = o.radius * (np.cos(t)[:, None] * u + np.sin(t)[:, None] * v)
+            ends = (0.0,) if planar else (-o.half_length, o.half_length)
+            for e in ends:
+                ax.plot(*(o.center + e * o.axis + ring).T, "-", color="0.35", lw=0.8)
+            if not planar:
+                for k in range(0, 48, 12):
+                    seg = o.center + ring[k] + np.outer([-o.half_length, o.half_length], o.axis)
+                    ax.plot(*seg.T, "-", color="0.35", lw=0.8)
+
+
+def draw_cell_2d(ax, robot, extent: float) -> None:
+    """A planar robot's cell on 2-D axes: half-planes as grey lines, rectangles and discs as outlines."""
+    cell = robot.cell
+    if cell is None:
+        return
+    from matplotlib.patches import Circle, Polygon
+
+    for o in cell.obstacles:
+        if o.kind == "half_space":
+            t = np.array([-o.normal[1], o.normal[0]])
+            p0 = o.normal[:2] * o.offset
+            ax.plot(*np.array([p0 - 2 * extent * t, p0 + 2 * extent * t]).T, "-", color="0.45", lw=2)
+        elif o.kind == "box":
+            c = np.array([[sx, sy, 0.0] for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]) * o.half
+            ax.add_patch(Polygon((o.center + c @ o.rotation.T)[:, :2], closed=True, fill=False, color="0.35"))
+        else:
+            ax.add_patch(Circle(tuple(o.center[:2]), o.radius, fill=False, color="0.35"))
+
+
+def fig_study_plan(study: Study, plan_deg: np.ndarray, m: int, clearance_m=None):
     """A design study's m-pose plan drawn in 3-D (a planar arm in its plane): the arm at the test pose with
-    the force, and at every measurement pose of the plan."""
+    the force, and at every measurement pose of the plan; for a robot in a cell, the cell too
+    (:func:`draw_cell`) and every pose labelled with its clearance ``clearance_m`` (m,) [m]."""
     robot = study.robot
     reach = robot.reach_m
     with plt.rc_context(STYLE):
@@ -400,11 +474,16 @@ def fig_study_plan(study: Study, plan_deg: np.ndarray, m: int):
             every.append(pts)
             ax.plot(*pts.T, "o-", color=f"C{i % 10}", lw=1.2, ms=2, alpha=0.85,
                     label="measurement poses" if i == 0 else None)
-            ax.text(*pts[-1], f" {i + 1}", fontsize=7, color=f"C{i % 10}")
+            label = f" {i + 1}" if clearance_m is None else f" {i + 1} ({1e3 * clearance_m[i]:.0f} mm)"
+            ax.text(*pts[-1], label, fontsize=7, color=f"C{i % 10}")
         allp = np.concatenate(every)
         lo, hi = allp.min(0), allp.max(0)
         half = 0.55 * max(np.max(hi - lo), 0.2 * reach)
         mid = 0.5 * (lo + hi)
+        if robot.cell is not None:
+            draw_cell(ax, robot, mid - half, mid + half)
+            ax.plot([], [], "-", color="0.45", label=f"cell (clearance {robot.cell.clearance_m:g} m"
+                    + (": pose (smallest distance)" if clearance_m is not None else "") + ")")
         ax.set_xlim(mid[0] - half, mid[0] + half)
         ax.set_ylim(mid[1] - half, mid[1] + half)
         ax.set_zlim(mid[2] - half, mid[2] + half)
@@ -472,11 +551,13 @@ def fig_discrimination(robot, plan: dict, title: str):
         if planar:
             ax.plot(0, 0, "ks", ms=7)
             ax.add_patch(plt.Circle((0, 0), reach, fill=False, ls=":", color="0.6"))
+            draw_cell_2d(ax, robot, 1.3 * reach)
             ax.set_xlim(-1.3 * reach, 1.3 * reach)
             ax.set_ylim(-1.3 * reach, 1.3 * reach)
             ax.set_aspect("equal")
             ax.grid(alpha=0.3)
         else:
+            draw_cell(ax, robot, -reach * np.ones(3), reach * np.ones(3))
             for set_lim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
                 set_lim(-reach, reach)
             ax.set_box_aspect((1, 1, 1))
@@ -505,5 +586,35 @@ def fig_discrimination(robot, plan: dict, title: str):
         ax2.set_ylabel("predicted power of the separating F-test")
         ax2.grid(alpha=0.3)
         fig.suptitle(title, fontsize=9)
+        fig.tight_layout()
+        return fig
+
+
+def fig_held_out(held: dict | None, sigma: float, title: str):
+    """The verdict's ``held_out`` (leave-one-configuration-out): per configuration the RMS error [µm] of the
+    position predicted for it by the nominal and by the calibrated model, each fitted without it, against the
+    noise σ [m]. ``held`` None (fewer than two configurations): a figure that says so."""
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(7.2, 3.0))
+        if held is None:
+            ax.text(0.5, 0.5, "held-out check: needs measurements at two or more configurations", ha="center",
+                    va="center", transform=ax.transAxes)
+            ax.set_axis_off()
+            return fig
+        table = held["per_configuration"]
+        x = np.arange(len(table))
+        cal = " + ".join(held["calibrated_causes"]) or "nominal"
+        ax.bar(x - 0.2, [1e6 * r["rms_nominal_m"] for r in table], 0.4, color="0.6",
+               label=f"nominal (all: {1e6 * held['rms_nominal_m']:.3g} µm)")
+        ax.bar(x + 0.2, [1e6 * r["rms_calibrated_m"] for r in table], 0.4, color="C0",
+               label=f"calibrated: {cal} (all: {1e6 * held['rms_calibrated_m']:.3g} µm)")
+        ax.axhline(1e6 * sigma, color="k", ls=":", lw=1, label="noise σ")
+        step = max(1, len(table) // 24)
+        ax.set_xticks(x[::step], [r["configuration"] for r in table][::step], rotation=60, ha="right", fontsize=6)
+        ax.set_xlabel("held-out configuration")
+        ax.set_ylabel("RMS prediction error [µm]")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3, axis="y")
+        ax.set_title(title, fontsize=9)
         fig.tight_layout()
         return fig

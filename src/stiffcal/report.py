@@ -217,12 +217,18 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     long = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
     cols = robot.joint_columns("q", "_deg")
     poses = {int(m): g[cols].to_numpy(float).tolist() for m, g in long.groupby("m", sort=True)}
+    clearance = ({int(m): [(float(c), str(n)) for c, n in zip(g["clearance_m"], g["closest"])]
+                  for m, g in long.groupby("m", sort=True)} if "clearance_m" in long.columns else None)
+    certificates = pd.read_csv(paths["studycert"], keep_default_na=False, na_values=[""]).to_dict("records")
     return {
         "entry": entry, "robot": robot_summary(study),
         "test_pose_deg": np.degrees(study.test_pose).round(6).tolist(), "force_N": study.force.tolist(),
         "sigma": study.sigma, "micro": study.sigma < 1e-2,
-        "certificate": pd.read_csv(paths["studycert"]).to_dict("records")[0],
-        "plans": versus_m.to_dict("records"), "poses": poses,
+        "certificate": certificates[0], "certificates": certificates,
+        "plans": versus_m.to_dict("records"), "poses": poses, "clearance": clearance,
+        "cell": None if robot.cell is None else robot.cell.describe(),
+        "loads": None if study.loads is None else study.loads.spec,
+        "candidates": entry.get("candidates"),
         "fig_plan": image_data_uri(paths["studyfigplan"]), "fig_m": image_data_uri(paths["studyfigm"]),
     }
 

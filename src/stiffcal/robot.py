@@ -226,7 +226,7 @@ class MassModel:
     1..j+1, :meth:`Robot.link_frames`; n: the tip frame of :meth:`Robot.tool_frame`); com_m (B, 3) [m] each
     mass's centre in its frame; gravity_m_s2 (3,) [m/s^2] the gravitational acceleration in the base frame.
     From a URDF's inertias (:func:`stiffcal.urdf.read_chain`) or the robot file's ``link_masses_kg``,
-    ``link_coms_m``, ``payload_kg``, ``payload_com_m`` and ``gravity_m_s2`` (docs/contracts.md)."""
+    ``link_coms_m``, ``payload_kg``, ``payload_com_m`` and ``gravity`` (docs/contracts.md)."""
 
     kg: np.ndarray
     link: np.ndarray
@@ -248,7 +248,13 @@ class Robot:
     ``joint_names`` (n,) str (default "1".."n"); for URDF arms ``chain`` (:class:`Chain`) and ``urdf`` (the
     URDF file); ``targets`` {name: (3,) [m]}: further measured points (tracker targets) in the tip frame
     (:meth:`tool_frame`), beside the tool point ``"tool"``; ``masses`` (:class:`MassModel`) the arm's own weight,
-    or None (no self-weight torques, :meth:`gravity_torques`).
+    or None (no self-weight torques, :meth:`gravity_torques`); ``calibration``
+    (:class:`stiffcal.calibrated.Calibration`): the model a calibration identified (a calibrated.yaml), or None;
+    gravity: the unit direction of gravity in the base frame (robot-file key ``gravity``; default -y for a planar
+    arm in its vertical plane, -z for a spatial one), along which hanging masses pull and the arm's own weight
+    acts; cell: the :class:`stiffcal.workcell.WorkCell` the robot stands in (None: every pose within the joint
+    limits can be taken); urdf_info: for a URDF arm read from a file, where its chain comes from (``path``,
+    ``base_frame``, ``tip_frame``, the moving ``joints``, the ``held`` angles [rad]), for its collision geometry.
     """
 
     name: str
@@ -269,10 +275,16 @@ class Robot:
     targets: dict = field(default_factory=dict)
     unlimited_joints: tuple[int, ...] = ()
     masses: MassModel | None = None
+    calibration: object = None
+    gravity: tuple[float, ...] = ()
+    cell: object = field(default=None, compare=False)
+    urdf_info: dict | None = field(default=None, compare=False)
 
     def __post_init__(self):
         if not self.joint_names:
             object.__setattr__(self, "joint_names", default_joint_names(self.n_joints))
+        if not self.gravity:
+            object.__setattr__(self, "gravity", (0.0, -1.0) if self.kind == "planar" else (0.0, 0.0, -1.0))
 
     @property
     def n_joints(self) -> int:
@@ -568,7 +580,7 @@ def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, 
 
 #: the kinds of robot file that may have each kind-specific field
 FIELD_KINDS = {"links_m": ("planar",), "dh": ("spatial",), "dh_convention": ("spatial",),
-               "tool_m": ("spatial", "urdf"), "joint_limits_deg": ("planar", "spatial"),
+               "tool_m": ("spatial", "urdf"), "joint_limits_deg": ("planar", "spatial", "urdf"),
                "joint_names": ("planar", "spatial"), "urdf": ("urdf",), "base_frame": ("urdf",),
                "tip_frame": ("urdf",), "joints": ("urdf",), "fixed_joints_deg": ("urdf",),
                "link_masses_kg": ("planar", "spatial"), "link_coms_m": ("planar", "spatial")}
@@ -631,20 +643,34 @@ def load_robot(path: str | Path) -> Robot:
         robot = replace(planar_robot(links, doc["name"], limits, names),
                         compliances=None if comp is None else np.asarray(comp, float), source=src,
                         reference=doc.get("source", ""))
-    return with_masses(with_targets(robot, doc.get("targets"), src), doc, src)
+    robot = with_targets(robot, doc.get("targets"), src)
+    if "gravity" in doc:
+        robot = with_gravity(robot, doc["gravity"], src)
+    robot = with_masses(robot, doc, src)
+    if "cell" in doc:
+        from .workcell import parse_cell
+
+        robot = replace(robot, cell=parse_cell(doc["cell"], robot, src, Path(src).parent))
+    if "calibration" in doc:
+        from .calibrated import from_dict
+
+        robot = replace(robot, calibration=from_dict(doc["calibration"], robot, src))
+    return robot
 
 
+#: standard gravity [m/s^2] (ISO 80000-3), the size of the arm's own weight along the robot file's ``gravity``
+STANDARD_GRAVITY_M_S2 = 9.80665
 #: default gravitational acceleration in the base frame [m/s^2]: a planar arm in a vertical plane (-y), a
 #: spatial arm standing on the floor (-z)
-GRAVITY_M_S2 = {2: (0.0, -9.81), 3: (0.0, 0.0, -9.81)}
+GRAVITY_M_S2 = {2: (0.0, -STANDARD_GRAVITY_M_S2), 3: (0.0, 0.0, -STANDARD_GRAVITY_M_S2)}
 
 
 def with_masses(robot: Robot, doc: dict, src: str, urdf_masses: MassModel | None = None) -> Robot:
     """``robot`` with its own weight (:class:`MassModel`) from the robot file (docs/contracts.md, "The arm's
     own weight"): ``link_masses_kg`` (one per link) and ``link_coms_m`` (planar: the distance of each link's
     centre of mass from its joint along the link, default half the link; spatial: [x, y, z] in frame i),
-    ``payload_kg`` and ``payload_com_m`` (the tool and fixture, in the tip frame; default the tool point),
-    ``gravity_m_s2`` (in the base frame; default -9.81 along -y planar, -z spatial); for a URDF arm the URDF's
+    ``payload_kg`` and ``payload_com_m`` (the tool and fixture, in the tip frame; default the tool point), standard
+    gravity along the robot's ``gravity`` direction (default -y planar, -z spatial); for a URDF arm the URDF's
     inertias (``urdf_masses``, or the robot's own) and the payload; ``self_weight: false`` leaves every mass
     out. No mass given: None (the analysis then knows no self-weight torque)."""
     d = robot.task_dim
@@ -698,10 +724,7 @@ def with_masses(robot: Robot, doc: dict, src: str, urdf_masses: MassModel | None
         com.append(robot.target_point(TOOL_TARGET) if pc is None else as_xyz(np.asarray(pc, float)))
     elif "payload_com_m" in doc:
         raise InputError("payload_com_m needs payload_kg: give the payload's mass", source=src, field="payload_com_m")
-    g = doc.get("gravity_m_s2", GRAVITY_M_S2[d])
-    if len(g) != d:
-        raise InputError(f"expected {d} components [m/s^2] in the base frame, got {len(g)}", source=src,
-                         field="gravity_m_s2")
+    g = STANDARD_GRAVITY_M_S2 * np.asarray(robot.gravity, float) if robot.gravity else np.asarray(GRAVITY_M_S2[d])
     kg = np.asarray(kg, float)
     if kg.size == 0 or not np.any(kg > 0):
         return replace(robot, masses=None)
@@ -726,17 +749,68 @@ def check_ranges(doc: dict, src: str) -> None:
                              field=f"compliances_rad_per_Nm[{i}]")
 
 
+def with_gravity(robot: Robot, gravity, src: str, field: str = "gravity") -> Robot:
+    """``robot`` with the direction of gravity ``gravity`` (2 components planar, 3 spatial; normalised)."""
+    g = np.asarray(gravity, float)
+    d = 2 if robot.kind == "planar" else 3
+    if g.shape != (d,) or not np.linalg.norm(g) > 0:
+        raise InputError(f"expected a nonzero direction of {d} components for a {robot.kind} robot, got "
+                         f"{np.asarray(gravity).tolist()}", source=src, field=field)
+    return replace(robot, gravity=tuple(float(v) for v in g / np.linalg.norm(g)))
+
+
+def narrowed_limits(robot: Robot, limits_deg, src: str | None, field: str = "joint_limits_deg",
+                    within_urdf: bool = False) -> Robot:
+    """``robot`` with the joint limits ``limits_deg`` (n [lower, upper] pairs [deg], within +-720); with
+    ``within_urdf``, each within its URDF joint's own limits (a robot file narrows a URDF's limits). Raises
+    :class:`InputError` naming ``src`` and ``field``."""
+    if isinstance(limits_deg, np.ndarray):
+        limits_deg = limits_deg.tolist()
+    if not isinstance(limits_deg, (list, tuple)) or len(limits_deg) != robot.n_joints:
+        raise InputError(f"expected {robot.n_joints} [lower, upper] pairs (one per joint: "
+                         f"{', '.join(robot.joint_names)}), got {short_repr(limits_deg)}", source=src, field=field)
+    lim = []
+    for j, pair in enumerate(limits_deg):
+        if isinstance(pair, np.ndarray):
+            pair = pair.tolist()
+        if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+            raise InputError(f"expected [lower, upper] in degrees, got {short_repr(pair)}", source=src,
+                             field=f"{field}[{j}]")
+        for k, v in enumerate(pair):
+            if not isinstance(v, (int, float, np.integer, np.floating)) or isinstance(v, (bool, np.bool_)) \
+                    or not np.isfinite(v):
+                raise InputError(f"expected a finite number of degrees, got {short_repr(v)}", source=src,
+                                 field=f"{field}[{j}][{k}]")
+        lo, hi = float(pair[0]), float(pair[1])
+        if not -MAX_JOINT_ANGLE_DEG <= lo < hi <= MAX_JOINT_ANGLE_DEG:
+            raise InputError(f"expected -{MAX_JOINT_ANGLE_DEG:g} <= lower < upper <= {MAX_JOINT_ANGLE_DEG:g} deg, got "
+                             f"[{lo:g}, {hi:g}]", source=src, field=f"{field}[{j}]")
+        if within_urdf and robot.limited[j]:
+            ulo, uhi = np.degrees(robot.joint_limits_rad[j])
+            if lo < ulo - 1e-9 or hi > uhi + 1e-9:
+                raise InputError(f"expected limits within joint {robot.joint_names[j]}'s URDF limits [{ulo:g}, "
+                                 f"{uhi:g}] deg (a robot file narrows them), got [{lo:g}, {hi:g}]", source=src,
+                                 field=f"{field}[{j}]")
+        lim.append((lo, hi))
+    return replace(robot, joint_limits_rad=np.radians(np.array(lim)), has_joint_limits=True, unlimited_joints=())
+
+
 def robot_inputs(path: str | Path) -> list[str]:
-    """The files a robot file reads besides itself: its URDF (``kind: urdf``), as a path relative to where
-    ``path`` is relative to; nothing for other kinds or a file that cannot be read (loading it reports why).
+    """The files a robot file reads besides itself: its URDF (``kind: urdf``) and its cell's SRDF (or a cell file's
+    SRDF), as paths relative to where ``path`` is relative to; nothing for a file that cannot be read (loading it
+    reports why).
     The workflow lists them as inputs, so that editing a URDF reruns the jobs of its robot."""
     try:
         doc = read_yaml(path)
     except InputError:
         return []
+    out = []
     if isinstance(doc, dict) and doc.get("kind") == "urdf" and isinstance(doc.get("urdf"), str):
-        return [str(Path(path).parent / doc["urdf"])]
-    return []
+        out.append(str(Path(path).parent / doc["urdf"]))
+    cell = (doc.get("cell") if "kind" in doc else doc) if isinstance(doc, dict) else None  # a robot file or a cell file
+    if isinstance(cell, dict) and isinstance(cell.get("srdf"), str):
+        out.append(str(Path(path).parent / cell["srdf"]))
+    return out
 
 
 def _per_joint(doc: dict, n: int, src: str, what: str):
@@ -779,4 +853,9 @@ def _load_urdf(doc: dict, src: str) -> Robot:
     names = check_joint_names(arm.names, len(arm.names), str(urdf), "joint names")
     robot = chain_robot(arm.chain, doc.get("tool_m", [0.0, 0.0, 0.0]), arm.limits_rad, names, doc["name"], comp, src,
                         doc.get("source", ""), str(doc["urdf"]), arm.has_limits, arm.unlimited)
-    return replace(robot, masses=arm.masses)
+    robot = replace(robot, masses=arm.masses, urdf_info={"path": str(urdf.resolve()), "base_frame": doc["base_frame"],
+                                                      "tip_frame": doc["tip_frame"], "joints": list(arm.names),
+                                                      "held": dict(arm.held)})
+    if "joint_limits_deg" in doc:
+        robot = narrowed_limits(robot, doc["joint_limits_deg"], src, within_urdf=True)
+    return robot

@@ -11,7 +11,7 @@ import numpy as np
 from .criteria import CRITERIA_KEYS
 from .design import Problem
 from .errors import InputError
-from .observation import Sensing, moment_dim
+from .observation import Loads, Sensing, measurement_loads, moment_dim
 from .robot import TOOL_TARGET, Robot, load_robot
 from .validation import read_yaml, validate
 
@@ -21,6 +21,11 @@ SENSING_DEFAULTS = {"moment_Nm": None, "targets": [TOOL_TARGET], "orientation": 
                     "test_target": TOOL_TARGET, "orientation_length_m": 0.0}
 #: the keys every computation of a study's plans depends on
 PROBLEM_KEYS = ("test_pose_deg", "force_N", "sigma_m", *SENSING_DEFAULTS)
+#: the keys of a design study (config ``studies``) that say where the robot stands and what the lab applies, with
+#: their defaults: the robot file's joint limits and cell, the test force in every measurement, the joint space
+CELL_DEFAULTS = {"joint_limits_deg": None, "cell": None, "loads": None, "candidates": None}
+#: the keys every computation of a design study's plans depends on
+DESIGN_KEYS = (*PROBLEM_KEYS, *CELL_DEFAULTS)
 
 DEFAULTS = {"sigma_m": 1.0, "criteria": list(CRITERIA_KEYS[1:]) + ["ot"], "search_step_deg": 1.0,
             "fig5_step_deg": 1.0, **SENSING_DEFAULTS}
@@ -31,7 +36,9 @@ class Study:
     """name; robot; test_pose: (n,) [rad]; force: (d,) [N]; sigma [m] (position noise); criteria keys; grid
     steps [deg]; moment: (d_m,) [N m] about the tool point, or None; sensing: what is measured
     (:class:`stiffcal.observation.Sensing`, None: the tool point's position); test_target and length_m: where
-    and how O_t measures the error at the test pose (:class:`stiffcal.design.Problem`)."""
+    and how O_t measures the error at the test pose (:class:`stiffcal.design.Problem`); loads: the measurement
+    loads (:class:`stiffcal.observation.Loads`; None: the force and moment, in every measurement and at the
+    test pose); candidates: the only poses a plan may use (N, n) [rad] (a candidate file), or None."""
 
     name: str
     robot: Robot
@@ -45,10 +52,12 @@ class Study:
     sensing: Sensing | None = None
     test_target: str = TOOL_TARGET
     length_m: float = 0.0
+    loads: Loads | None = None
+    candidates: np.ndarray | None = None
 
     def problem(self, criterion: str, m: int = 1) -> Problem:
         return Problem(self.robot, self.force, criterion, m, self.test_pose, None, self.sigma, self.moment,
-                       None, self.sensing, self.test_target, self.length_m)
+                       None, self.sensing, self.test_target, self.length_m, self.loads, self.candidates)
 
 
 def load_config(path: str | Path) -> dict:
@@ -69,16 +78,32 @@ def study_from_entry(entry: dict, root: str | Path = ".", source: str = "config"
 
     Checks what the schema cannot: one test-pose angle per joint, within the joint limits; one force
     component per measured coordinate; a nonzero force. ``where`` names the entry in messages."""
-    s = {**DEFAULTS, **entry}
+    s = {**DEFAULTS, **CELL_DEFAULTS, **entry}
     robot = load_robot(Path(root) / s["robot"])
+    if s["joint_limits_deg"] is not None:
+        from .robot import narrowed_limits
+
+        robot = narrowed_limits(robot, s["joint_limits_deg"], source, f"{where}.joint_limits_deg")
+    if s["cell"] is not None:
+        from .workcell import with_cell
+
+        robot = with_cell(robot, s["cell"], source, f"{where}.cell", root)
+    loads = None if s["loads"] is None else measurement_loads(robot, s["loads"], f"{where}.loads", source)
+    candidates = None
+    if s["candidates"] is not None:
+        from .workcell import read_candidates
+
+        candidates = read_candidates(Path(root) / s["candidates"], robot)
     force = np.asarray(s["force_N"], float)
     moment = None if s["moment_Nm"] is None else np.asarray(s["moment_Nm"], float)
     q = np.radians(check_test_inputs(robot, s["test_pose_deg"], force, f"{where}.test_pose_deg", f"{where}.force_N",
                                      source, moment, f"{where}.moment_Nm"))
     sensing, target, length = check_sensing(robot, s["targets"], s["orientation"], float(s["sigma_m"]), s["sigma_rad"],
                                             s["test_target"], s["orientation_length_m"], where, source)
-    return Study(s["name"], robot, q, force, float(s["sigma_m"]), tuple(s["criteria"]), float(s["search_step_deg"]),
-                 float(s["fig5_step_deg"]), moment, sensing, target, length)
+    study = Study(s["name"], robot, q, force, float(s["sigma_m"]), tuple(s["criteria"]), float(s["search_step_deg"]),
+                  float(s["fig5_step_deg"]), moment, sensing, target, length, loads, candidates)
+    study.problem("ot").check_test_load(f"{where}.force_N", source)
+    return study
 
 
 def check_sensing(robot: Robot, targets, orientation: bool, sigma_m: float, sigma_rad, test_target: str,
@@ -153,7 +178,8 @@ def check_load_bends(robot: Robot, q: np.ndarray, load: np.ndarray, field: str, 
 
 
 #: defaults of an entry of config ``studies`` (design studies for any robot)
-DESIGN_DEFAULTS = {"sigma_m": 1.0, "m_values": [2, 3, 4, 5, 6, 7, 8], "draw_m": None, **SENSING_DEFAULTS}
+DESIGN_DEFAULTS = {"sigma_m": 1.0, "m_values": [2, 3, 4, 5, 6, 7, 8], "draw_m": None, **SENSING_DEFAULTS,
+                   **CELL_DEFAULTS}
 
 
 def design_studies(config: dict, root: str | Path = ".", source: str = "config") -> dict[str, tuple[Study, dict]]:
@@ -164,7 +190,7 @@ def design_studies(config: dict, root: str | Path = ".", source: str = "config")
         if e["name"] in out:
             raise InputError(f"expected unique study names, got {e['name']!r} twice", source=source,
                              field=f"studies[{i}].name")
-        st = study_from_entry({k: e[k] for k in ("name", "robot", *PROBLEM_KEYS)}, root, source, f"studies[{i}]")
+        st = study_from_entry({k: e[k] for k in ("name", "robot", *DESIGN_KEYS)}, root, source, f"studies[{i}]")
         if e["draw_m"] is None:
             e["draw_m"] = max(e["m_values"])
         if e["draw_m"] not in e["m_values"]:

@@ -192,12 +192,21 @@ def parse_plan(text: str) -> np.ndarray:
     return np.array([[float(v) for v in p.split()] for p in str(text).split(";")])
 
 
-def plans_long(plans: dict, robot) -> pd.DataFrame:
+def plans_long(plans: dict, robot, clearances: dict | None = None) -> pd.DataFrame:
     """Plans in long form, one row per pose: columns plan, m, pose (1-based), q1_deg..qn_deg (q_<name>_deg
-    for named joints). plans: (plan label, m) -> (m, n) poses [deg]."""
+    for named joints). plans: (plan label, m) -> (m, n) poses [deg]; clearances: the same keys -> (the poses'
+    smallest distances [m] to the cell and to the robot itself, the pair of each), which add the columns
+    clearance_m and closest (a robot in a cell)."""
     cols = _pose_cols(robot)
-    rows = [{"plan": label, "m": m, "pose": i + 1, **dict(zip(cols, np.round(q, 4) + 0.0))}
-            for (label, m), poses in plans.items() for i, q in enumerate(np.atleast_2d(poses))]
+    rows = []
+    for key, poses in plans.items():
+        label, m = key
+        for i, q in enumerate(np.atleast_2d(poses)):
+            row = {"plan": label, "m": m, "pose": i + 1, **dict(zip(cols, np.round(q, 4) + 0.0))}
+            if clearances is not None:
+                c, closest = clearances[key]
+                row |= {"clearance_m": round(float(c[i]), 6), "closest": closest[i]}
+            rows.append(row)
     return pd.DataFrame(rows)
 
 
@@ -266,14 +275,49 @@ def design_table(design, robot) -> pd.DataFrame:
     return df
 
 
-def certificate_table(design, sigma: float) -> pd.DataFrame:
+def certificate_table(design, sigma: float, continuum=None) -> pd.DataFrame:
     """The certificate's numbers: Phi(xi), max_x phi(x, xi), the equivalence gap and Phi* bound, and whether
     the design converged (gap within :data:`stiffcal.certificate.EQUIVALENCE_TOL`; else the bound is labelled
-    as not converged)."""
-    return pd.DataFrame([{"Phi": design.phi, "max_phi": design.max_phi,
-                          "equivalence_gap": design.equivalence_gap, "Phi_lower": design.phi_lower,
-                          "sigma": sigma, "multiplicative_iterations": design.iterations,
-                          "converged": design.converged}])
+    as not converged). In a cell (``continuum``: the design without the cell) two rows with a ``region``
+    column: ``joint space`` (that design: its bound holds for every plan, so for every feasible one) and
+    ``feasible candidates`` (the design over the poses the cell allows: its bound is exact over those)."""
+    def row(d):
+        return {"Phi": d.phi, "max_phi": d.max_phi, "equivalence_gap": d.equivalence_gap, "Phi_lower": d.phi_lower,
+                "sigma": sigma, "multiplicative_iterations": d.iterations, "converged": d.converged}
+    if continuum is None:
+        return pd.DataFrame([row(design)])
+    return pd.DataFrame([row(continuum) | {"region": continuum.region}, row(design) | {"region": design.region}])
+
+
+def study_plan_row(study: Study, m: int, seed: int, design, pool=None, continuum=None) -> dict:
+    """A design study's best plan of m poses (:func:`stiffcal.plans.best_plan`, the function ``stiffcal design``
+    uses: one answer for one input) as one row: m, O_t (eq. 16), rms_m = sqrt(O_t), chi (eq. 27), lower_bound
+    and gap (in a cell from ``continuum``, the design without the cell: valid for every plan), E_dk1.. (eq. 11),
+    within_limits, poses_deg; in a cell also feasible_lower_bound and feasible_gap (exact over the feasible
+    candidates and the plan's own poses), feasible (every pose checked again), min_clearance_m and clearance_m
+    (each pose's smallest distance [m], space-separated) with closest (the pair of each, ';'-separated)."""
+    from .plans import best_plan
+    from .workcell import clearance
+
+    prob = study.problem("ot", m)
+    plan = best_plan(prob, design, seed, pool)
+    summ = plan_summary(study, plan.poses_deg)
+    ot = float(summ["O_t"])
+    bound = (continuum or design).lower_bound(m, study.sigma)
+    row = {"m": m, "O_t": ot, "rms_m": float(np.sqrt(ot)), "chi": float(summ["chi"]), "lower_bound": bound,
+           "gap": ot / bound - 1.0}
+    q = np.radians(plan.poses_deg)
+    if study.robot.cell is not None:
+        fb = design.bound_with(study.problem("ot"), q, m, study.sigma)
+        row |= {"feasible_lower_bound": fb, "feasible_gap": ot / fb - 1.0}
+    row |= {e: float(summ[e]) for e in study.robot.joint_columns("E_dk")}
+    row["within_limits"] = not study.robot.outside_limits(q).any()
+    if study.robot.cell is not None:
+        c, closest = clearance(study.robot, q)
+        row |= {"feasible": bool(prob.feasible(q).all()), "min_clearance_m": float(np.min(c)),
+                "clearance_m": " ".join(f"{v:.6f}" for v in c), "closest": ";".join(closest)}
+    row["poses_deg"] = format_plan(plan.poses_deg)
+    return row
 
 
 def best_plan_row(study: Study, m: int, seed: int, design, extra_starts=(), pool=None) -> dict:

@@ -24,7 +24,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -46,7 +46,8 @@ class UrdfArm:
     (:class:`stiffcal.robot.Chain`, base frame to tip frame); limits_rad (n, 2) [rad] (continuous joints:
     [-pi, pi], a full turn); has_limits: some joint is revolute (limited); unlimited: indices of the continuous
     joints, which have no limits; masses: the URDF's inertias as point masses on the moving joints' frames
-    (:func:`chain_masses`), None when it has none."""
+    (:func:`chain_masses`), None when it has none; held: {name: angle [rad]} of the chain joints that do not
+    move."""
 
     names: tuple[str, ...]
     chain: Chain
@@ -54,6 +55,7 @@ class UrdfArm:
     has_limits: bool
     unlimited: tuple[int, ...] = ()
     masses: MassModel | None = None
+    held: dict = field(default_factory=dict)
 
 
 def _listing(names, near: str | None = None) -> str:
@@ -351,7 +353,7 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
     return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving),
                    tuple(i for i, name in enumerate(moving) if name not in limits),
                    chain_masses(model, moving_ids, {j: held[name] for j, name in zip(path_joints, names)
-                                                    if name in held}))
+                                                    if name in held}), held)
 
 
 def chain_masses(model, moving: list[int], held: dict[int, float]) -> MassModel | None:

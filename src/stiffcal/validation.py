@@ -153,21 +153,25 @@ def json_path(parts) -> str:
     return out or "<top level>"
 
 
-def validate(document: Any, schema_name: str, source: str) -> None:
+def validate(document: Any, schema_name: str, source: str, prefix: str = "") -> None:
     """Validate ``document`` against a named schema; raise one :class:`InputError` for the first error.
 
     The error is the deepest, most specific one (jsonschema's ``best_match``), e.g.
-    ``robot.yaml: field 'links_m[1]': expected a number > 0, got -0.4``.
+    ``robot.yaml: field 'links_m[1]': expected a number > 0, got -0.4``; ``prefix`` names where the document
+    sits in its file (a cell mapping under ``cell``: ``cell.clearance_m``).
     """
     import jsonschema
 
-    check_finite(document, source)
+    check_finite(document, source, (prefix,) if prefix else ())
     schema = load_schema(schema_name)
     validator = jsonschema.Draft202012Validator(schema)
     error = jsonschema.exceptions.best_match(validator.iter_errors(document))
     if error is None:
         return
-    raise InputError(_explain(error), source=source, field=json_path(error.absolute_path))
+    where = json_path(error.absolute_path)
+    if prefix:
+        where = prefix if where == "<top level>" else prefix + ("" if where.startswith("[") else ".") + where
+    raise InputError(_explain(error), source=source, field=where)
 
 
 def _explain(error) -> str:

@@ -13,7 +13,9 @@ from stiffcal.measurements import FORCE_RESOLUTION_N as _FORCE_RESOLUTION_N
 from stiffcal.measurements import MOMENT_RESOLUTION_NM as _MOMENT_RESOLUTION_NM
 from stiffcal.robot import robot_inputs
 from stiffcal.study import DEFAULTS as _STUDY_DEFAULTS
+from stiffcal.study import DESIGN_KEYS as _DESIGN_KEYS
 from stiffcal.study import PROBLEM_KEYS as _PROBLEM_KEYS
+from stiffcal.workcell import cell_inputs as _cell_inputs
 from stiffcal.study import design_studies as _design_studies
 
 TABLES = "results/tables"
@@ -96,6 +98,7 @@ def discrepancy_report_inputs(wildcards):
     for name in MEASURED:
         out[f"verdict__{name}"] = f"results/discrepancy/{name}/verdict.json"
         out[f"residuals__{name}"] = f"results/discrepancy/{name}/residuals.svg"
+        out[f"heldout__{name}"] = f"results/discrepancy/{name}/heldout.svg"
         out[f"plan__{name}"] = f"results/discrepancy/{name}/plan.json"
         out[f"planfig__{name}"] = f"results/discrepancy/{name}/plan.svg"
     return out
@@ -110,9 +113,18 @@ wildcard_constraints:
 
 
 def study_entry(wildcards):
-    """The values of a design study's entry that its design and plans depend on."""
+    """The values of a design study's entry that its design and plans depend on (the keys of a study without a
+    cell, its loads or candidates only when given, so that adding them to stiffcal reruns nothing)."""
     e = STUDIES[wildcards.name]
-    return {k: e[k] for k in ("name", *_PROBLEM_KEYS)}
+    return {k: e[k] for k in ("name", *_DESIGN_KEYS) if k in _PROBLEM_KEYS or e[k] is not None}
+
+
+def study_files(wildcards):
+    """The files a design study reads besides its robot file: its robot's URDF and SRDF, its cell file (and the
+    SRDF it names), its candidate CSV; an edit of any reruns the study's jobs."""
+    e = STUDIES[wildcards.name]
+    return robot_inputs(e["robot"]) + _cell_inputs(e.get("cell"), ".") + ([e["candidates"]] if e.get("candidates")
+                                                                           else [])
 
 
 def report_inputs(wildcards):
@@ -151,6 +163,7 @@ def all_outputs(wildcards):
         out += [f"{MAPS}/{MAP_FIGURES[7]}/grid_statistics.npz"]
     for name in MEASURED:
         out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg",
+                                                             "heldout.png", "heldout.svg", "calibrated.yaml",
                                                              "plan.json", "plan.png", "plan.svg")]
     for name in STUDIES:
         out += [f"{STUDY_DIR}/{name}/{f}" for f in ("approximate_design.json", "approximate_design.csv", "pool.npy",

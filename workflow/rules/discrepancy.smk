@@ -10,8 +10,11 @@ rule discrepancy:
         verdict="results/discrepancy/{dataset}/verdict.json",
         png="results/discrepancy/{dataset}/residuals.png",
         svg="results/discrepancy/{dataset}/residuals.svg",
+        heldout_png="results/discrepancy/{dataset}/heldout.png",
+        heldout_svg="results/discrepancy/{dataset}/heldout.svg",
+        calibrated="results/discrepancy/{dataset}/calibrated.yaml",
     params:
-        entry=lambda wc: {**MEASURED[wc.dataset], "test_pose_deg": STUDY["test_pose_deg"]},
+        entry=lambda wc: {**MEASURED[wc.dataset], "study_test_pose_deg": STUDY["test_pose_deg"]},
         code=code_version("discrepancy"),
     log:
         f"{LOGS}/discrepancy/{{dataset}}.log",
@@ -34,7 +37,7 @@ rule discriminate:
         png="results/discrepancy/{dataset}/plan.png",
         svg="results/discrepancy/{dataset}/plan.svg",
     params:
-        entry=lambda wc: {**MEASURED[wc.dataset], "test_pose_deg": STUDY["test_pose_deg"]},
+        entry=lambda wc: {**MEASURED[wc.dataset], "study_test_pose_deg": STUDY["test_pose_deg"]},
         code=code_version("discriminate"),
     log:
         f"{LOGS}/discriminate/{{dataset}}.log",

@@ -8,7 +8,7 @@
 rule study_design:
     input:
         robot=lambda wc: STUDIES[wc.name]["robot"],
-        urdf=lambda wc: robot_inputs(STUDIES[wc.name]["robot"]),
+        urdf=study_files,
     output:
         json=f"{STUDY_DIR}/{{name}}/approximate_design.json",
         support=f"{STUDY_DIR}/{{name}}/approximate_design.csv",
@@ -28,7 +28,7 @@ rule study_design:
 rule study_plans:
     input:
         robot=lambda wc: STUDIES[wc.name]["robot"],
-        urdf=lambda wc: robot_inputs(STUDIES[wc.name]["robot"]),
+        urdf=study_files,
         design=rules.study_design.output.json,
         pool=rules.study_design.output.pool,
     output:
@@ -49,7 +49,7 @@ rule study_plans:
 rule study_summary:
     input:
         robot=lambda wc: STUDIES[wc.name]["robot"],
-        urdf=lambda wc: robot_inputs(STUDIES[wc.name]["robot"]),
+        urdf=study_files,
         plans=rules.study_plans.output.csv,
     output:
         versus_m=f"{STUDY_DIR}/{{name}}/versus_m.csv",

@@ -1,0 +1,459 @@
+"""The calibrated model in use: written as a robot file, read back, used to predict deflections and to
+compensate a path, and handed to the next round.
+
+``stiffcal discrepancy`` writes ``DIR/calibrated.yaml``: the robot file it analysed, every key kept (a URDF arm
+keeps its URDF, referred to from the new file's folder), with ``compliances_rad_per_Nm`` replaced by the
+identified joint compliances and a ``calibration`` section holding the model the verdict chose
+(:class:`Calibration`: the extension's causes and parameters with their units, the covariance of every
+parameter, the noise, the rows' error model and where it all came from: the data file and its SHA-256, the
+robot file, the verdict). :func:`stiffcal.robot.load_robot` reads it back like any robot file (the section is
+:attr:`stiffcal.robot.Robot.calibration`), so ``design``, ``discriminate`` and the analysis take it as the
+nominal model of the next round.
+
+Predictions (:func:`predict`) use every part of the calibrated model that belongs to the robot: the joint
+compliances and every catalogue extension (link bending, coupling, the nonlinear stiffness and backlash on the
+total torque with the arm's own weight, :func:`stiffcal.discrepancy.model_columns` with ``predict=True``); a
+measurement offset belongs to the tracker and is left out. Their standard deviation comes from the parameters'
+covariance, ``sd = sqrt(diag(X Cov X^T))`` (the model's own error, not the noise of a new reading).
+
+Compensation (:func:`compensate`) of a path (poses and the wrench at each): the predicted deflection of the
+tool point at each pose; the corrected tool target (first order: aim at the nominal point less the deflection);
+and the corrected joint angles q_c with fk(q_c) + dp(q_c) = fk(q), solved by Gauss-Newton iterations on the
+tool point's Jacobian (the minimum-norm step for a redundant arm) to a residual below ``tol_m``, beside the
+first-order step q - J^+ dp(q); the predicted residual error at each pose.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+from .robot import Robot
+
+#: the file ``stiffcal discrepancy`` writes beside ``verdict.json``
+CALIBRATED_FILE = "calibrated.yaml"
+#: Gauss-Newton iterations and residual [m] of the joint-angle compensation
+COMPENSATE_ITERATIONS = 30
+COMPENSATE_TOL_M = 1e-10
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The model a verdict chose, ready for prediction (module docstring).
+
+    causes: the extension's catalogue causes (empty: the nominal model); k_joints (p_k,) the joints (0-based)
+    of the compliance parameters (a joint the data could not identify is not among them); names (p,): the
+    parameters' names, the compliances' (``k1`` .., ``k_<name>``) then the extension's with their units
+    (``b1_rad`` ..); theta (p,) their values [SI]; cov (p, p) their covariance [SI^2]; estimable (p,) bool: the
+    data determine the parameter (a parameter they do not keeps its minimum-norm value); n_offsets: the
+    parameters of ``measurement_offset`` (left out of predictions); sigma_m [m] and rotation_weight_m_per_rad:
+    the noise of the analysis; error_model: its summary (the verdict's ``error_model``); source: the data file,
+    its SHA-256, the robot file, the verdict's cause and p-value, alpha, the stiffcal version."""
+    causes: tuple[str, ...]
+    k_joints: tuple[int, ...]
+    names: tuple[str, ...]
+    theta: np.ndarray
+    cov: np.ndarray
+    estimable: tuple[bool, ...]
+    n_offsets: int
+    sigma_m: float
+    rotation_weight_m_per_rad: float | None = None
+    error_model: dict = field(default_factory=dict)
+    source: dict = field(default_factory=dict)
+
+    def compliances(self, n_joints: int) -> np.ndarray:
+        """(n,) [rad/(N m)]: the identified compliance of every joint, NaN for one the data did not identify."""
+        k = np.full(n_joints, np.nan)
+        k[list(self.k_joints)] = self.theta[: len(self.k_joints)]
+        return k
+
+    def to_dict(self) -> dict:
+        """The ``calibration`` section of a calibrated robot file (plain YAML types)."""
+        from .api import json_safe
+
+        return json_safe({"causes": list(self.causes), "k_joints": [int(j) + 1 for j in self.k_joints],
+                          "parameter_names": list(self.names), "parameters": [float(v) for v in self.theta],
+                          "covariance": [[float(v) for v in row] for row in self.cov],
+                          "estimable": [bool(e) for e in self.estimable], "n_offsets": int(self.n_offsets),
+                          "sigma_m": float(self.sigma_m),
+                          "rotation_weight_m_per_rad": self.rotation_weight_m_per_rad,
+                          "error_model": self.error_model, "source": self.source})
+
+
+def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
+    """The :class:`Calibration` of a robot file's ``calibration`` section (validated by the robot schema),
+    checked against the robot: one joint number per compliance within the robot's joints, a parameter vector
+    as long as the names, a square symmetric covariance of that size. Raises :class:`InputError` naming the
+    field."""
+    from .discrepancy import CAUSES
+
+    def bad(msg, key):
+        return InputError(msg, source=source, field=f"calibration.{key}")
+
+    causes = tuple(doc["causes"])
+    for c in causes:
+        if c not in CAUSES:
+            raise bad(f"expected causes of the catalogue ({', '.join(CAUSES)}), got {c!r}", "causes")
+    joints = [int(j) - 1 for j in doc["k_joints"]]
+    if any(not 0 <= j < robot.n_joints for j in joints) or len(set(joints)) != len(joints):
+        raise bad(f"expected distinct joint numbers 1..{robot.n_joints}, got {doc['k_joints']}", "k_joints")
+    theta = np.asarray(doc["parameters"], float)
+    names = tuple(doc["parameter_names"])
+    if len(names) != theta.size or theta.size < len(joints):
+        raise bad(f"expected one value per parameter name ({len(names)}), got {theta.size}", "parameters")
+    cov = np.asarray(doc["covariance"], float)
+    if cov.shape != (theta.size, theta.size) or not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
+        raise bad(f"expected a symmetric {theta.size} x {theta.size} matrix, got shape {cov.shape}", "covariance")
+    expected = len(joints) + _extension_size(robot, causes, int(doc["n_offsets"]))
+    if theta.size != expected:
+        raise bad(f"expected {expected} parameters (the compliances of joints {doc['k_joints']} and those of "
+                  f"{', '.join(causes) or 'no extension'} for this robot), got {theta.size}", "parameters")
+    est = tuple(bool(e) for e in doc.get("estimable", [True] * theta.size))
+    return Calibration(causes, tuple(joints), names, theta, cov, est, int(doc["n_offsets"]), float(doc["sigma_m"]),
+                       doc.get("rotation_weight_m_per_rad"), dict(doc.get("error_model") or {}),
+                       dict(doc.get("source") or {}))
+
+
+def _extension_size(robot: Robot, causes, n_offsets: int) -> int:
+    from .discrepancy import CAUSES
+
+    n = robot.n_joints
+    size = {"link_compliance": robot.n_segments, "joint_coupling": n * (n - 1) // 2,
+            "nonlinear_joint_stiffness": n, "backlash": n, "measurement_offset": n_offsets}
+    return sum(size[c] for c in sorted(causes, key=CAUSES.index))
+
+
+def sha256(path) -> str:
+    """The SHA-256 of a file (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibration:
+    """The :class:`Calibration` of an analysis (:func:`stiffcal.discrepancy.prepare` and the verdict of it): the
+    verdict's extended model (its causes; the nominal model for ``none`` or ``unexplained``), refitted by the
+    analysis's generalised least squares (the same numbers as the verdict's), its covariance sigma^2 (X^T X)^+
+    in the whitened rows."""
+    from . import __version__
+    from . import discrepancy as D
+
+    causes = tuple(verdict["extended"]["causes"]) if verdict.get("extended") else ()
+    f = D.fit(pre.des.model(frozenset(causes)), pre.des.y)
+    ok, _ = D.estimability(pre.des.model(frozenset(causes)))
+    params = pre.ob.model_params(robot)
+    names = [robot.joint_columns("k")[int(j)] for j in params]
+    names += [name for c in sorted(causes, key=D.CAUSES.index) for name in D.parameter_names(c, robot, pre.ob)]
+    src = {"data": None if data_path is None else str(data_path),
+           "data_sha256": None if data_path is None else sha256(data_path), "robot": robot.source,
+           "robot_sha256": sha256(robot.source) if Path(robot.source).is_file() else None,
+           "verdict_cause": verdict["cause"], "verdict_causes": list(verdict["causes"]),
+           "p_value": verdict["p_value"], "alpha": verdict["alpha"], "stiffcal": __version__}
+    return Calibration(causes, tuple(int(j) for j in params), tuple(names), np.asarray(f.beta, float),
+                       pre.noise.s2 * f.cov_unscaled, tuple(bool(e) for e in ok), pre.ob.rows_per(robot),
+                       float(np.sqrt(pre.noise.s2)), verdict["nominal"]["rotation_weight_m_per_rad"],
+                       verdict.get("error_model") or {}, src)
+
+
+def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
+    """The calibrated robot file (module docstring) as a YAML document for ``out_dir``: the robot file's own
+    keys (a URDF's path made relative to ``out_dir``), ``compliances_rad_per_Nm`` replaced when every joint's is
+    identified and positive (else the file's own, or none), and the ``calibration`` section."""
+    import os
+
+    from .validation import read_yaml
+
+    if not Path(robot.source).is_file():
+        raise InputError("the calibrated model is written beside the robot file it came from: give the robot as a "
+                         "file", field="robot")
+    doc = dict(read_yaml(robot.source))
+    if doc.get("kind") == "urdf":
+        urdf = (Path(robot.source).parent / doc["urdf"]).resolve()
+        doc["urdf"] = os.path.relpath(urdf, Path(out_dir).resolve())
+    doc.pop("calibration", None)
+    k = cal.compliances(robot.n_joints)
+    if np.all(np.isfinite(k)) and np.all(k > 0):
+        doc["compliances_rad_per_Nm"] = [float(v) for v in k]
+    doc["name"] = f"{doc['name']} (calibrated)" if not str(doc["name"]).endswith("(calibrated)") else doc["name"]
+    doc["calibration"] = cal.to_dict()
+    return doc
+
+
+def write_calibrated(robot: Robot, cal: Calibration, out_dir) -> Path:
+    """Write ``out_dir/calibrated.yaml`` (:func:`calibrated_document`); returns its path."""
+    import yaml
+
+    path = Path(out_dir) / CALIBRATED_FILE
+    text = ("# written by stiffcal discrepancy: the robot file with its identified compliances and the calibrated\n"
+            "# model (calibration); read it with stiffcal.load_robot, predict and compensate with it (docs)\n")
+    text += yaml.safe_dump(calibrated_document(robot, cal, out_dir), sort_keys=False, default_flow_style=None,
+                           width=120)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+# --- predictions ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Prediction:
+    """Predicted deflections: q (N, n) [rad]; load (N, d (+ d_m)) [N (, N m)]; displacement (N, d) [m] of each
+    row's target and its standard deviation sd (N, d) [m] from the parameters' covariance; rotation (N, d_r)
+    [rad] and rotation_sd with the orientation (else None); cov (N, r, r): the covariance of each row's prediction
+    (positions, then rotations) [m^2, m rad, rad^2]; targets (N,) names; causes: the extension applied; notes."""
+    q: np.ndarray
+    load: np.ndarray
+    displacement: np.ndarray
+    sd: np.ndarray
+    rotation: np.ndarray | None
+    rotation_sd: np.ndarray | None
+    cov: np.ndarray
+    targets: tuple
+    causes: tuple
+    notes: tuple = ()
+
+
+def _calibration(robot: Robot) -> Calibration:
+    """The robot's calibration, or one of its file's compliances (no extension, no covariance)."""
+    cal = getattr(robot, "calibration", None)
+    if cal is not None:
+        return cal
+    if robot.compliances is None:
+        raise InputError("the robot file has neither a calibration nor compliances_rad_per_Nm: nothing to predict "
+                         "with; give the calibrated.yaml that stiffcal discrepancy writes", source=robot.source,
+                         field="compliances_rad_per_Nm")
+    n = robot.n_joints
+    return Calibration((), tuple(range(n)), tuple(robot.joint_columns("k")), np.asarray(robot.compliances, float),
+                       np.zeros((n, n)), (True,) * n, robot.task_dim, 0.0)
+
+
+def columns(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientation: bool = False) -> np.ndarray:
+    """(N, r, p): the calibrated model's regressors of a prediction (the measuring system's causes zero) at poses
+    q (N, n) [rad] under loads (N, d (+ d_m)), for the rows' targets (``target`` (N,) indices into the robot's
+    target names; None: the tool point) and, with ``orientation``, the tool's rotation (rows after the
+    positions, unweighted)."""
+    from . import discrepancy as D
+
+    cal = _calibration(robot)
+    ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,
+                    np.asarray(cal.k_joints, int), cal.n_offsets)
+    return D.model_columns(robot, np.asarray(q, float), np.asarray(load, float), cal.causes, predict=True,
+                           observed=ob)
+
+
+def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientation: bool = False) -> Prediction:
+    """The calibrated model's deflection of each row's target (and the tool's rotation) at poses q (N, n) [rad]
+    under loads (N, d) [N] or wrenches (N, d + d_m) [N, N m] at the tool point, with its standard deviation from
+    the parameters' covariance (module docstring). ``robot``: a robot with a calibration (its calibrated.yaml),
+    or with compliances only (then no extension and no covariance). Raises :class:`InputError` without either."""
+    cal = _calibration(robot)
+    q = np.atleast_2d(np.asarray(q, float))
+    load = np.atleast_2d(np.asarray(load, float))
+    X = columns(robot, q, load, target, orientation)
+    mean = np.einsum("nrp,p->nr", X, cal.theta)
+    cov = np.einsum("nrp,pq,nsq->nrs", X, cal.cov, X)
+    sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
+    d = robot.task_dim
+    notes = []
+    missing = [robot.joint_names[j] for j in range(robot.n_joints) if j not in cal.k_joints]
+    if missing:
+        notes.append(f"joint(s) {', '.join(missing)} were not identified by the calibration: their deflection is "
+                     "left out of the prediction")
+    if not all(cal.estimable):
+        notes.append("some parameters of the calibrated model were not determined by its data (their minimum-norm "
+                     "values are used): predictions far from the data's poses may carry an error the standard "
+                     "deviation does not show")
+    names = robot.target_names
+    tnames = tuple(names[t] for t in (np.zeros(len(q), int) if target is None else np.asarray(target, int)))
+    return Prediction(q, load, mean[:, :d], sd[:, :d], mean[:, d:] if orientation else None,
+                      sd[:, d:] if orientation else None, cov, tnames, cal.causes, tuple(notes))
+
+
+@dataclass(frozen=True)
+class Compensation:
+    """A path compensated (module docstring): q (N, n) [rad] the nominal poses; load; deflection (N, d) [m] the
+    predicted deflection of the tool point there and sd (N, d); band95_m (N,): the radius [m] of a sphere about
+    the nominal tool point that holds the compensated tool point with probability >= 95 % (the bounding sphere of
+    the prediction error's 95 % ellipsoid, sqrt(chi2_0.95(d) lambda_max(Cov)): the calibrated model's own
+    error, which compensation leaves; the noise of a reading is not in it); target_m (N, d): the nominal tool points;
+    corrected_target_m (N, d): the points to command (nominal less the deflection, first order); q_first
+    (N, n) [rad]: q - J^+ dp(q); q_corrected (N, n) [rad]: the joint angles whose deflected tool point is the
+    nominal one (iterated); residual_m (N,): the predicted error left at q_corrected (the iteration's);
+    first_order_residual_m (N,): that of q_first; iterations (N,) int; converged (N,) bool."""
+    q: np.ndarray
+    load: np.ndarray
+    deflection: np.ndarray
+    sd: np.ndarray
+    band95_m: np.ndarray
+    target_m: np.ndarray
+    corrected_target_m: np.ndarray
+    q_first: np.ndarray
+    q_corrected: np.ndarray
+    residual_m: np.ndarray
+    first_order_residual_m: np.ndarray
+    iterations: np.ndarray
+    converged: np.ndarray
+    notes: tuple = ()
+
+
+def _pinv_step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """(N, n): the minimum-norm solutions of J dq = e, J (N, d, n), e (N, d)."""
+    return np.einsum("nid,nd->ni", np.linalg.pinv(J), e)
+
+
+def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = COMPENSATE_ITERATIONS,
+               tol_m: float = COMPENSATE_TOL_M) -> Compensation:
+    """Compensate a path of poses q (N, n) [rad] under loads (N, d (+ d_m)) with the robot's calibrated model
+    (module docstring): the deflection of the tool point, the corrected targets and joint angles, the residual."""
+    q = np.atleast_2d(np.asarray(q, float))
+    load = np.atleast_2d(np.asarray(load, float))
+    pred = predict(robot, q, load)
+    x = np.asarray(robot.fk(q), float)
+    J = robot.jacobian(q)
+    q1 = q - _pinv_step(J, pred.displacement)
+
+    def error(qc):
+        return np.asarray(robot.fk(qc), float) + predict(robot, qc, load).displacement - x
+
+    e1 = np.linalg.norm(error(q1), axis=1)
+    qc = q1.copy()
+    its = np.zeros(len(q), int)
+    done = np.zeros(len(q), bool)
+    for it in range(iterations):
+        e = error(qc)
+        size = np.linalg.norm(e, axis=1)
+        done = size <= tol_m
+        if done.all():
+            break
+        step = _pinv_step(robot.jacobian(qc), e)  # the deflection's own change with the pose is second order
+        qc = np.where(done[:, None], qc, qc - step)
+        its += ~done
+    residual = np.linalg.norm(error(qc), axis=1)
+    done = residual <= tol_m
+    notes = list(pred.notes)
+    if not done.all():
+        notes.append(f"{int((~done).sum())} pose(s) did not converge to {tol_m:g} m in {iterations} iterations (a "
+                     "pose near a singularity?): their residual_m says how far they are")
+    return Compensation(q, load, pred.displacement, pred.sd, band95(pred.cov), x, x - pred.displacement, q1, qc,
+                        residual, e1, its, done, tuple(notes))
+
+
+def band95(cov: np.ndarray) -> np.ndarray:
+    """(N,) [m]: the radius of the sphere bounding the 95 % ellipsoid of a position error of covariance cov
+    (N, d, d): sqrt(chi2_0.95(d) lambda_max); the error is within it with probability >= 95 %."""
+    from scipy.stats import chi2
+
+    lam = np.linalg.eigvalsh(cov)[:, -1]
+    return np.sqrt(chi2.ppf(0.95, cov.shape[-1]) * np.clip(lam, 0.0, None))
+
+
+# --- files of poses and loads ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class PoseFile:
+    """Poses and loads read from a CSV (:func:`read_poses`): q (N, n) [rad]; load (N, d (+ d_m)); target (N,)
+    int or None; columns: the file's header; text (N, k): its cells, kept for the output."""
+    q: np.ndarray
+    load: np.ndarray
+    target: np.ndarray | None
+    columns: list
+    text: list
+
+
+def read_poses(path, robot: Robot) -> PoseFile:
+    """A CSV of poses and loads for :func:`predict` or :func:`compensate`: the joint angles (``q<i>_deg`` or
+    ``q_<name>_deg``), the force at the tool point (``fx_N`` .., in the base frame), optionally the moment
+    (``mx_Nm`` .., planar ``mz_Nm``) and ``target`` (docs/contracts.md, "The calibrated model"). Other columns are
+    kept as they are. Raises :class:`InputError` naming the file, row and column, as the measured-data reader."""
+    import pandas as pd
+
+    from . import measurements as M
+    from .observation import force_dim, moment_dim
+    from .safeio import regular_file
+
+    source = str(path)
+    regular_file(path, source=source)
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
+        raise InputError(f"cannot read a CSV table ({err})", source=source) from None
+    M._header(path, source)
+    df.columns = [c.strip() for c in df.columns]
+    M._check_units(df.columns, source)
+    d, dm = force_dim(robot), moment_dim(robot)
+    qcols = M.angle_columns(list(df.columns), robot, source)
+    fcols = M._axes("f", "N", d)
+    missing = [c for c in qcols + fcols if c not in df.columns]
+    if missing:
+        raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(qcols + fcols)} (and "
+                         "optionally the moment and target)", source=source)
+    mcols = M._axes("m", "Nm", dm, True)
+    have = [c for c in mcols if c in df.columns]
+    if have and len(have) < len(mcols):
+        raise InputError(f"missing column(s) {', '.join(c for c in mcols if c not in have)}: give the whole moment or "
+                         "none", source=source, field=f"column {have[0]}")
+    if len(df) == 0:
+        raise InputError("no poses (the file has a header only)", source=source)
+    values = M._numbers(df, qcols + fcols + (mcols if have else []), source)
+    n = robot.n_joints
+    q = np.radians(values[:, :n])
+    load = values[:, n:] if have else values[:, n:n + d]
+    target = M._targets(df, robot, source)[0] if "target" in df.columns else None
+    return PoseFile(q, load, target, list(df.columns), df.to_numpy().tolist())
+
+
+def _cells(values: np.ndarray, fmt: str) -> list:
+    return [[format(float(v), fmt) for v in row] for row in np.atleast_2d(values)]
+
+
+def prediction_csv(robot: Robot, poses: PoseFile, pred: Prediction) -> str:
+    """The pose file with the prediction's columns appended: ``dx_m`` .. and ``sd_dx_m`` .. (and ``rx_rad`` ..,
+    ``sd_rx_rad`` .. with the orientation)."""
+    d = robot.task_dim
+    axes = "xyz"[:d]
+    head = list(poses.columns) + [f"d{a}_m" for a in axes] + [f"sd_d{a}_m" for a in axes]
+    parts = [_cells(pred.displacement, ".9e"), _cells(pred.sd, ".3e")]
+    if pred.rotation is not None:
+        rot = "z" if d == 2 else "xyz"
+        head += [f"r{a}_rad" for a in rot] + [f"sd_r{a}_rad" for a in rot]
+        parts += [_cells(pred.rotation, ".12e"), _cells(pred.rotation_sd, ".3e")]
+    rows = [list(t) + sum((p[i] for p in parts), []) for i, t in enumerate(poses.text)]
+    return _csv(head, rows)
+
+
+def compensation_csv(robot: Robot, poses: PoseFile, comp: Compensation) -> str:
+    """The path with the compensation's columns appended: the predicted deflection ``dx_m`` .. and ``sd_dx_m``
+    .. and the 95 % error radius ``band95_m`` (:class:`Compensation`); the nominal tool point ``x_m`` ..; the
+    corrected target ``x_cmd_m`` ..; the corrected joint angles (``q1_cmd_deg`` .., iterated) and the first-order
+    ones (``q1_first_deg`` ..); ``residual_m``, ``first_order_residual_m``, ``iterations``, ``converged``."""
+    d = robot.task_dim
+    axes = "xyz"[:d]
+    qc = [c[:-4] + "_cmd_deg" for c in robot.joint_columns("q", "_deg")]
+    q1 = [c[:-4] + "_first_deg" for c in robot.joint_columns("q", "_deg")]
+    head = list(poses.columns) + [f"d{a}_m" for a in axes] + [f"sd_d{a}_m" for a in axes] + ["band95_m"] + \
+        [f"{a}_m" for a in axes] + [f"{a}_cmd_m" for a in axes] + qc + q1 + \
+        ["residual_m", "first_order_residual_m", "iterations", "converged"]
+    parts = [_cells(comp.deflection, ".9e"), _cells(comp.sd, ".3e"), _cells(comp.band95_m[:, None], ".3e"),
+             _cells(comp.target_m, ".9f"),
+             _cells(comp.corrected_target_m, ".9f"), _cells(np.degrees(comp.q_corrected), ".6f"),
+             _cells(np.degrees(comp.q_first), ".6f"), _cells(comp.residual_m[:, None], ".3e"),
+             _cells(comp.first_order_residual_m[:, None], ".3e")]
+    rows = [list(t) + sum((p[i] for p in parts), []) + [str(int(comp.iterations[i])), str(bool(comp.converged[i]))]
+            for i, t in enumerate(poses.text)]
+    return _csv(head, rows)
+
+
+def _csv(head: list, rows: list) -> str:
+    import csv
+    import io
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(head)
+    w.writerows(rows)
+    return buf.getvalue()

@@ -1,0 +1,584 @@
+"""The cell a robot stands in (stiffcal.workcell, issue 24): every pose of every plan feasible, checked by code that
+is not the code under test.
+
+* Real arms nobody here wrote (UR10, Panda, Kinova Jaco2 of example-robot-data, pinned in requirements-test.lock):
+  every pose of the plans of ``stiffcal design``, of a design study (the workflow's functions) and of
+  ``discriminate`` is checked pose by pose against the URDF's own collision meshes with Pinocchio and coal
+  directly (the pairs of adjacent links and the SRDF's disabled pairs left out, as the issue's user checked them),
+  and the height of every joint above the mounting plane from Pinocchio's frames.
+* Planar and DH arms (capsules): every pose against a dense sampling of the links written here.
+* The geometry (segment distances, distances to boxes and cylinders) against coal and brute force.
+* Measurement loads apart from the test wrench: O_t scales with their size as the model says, the hanging-mass
+  experiment on a UR10 is planned (joint 1 left out with a note), its cable free by an independent check.
+* One answer per input: API, CLI and workflow give identical plans under 1 and 2 BLAS threads (subprocesses).
+"""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import stiffcal
+from stiffcal.cli import main
+from stiffcal.errors import InputError
+from stiffcal.robot import load_robot
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import real_arms  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "config/robots/paper_2r.yaml"
+needs_arms = pytest.mark.skipif(real_arms.robots_dir() is None, reason="example-robot-data is not installed")
+
+
+# --- an independent check of URDF poses: Pinocchio and coal on the URDF's meshes -----------------------------
+
+class MeshCheck:
+    """The URDF's collision meshes, every pair but adjacent links (a joint and its parent) and the SRDF's
+    disabled pairs; poses of the chain's joints mapped to Pinocchio's configuration here (continuous joints as
+    cos, sin; every other joint neutral)."""
+
+    def __init__(self, name):
+        import pinocchio as pin
+
+        urdf, srdf, base, *_ = real_arms.ARMS[name]
+        root = real_arms.robots_dir()
+        self.pin = pin
+        self.model = pin.buildModelFromUrdf(str(root / urdf))
+        self.geom = pin.buildGeomFromUrdf(self.model, str(root / urdf), pin.GeometryType.COLLISION,
+                                          package_dirs=[str(root.parent.parent)])
+        self.geom.addAllCollisionPairs()
+        if srdf:
+            pin.removeCollisionPairs(self.model, self.geom, str(root / srdf))
+        keep = []
+        for cp in self.geom.collisionPairs:
+            ja = self.geom.geometryObjects[cp.first].parentJoint
+            jb = self.geom.geometryObjects[cp.second].parentJoint
+            if ja != jb and self.model.parents[ja] != jb and self.model.parents[jb] != ja:
+                keep.append(cp)
+        self.geom.removeAllCollisionPairs()
+        for cp in keep:
+            self.geom.addCollisionPair(cp)
+        self.data, self.gdata = self.model.createData(), pin.GeometryData(self.geom)
+        self.base = self.model.getFrameId(base)
+
+    def configuration(self, names, q):
+        x = self.pin.neutral(self.model)
+        for name, a in zip(names, q):
+            j = self.model.getJointId(name)
+            i = self.model.idx_qs[j]
+            if self.model.nqs[j] == 2:
+                x[i], x[i + 1] = np.cos(a), np.sin(a)
+            else:
+                x[i] = a
+        return x
+
+    def collides(self, names, q) -> bool:
+        return bool(self.pin.computeCollisions(self.model, self.data, self.geom, self.gdata,
+                                               self.configuration(names, q), False))
+
+    def lowest_joint(self, names, q) -> float:
+        """The smallest height [m] of a joint above the base frame's xy plane (the mounting plane)."""
+        self.pin.framesForwardKinematics(self.model, self.data, self.configuration(names, q))
+        base = self.data.oMf[self.base]
+        return min(float((base.inverse() * self.data.oMi[j]).translation[2]) for j in range(1, self.model.njoints))
+
+    def bad(self, names, poses_deg) -> tuple[int, int]:
+        """(poses in collision, poses with a joint below the plane) of poses (k, n) [deg]."""
+        q = np.radians(np.atleast_2d(poses_deg))
+        return (sum(self.collides(names, x) for x in q), sum(self.lowest_joint(names, x) < -1e-9 for x in q))
+
+
+@pytest.fixture(scope="module")
+def arms(tmp_path_factory):
+    if real_arms.robots_dir() is None:
+        pytest.skip("example-robot-data is not installed")
+    d = tmp_path_factory.mktemp("arms")
+    return {name: real_arms.write_robot_file(name, d) for name in real_arms.ARMS}
+
+
+@needs_arms
+def test_the_independent_check_sees_the_issue_s_infeasible_plans(arms):
+    """The check has teeth: without a cell, the plans of the real arms put poses under the floor or into the
+    arm itself, as the issue's user found (UR10: 29 of 35 poses below the plane)."""
+    name = "ur10"
+    _, _, _, _, _, qt, force = real_arms.ARMS[name]
+    robot = load_robot(arms[name])
+    from dataclasses import replace
+
+    free = replace(robot, cell=None)
+    res = stiffcal.design(free, qt, force, experiments=5, sigma=1e-5)
+    collisions, below = MeshCheck(name).bad(robot.joint_names, res.poses_deg)
+    assert collisions + below > 0
+
+
+@needs_arms
+@pytest.mark.parametrize("name", ["ur10", "panda", "jaco2"])
+def test_every_design_pose_of_a_real_arm_is_feasible_by_an_independent_check(arms, name):
+    """stiffcal design in the cell (the floor as the mounting plane, self-collision from the URDF's meshes and the
+    SRDF): no pose in collision or below the plane by Pinocchio + coal on the meshes; the reported clearance of
+    each pose is coal's own smallest distance; the certificate holds (continuum bound <= O_t) and says which
+    set it bounds."""
+    _, _, _, _, _, qt, force = real_arms.ARMS[name]
+    robot = load_robot(arms[name])
+    res = stiffcal.design(robot, qt, force, experiments=4, sigma=1e-5)
+    check = MeshCheck(name)
+    assert check.bad(robot.joint_names, res.poses_deg) == (0, 0)
+    assert res.O_t >= res.lower_bound and res.O_t >= res.feasible_lower_bound * (1 - 1e-9)
+    assert "every plan within the joint limits" in res.lower_bound_over
+    assert "feasible" in res.feasible_lower_bound_over and res.approximate_design["region"] == "feasible candidates"
+    assert np.all(res.clearance_m >= -1e-9) and len(res.closest) == 4
+    support = np.radians(res.approximate_design["support_deg"])
+    assert sum(check.collides(robot.joint_names, x) for x in support) == 0
+
+
+@needs_arms
+def test_a_design_study_of_a_real_arm_through_the_workflow_functions(arms, tmp_path):
+    """The workflow's jobs (stiffcal.pipeline: the design job, one job for every M, the summary): every pose of
+    every plan feasible by the independent check, plans.csv with each pose's clearance, the certificate with both
+    regions, the figure drawn."""
+    import pandas as pd
+
+    from stiffcal import pipeline
+
+    name = "jaco2"
+    _, _, _, _, _, qt, force = real_arms.ARMS[name]
+    p = {"name": name, "test_pose_deg": qt, "force_N": force, "sigma_m": 1e-5}
+    f = {k: str(tmp_path / k) for k in ("design.json", "support.csv", "cert.csv", "pool.npy", "best.csv", "vm.csv",
+                                         "plans.csv", "plan.png", "vm.png")}
+    pipeline.approximate_design(p, str(arms[name]), f["design.json"], f["support.csv"], f["cert.csv"], None, name,
+                                f["pool.npy"])
+    pipeline.study_plans(p, str(arms[name]), [2, 5], 0, f["design.json"], f["pool.npy"], f["best.csv"])
+    pipeline.study_summary({**p, "draw_m": 5}, str(arms[name]), f["best.csv"], f["vm.csv"], f["plans.csv"],
+                           f["plan.png"], f["vm.png"])
+    cert = pd.read_csv(f["cert.csv"])
+    assert list(cert.region) == ["joint space", "feasible candidates"]
+    plans = pd.read_csv(f["plans.csv"])
+    robot = load_robot(arms[name])
+    cols = robot.joint_columns("q", "_deg")
+    check = MeshCheck(name)
+    assert check.bad(robot.joint_names, plans[cols].to_numpy(float)) == (0, 0)
+    assert "clearance_m" in plans.columns and (plans.clearance_m > -1e-9).all()
+    best = pd.read_csv(f["best.csv"])
+    assert best.feasible.all() and (best.O_t >= best.lower_bound).all()
+    assert (best.O_t >= best.feasible_lower_bound * (1 - 1e-9)).all()
+
+
+@needs_arms
+def test_the_hanging_mass_experiment_on_a_ur10_is_planned_with_its_cable_free(arms):
+    """The standard hanging-mass experiment (--loads hanging, the test pose under a hanging mass too): joint 1,
+    which hanging masses never turn, is left out with a note instead of refused; every pose feasible by the
+    independent check, and the cable from the tool point down to the floor misses every mesh but the one it hangs
+    from (coal on the meshes); the sizes of the loads set O_t as the model says (O_t ~ 1 / |F|^2)."""
+    import coal
+
+    name = "ur10"
+    robot = load_robot(arms[name])
+    qt = real_arms.ARMS[name][5]
+    res = stiffcal.design(robot, qt, [0, 0, -98.1], loads="hanging:49.05,98.1,147.15", experiments=4, sigma=1e-5)
+    assert res.cov_diag[0] == "inf" or np.isinf(res.cov_diag[0])
+    assert any("shoulder_pan_joint is never turned by the measurement loads" in n for n in res.notes)
+    check = MeshCheck(name)
+    assert check.bad(robot.joint_names, res.poses_deg) == (0, 0)
+    tip_joint = check.model.frames[check.model.getFrameId("tool0")].parentJoint
+    for q in np.radians(res.poses_deg):
+        x = check.configuration(robot.joint_names, q)
+        check.pin.updateGeometryPlacements(check.model, check.data, check.geom, check.gdata, x)
+        check.pin.framesForwardKinematics(check.model, check.data, x)
+        top = check.data.oMf[check.model.getFrameId("tool0")].act(np.array(real_arms.ARMS[name][4]))
+        assert top[2] > 0
+        cable = coal.Capsule(1e-6, float(top[2]))
+        where = coal.Transform3s(np.eye(3), top - [0, 0, top[2] / 2])
+        for i, g in enumerate(check.geom.geometryObjects):
+            if g.parentJoint == tip_joint:
+                continue
+            M = check.gdata.oMg[i]
+            hit = coal.collide(g.geometry, coal.Transform3s(M.rotation, M.translation), cable, where,
+                               coal.CollisionRequest(), coal.CollisionResult())
+            assert not hit, (g.name, np.degrees(q))
+    from stiffcal.study import Study
+    from stiffcal.observation import measurement_loads
+    from stiffcal.tables import plan_summary
+
+    # the same plan under loads twice as heavy: O_t a quarter (the measurement rows scale with |F|)
+    st = Study("x", robot, np.radians(qt), np.array([0, 0, -98.1]), 1e-5, ("ot",), 1, 1, None, None, "tool", 0.0,
+               measurement_loads(robot, "hanging:98.1,196.2,294.3"))
+    assert float(plan_summary(st, res.poses_deg)["O_t"]) == pytest.approx(res.O_t / 4, rel=1e-9)
+
+
+# --- planar and DH arms: capsules against a dense sampling of the links written here --------------------------
+
+def _points_along(robot, q_deg, per_link=400):
+    """(links, per_link, 3) points along every segment of the drawn arm (as_xyz of link_points), sampled here."""
+    from stiffcal.robot import as_xyz
+
+    P = as_xyz(robot.link_points(np.radians(q_deg)))
+    t = np.linspace(0, 1, per_link)[:, None]
+    return np.array([P[k] + t * (P[k + 1] - P[k]) for k in range(len(P) - 1)])
+
+
+PLANAR_CELL = """name: paper-2r-cell
+kind: planar
+links_m: [0.6, 0.4]
+joint_limits_deg: [[-180, 180], [-150, 150]]
+cell:
+  floor_m: -0.1
+  clearance_m: 0.02
+  link_radius_m: 0.04
+  boxes:
+    - {name: fixture, center_m: [0.45, 0.25], size_m: [0.3, 0.2]}
+"""
+
+
+def _planar_violations(pts, r=0.04, clearance=0.02, floor=-0.1):
+    """Dense-sample check of a planar pose in PLANAR_CELL: the height of every sampled point of links 2.. (and
+    the far end of link 1) above the floor, and the distance of every sampled point to the fixture rectangle
+    (x 0.3..0.6, y 0.15..0.35), each at least r + clearance (less the sampling's resolution); and links 1 and 2
+    apart (no self-collision pair is not adjacent for two links)."""
+    tol = 1e-3
+    above = np.concatenate([pts[1:].reshape(-1, 3), pts[0, -1:]])  # the link from the base stands on the floor
+    low = above[:, 1].min() - floor - r
+    every = pts.reshape(-1, 3)
+    dx = np.maximum(np.maximum(0.3 - every[:, 0], every[:, 0] - 0.6), 0)
+    dy = np.maximum(np.maximum(0.15 - every[:, 1], every[:, 1] - 0.35), 0)
+    inside = (dx == 0) & (dy == 0)
+    box = -np.inf if inside.any() else np.hypot(dx, dy).min() - r
+    return low < clearance - tol, box < clearance - tol
+
+
+@pytest.mark.parametrize("criterion, m", [("ot", 1), ("ot", 2), ("ot", 3), ("a", 3), ("g", 1)])
+def test_planar_plans_keep_off_the_floor_and_the_fixture(tmp_path, criterion, m):
+    path = tmp_path / "robot.yaml"
+    path.write_text(PLANAR_CELL)
+    robot = load_robot(path)
+    res = stiffcal.design(path, [60, 30], [0, -1], experiments=m, criterion=criterion)
+    for pose in res.poses_deg:
+        assert _planar_violations(_points_along(robot, pose)) == (False, False), pose
+    for pose in res.approximate_design["support_deg"]:
+        assert _planar_violations(_points_along(robot, pose)) == (False, False), pose
+
+
+def test_the_cell_costs_o_t_and_the_certificate_holds_against_a_brute_force(tmp_path):
+    """A floor that cuts into the optimum: the O_t-optimal plan of 2 poses in the cell against every pair of a
+    2-degree grid of the poses the dense-sample check (written here) allows: the plan is no worse than the
+    best pair of that grid (it polishes in the continuum), the continuum bound is below every pair, and the plan
+    costs O_t against the unconstrained optimum."""
+    path = tmp_path / "robot.yaml"
+    path.write_text(PLANAR_CELL.replace("floor_m: -0.1", "floor_m: -0.03"))
+    robot = load_robot(path)
+    res = stiffcal.design(path, [60, 30], [0, -1], experiments=2)
+    free = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2)
+    assert res.O_t > free.O_t * 1.001  # the cell excludes the unconstrained optimum
+    g = np.arange(-180.0, 180.0, 2.0)
+    Q = np.stack(np.meshgrid(g, np.arange(-150.0, 150.1, 2.0), indexing="ij"), -1).reshape(-1, 2)
+    ok = np.array([_planar_violations(_points_along(robot, q, 60), clearance=0.02 + 4e-3, floor=-0.03) ==
+                   (False, False) for q in Q])
+    Q = Q[ok]
+    from stiffcal.study import Study
+    from stiffcal.stiffness import pose_information
+
+    st = Study("x", load_robot(PAPER), np.radians([60, 30]), np.array([0.0, -1.0]), 1.0, ("ot",), 1, 1)
+    prob = st.problem("ot", 2)
+    P = pose_information(prob.rows(np.radians(Q)))
+    W = prob.At.T @ prob.At
+    a, b, c = P[:, 0, 0], P[:, 0, 1], P[:, 1, 1]
+    best = np.inf
+    for k in range(len(Q)):  # every pair (k, l >= k): the 2 x 2 information matrix inverted by hand
+        A, B, C = a[k] + a[k:], b[k] + b[k:], c[k] + c[k:]
+        det = A * C - B * B
+        ok = det > 1e-12 * np.abs(det).max()
+        best = min(best, float(((W[0, 0] * C - 2 * W[0, 1] * B + W[1, 1] * A)[ok] / det[ok]).min()))
+    assert res.O_t <= best * (1 + 1e-6)
+    assert res.lower_bound <= best and res.lower_bound <= res.O_t
+
+
+def test_a_dh_arm_in_a_cell_with_capsules(root):
+    """The KUKA KR 210 DH file with capsules, the floor and a column: the plan's poses against a dense sampling of
+    the links written here (every sampled point above the floor by the radius, outside the column)."""
+    body = (root / "config/robots/kuka_kr210_r2700.yaml").read_text()
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "kuka.yaml"
+        path.write_text(body + "\ncell:\n  floor_m: 0.0\n  clearance_m: 0.05\n  link_radius_m: 0.12\n  cylinders:\n"
+                        "    - {name: column, center_m: [-0.9, 0.0, 1.0], radius_m: 0.25, length_m: 2.0}\n")
+        robot = load_robot(path)
+        res = stiffcal.design(path, [20, -60, 110, 30, 45, -20], [500, -300, -800], experiments=3, sigma=1e-5)
+    for pose in res.poses_deg:
+        pts = _points_along(robot, pose, 200)
+        above = pts[1:].reshape(-1, 3)  # the link from the base is the mount
+        assert above[:, 2].min() - 0.12 >= 0.05 - 2e-3
+        v = pts.reshape(-1, 3) - [-0.9, 0.0, 1.0]
+        dr, dz = np.hypot(v[:, 0], v[:, 1]) - 0.25, np.abs(v[:, 2]) - 1.0  # the column's signed distance, here
+        sdf = np.hypot(np.maximum(dr, 0), np.maximum(dz, 0)) + np.minimum(np.maximum(dr, dz), 0)
+        assert sdf.min() - 0.12 >= 0.05 - 2e-3, pose
+
+
+# --- the geometry against coal and brute force ----------------------------------------------------------------
+
+def test_segment_distances_against_a_brute_force(rng):
+    from stiffcal.workcell import segment_distance
+
+    a, b, c, d = (rng.normal(size=(300, 3)) for _ in range(4))
+    b[:20] = a[:20]  # degenerate segments (points)
+    d[10:30] = c[10:30]
+    got = segment_distance(a, b, c, d)
+    t = np.linspace(0, 1, 801)[:, None]
+    for k in range(0, 300, 7):
+        p, r = a[k] + t * (b[k] - a[k]), c[k] + t * (d[k] - c[k])
+        brute = np.min(np.linalg.norm(p[:, None] - r[None], axis=-1))
+        assert got[k] <= brute + 1e-12 and brute - got[k] <= 2e-3 * (1 + np.linalg.norm(b[k] - a[k]))
+
+
+def test_distances_to_boxes_and_cylinders_against_coal(rng):
+    """Obstacle.segment_sdf against coal's distance of a thin capsule to the same box or cylinder (outside), and
+    against a dense sampling of the segment (inside)."""
+    import coal
+
+    from stiffcal.workcell import Obstacle, rpy_matrix
+
+    R = rpy_matrix([0.3, -0.5, 1.1])
+    box = Obstacle("b", "box", center=np.array([0.2, -0.1, 0.4]), rotation=R, half=np.array([0.3, 0.2, 0.1]))
+    axis = np.array([0.2, 0.3, 0.93])
+    axis /= np.linalg.norm(axis)
+    cyl = Obstacle("c", "cylinder", center=np.array([-0.3, 0.2, 0.1]), axis=axis, radius=0.15, half_length=0.4)
+    from stiffcal.workcell import _rotation_to
+
+    shapes = {"b": (coal.Box(0.6, 0.4, 0.2), coal.Transform3s(R, box.center)),
+              "c": (coal.Cylinder(0.15, 0.8), coal.Transform3s(_rotation_to(np.array([0.0, 0, 1]), axis), cyl.center))}
+    a, b = rng.uniform(-1, 1, (200, 3)), rng.uniform(-1, 1, (200, 3))
+    for o in (box, cyl):
+        got = o.segment_sdf(a, b)
+        t = np.linspace(0, 1, 2001)[:, None, None]
+        sampled = o.sdf(a[None] + t * (b - a)[None]).min(axis=0)
+        assert np.all(got <= sampled + 1e-12) and np.all(sampled - got <= 1e-3)
+        shape, M = shapes[o.name]
+        for k in np.flatnonzero(got > 1e-3)[:40]:
+            L = float(np.linalg.norm(b[k] - a[k]))
+            cap = coal.Capsule(1e-9, L)
+            P = coal.Transform3s(_rotation_to(np.array([0.0, 0, 1]), (b[k] - a[k]) / L), (a[k] + b[k]) / 2)
+            res, req = coal.DistanceResult(), coal.DistanceRequest()
+            req.gjk_tolerance = 1e-12
+            coal.distance(shape, M, cap, P, req, res)
+            assert res.min_distance == pytest.approx(got[k], abs=1e-8)
+
+
+# --- candidates, loads, bad input -------------------------------------------------------------------------------
+
+def test_candidate_poses_from_a_csv_are_filtered_and_the_bound_is_exact_over_them(tmp_path, rng):
+    """A FIGAROH-style candidate file: the plan uses only its feasible poses, and the bound (exact over the
+    candidates) is below every plan of them (every pair of a brute force), with the plan the best pair."""
+    path = tmp_path / "robot.yaml"
+    path.write_text(PLANAR_CELL)
+    robot = load_robot(path)
+    Q = np.round(rng.uniform([-180, -150], [180, 150], (40, 2)), 2)
+    csv = tmp_path / "candidates.csv"
+    csv.write_text("id,q1_deg,q2_deg\n" + "\n".join(f"{i},{a},{b}" for i, (a, b) in enumerate(Q)) + "\n")
+    res = stiffcal.design(path, [60, 30], [0, -1], experiments=2, candidates=csv)
+    ok = np.array([_planar_violations(_points_along(robot, q)) == (False, False) for q in Q])
+    feasible = {tuple(q) for q in Q[ok]}
+    assert {tuple(np.round(p, 2)) for p in res.poses_deg} <= feasible and "candidate poses" in res.lower_bound_over
+    from stiffcal.study import Study
+    from stiffcal.tables import plan_summary
+
+    st = Study("x", robot, np.radians([60, 30]), np.array([0.0, -1.0]), 1.0, ("ot",), 1, 1)
+    F = Q[ok]
+    pairs = np.array([[F[i], F[j]] for i in range(len(F)) for j in range(i, len(F))])
+    ot = plan_summary(st, pairs)["O_t"]
+    assert res.lower_bound <= ot.min() * (1 + 1e-9) and res.O_t == pytest.approx(ot.min(), rel=1e-9)
+    # the same candidates in radians under the joint names (ROS joint states)
+    rad = tmp_path / "rad.csv"
+    rad.write_text("1,2\n" + "\n".join(f"{float(np.radians(a))!r},{float(np.radians(b))!r}" for a, b in Q) + "\n")
+    assert np.allclose(stiffcal.design(path, [60, 30], [0, -1], experiments=2, candidates=rad).poses_deg,
+                       res.poses_deg)
+
+
+def test_loads_apart_from_the_test_wrench(root):
+    """--loads: every pose measured under every load, the force the test pose's alone: O_t scales as |F_t|^2 /
+    |F_meas|^2 for the same plan, pushes in a few directions, a loading bar and explicit wrenches are read."""
+    base = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=3, loads="directions:4:80")
+    assert base.loads == "directions:4:80" and np.asarray(base.loads_N).shape == (4, 2)
+    twice = stiffcal.design(PAPER, [60, 30], [0, -2], experiments=3, loads="directions:4:160")
+    assert twice.O_t == pytest.approx(base.O_t, rel=1e-6)  # both sizes doubled: the same O_t
+    heavier = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=3, loads="directions:4:160")
+    assert heavier.O_t == pytest.approx(base.O_t / 4, rel=1e-6)
+    bar = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=3, loads="bar:0.2,0:50,100")
+    wrench = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=3, loads="wrenches:0,-50,10;20,-40,-5")
+    assert np.isfinite(bar.O_t) and np.isfinite(wrench.O_t) and wrench.loads_N.shape == (2, 3)
+
+
+@pytest.mark.parametrize("args, field", [
+    (["--loads", "data"], "--loads"),
+    (["--loads", "hanging:-1"], "--loads"),
+    (["--joint-limits-deg", "-180:180"], "--joint-limits-deg"),
+    (["--joint-limits-deg", "-180,180,0,1"], "--joint-limits-deg[0]"),
+    (["--cell", "CELL:clearance_m: -1\n"], "clearance_m"),
+    (["--cell", "CELL:boxes: [{center_m: [0, 0, 0], size_m: [1, 1]}]\n"], "boxes[0].center_m"),
+    (["--cell", "CELL:link_radius_m: 0.05\nignore_pairs: [[link1, nope]]\n"], "ignore_pairs[0]"),
+    (["--cell", "CELL:srdf: x.srdf\nlink_radius_m: 0.05\n"], "srdf"),
+    (["--cell", "CELL:floor_m: 0.0\n"], "link_radius_m"),
+    (["--cell", "CELL:floor_m: 5.0\nlink_radius_m: 0.05\n"], "cell"),
+    (["--candidates", "CSV:q1_deg\n10\n"], "columns"),
+    (["--candidates", "CSV:q1_deg,q2_deg\n10,abc\n"], "row 2, column q2_deg"),
+])
+def test_bad_cell_loads_and_candidates_are_one_line_and_exit_2(tmp_path, capsys, args, field):
+    args = list(args)
+    if args[1].startswith(("CELL:", "CSV:")):
+        kind, text = args[1].split(":", 1)
+        f = tmp_path / ("cell.yaml" if kind == "CELL" else "c.csv")
+        f.write_text(text)
+        args[1] = str(f)
+    code = main(["design", "--robot", str(PAPER), "--test-pose-deg", "60,30", "--force-N", "0,-1", "--experiments",
+                 "2", *args])
+    err = capsys.readouterr()
+    assert code == 2 and err.out == "" and len(err.err.strip().splitlines()) == 1 and field in err.err, err.err
+    assert "Traceback" not in err.err
+
+
+def test_a_loading_bar_is_refused_by_discriminate_with_a_message(root, tmp_path, capsys):
+    code = main(["discriminate", "--robot", str(PAPER), "--data", str(root / "data/synthetic_paper_2r_hanging.csv"),
+                 "--experiments", "2", "--loads", "bar:0.2,0:100", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and "loading bar" in err and not (tmp_path / "out").exists()
+
+
+def test_discriminate_and_the_verdict_s_plan_keep_their_poses_in_the_cell(root, tmp_path, capsys):
+    """stiffcal discriminate with a cell (hanging masses: the cable too) and the verdict's O_t-optimal plan of the
+    extended model: every point of every plan against the dense-sample check."""
+    cell = tmp_path / "cell.yaml"
+    cell.write_text("floor_m: -0.1\nclearance_m: 0.02\nlink_radius_m: 0.04\nboxes:\n"
+                    "  - {name: fixture, center_m: [0.45, 0.25], size_m: [0.3, 0.2]}\n")
+    path = tmp_path / "robot.yaml"
+    path.write_text(PLANAR_CELL)
+    robot = load_robot(path)
+    data = str(root / "data/synthetic_paper_2r_hanging.csv")
+    from stiffcal import discrimination as X
+    from stiffcal.api import _placed
+    from stiffcal.measurements import read_measurements
+
+    placed = _placed(load_robot(PAPER), cell=str(cell))
+    meas = read_measurements(data, placed)
+    res = X.discriminate(placed, meas, 6, X.load_set("hanging:100,300,600", 2), test_pose=np.radians([60, 30]),
+                         test_force=np.array([0.0, -300.0]), m_curve=[6],
+                         effort=X.Effort(pool_step_deg=10.0, search_step_deg=10.0, n_starts=1, rounds=1))
+    plan = X.to_json(res, data)
+    assert plan["cell"] is not None and plan["plan"] is not None and "clearance_m" in plan["plan"]
+    poses = [p for k in ("plan", "compound", "ot_plan") if plan[k] for p in plan[k]["poses_deg"]]
+    assert poses
+    for pose in poses:
+        pts = _points_along(robot, pose)
+        assert _planar_violations(pts) == (False, False), pose
+        tip = pts[-1, -1]
+        # the cable straight down from the tool point misses link 1 (the link it hangs from is link 2)
+        link1 = pts[0]
+        below = link1[link1[:, 1] < tip[1]]
+        assert np.all(np.abs(below[:, 0] - tip[0]) > 0.04) or not len(below), pose
+    verdict = stiffcal.analyse_measurements(PAPER, data, test_pose_deg=[60, 30], force_N=[0, -300], cell=str(cell))
+    gain = verdict["gain"] or {}
+    plans = (gain.get("optimal_plan_extended_deg") or []) + (gain.get("nominal_plan_deg") or [])
+    assert plans
+    for pose in plans:
+        assert _planar_violations(_points_along(robot, pose)) == (False, False), pose
+
+
+# --- one answer per input --------------------------------------------------------------------------------------
+
+_RUN = """
+import json, sys
+sys.path.insert(0, {tests!r})
+import stiffcal, real_arms
+name = {name!r}
+_, _, _, _, _, qt, F = real_arms.ARMS[name]
+r = stiffcal.design({robot!r}, qt, F, experiments=3, sigma=1e-5)
+print(json.dumps({{"poses": r.poses_deg.tolist(), "O_t": r.O_t}}))
+"""
+
+
+@needs_arms
+def test_api_cli_and_workflow_give_one_plan_under_one_and_two_blas_threads(arms, tmp_path):
+    """The issue's case (stiffcal.design(ur10, ..., experiments=3) with BLAS allowed 2 threads, as a notebook
+    has it, against 1; the UR10 of example-robot-data without a cell, as the issue ran it): the API under 1 and 2
+    threads, the CLI under 2, and the workflow's study job give the same plan, bit for bit."""
+    name = "ur10"
+    robot = str(real_arms.write_robot_file(name, tmp_path).with_name("free.yaml"))
+    text = Path(robot).with_name("ur10.yaml").read_text()
+    Path(robot).write_text(text[:text.index("cell:")])
+    _, _, _, _, _, qt, force = real_arms.ARMS[name]
+    outs = []
+    for threads in ("1", "2"):
+        env = {**os.environ, "OPENBLAS_NUM_THREADS": threads, "OMP_NUM_THREADS": threads}
+        code = _RUN.format(tests=str(Path(__file__).parent), name=name, robot=robot)
+        run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+        outs.append(json.loads(run.stdout.strip().splitlines()[-1]))
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
+    cli = subprocess.run([str(Path(sys.executable).parent / "stiffcal"), "design", "--robot", robot,
+                          "--test-pose-deg", ",".join(map(str, qt)), "--force-N", ",".join(map(str, force)),
+                          "--sigma", "1e-5", "--experiments", "3", "--quiet"], env=env, capture_output=True,
+                         text=True, check=True)
+    cli = json.loads(cli.stdout)
+    assert outs[0] == outs[1]
+    assert np.array_equal(np.round(outs[0]["poses"], 6), np.array(cli["poses_deg"])) and cli["O_t"] == outs[0]["O_t"]
+    import pandas as pd
+
+    from stiffcal import pipeline
+
+    p = {"name": name, "test_pose_deg": qt, "force_N": force, "sigma_m": 1e-5}
+    files = [str(tmp_path / f) for f in ("d.json", "s.csv", "c.csv", "pool.npy", "best.csv")]
+    pipeline.approximate_design(p, robot, files[0], files[1], files[2], None, name, files[3])
+    pipeline.study_plans(p, robot, [3], 0, files[0], files[3], files[4])
+    row = pd.read_csv(files[4]).iloc[0]
+    from stiffcal.tables import parse_plan
+
+    assert np.allclose(parse_plan(row.poses_deg), np.array(outs[0]["poses"]), atol=5e-5)  # 4 decimals in the file
+    assert row.O_t == pytest.approx(outs[0]["O_t"], rel=1e-9)
+
+
+def test_a_bad_robot_file_cell_names_the_field(tmp_path):
+    path = tmp_path / "robot.yaml"
+    path.write_text(PLANAR_CELL.replace("link_radius_m: 0.04", "link_radius_m: [0.04]"))
+    with pytest.raises(InputError) as err:
+        load_robot(path)
+    assert err.value.field == "cell.link_radius_m" and "one per segment" in str(err.value)
+    path.write_text(PLANAR_CELL.replace("  clearance_m: 0.02\n", "  clearance_m: 0.02\n  colour: red\n"))
+    with pytest.raises(InputError) as err:
+        load_robot(path)
+    assert err.value.field == "cell" and "colour" in str(err.value)
+
+
+@needs_arms
+def test_the_documented_example_of_a_real_arm_loads_and_leaves_poses(tmp_path):
+    """The UR10 example of docs/contracts.md ("The cell"), with the path of example-robot-data filled in: it loads,
+    and its cell (floor, table, wall, self-collision) leaves some poses and refuses others."""
+    text = (ROOT / "docs/contracts.md").read_text(encoding="utf-8")
+    block = text[text.index("Example, a real arm"):]
+    block = block[block.index("```yaml") + 7:]
+    block = block[:block.index("```")]
+    path = tmp_path / "ur10_cell.yaml"
+    path.write_text(block.replace("/path/to/example-robot-data/robots", str(real_arms.robots_dir())))
+    robot = load_robot(path)
+    from stiffcal.design import sample_joint_space
+    from stiffcal.workcell import feasible
+
+    ok = feasible(robot, sample_joint_space(robot, 8, seed=4))
+    assert 0 < ok.mean() < 1 and {o.name for o in robot.cell.obstacles} == {"floor", "table", "wall"}
+
+
+def test_a_single_pose_from_a_candidate_file_is_its_best_feasible_pose(tmp_path, rng):
+    path = tmp_path / "robot.yaml"
+    path.write_text(PLANAR_CELL)
+    robot = load_robot(path)
+    Q = np.round(rng.uniform([-180, -150], [180, 150], (60, 2)), 2)
+    csv = tmp_path / "c.csv"
+    csv.write_text("q1_deg,q2_deg\n" + "\n".join(f"{a},{b}" for a, b in Q) + "\n")
+    res = stiffcal.design(path, [60, 30], [0, -1], experiments=1, candidates=csv)
+    from stiffcal.study import Study
+    from stiffcal.tables import plan_summary
+
+    st = Study("x", robot, np.radians([60, 30]), np.array([0.0, -1.0]), 1.0, ("ot",), 1, 1)
+    ok = np.array([_planar_violations(_points_along(robot, q)) == (False, False) for q in Q])
+    ot = plan_summary(st, Q[ok][:, None, :])["O_t"]
+    assert res.O_t == pytest.approx(ot.min(), rel=1e-12) and tuple(np.round(res.poses_deg[0], 2)) in set(map(tuple, Q))
