@@ -769,3 +769,53 @@ def _write_whole(path: Path, text: str) -> None:
     tmp = path.with_name(f".{path.name}.tmp")
     tmp.write_text(text, encoding="utf-8")
     tmp.replace(path)
+
+
+def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1,
+                    sigma_m: float | None = None, joint_limits_deg=None, cell=None, seed: int = 0) -> dict:
+    """The next round's plan (``stiffcal design --prior``; :func:`stiffcal.calibrated.next_round`): M more poses
+    of the tool point's position under the test load, O_t-optimal for the calibrated model with the information
+    its data already hold added, with the certified lower bound over every M-pose plan of the candidate poses.
+
+    prior: a calibrated robot file (``calibrated.yaml`` of ``stiffcal discrepancy``) or a Robot with a
+    calibration; test_pose_deg (n,) [deg]; force_N (d,) [N] or wrench (d + d_m,) [N, N m]: the test load, used in
+    every new measurement; experiments: M; sigma_m [m]: the new readings' noise (default the calibration's);
+    joint_limits_deg, cell: as :func:`design`. Returns the JSON of docs/contracts.md ("The calibrated model"):
+    ``poses_deg``, ``O_t``, ``O_t_prior``, ``O_t_fresh``, ``lower_bound``, ``gap``, ... [m^2]. Raises
+    :class:`InputError` for bad arguments or a robot without a calibration."""
+    from . import calibrated as C
+    from .robot import narrowed_limits
+    from .study import check_test_inputs
+    from .threads import one_blas_thread
+    from .workcell import with_cell
+
+    robot = _robot(prior)
+    if getattr(robot, "calibration", None) is None:
+        raise InputError("expected a calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy): this one has "
+                         "no calibration section", source=robot.source, field="prior")
+    if joint_limits_deg is not None:
+        robot = narrowed_limits(robot, joint_limits_deg, None, "joint_limits_deg")
+    if cell is not None:
+        robot = with_cell(robot, _cell_value(cell), None, "cell")
+    force, moment, field_ = load_arguments(robot, force_N, wrench)
+    q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG), force,
+                            "test_pose_deg", field_, None, moment, field_)
+    m = whole_number(experiments, "experiments", 1, MAX_DESIGN_EXPERIMENTS, "poses")
+    sigma = None if sigma_m is None else positive_number(sigma_m, "sigma_m")
+    seed = whole_number(seed, "seed", 0, 2**32 - 1)
+    load = np.r_[force, [] if moment is None else moment]
+    with one_blas_thread():
+        nr = C.next_round(robot, np.radians(q_t), load, m, sigma, seed=seed)
+    return json_safe({
+        "robot": robot.name, "prior": robot.source, "experiments": m, "causes": list(nr.causes),
+        "joint_names": list(robot.joint_names), "poses_deg": np.degrees(nr.poses).round(6).tolist(),
+        "O_t": nr.O_t, "O_t_prior": nr.O_t_prior, "O_t_fresh": nr.O_t_fresh,
+        "rms_m": math.sqrt(nr.O_t), "rms_prior_m": math.sqrt(nr.O_t_prior), "rms_fresh_m": math.sqrt(nr.O_t_fresh)
+        if math.isfinite(nr.O_t_fresh) else math.inf, "lower_bound": nr.lower_bound,
+        "gap": nr.O_t / nr.lower_bound - 1.0 if nr.lower_bound > 0 else None,
+        "lower_bound_over": f"every plan of {m} of the {nr.pool_size} candidate poses, with the old information added",
+        "approximate_design": {"support_deg": np.degrees(nr.support).round(6).tolist(),
+                               "weights": nr.weights.tolist(), "equivalence_gap": nr.equivalence_gap},
+        "parameter_names": list(nr.names), "cov_diag": nr.cov_diag.tolist(), "sigma_m": nr.sigma_m, "seed": seed,
+        "test_pose_deg": q_t.tolist(), "force_N": force.tolist(),
+        "moment_Nm": None if moment is None else np.asarray(moment).tolist(), "notes": list(nr.notes)})

@@ -163,8 +163,9 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
 
 def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     """The calibrated robot file (module docstring) as a YAML document for ``out_dir``: the robot file's own
-    keys (a URDF's path made relative to ``out_dir``), ``compliances_rad_per_Nm`` replaced when every joint's is
-    identified and positive (else the file's own, or none), and the ``calibration`` section."""
+    keys (the paths of a URDF and of a cell's SRDF made relative to ``out_dir``), ``compliances_rad_per_Nm``
+    replaced when every joint's is identified and positive (else the file's own, or none), and the
+    ``calibration`` section."""
     import os
 
     from .validation import read_yaml
@@ -173,9 +174,13 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
         raise InputError("the calibrated model is written beside the robot file it came from: give the robot as a "
                          "file", field="robot")
     doc = dict(read_yaml(robot.source))
+    def moved(path):  # a file the robot file names, from the new file's folder
+        return os.path.relpath((Path(robot.source).parent / path).resolve(), Path(out_dir).resolve())
+
     if doc.get("kind") == "urdf":
-        urdf = (Path(robot.source).parent / doc["urdf"]).resolve()
-        doc["urdf"] = os.path.relpath(urdf, Path(out_dir).resolve())
+        doc["urdf"] = moved(doc["urdf"])
+    if isinstance(doc.get("cell"), dict) and doc["cell"].get("srdf"):
+        doc["cell"] = {**doc["cell"], "srdf": moved(doc["cell"]["srdf"])}
     doc.pop("calibration", None)
     k = cal.compliances(robot.n_joints)
     if np.all(np.isfinite(k)) and np.all(k > 0):
@@ -457,3 +462,150 @@ def _csv(head: list, rows: list) -> str:
     w.writerow(head)
     w.writerows(rows)
     return buf.getvalue()
+
+
+# --- the next round ----------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class NextRound:
+    """The next round's plan given the information already collected (:func:`next_round`). poses (m, n) [rad];
+    O_t [m^2] of the plan with the old information added; O_t_prior [m^2]: the old data's alone (no new
+    measurement), ``tr(X_t Cov X_t^T)``; O_t_fresh [m^2]: the best m-pose plan of the same pool without the old
+    data; lower_bound [m^2]: certified lower bound of O_t over every m-pose plan of the candidate pool with the
+    old information added (:func:`prior_design_bound`); design: the approximate design behind it (support
+    (k, n) [rad], weights (k,)); names (p,): the parameters; cov_diag (p,) [SI^2]: their variances after the
+    next round; pool_size; causes; sigma_m [m]; notes."""
+    poses: np.ndarray
+    O_t: float
+    O_t_prior: float
+    O_t_fresh: float
+    lower_bound: float
+    support: np.ndarray
+    weights: np.ndarray
+    equivalence_gap: float
+    names: tuple
+    cov_diag: np.ndarray
+    pool_size: int
+    causes: tuple
+    sigma_m: float
+    notes: tuple = ()
+
+
+def prior_information(cal: Calibration, sigma_m: float) -> tuple[np.ndarray, int, tuple]:
+    """The information the calibration's data hold on the robot's parameters, in units of the new rows' noise:
+    ``sigma_m^2 Cov_rr^+`` (p_r, p_r) with Cov_rr the covariance of the compliances and the robot's extensions
+    (a measurement offset belongs to the old tracker set-up: marginalised out, which is the Schur complement of
+    the information matrix). Returns (information, p_r, the robot's causes)."""
+    causes = tuple(c for c in cal.causes if c != "measurement_offset")
+    p_r = len(cal.theta) - (cal.n_offsets if "measurement_offset" in cal.causes else 0)
+    cov = cal.cov[:p_r, :p_r]
+    return sigma_m**2 * np.linalg.pinv(0.5 * (cov + cov.T), hermitian=True), p_r, causes
+
+
+def prior_design_bound(P: np.ndarray, prior: np.ndarray, W: np.ndarray, m: int, iters: int = 3000,
+                       tol: float = 1e-6) -> tuple[float, np.ndarray, float]:
+    """A certified lower bound of ``f(xi) = tr(W (prior + m M(xi))^-1)`` over every design xi on a pool of
+    information matrices P (K, p, p) (W = X_t^T X_t; every exact m-point plan of the pool is such a design,
+    weights k/m). f is convex in the weights, so for any weights w, with ``B = M^-1 W M^-1`` and ``phi_c = tr(B
+    P_c)``, ``f* >= f(w) - m (max_c phi_c - sum_c w_c phi_c)`` (the equivalence theorem's gap; Pukelsheim,
+    *Optimal Design of Experiments*, 1993, ch. 7; Fedorov 1972, sec. 4.2 for the prior). The weights come from the
+    multiplicative algorithm ``w_c <- w_c phi_c / sum w phi`` until the relative gap is below ``tol``. Returns
+    (bound, w (K,), relative gap (f(w) - bound) / f(w))."""
+    K = len(P)
+    w = np.full(K, 1.0 / K)
+    best = (-np.inf, w, np.inf)
+    for _ in range(iters):
+        M = prior + m * np.einsum("k,kij->ij", w, P)
+        Minv = np.linalg.inv(M)
+        f = float(np.trace(W @ Minv))
+        B = Minv @ W @ Minv
+        phi = np.einsum("ij,kji->k", B, P)
+        bound = f - m * (phi.max() - w @ phi)
+        if bound > best[0]:
+            best = (bound, w, (f - bound) / f)
+        if best[2] <= tol:
+            break
+        w = w * phi / (w @ phi)
+    return best
+
+
+def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: int, sigma_m: float | None = None,
+               step_deg: float = 10.0, seed: int = 0) -> NextRound:
+    """The O_t-optimal plan of m more poses given the information already collected: the robot's calibrated model
+    (its calibration's causes, less a measurement offset) with the old data's information
+    (:func:`prior_information`) added to the plan's, the test load in every new measurement of the tool point
+    (as :func:`stiffcal.discrepancy.optimal_plan`, over its candidate poses, by the same exchange), with the
+    certified bound of :func:`prior_design_bound` and the plans with no new data and with no old data beside it.
+    test_pose (n,) [rad]; test_load (d,) [N] or (d + d_m,) [N, N m]; sigma_m [m]: the new readings' noise
+    (default the calibration's). Raises :class:`InputError` for a robot without a calibration."""
+    from . import discrepancy as D
+    from .plans import fedorov_exchange
+
+    cal = getattr(robot, "calibration", None)
+    if cal is None:
+        raise InputError("the prior is a calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy); this one "
+                         "has no calibration section", source=robot.source, field="prior")
+    sigma = float(cal.sigma_m if sigma_m is None else sigma_m)
+    prior, p_r, causes = prior_information(cal, sigma)
+    ob = D.Observed(robot.target_names, None, False, 1.0, np.asarray(cal.k_joints, int), cal.n_offsets)
+    pool, Xp, Xt, scale = D.plan_regressors(robot, causes, test_pose, test_load, ob, step_deg)
+    prior_s = prior / np.outer(scale, scale)
+    with_old = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=prior_s)
+    notes = []
+    fresh = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
+    if not np.isfinite(fresh.value):
+        notes.append(f"{m} new poses alone cannot identify the model's {Xp.shape[-1]} parameters: O_t_fresh is "
+                     "infinite")
+    P = np.einsum("kdi,kdj->kij", Xp, Xp)
+    W = Xt.T @ Xt
+    bound, w, gap = prior_design_bound(P, prior_s, W, m)
+    cov_rr = cal.cov[:p_r, :p_r]
+    post = sigma**2 * np.linalg.inv(prior_s + P[with_old.indices].sum(axis=0)) / np.outer(scale, scale)
+    keep = w > 1e-4 * w.max()
+    names = cal.names[:p_r]
+    Xt_raw = Xt * scale
+    return NextRound(pool[with_old.indices], sigma**2 * with_old.value, float(np.trace(Xt_raw @ cov_rr @ Xt_raw.T)),
+                     sigma**2 * fresh.value, sigma**2 * bound, pool[keep], w[keep] / w[keep].sum(), float(gap),
+                     tuple(names), np.diag(post), len(pool), causes, sigma, tuple(notes))
+
+
+def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: int | None = None) -> dict:
+    """The verdict's ``next_round``: :func:`next_round` of m poses (default: the fewest that identify the model's
+    parameters alone, plus one, as :func:`stiffcal.discrepancy.optimal_plan`) as RMS errors [m] at the test pose:
+    ``rms_prior_m`` (the data's alone), ``rms_next_m`` (with the plan's m poses added), ``rms_fresh_m`` (the best
+    m poses without the data; null when m poses alone cannot identify the model), ``lower_bound_rms_m``;
+    ``experiments``, ``poses_deg``."""
+    cal = robot.calibration
+    _, p_r, _ = prior_information(cal, cal.sigma_m)
+    m = m or int(np.ceil(p_r / robot.task_dim)) + 1
+    nr = next_round(robot, test_pose, test_load, m)
+    return {"experiments": m, "poses_deg": np.degrees(nr.poses).round(3).tolist(),
+            "rms_prior_m": float(np.sqrt(nr.O_t_prior)), "rms_next_m": float(np.sqrt(nr.O_t)),
+            "rms_fresh_m": float(np.sqrt(nr.O_t_fresh)) if np.isfinite(nr.O_t_fresh) else None,
+            "lower_bound_rms_m": float(np.sqrt(max(nr.lower_bound, 0.0)))}
+
+
+def machining_path(robot: Robot, test_pose: np.ndarray, count: int = 41, span_deg: float = 20.0) -> np.ndarray:
+    """(count, n) [rad]: a simulated machining path through the test pose: every joint swept linearly from
+    ``-span_deg`` to ``+span_deg`` about it (clipped to the joint limits)."""
+    t = np.linspace(-1.0, 1.0, count)[:, None]
+    q = np.asarray(test_pose, float)[None] + np.radians(span_deg) * t
+    lim = robot.joint_limits_rad
+    return q if lim is None else np.clip(q, lim[:, 0], lim[:, 1])
+
+
+def path_check(calibrated_robot: Robot, nominal_robot: Robot, q: np.ndarray, load: np.ndarray) -> dict:
+    """A path compensated with the nominal and with the calibrated model, the calibrated one taken as the truth
+    (the best model of the data): per pose [m] ``before`` |dp| (no compensation), ``after_nominal`` (the error
+    left when the nominal model's corrected angles are commanded), ``after_calibrated`` (the iteration's residual)
+    and ``band95`` (the calibrated model's own 95 % error radius, :class:`Compensation`). Returns lists and their
+    maxima (``max_before_m`` ..)."""
+    load = np.broadcast_to(np.asarray(load, float), (len(q), np.shape(load)[-1]))
+    cal = compensate(calibrated_robot, q, load)
+    nom = compensate(nominal_robot, q, load)
+    left = np.asarray(calibrated_robot.fk(nom.q_corrected)) + predict(calibrated_robot, nom.q_corrected,
+                                                                       load).displacement - cal.target_m
+    out = {"before": np.linalg.norm(cal.deflection, axis=1), "after_nominal": np.linalg.norm(left, axis=1),
+           "after_calibrated": cal.residual_m, "band95": cal.band95_m}
+    return {**{k: [float(x) for x in v] for k, v in out.items()}, **{f"max_{k}_m": float(np.max(v))
+                                                                     for k, v in out.items()}}

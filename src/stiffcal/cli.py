@@ -79,12 +79,42 @@ def design(args) -> dict:
     """Run ``stiffcal design``; returns the JSON-ready dict."""
     from .api import design as run
 
+    if args.prior is not None:
+        return next_round(args)
     return run(args.robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=args.experiments,
-               criterion=args.criterion, sigma=args.sigma, targets=args.targets, orientation=args.orientation,
+               criterion=args.criterion, sigma=1.0 if args.sigma is None else args.sigma, targets=args.targets,
+               orientation=args.orientation,
                sigma_rad=args.sigma_rad, test_target=args.test_target,
                orientation_length_m=args.orientation_length_m, joint_limits_deg=joint_limits(args.joint_limits_deg),
                loads=args.loads, cell=args.cell, candidates=args.candidates, seed=args.seed,
                progress=False if args.quiet else None).to_dict()
+
+
+#: design options the next round (``--prior``) does not take: it plans the tool point's position under the test load
+_NOT_WITH_PRIOR = {"criterion": "ot", "targets": None, "orientation": False, "sigma_rad": None, "test_target": "tool",
+                   "orientation_length_m": 0.0, "loads": None, "candidates": None}
+
+
+def next_round(args) -> dict:
+    """``stiffcal design --prior CALIBRATED``: the next round's plan given the calibration's information."""
+    from .api import plan_next_round
+    from .robot import load_robot
+
+    given = [k for k, default in _NOT_WITH_PRIOR.items() if getattr(args, k) not in (default, str(default))]
+    if given:
+        raise InputError(f"--prior plans the tool point's position under the test load with the O_t criterion: "
+                         f"{', '.join('--' + k.replace('_', '-') for k in given)} cannot be given with it",
+                         field="--prior")
+    prior, robot = load_robot(args.prior), load_robot(args.robot)
+    if prior.joint_names != robot.joint_names:
+        raise InputError(f"the prior is a calibration of another robot: joints {', '.join(prior.joint_names)} against "
+                         f"{', '.join(robot.joint_names)} of --robot", source=args.prior, field="--prior")
+    out = plan_next_round(prior, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=args.experiments,
+                          sigma_m=args.sigma, joint_limits_deg=joint_limits(args.joint_limits_deg),
+                          cell=args.cell, seed=args.seed)
+    for note in out["notes"]:
+        write(f"stiffcal design: note: {note}")
+    return out
 
 
 def discrepancy(args) -> dict:
@@ -194,7 +224,10 @@ def build_parser() -> argparse.ArgumentParser:
                                     "FX,FY,FZ,MX,MY,MZ (spatial), instead of --force-N")
     d.add_argument("--experiments", type=int, default=1, help="number of measurement poses M (default 1)")
     d.add_argument("--criterion", default="ot", help="ot a t d g mdc o1 o2 o3 o4 (default ot)")
-    d.add_argument("--sigma", default=1.0, help="position noise s.t.d. [m] (default 1)")
+    d.add_argument("--sigma", default=None, help="position noise s.t.d. [m] (default 1; with --prior the "
+                                                 "calibration's)")
+    d.add_argument("--prior", help="a calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy): plan the "
+                                   "next round with its data's information added (docs/contracts.md)")
     d.add_argument("--targets", help="targets whose positions are measured at every pose, comma-separated names of "
                                      "the robot file's targets and 'tool' (default tool)")
     d.add_argument("--orientation", action="store_true", help="the tool's orientation is measured too")

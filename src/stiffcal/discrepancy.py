@@ -2059,7 +2059,8 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
         force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
         sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
     """Read, analyse, and write ``out_dir/verdict.json``, ``out_dir/residuals.{png,svg}``,
-    ``out_dir/heldout.{png,svg}`` (:func:`stiffcal.plots.fig_held_out`) and, for a robot given
+    ``out_dir/heldout.{png,svg}`` (:func:`stiffcal.plots.fig_held_out`), ``out_dir/machining.{png,svg}``
+    (:func:`stiffcal.plots.fig_machining`) and, for a robot given
     as a file, ``out_dir/calibrated.yaml`` (:mod:`stiffcal.calibrated`: the robot file with the identified model;
     the verdict's ``calibrated_model`` names it); everything is computed before anything is written, so bad data
     leave no partial output. Resolutions default to
@@ -2083,6 +2084,14 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
     verdict = verdict_of(robot, pre, alpha, test_pose, test_force)
     verdict = {"data": str(data_path), "robot": robot.source, **verdict}
     cal = calibrated.from_analysis(robot, pre, verdict, data_path)
+    verdict["next_round"] = verdict["machining_path"] = None
+    if test_pose is not None and test_force is not None:
+        model = replace(robot, calibration=cal)
+        verdict["next_round"] = calibrated.next_round_summary(model, test_pose, test_force)
+        nominal = replace(robot, calibration=calibrated.from_analysis(robot, pre, {**verdict, "extended": None}))
+        verdict["machining_path"] = {
+            "test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
+            **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
     calibrated_doc = calibrated.calibrated_document(robot, cal, out_dir) if Path(robot.source).is_file() else None
     verdict["calibrated_model"] = calibrated.CALIBRATED_FILE if calibrated_doc is not None else None
     text = json.dumps(verdict, indent=2, allow_nan=False)
@@ -2098,6 +2107,8 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
     plots.save(fig, out / "residuals")
     plots.save(plots.fig_held_out(verdict.get("held_out"), verdict["nominal"]["sigma_m"],
                                   f"Held-out configurations: {label or Path(data_path).name}"), out / "heldout")
+    plots.save(plots.fig_machining(verdict["machining_path"], cal.causes,
+                                   f"Simulated machining path: {label or Path(data_path).name}"), out / "machining")
     if calibrated_doc is not None:
         calibrated.write_calibrated(robot, cal, out)
     (out / "verdict.json").write_text(text + "\n", encoding="utf-8")
@@ -2115,18 +2126,10 @@ def _ot_of(Xs: np.ndarray, Xt: np.ndarray) -> float:
         return np.inf
 
 
-def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
-                 m: int | None = None, step_deg: float = 10.0, seed: int = 0, observed: Observed | None = None):
-    """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
-    model nominal + ``causes``, the test force (or wrench) used in every measurement (as in the paper), every
-    pose measuring what the data measured (``observed``: its targets and orientation; default the tool point)
-    and O_t the tool point's position error at the test pose: Fedorov exchange
-    (:func:`stiffcal.plans.fedorov_exchange`, the engine of every plan) over a step_deg grid of poses within
-    the joint limits (4096 quasi-random poses for 4+ joints), those the robot's cell allows. Returns (poses [deg]
-    (m, n), O_t / sigma^2)."""
-    from .plans import fedorov_exchange
-
-    ob = observed or Observed()
+def candidate_poses(robot: Robot, step_deg: float = 10.0) -> np.ndarray:
+    """(K, n) [rad]: the candidate poses of the plans for measured data (:func:`optimal_plan`,
+    :func:`stiffcal.calibrated.next_round`): a step_deg grid within the joint limits (4096 quasi-random poses
+    for 4+ joints), those the robot's cell allows. Raises :class:`InputError` when the cell allows none."""
     if is_sampled(robot, step_deg):
         pool = sample_joint_space(robot, 12, seed=0)  # a grid would be too large: 4096 quasi-random poses
     else:
@@ -2140,12 +2143,36 @@ def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.nda
         if not len(pool):
             raise InputError(f"no pose of the plan's candidate grid can be taken in the cell ({robot.cell.describe()})",
                              source=robot.cell.source, field="cell")
+    return pool
+
+
+def plan_regressors(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
+                    observed: Observed | None = None, step_deg: float = 10.0):
+    """The plan problem of :func:`optimal_plan`: (pool (K, n) [rad] of :func:`candidate_poses`, Xp (K, r, p) the
+    regressors of every candidate under the test load, Xt (d, p) the tool point's at the test pose, scale (p,)
+    [m per parameter unit]), Xp and Xt divided by scale (the columns' RMS over the pool: O_t does not depend on
+    the parameters' units, and balanced columns keep the information matrices well conditioned)."""
+    ob = observed or Observed()
+    pool = candidate_poses(robot, step_deg)
     Xp = pose_rows(robot, pool, np.asarray(test_force, float), causes, ob)
     Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True,
                        observed=ob.at_tool(robot))[0]
-    scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))  # O_t does not depend on the parameters' units: balance them
+    scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))
     scale[scale == 0] = 1.0
-    Xp, Xt = Xp / scale, Xt / scale
+    return pool, Xp / scale, Xt / scale, scale
+
+
+def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
+                 m: int | None = None, step_deg: float = 10.0, seed: int = 0, observed: Observed | None = None):
+    """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
+    model nominal + ``causes``, the test force (or wrench) used in every measurement (as in the paper), every
+    pose measuring what the data measured (``observed``: its targets and orientation; default the tool point)
+    and O_t the tool point's position error at the test pose: Fedorov exchange
+    (:func:`stiffcal.plans.fedorov_exchange`, the engine of every plan) over :func:`candidate_poses`. Returns
+    (poses [deg] (m, n), O_t / sigma^2)."""
+    from .plans import fedorov_exchange
+
+    pool, Xp, Xt, _ = plan_regressors(robot, causes, test_pose, test_force, observed, step_deg)
     m = m or int(np.ceil(Xp.shape[2] / Xp.shape[1])) + 1
     res = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
     return np.degrees(pool[res.indices]), res.value

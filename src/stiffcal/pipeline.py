@@ -423,7 +423,7 @@ def _test_pose_rad(p: dict, robot):
 
 
 def discrepancy(p: dict, out_verdict: str) -> None:
-    """One measured data set: verdict.json, residuals.png/svg, heldout.png/svg and calibrated.yaml beside it
+    """One measured data set: verdict.json, residuals, heldout and machining .png/.svg and calibrated.yaml beside it
     (stiffcal discrepancy).
     p = the data set's entry (name, data, robot, synthetic, force_N, moment_Nm, alpha, angle_resolution_deg,
     force_resolution_N, moment_resolution_Nm, sigma_m, sigma_rad, test_pose_deg) and the study's test pose
@@ -506,7 +506,8 @@ def report_inputs(named: dict[str, str]) -> tuple[dict, dict, dict, dict]:
 
     tables = {k: named[k] for k in REPORT_TABLES if k in named}
     figures = {k: named[k] for k in REPORT_FIGURES if k in named}
-    figures |= {k: v for k, v in named.items() if k.startswith(("residuals__", "heldout__", "planfig__"))}
+    figures |= {k: v for k, v in named.items()
+                if k.startswith(("residuals__", "heldout__", "machining__", "planfig__"))}
     parts = {part: prefixed(part) for part in STUDY_PARTS}
     studies = {name: {part: parts[part][name] for part in STUDY_PARTS} for name in parts["studyplans"]}
     return tables, figures, prefixed("verdict"), studies

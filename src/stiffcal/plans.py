@@ -350,7 +350,7 @@ def _exchange_loop(score, best, slot_P, slot_idx, pool_P, max_passes: int, slot_
 @single_threaded
 def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: bool = False,
                      starts: list | tuple = (), n_starts: int = 16, greedy: bool = False, seed: int = 0,
-                     max_passes: int = 30) -> ExchangeResult:
+                     max_passes: int = 30, prior: np.ndarray | None = None) -> ExchangeResult:
     """The best plan of m points from a finite pool for the L-optimality criterion O_t of ANY linear model
     ``y = X beta + e`` (Fedorov's exchange, Fedorov 1972, ch. 3; scores by :func:`exchange_scores`).
 
@@ -361,6 +361,8 @@ def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: b
     start from the sequential (greedy) construction on a ridge-regularised information matrix (1e-9 of the
     pool's mean trace). Each start is exchanged until no single replacement improves it; the best result is
     returned (the first on ties). Deterministic for a seed. Raises ValueError without any start.
+    prior: (p, p) the information already collected (a previous round's, in the units of ``X_c^T X_c``), added
+    to every plan's: ``M = prior + sum X_i^T X_i`` (sequential design, Fedorov 1972, sec. 4.2); None: none.
     """
     pool = np.asarray(pool, float)
     Xt = np.atleast_2d(np.asarray(Xt, float))
@@ -369,8 +371,9 @@ def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: b
     rng = np.random.default_rng(seed)
     inits = [np.asarray(s, int) for s in starts]
     inits += [rng.choice(K, m, replace=K < m) for _ in range(n_starts)]
+    M0 = np.zeros((p, p)) if prior is None else np.asarray(prior, float)
     if greedy:
-        base, chosen = 1e-9 * np.trace(forms.info.mean(axis=0)) * np.eye(p), []
+        base, chosen = M0 + 1e-9 * np.trace(forms.info.mean(axis=0)) * np.eye(p), []
         for _ in range(m):
             c = int(np.argmin(exchange_scores(forms, base, Xt)))
             chosen.append(c)
@@ -380,8 +383,8 @@ def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: b
         raise ValueError("fedorov_exchange needs at least one start (starts, n_starts or greedy)")
     idx = np.array(inits, int)
     slot_P = forms.info[idx]
-    vals = _exchange_loop(lambda _, __, M_rest: exchange_scores(forms, M_rest, Xt),
-                          _general_scores(slot_P.sum(axis=1), Xt), slot_P, idx, forms.info, max_passes)
+    vals = _exchange_loop(lambda _, __, M_rest: exchange_scores(forms, M_rest + M0, Xt),
+                          _general_scores(slot_P.sum(axis=1) + M0, Xt), slot_P, idx, forms.info, max_passes)
     best = int(np.argmin(vals))  # the first on ties
     return ExchangeResult(np.sort(idx[best]), float(vals[best]), len(inits))
 

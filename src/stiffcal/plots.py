@@ -618,3 +618,31 @@ def fig_held_out(held: dict | None, sigma: float, title: str):
         ax.set_title(title, fontsize=9)
         fig.tight_layout()
         return fig
+
+
+def fig_machining(check: dict | None, causes, title: str):
+    """A simulated machining path (the verdict's ``machining_path``): the tool's deflection [µm] along it without
+    compensation, the error left by compensating with the nominal model and with the calibrated model (the
+    calibrated model taken as the truth), and the calibrated model's 95 % band. ``check`` None (no test pose): a
+    figure that says so."""
+    with plt.rc_context(STYLE):
+        fig, ax = plt.subplots(figsize=(7.2, 3.0))
+        if check is None:
+            ax.text(0.5, 0.5, "machining path: needs the data set's test pose (test_pose_deg)", ha="center",
+                    va="center", transform=ax.transAxes)
+            ax.set_axis_off()
+            return fig
+        x = np.arange(len(check["before"]))
+        um = {k: 1e6 * np.asarray(check[k]) for k in ("before", "after_nominal", "after_calibrated", "band95")}
+        ax.fill_between(x, 0, um["band95"], color="C0", alpha=0.2, label="calibrated model: 95 % band")
+        ax.plot(x, um["before"], "k-", label="no compensation")
+        ax.plot(x, um["after_nominal"], "C3--", label="compensated, nominal model")
+        ax.plot(x, um["after_calibrated"], "C0-", label=f"compensated, calibrated ({' + '.join(causes) or 'nominal'})")
+        ax.set_yscale("symlog", linthresh=max(1e-3, float(um["band95"].min()) if um["band95"].size else 1e-3))
+        ax.set_xlabel("pose along the path (every joint swept ±20° about the test pose)")
+        ax.set_ylabel("tool position error [µm]")
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        ax.set_title(title, fontsize=9)
+        fig.tight_layout()
+        return fig

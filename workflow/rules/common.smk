@@ -99,6 +99,7 @@ def discrepancy_report_inputs(wildcards):
         out[f"verdict__{name}"] = f"results/discrepancy/{name}/verdict.json"
         out[f"residuals__{name}"] = f"results/discrepancy/{name}/residuals.svg"
         out[f"heldout__{name}"] = f"results/discrepancy/{name}/heldout.svg"
+        out[f"machining__{name}"] = f"results/discrepancy/{name}/machining.svg"
         out[f"plan__{name}"] = f"results/discrepancy/{name}/plan.json"
         out[f"planfig__{name}"] = f"results/discrepancy/{name}/plan.svg"
     return out
@@ -163,7 +164,8 @@ def all_outputs(wildcards):
         out += [f"{MAPS}/{MAP_FIGURES[7]}/grid_statistics.npz"]
     for name in MEASURED:
         out += [f"results/discrepancy/{name}/{f}" for f in ("verdict.json", "residuals.png", "residuals.svg",
-                                                             "heldout.png", "heldout.svg", "calibrated.yaml",
+                                                             "heldout.png", "heldout.svg", "machining.png",
+                                                             "machining.svg", "calibrated.yaml",
                                                              "plan.json", "plan.png", "plan.svg")]
     for name in STUDIES:
         out += [f"{STUDY_DIR}/{name}/{f}" for f in ("approximate_design.json", "approximate_design.csv", "pool.npy",

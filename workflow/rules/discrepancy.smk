@@ -12,6 +12,8 @@ rule discrepancy:
         svg="results/discrepancy/{dataset}/residuals.svg",
         heldout_png="results/discrepancy/{dataset}/heldout.png",
         heldout_svg="results/discrepancy/{dataset}/heldout.svg",
+        machining_png="results/discrepancy/{dataset}/machining.png",
+        machining_svg="results/discrepancy/{dataset}/machining.svg",
         calibrated="results/discrepancy/{dataset}/calibrated.yaml",
     params:
         entry=lambda wc: {**MEASURED[wc.dataset], "study_test_pose_deg": STUDY["test_pose_deg"]},
