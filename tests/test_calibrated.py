@@ -401,3 +401,80 @@ def test_readme_round_trip_runs(tmp_path):
     assert plan["O_t"] < plan["O_t_prior"] and plan["lower_bound"] <= plan["O_t"]
     comp = (tmp_path / "compensated.csv").read_text().splitlines()
     assert len(comp) == 4 and all(row.endswith(",True") for row in comp[1:])
+
+
+# --- bad input -----------------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def calibrated_file(tmp_path_factory):
+    """The paper's 2R arm analysed from its synthetic data: (folder, calibrated.yaml)."""
+    out = tmp_path_factory.mktemp("cal") / "out"
+    D.run(load_robot(ROOT / "config/robots/paper_2r.yaml"), str(ROOT / "data/synthetic_paper_2r.csv"), str(out))
+    return out, out / "calibrated.yaml"
+
+
+@pytest.mark.parametrize("text, field, words", [
+    ("q1_deg,q2_deg,fx_N,fy_N\n60,30,0,-300,7\n", "row 2 (data row 0)", "got 5"),
+    ("q1_deg,q2_deg,fx_N,fy_N\n60,30,0,-300\n10,20,0,-1,\n", "row 3 (data row 1)", "comma too many"),
+    ("Q1_deg,q2_deg,fx_N,fy_N\n60,30,0,-300\n", "column Q1_deg", "misspelling"),
+    ("q1_deg,q2_deg,fx_N,fy_N,dx_m\n60,30,0,-300,1\n", "column dx_m", "written by the output"),
+])
+def test_bad_pose_files_are_refused(tmp_path, calibrated_file, text, field, words):
+    """One line naming the file and field, exit 2, and no output file: a row with a field too many (pandas would
+    shift every column), a trailing comma, a misspelled column, a column the output writes."""
+    from stiffcal.cli import main
+
+    poses = tmp_path / "poses.csv"
+    poses.write_text(text, encoding="utf-8")
+    out = tmp_path / "pred.csv"
+    code = main(["predict", "--robot", str(calibrated_file[1]), "--poses", str(poses), "--out", str(out), "--quiet"])
+    assert code == 2 and not out.exists()
+    with pytest.raises(C.InputError) as err:
+        C.prediction_csv(*_predicted(calibrated_file[1], poses))
+    assert field in str(err.value) and words in str(err.value)
+
+
+def _predicted(robot_path, poses):
+    robot = load_robot(robot_path)
+    pf = C.read_poses(poses, robot)
+    return robot, pf, C.predict(robot, pf.q, pf.load, pf.target)
+
+
+@pytest.mark.parametrize("edit, key", [
+    (lambda c: c["covariance"][0].__setitem__(0, -abs(c["covariance"][0][0]) - 1e-12), "calibration.covariance"),
+    (lambda c: c["covariance"][0].__setitem__(1, c["covariance"][0][1] * 2 + 1e-12), "calibration.covariance"),
+    (lambda c: c.__setitem__("estimable", c["estimable"][:1]), "calibration.estimable"),
+    (lambda c: c["parameter_names"].__setitem__(2, "b9_rad"), "calibration.parameter_names"),
+    (lambda c: c.__setitem__("parameters", c["parameters"][:-1]), "calibration.parameters"),
+])
+def test_hand_edited_calibration_is_refused(tmp_path, calibrated_file, edit, key):
+    """A calibrated.yaml edited by hand so that it no longer fits its robot is refused naming the key."""
+    import yaml
+
+    doc = yaml.safe_load(calibrated_file[1].read_text(encoding="utf-8"))
+    doc["urdf"] = doc.get("urdf")
+    edit(doc["calibration"])
+    path = calibrated_file[0] / f"edited_{key.split('.')[-1]}.yaml"
+    path.write_text(yaml.safe_dump({k: v for k, v in doc.items() if v is not None}), encoding="utf-8")
+    with pytest.raises(C.InputError) as err:
+        load_robot(path)
+    assert key in str(err.value)
+
+
+def test_next_round_measures_the_given_robot(tmp_path, calibrated_file):
+    """design --prior plans on --robot: narrowed joint limits there keep every pose of the next round within them
+    (the prior's own file would not), and a prior of another robot is refused."""
+    import yaml
+
+    from stiffcal.api import plan_next_round
+
+    doc = yaml.safe_load((ROOT / "config/robots/paper_2r.yaml").read_text(encoding="utf-8"))
+    doc["joint_limits_deg"] = [[0, 90], [0, 90]]
+    narrow = tmp_path / "narrow.yaml"
+    narrow.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    free = plan_next_round(calibrated_file[1], [60, 30], [0, -300], experiments=3)
+    plan = plan_next_round(calibrated_file[1], [60, 30], [0, -300], experiments=3, robot=narrow)
+    inside = lambda p: np.all((np.asarray(p["poses_deg"]) >= 0) & (np.asarray(p["poses_deg"]) <= 90))  # noqa: E731
+    assert not inside(free) and inside(plan) and plan["O_t"] >= free["O_t"] * (1 - 1e-9)
+    with pytest.raises(C.InputError, match="another robot"):
+        plan_next_round(calibrated_file[1], [0] * 6, [0, 0, -300], robot=ROOT / "config/robots/kuka_kr210_r2700.yaml")

@@ -716,6 +716,17 @@ def test_a_column_name_given_twice_is_refused_naming_it(tmp_path):
         read_measurements(path, robot)
 
 
+@pytest.mark.parametrize("extra, words", [(lambda r: r + ["7"], "got 12: a comma too many"),
+                                          (lambda r: r[:-1], "got 10: a comma too few")])
+def test_a_row_with_a_field_too_many_or_too_few_is_refused(tmp_path, extra, words):
+    """One data row with a surplus field: pandas would take the first column of every row as the index and shift
+    the columns (reading q2 as q1); one row short of a field: a blank cell. Both are named by their row."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = _lab_file(tmp_path, "ragged.csv", lambda h, rows: (h, rows[:3] + [extra(rows[3])] + rows[4:]))
+    with pytest.raises(InputError, match=rf"ragged.csv.*row 5 \(data row 3\).*expected 11 fields.*{words}"):
+        read_measurements(path, robot)
+
+
 def test_exact_duplicate_rows_are_named_and_kept(tmp_path):
     """Loaded data row 1 pasted again at the end: a note names both file rows; the row is kept (a replicate)."""
     robot = load_robot(LAB_DIR / "lab_3r.yaml")

@@ -719,7 +719,7 @@ def predict_deflection(robot, poses, *, out=None, orientation: bool = False) -> 
     size = np.linalg.norm(pred.displacement, axis=1)
     return json_safe({"rows": len(pf.q), "causes": list(pred.causes), "max_deflection_m": float(size.max()),
                       "max_sd_m": float(np.linalg.norm(pred.sd, axis=1).max()),
-                      "out": None if out_path is None else str(out_path), "notes": list(pred.notes)})
+                      "out": None if out_path is None else str(out_path), "notes": [*pf.notes, *pred.notes]})
 
 
 def compensate_path(robot, path, *, out=None) -> dict:
@@ -746,7 +746,7 @@ def compensate_path(robot, path, *, out=None) -> dict:
                       "max_first_order_residual_m": float(comp.first_order_residual_m.max()),
                       "max_band95_m": float(comp.band95_m.max()),
                       "converged": bool(comp.converged.all()), "out": None if out_path is None else str(out_path),
-                      "notes": list(comp.notes)})
+                      "notes": [*pf.notes, *comp.notes]})
 
 
 def _calibration_causes(robot: Robot) -> tuple:
@@ -772,7 +772,8 @@ def _write_whole(path: Path, text: str) -> None:
 
 
 def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1,
-                    sigma_m: float | None = None, joint_limits_deg=None, cell=None, seed: int = 0) -> dict:
+                    sigma_m: float | None = None, joint_limits_deg=None, cell=None, seed: int = 0,
+                    robot=None) -> dict:
     """The next round's plan (``stiffcal design --prior``; :func:`stiffcal.calibrated.next_round`): M more poses
     of the tool point's position under the test load, O_t-optimal for the calibrated model with the information
     its data already hold added, with the certified lower bound over every M-pose plan of the candidate poses.
@@ -780,7 +781,9 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     prior: a calibrated robot file (``calibrated.yaml`` of ``stiffcal discrepancy``) or a Robot with a
     calibration; test_pose_deg (n,) [deg]; force_N (d,) [N] or wrench (d + d_m,) [N, N m]: the test load, used in
     every new measurement; experiments: M; sigma_m [m]: the new readings' noise (default the calibration's);
-    joint_limits_deg, cell: as :func:`design`. Returns the JSON of docs/contracts.md ("The calibrated model"):
+    joint_limits_deg, cell: as :func:`design`; robot: the robot the next round measures (a Robot or a robot file
+    with the prior's joint names: its kinematics, limits and cell, with the prior's calibration; default the
+    prior's own file). Returns the JSON of docs/contracts.md ("The calibrated model"):
     ``poses_deg``, ``O_t``, ``O_t_prior``, ``O_t_fresh``, ``lower_bound``, ``gap``, ... [m^2]. Raises
     :class:`InputError` for bad arguments or a robot without a calibration."""
     from . import calibrated as C
@@ -789,10 +792,19 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     from .threads import one_blas_thread
     from .workcell import with_cell
 
-    robot = _robot(prior)
-    if getattr(robot, "calibration", None) is None:
+    from dataclasses import replace
+
+    prior = _robot(prior)
+    if getattr(prior, "calibration", None) is None:
         raise InputError("expected a calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy): this one has "
-                         "no calibration section", source=robot.source, field="prior")
+                         "no calibration section", source=prior.source, field="prior")
+    robot = prior if robot is None else _robot(robot)
+    if robot is not prior:
+        if robot.joint_names != prior.joint_names:
+            raise InputError(f"the prior is a calibration of another robot: joints {', '.join(prior.joint_names)} "
+                             f"against {', '.join(robot.joint_names)} of the robot", source=prior.source,
+                             field="prior")
+        robot = replace(robot, calibration=C.from_dict(prior.calibration.to_dict(), robot, prior.source))
     if joint_limits_deg is not None:
         robot = narrowed_limits(robot, joint_limits_deg, None, "joint_limits_deg")
     if cell is not None:
@@ -807,7 +819,7 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     with one_blas_thread():
         nr = C.next_round(robot, np.radians(q_t), load, m, sigma, seed=seed)
     return json_safe({
-        "robot": robot.name, "prior": robot.source, "experiments": m, "causes": list(nr.causes),
+        "robot": robot.name, "prior": prior.source, "experiments": m, "causes": list(nr.causes),
         "joint_names": list(robot.joint_names), "poses_deg": np.degrees(nr.poses).round(6).tolist(),
         "O_t": nr.O_t, "O_t_prior": nr.O_t_prior, "O_t_fresh": nr.O_t_fresh,
         "rms_m": math.sqrt(nr.O_t), "rms_prior_m": math.sqrt(nr.O_t_prior), "rms_fresh_m": math.sqrt(nr.O_t_fresh)

@@ -106,16 +106,43 @@ def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
     if len(names) != theta.size or theta.size < len(joints):
         raise bad(f"expected one value per parameter name ({len(names)}), got {theta.size}", "parameters")
     cov = np.asarray(doc["covariance"], float)
-    if cov.shape != (theta.size, theta.size) or not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
-        raise bad(f"expected a symmetric {theta.size} x {theta.size} matrix, got shape {cov.shape}", "covariance")
+    if cov.shape != (theta.size, theta.size):
+        raise bad(f"expected a {theta.size} x {theta.size} matrix (one row and column per parameter), got shape "
+                  f"{cov.shape}", "covariance")
+    if not np.allclose(cov, cov.T, rtol=1e-9, atol=0.0):
+        i, j = np.unravel_index(np.argmax(np.abs(cov - cov.T)), cov.shape)
+        raise bad(f"expected a symmetric matrix, got entry [{i}][{j}] = {cov[i, j]:.6g} against [{j}][{i}] = "
+                  f"{cov[j, i]:.6g}", "covariance")
+    lam = np.linalg.eigvalsh(0.5 * (cov + cov.T))
+    if lam[0] < -1e-9 * max(lam[-1], 0.0) or lam[-1] < 0:
+        raise bad(f"expected a positive semi-definite matrix (a covariance), got an eigenvalue {lam[0]:.3g} (the "
+                  f"largest {lam[-1]:.3g})", "covariance")
     expected = len(joints) + _extension_size(robot, causes, int(doc["n_offsets"]))
     if theta.size != expected:
         raise bad(f"expected {expected} parameters (the compliances of joints {doc['k_joints']} and those of "
                   f"{', '.join(causes) or 'no extension'} for this robot), got {theta.size}", "parameters")
     est = tuple(bool(e) for e in doc.get("estimable", [True] * theta.size))
+    if len(est) != theta.size:
+        raise bad(f"expected one flag per parameter ({theta.size}), got {len(est)}", "estimable")
+    want = [robot.joint_columns("k")[j] for j in joints] + [
+        name for c in sorted(causes, key=CAUSES.index) for name in _names_of(c, robot, int(doc["n_offsets"]))]
+    if list(names) != want:
+        wrong = next(i for i, (a, b) in enumerate(zip(names, want)) if a != b)
+        raise bad(f"expected the names {', '.join(want)} (the compliances of joints {doc['k_joints']}, then "
+                  f"{', '.join(causes) or 'no extension'}), got {names[wrong]!r} at position {wrong + 1}",
+                  "parameter_names")
     return Calibration(causes, tuple(joints), names, theta, cov, est, int(doc["n_offsets"]), float(doc["sigma_m"]),
                        doc.get("rotation_weight_m_per_rad"), dict(doc.get("error_model") or {}),
                        dict(doc.get("source") or {}))
+
+
+def _names_of(cause: str, robot: Robot, n_offsets: int) -> list[str]:
+    """The parameter names of a cause in a calibration (a measurement offset of n_offsets components: the
+    position's, then the rotation's)."""
+    from .discrepancy import Observed, parameter_names
+
+    orientation = cause == "measurement_offset" and n_offsets > robot.task_dim
+    return parameter_names(cause, robot, Observed(orientation=orientation))
 
 
 def _extension_size(robot: Robot, causes, n_offsets: int) -> int:
@@ -265,6 +292,10 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
     sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
     d = robot.task_dim
     notes = []
+    if getattr(robot, "calibration", None) is None:
+        notes.append("the robot file has no calibration section: the predictions use its compliances_rad_per_Nm "
+                     "alone, with no extension and no uncertainty (sd 0); give the calibrated.yaml that stiffcal "
+                     "discrepancy writes")
     missing = [robot.joint_names[j] for j in range(robot.n_joints) if j not in cal.k_joints]
     if missing:
         notes.append(f"joint(s) {', '.join(missing)} were not identified by the calibration: their deflection is "
@@ -362,12 +393,15 @@ def band95(cov: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True)
 class PoseFile:
     """Poses and loads read from a CSV (:func:`read_poses`): q (N, n) [rad]; load (N, d (+ d_m)); target (N,)
-    int or None; columns: the file's header; text (N, k): its cells, kept for the output."""
+    int or None; columns: the file's header; text (N, k): its cells, kept for the output; source: the file;
+    notes: load columns the robot does not use."""
     q: np.ndarray
     load: np.ndarray
     target: np.ndarray | None
     columns: list
     text: list
+    source: str | None = None
+    notes: tuple = ()
 
 
 def read_poses(path, robot: Robot) -> PoseFile:
@@ -384,15 +418,18 @@ def read_poses(path, robot: Robot) -> PoseFile:
     source = str(path)
     regular_file(path, source=source)
     try:
+        M._header(path, source)
         df = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
         raise InputError(f"cannot read a CSV table ({err})", source=source) from None
-    M._header(path, source)
     df.columns = [c.strip() for c in df.columns]
     M._check_units(df.columns, source)
     d, dm = force_dim(robot), moment_dim(robot)
     qcols = M.angle_columns(list(df.columns), robot, source)
     fcols = M._axes("f", "N", d)
+    for col, name in M._misspelled(df.columns, qcols + fcols + M._axes("m", "Nm", dm, True) + ["target"]).items():
+        raise InputError(f"the column {col!r} looks like {name} (a misspelling?); it is read only under that name: "
+                         f"rename the column {name}", source=source, field=f"column {col}")
     missing = [c for c in qcols + fcols if c not in df.columns]
     if missing:
         raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(qcols + fcols)} (and "
@@ -409,7 +446,19 @@ def read_poses(path, robot: Robot) -> PoseFile:
     q = np.radians(values[:, :n])
     load = values[:, n:] if have else values[:, n:n + d]
     target = M._targets(df, robot, source)[0] if "target" in df.columns else None
-    return PoseFile(q, load, target, list(df.columns), df.to_numpy().tolist())
+    used = set(qcols + fcols + (mcols if have else []) + ["target"])
+    surplus = [c for c in df.columns if c.startswith(("f", "m")) and M._PATTERN.match(c) and c not in used]
+    notes = (f"column(s) {', '.join(surplus)} do not belong to a {robot.kind} robot's load and are not used (copied "
+             "to the output as they are)",) if surplus else ()
+    return PoseFile(q, load, target, list(df.columns), df.to_numpy().tolist(), source, notes)
+
+
+def _check_new_columns(poses: PoseFile, head: list, source: str | None = None) -> None:
+    """Refuse an input column that the output would write again (a measured file's ``dx_m``)."""
+    clash = [c for c in head[len(poses.columns):] if c in poses.columns]
+    if clash:
+        raise InputError(f"the column(s) {', '.join(clash)} are written by the output: rename or remove them in the "
+                         "input", source=source, field=f"column {clash[0]}")
 
 
 def _cells(values: np.ndarray, fmt: str) -> list:
@@ -427,6 +476,7 @@ def prediction_csv(robot: Robot, poses: PoseFile, pred: Prediction) -> str:
         rot = "z" if d == 2 else "xyz"
         head += [f"r{a}_rad" for a in rot] + [f"sd_r{a}_rad" for a in rot]
         parts += [_cells(pred.rotation, ".12e"), _cells(pred.rotation_sd, ".3e")]
+    _check_new_columns(poses, head, poses.source)
     rows = [list(t) + sum((p[i] for p in parts), []) for i, t in enumerate(poses.text)]
     return _csv(head, rows)
 
@@ -448,6 +498,7 @@ def compensation_csv(robot: Robot, poses: PoseFile, comp: Compensation) -> str:
              _cells(comp.corrected_target_m, ".9f"), _cells(np.degrees(comp.q_corrected), ".6f"),
              _cells(np.degrees(comp.q_first), ".6f"), _cells(comp.residual_m[:, None], ".3e"),
              _cells(comp.first_order_residual_m[:, None], ".3e")]
+    _check_new_columns(poses, head, poses.source)
     rows = [list(t) + sum((p[i] for p in parts), []) + [str(int(comp.iterations[i])), str(bool(comp.converged[i]))]
             for i, t in enumerate(poses.text)]
     return _csv(head, rows)

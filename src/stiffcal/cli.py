@@ -97,7 +97,7 @@ _NOT_WITH_PRIOR = {"criterion": "ot", "targets": None, "orientation": False, "si
 
 def next_round(args) -> dict:
     """``stiffcal design --prior CALIBRATED``: the next round's plan given the calibration's information."""
-    from .api import plan_next_round
+    from .api import plan_next_round, positive_number
     from .robot import load_robot
 
     given = [k for k, default in _NOT_WITH_PRIOR.items() if getattr(args, k) not in (default, str(default))]
@@ -105,13 +105,11 @@ def next_round(args) -> dict:
         raise InputError(f"--prior plans the tool point's position under the test load with the O_t criterion: "
                          f"{', '.join('--' + k.replace('_', '-') for k in given)} cannot be given with it",
                          field="--prior")
-    prior, robot = load_robot(args.prior), load_robot(args.robot)
-    if prior.joint_names != robot.joint_names:
-        raise InputError(f"the prior is a calibration of another robot: joints {', '.join(prior.joint_names)} against "
-                         f"{', '.join(robot.joint_names)} of --robot", source=args.prior, field="--prior")
-    out = plan_next_round(prior, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=args.experiments,
-                          sigma_m=args.sigma, joint_limits_deg=joint_limits(args.joint_limits_deg),
-                          cell=args.cell, seed=args.seed)
+    out = plan_next_round(load_robot(args.prior), args.test_pose_deg, args.force_N, wrench=args.wrench,
+                          experiments=args.experiments,
+                          sigma_m=None if args.sigma is None else positive_number(args.sigma, "--sigma"),
+                          joint_limits_deg=joint_limits(args.joint_limits_deg), cell=args.cell, seed=args.seed,
+                          robot=load_robot(args.robot))
     for note in out["notes"]:
         write(f"stiffcal design: note: {note}")
     return out
@@ -131,7 +129,7 @@ def discrepancy(args) -> dict:
     for note in v["notes"]:
         write(f"stiffcal discrepancy: note: {note}")
     return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
-        "verdict": f"{args.out}/verdict.json"}
+        "verdict": os.path.join(args.out, "verdict.json")}
 
 
 def discriminate(args) -> dict:

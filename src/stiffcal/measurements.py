@@ -463,10 +463,10 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
         if not (np.isfinite(v) and v > 0):
             raise InputError(f"expected a {name} > 0, got {v}", field=name.replace(" ", "_"))
     try:
+        _header(path, source)
         df = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
         raise InputError(f"cannot read a CSV table ({err})", source=source) from None
-    _header(path, source)
     df.columns = [c.strip() for c in df.columns]
     _check_units(df.columns, source)
     cols = angle_columns(list(df.columns), robot, source) + expected_columns(robot)[robot.n_joints:]
@@ -662,8 +662,9 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
 
 def _header(path, source: str) -> list[str]:
     """The header row as the file writes it (pandas renames a repeated name 'dx_m' to 'dx_m.1'): raises
-    :class:`InputError` for a column name given twice, or a header with no comma but semicolons or tabs (a
-    file separated by another character: a comma-separated file is expected)."""
+    :class:`InputError` for a column name given twice, a header with no comma but semicolons or tabs (a
+    file separated by another character: a comma-separated file is expected), or a row with more or fewer fields
+    than the header (pandas would take a surplus first field as the index and shift every column)."""
     import csv
 
     with open(path, newline="", encoding="utf-8-sig") as fh:
@@ -676,6 +677,14 @@ def _header(path, source: str) -> list[str]:
         raise InputError(f"missing columns: the header is one column separated by {seps[sep]} "
                          f"({line.strip()[:80]!r}), but the file must be comma-separated; save it as CSV with commas "
                          "(and a decimal point)", source=source)
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        for line_no, row in enumerate(csv.reader(fh), start=1):
+            if line_no > 1 and row and any(c.strip() for c in row) and len(row) != len(names):
+                r = line_no - 2
+                raise InputError(f"expected {len(names)} fields as in the header, got {len(row)}: a comma too "
+                                 f"{'many' if len(row) > len(names) else 'few'} (a trailing comma, a decimal comma, "
+                                 "a value or a header name missing?)", source=source,
+                                 field=f"row {line_no} (data row {r})")
     twice = sorted({c for c in names if names.count(c) > 1}, key=names.index)
     if twice:
         where = "; ".join(f"{c} (header columns {', '.join(str(i + 1) for i, x in enumerate(names) if x == c)})"

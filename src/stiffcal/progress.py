@@ -178,8 +178,7 @@ class Progress:
                 self._bar.refresh()
 
     def _new_bar(self):
-        from tqdm.auto import tqdm
-
+        tqdm = _tqdm()
         return tqdm(total=len(self.stages) or None, file=self.stream, leave=False, unit="stage",
                     bar_format="{desc}: {n_fmt}/{total_fmt} stages {bar} {elapsed} {postfix}"
                     if self.stages else "{desc}: {elapsed} elapsed")
@@ -210,6 +209,7 @@ class Progress:
         with _LOCK:
             _ACTIVE.append(self)
         if self._is_tty():
+            _tqdm()  # imported here, not by the reporting thread (see _tqdm)
             if self.stages:  # a heartbeat's bar comes after a second, if nothing inner shows one (_run)
                 self._bar = self._new_bar()
                 self._refresh_bar()
@@ -235,6 +235,18 @@ class Progress:
         if self._bar is not None:
             self._bar.close()
             self._bar = None
+
+
+def _tqdm():
+    """tqdm's bar class with its write lock made. Called first on the thread that enters a progress, before the
+    reporting thread starts: an import of an extension module there (tqdm's lock imports ``_multiprocessing``)
+    takes the dynamic loader's lock while holding the GIL, and deadlocks against the main thread when it
+    walks the loaded libraries (threadpoolctl's ``dl_iterate_phdr``, whose Python callback waits for the GIL:
+    seen as a hung ``stiffcal design`` on a terminal)."""
+    from tqdm.auto import tqdm
+
+    tqdm.get_lock()
+    return tqdm
 
 
 def write(text: str, stream=None) -> None:
