@@ -647,3 +647,43 @@ def test_fuzz_every_command_with_hostile_inputs(tmp_path, monkeypatch):
         text = str(err.value)
         assert text.startswith(f"{path}: field '{field}") and "\n" not in text, (field, text)
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before  # nothing written
+
+
+# --- degenerate measured data (issue 28, item 1) ---------------------------------------------------------------
+
+def _degenerate(tmp_path, how):
+    """The paper's synthetic data with its displacements made degenerate: ``zeros`` (every cell 0), ``tiny``
+    (scaled by 1e-300), ``copies`` (every replicate group's readings replaced by their mean, written once per
+    replicate), ``noisy`` (untouched: the control)."""
+    import pandas as pd
+
+    df = pd.read_csv(DATA)
+    cols = ["dx_m", "dy_m"]
+    if how == "zeros":
+        df[cols] = 0.0
+    elif how == "tiny":
+        df[cols] *= 1e-300
+    elif how == "copies":
+        df[cols] = df.groupby(["q1_deg", "q2_deg", "fx_N", "fy_N"])[cols].transform("mean")
+    path = tmp_path / f"{how}.csv"
+    df.to_csv(path, index=False)
+    return path
+
+
+@pytest.mark.parametrize("how, words", [("zeros", "move nothing measurable"), ("tiny", "move nothing measurable"),
+                                        ("copies", "exact copies")])
+def test_degenerate_data_are_refused_never_a_confident_none(tmp_path, how, words):
+    """Data that carry no deflection or no noise in fact gave compliances of 0 +- 0 and `none` at p = 1, or
+    intervals of zero width: refused with the reason, exit 2, nothing written; the same file untouched gives a
+    verdict (the refusal is the degeneracy's, not the file's)."""
+    out = tmp_path / "out"
+    err = io.StringIO()
+    with redirect_stderr(err), redirect_stdout(io.StringIO()):
+        code = main(["discrepancy", "--robot", PAPER, "--data", str(_degenerate(tmp_path, how)), "--out", str(out),
+                     "--quiet"])
+    lines = [x for x in err.getvalue().splitlines() if "error" in x]
+    assert code == 2 and not out.exists() and len(lines) == 1
+    assert words in lines[0] and "column dx_m" in lines[0] and f"{how}.csv" in lines[0]
+    with redirect_stderr(io.StringIO()), redirect_stdout(io.StringIO()):
+        assert main(["discrepancy", "--robot", PAPER, "--data", str(_degenerate(tmp_path, "noisy")), "--out",
+                     str(tmp_path / "control"), "--quiet"]) == 0

@@ -582,3 +582,38 @@ def test_a_single_pose_from_a_candidate_file_is_its_best_feasible_pose(tmp_path,
     ok = np.array([_planar_violations(_points_along(robot, q)) == (False, False) for q in Q])
     ot = plan_summary(st, Q[ok][:, None, :])["O_t"]
     assert res.O_t == pytest.approx(ot.min(), rel=1e-12) and tuple(np.round(res.poses_deg[0], 2)) in set(map(tuple, Q))
+
+
+@needs_arms
+def test_discriminate_and_the_next_round_on_a_real_arm_keep_their_poses_feasible(arms, tmp_path):
+    """A UR10 in its cell (the floor, self-collision from its meshes) measured in a lab (3-D pushes, backlash,
+    stiffcal.truth with the URDF's inertias): every pose of discriminate's plans and of the next round planned
+    from the calibrated model (stiffcal.calibrated.next_round) passes the independent mesh check."""
+    from dataclasses import replace
+
+    from stiffcal import calibrated as C
+    from stiffcal import discrepancy as D
+    from stiffcal import discrimination as X
+    from stiffcal import rates as R
+    from stiffcal import truth as T
+    from stiffcal.measurements import read_measurements
+
+    robot = load_robot(arms["ur10"])
+    rng = np.random.default_rng(0)
+    log = T.lab_log(robot, R.PROTOCOLS["3-D pushes x 2, repeated"], rng, 10)
+    dp = T.measure(robot, T.Truth(R.compliances(robot), gap=np.full(6, 3e-5), tau_gap=1e-3), log, rng)
+    data = tmp_path / "log.csv"
+    data.write_text(T.lab_csv(robot, log, dp), encoding="utf-8")
+    meas = read_measurements(data, robot)
+    _, _, _, _, _, qt, force = real_arms.ARMS["ur10"]
+    res = X.discriminate(robot, meas, 4, X.load_set("directions:6:300", 3), test_pose=np.radians(qt),
+                         test_force=np.array(force, float), m_curve=[4],
+                         effort=X.Effort(pool_step_deg=30.0, search_step_deg=30.0, n_starts=1, rounds=1))
+    plan = X.to_json(res, str(data))
+    poses = [p for k in ("plan", "compound", "ot_plan") if plan.get(k) for p in plan[k]["poses_deg"]]
+    pre = D.prepare(robot, meas)
+    v = D.verdict_of(robot, pre, gain=False)
+    nr = C.next_round(replace(robot, calibration=C.from_analysis(robot, pre, v, data)), np.radians(qt),
+                      np.array(force, float), 4)
+    poses += np.degrees(nr.poses).tolist()
+    assert len(poses) >= 8 and MeshCheck("ur10").bad(robot.joint_names, poses) == (0, 0)

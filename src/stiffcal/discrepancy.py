@@ -1283,12 +1283,52 @@ class Prepared:
     w0: np.ndarray | None = None
 
 
+def _rms_displacement(meas: Measurements) -> float:
+    """The RMS [m] of the rows' displacements, scaled first (no underflow for values of 1e-300)."""
+    top = float(np.max(np.abs(meas.dp))) if meas.n_rows else 0.0
+    return top * float(np.sqrt(np.mean(np.square(meas.dp / top)))) if top > 0 else 0.0
+
+
+def check_moves(meas: Measurements) -> None:
+    """Refuse data whose loads move nothing measurable: the loaded rows' RMS displacement below
+    :data:`stiffcal.limits.MIN_DISPLACEMENT_M` (all zeros, or values scaled by 1e-300), where the fit would report
+    compliances of 0 with intervals of 0 and a confident ``none``. Raises :class:`InputError`."""
+    from .limits import MIN_DISPLACEMENT_M
+
+    rms = _rms_displacement(meas)
+    if not rms >= MIN_DISPLACEMENT_M:
+        raise InputError(f"the loaded rows' displacements have an RMS of {rms:.3g} m, below {MIN_DISPLACEMENT_M:g} m "
+                         "(a picometre, far below any instrument's resolution): the loads move nothing measurable; "
+                         "are the displacement cells zeros written for blanks, or in another unit than metres?",
+                         source=meas.source, field="column dx_m")
+
+
+def check_noise(meas: Measurements, noise: "Noise") -> None:
+    """Refuse data that have no noise in fact: the noise estimate below :data:`stiffcal.limits.MIN_NOISE_RATIO`
+    times the RMS displacement (replicates that are exact copies of an average, or noise-free simulated data),
+    where every interval would have zero width and every test be infinitely confident. Raises
+    :class:`InputError`."""
+    from .limits import MIN_NOISE_RATIO
+
+    sigma, rms = float(np.sqrt(max(noise.s2, 0.0))), _rms_displacement(meas)
+    if not sigma > MIN_NOISE_RATIO * rms:
+        what = ("the replicate groups' readings are exact copies of each other (averaged values written once per "
+                "replicate?)" if str(noise.source).startswith("replicates") else
+                "the model fits the rows exactly (noise-free simulated data?)")
+        raise InputError(f"the noise estimate ({noise.source}) is {sigma:.3g} m against an RMS displacement of "
+                         f"{rms:.3g} m, a ratio below {MIN_NOISE_RATIO:g}: {what}; with no noise in the data no "
+                         "interval or test can be made: give each reading as it was measured (or the averages once "
+                         "each, without copies), or add the instrument's noise to simulated data",
+                         source=meas.source, field="column dx_m")
+
+
 def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: float | None = None,
             sigma_rad: float | None = None) -> Prepared:
     """Everything the verdict's tests need (:class:`Prepared`): the joints the data can identify, the weight of
     the rotation rows, the noise model, the blunders, the error model of the rows' reference readings
     (:mod:`stiffcal.errormodel`) and the whitened design. Raises :class:`InputError` when the data cannot
     identify the compliances or estimate the noise."""
+    check_moves(meas)
     full = Observed.of(robot, meas)
     dropped = check_identifiable(robot, meas, full)
     check_testable(robot, meas, len(full.model_params(robot)) - len(dropped))
@@ -1316,6 +1356,7 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
     em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha)
     weighted, des = des, gls_design(des, em)
     noise = Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
+    check_noise(m, noise)
     notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])
     unseen = [j for j in range(robot.n_joints) if j not in ob_all.model_params(robot) and j not in dropped]
     if unseen:

@@ -45,6 +45,13 @@ MAX_FORCE_N = 1e7
 MAX_MOMENT_NM = 1e7
 #: smallest load (the norm of the force and moment components together) of a design [N, N m]
 MIN_LOAD = 1e-6
+#: measured data: the RMS displacement [m] of the loaded rows below which the loads move nothing measurable (a
+#: picometre, far below any tracker's resolution: zeros written for blanks, or a wrong unit)
+MIN_DISPLACEMENT_M = 1e-12
+#: measured data: the noise estimate over the RMS displacement below which the data have no noise in fact
+#: (replicates that are exact copies of an average, or simulated data without noise): every test would be
+#: infinitely confident
+MIN_NOISE_RATIO = 1e-9
 #: a URDF joint axis is a direction: its length must lie in [MIN_AXIS_NORM, MAX_AXIS_NORM]
 MIN_AXIS_NORM = 1e-6
 MAX_AXIS_NORM = 1e6

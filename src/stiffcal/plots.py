@@ -590,17 +590,22 @@ def fig_discrimination(robot, plan: dict, title: str):
         return fig
 
 
+def _message_figure(text: str):
+    """A figure that holds one sentence (a figure of the workflow that its data cannot draw)."""
+    fig, ax = plt.subplots(figsize=(7.2, 3.0))
+    ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes)
+    ax.set_axis_off()
+    return fig
+
+
 def fig_held_out(held: dict | None, sigma: float, title: str):
     """The verdict's ``held_out`` (leave-one-configuration-out): per configuration the RMS error [µm] of the
     position predicted for it by the nominal and by the calibrated model, each fitted without it, against the
     noise σ [m]. ``held`` None (fewer than two configurations): a figure that says so."""
     with plt.rc_context(STYLE):
-        fig, ax = plt.subplots(figsize=(7.2, 3.0))
         if held is None:
-            ax.text(0.5, 0.5, "held-out check: needs measurements at two or more configurations", ha="center",
-                    va="center", transform=ax.transAxes)
-            ax.set_axis_off()
-            return fig
+            return _message_figure("held-out check: needs measurements at two or more configurations")
+        fig, ax = plt.subplots(figsize=(7.2, 3.0))
         table = held["per_configuration"]
         x = np.arange(len(table))
         cal = " + ".join(held["calibrated_causes"]) or "nominal"
@@ -626,12 +631,9 @@ def fig_machining(check: dict | None, causes, title: str):
     calibrated model taken as the truth), and the calibrated model's 95 % band. ``check`` None (no test pose): a
     figure that says so."""
     with plt.rc_context(STYLE):
-        fig, ax = plt.subplots(figsize=(7.2, 3.0))
         if check is None:
-            ax.text(0.5, 0.5, "machining path: needs the data set's test pose (test_pose_deg)", ha="center",
-                    va="center", transform=ax.transAxes)
-            ax.set_axis_off()
-            return fig
+            return _message_figure("machining path: needs the data set's test pose (test_pose_deg)")
+        fig, ax = plt.subplots(figsize=(7.2, 3.0))
         x = np.arange(len(check["before"]))
         um = {k: 1e6 * np.asarray(check[k]) for k in ("before", "after_nominal", "after_calibrated", "band95")}
         ax.fill_between(x, 0, um["band95"], color="C0", alpha=0.2, label="calibrated model: 95 % band")
