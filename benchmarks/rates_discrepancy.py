@@ -10,11 +10,13 @@ exact shape has power >= 0.9 (stiffcal.rates); the rates are also printed agains
 knows which cause is present but not its parameters (the F-test of that cause's regressors). Also printed,
 for two effects at once, the rate at which both are named.
 
-Run: .venv/bin/python benchmarks/rates_discrepancy.py [SEEDS] [ALPHA] [JOBS] [CLEAN_SEEDS]     (defaults 20
+Run: .venv/bin/python benchmarks/rates_discrepancy.py [SEEDS] [ALPHA] [JOBS] [CLEAN_SEEDS] [ONLY] [clean] (defaults 20
 seeds, alpha 0.01, 1 process, clean cells with SEEDS seeds too; JOBS processes share the cells, with the same
 seeds and output; CLEAN_SEEDS: more seeds for the clean cells, whose false-alarm rate per protocol needs several
 hundred cases for its 95 % interval to end below 2 alpha; beyond the first 20 seeds of a clean cell only the
-CSV with pose_id is analysed). Prints one row per robot x protocol x effect: named /
+CSV with pose_id is analysed). Two more optional arguments run a slice of the matrix: ONLY, comma-separated parts
+of protocol names ("reference per visit,one hanging mass": those protocols alone), and the word clean (the clean
+cells alone, for the false-alarm rate per protocol). Prints one row per robot x protocol x effect: named /
 qualifying (rate), or for clean data false alarms / cases; then the totals per effect, the false alarms and
 rates per protocol, and the share of cases where the two CSV variants give the same verdict. Requirements
 (issues 12, 23): every catalogue cause >= 95 %; on every protocol, clean data at most alpha with the upper end
@@ -48,12 +50,15 @@ def _cell(args):
     return cases
 
 
-def main(seeds: int = 20, alpha: float = 0.01, jobs: int = 1, clean_seeds: int | None = None) -> None:
+def main(seeds: int = 20, alpha: float = 0.01, jobs: int = 1, clean_seeds: int | None = None,
+         only: str | None = None, clean_only: bool = False) -> None:
     arms = R.robots(ROOT)
     start = time.process_time()
     clean_seeds = seeds if clean_seeds is None else clean_seeds
+    wanted = None if not only else [w.strip() for w in only.split(",") if w.strip()]
     cells = [(arm, protocol, effects) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
-             for effects in [(e,) for e in R.EFFECTS] + [()] + [PAIRS[arm]]]
+             if wanted is None or any(w in protocol for w in wanted)
+             for effects in ([()] if clean_only else [(e,) for e in R.EFFECTS] + [()] + [PAIRS[arm]])]
     # clean cells beyond SEEDS seeds analyse the pose_id variant alone (the variants' agreement is counted on the
     # first 20 seeds of every cell)
     tasks = [(i, *cell, clean_seeds if not cell[2] else seeds, alpha, max(seeds, clean_seeds), bool(cell[2]))
@@ -127,4 +132,5 @@ def _children_cpu():
 
 if __name__ == "__main__":
     main(int(sys.argv[1]) if len(sys.argv) > 1 else 20, float(sys.argv[2]) if len(sys.argv) > 2 else 0.01,
-         int(sys.argv[3]) if len(sys.argv) > 3 else 1, int(sys.argv[4]) if len(sys.argv) > 4 else None)
+         int(sys.argv[3]) if len(sys.argv) > 3 else 1, int(sys.argv[4]) if len(sys.argv) > 4 else None,
+         sys.argv[5] if len(sys.argv) > 5 else None, len(sys.argv) > 6 and sys.argv[6] == "clean")
