@@ -152,13 +152,15 @@ def test_unloaded_rows_are_set_apart_and_all_unloaded_is_refused(tmp_path, paper
 
 
 def test_columns_the_analysis_does_not_use_are_named(tmp_path, paper_robot):
-    text = LAB.replace("dy_m", "dy_m,dz_m,temperature_C").replace("\n7", ",0,21\n7").replace("\n8", ",0,21\n8")
-    text = text.replace("-1.1e-4\n", "-1.1e-4,0,21\n")
+    head, *rows = LAB.splitlines()
+    text = "\n".join([head + ",dz_m,temperature_C"] + [r + ",0,21" for r in rows]) + "\n"
     meas = read_measurements(_write(tmp_path, text), paper_robot)
     assert any("dz_m" in n and "ignored" in n for n in meas.notes)
     assert any("temperature_C" in n and "not used" in n for n in meas.notes)
     with pytest.raises(InputError, match="column mz_Nm"):
-        read_measurements(_write(tmp_path, LAB.replace("dy_m", "dy_m,mz_Nm").replace("\n7", ",0\n7")), paper_robot)
+        read_measurements(_write(tmp_path, "\n".join([head + ",mz_Nm"] + [r + (",0" if i < 2 else ",")
+                                                                             for i, r in enumerate(rows)]) + "\n"),
+                          paper_robot)  # moment cells left blank
 
 
 # --- the statistics against independent computations -------------------------------------------------------

@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import InputError, short_repr
+from .jsonsafe import _json_number, json_safe  # noqa: F401  (re-exported: part of this module's API)
 from .limits import (MAX_DESIGN_EXPERIMENTS, MAX_DISCRIMINATE_EXPERIMENTS, MAX_FORCE_N, MAX_MOMENT_NM, MIN_LOAD)
 from .robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
 
@@ -100,34 +101,6 @@ def whole_number(value, field: str, low: int, high: int, bound: str | None = Non
                if bound and int(value) > high else "")
         raise InputError(f"expected a whole number in [{low}, {high}]{why}, got {int(value)}", field=field)
     return int(value)
-
-
-def _json_number(x: float):
-    """JSON has no inf: an infinite value (unidentifiable) is written as the string 'inf' ('-inf'); an undefined
-    one (NaN, e.g. inf / inf) as null; -0.0 as 0.0."""
-    x = float(x)
-    if math.isnan(x):
-        return None
-    return x + 0.0 if math.isfinite(x) else ("inf" if x > 0 else "-inf")
-
-
-def json_safe(obj):
-    """``obj`` (dicts, lists, tuples, numpy arrays and scalars) with every float made strict JSON by
-    :func:`_json_number`: what every JSON the project writes goes through (``json.dumps(..., allow_nan=False)``
-    then holds)."""
-    if isinstance(obj, dict):
-        return {k: json_safe(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [json_safe(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return json_safe(obj.tolist())
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        return _json_number(obj)
-    return obj
 
 
 @dataclass(frozen=True)

@@ -336,7 +336,7 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 1
     try:
-        from .api import json_safe
+        from .jsonsafe import json_safe
 
         print(json.dumps(json_safe(out), indent=2, allow_nan=False))
         sys.stdout.flush()

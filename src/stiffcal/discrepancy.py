@@ -57,6 +57,7 @@ from itertools import combinations
 import numpy as np
 from scipy import stats
 
+from .catalogue import CAUSES, MEASUREMENT_CAUSES  # noqa: F401  (the catalogue, by name; part of this module)
 from .design import is_sampled, sample_joint_space
 from .errors import InputError
 from .measurements import Measurements
@@ -67,9 +68,6 @@ from .robot import TOOL_TARGET, Robot, as_xyz
 from .errormodel import KINDS as EMKINDS
 from .stiffness import observation_matrix, random_directions
 
-CAUSES = ("link_compliance", "joint_coupling", "nonlinear_joint_stiffness", "backlash", "measurement_offset")
-#: causes that belong to the measuring system, not to the robot: they do not enter test-pose predictions
-MEASUREMENT_CAUSES = ("measurement_offset",)
 #: relative singular value below which a direction of a design matrix counts as absent
 RANK_RTOL = 1e-9
 #: plausible end-effector compliance of a serial robot [m/N]: industrial arms are of order 1e-6 m/N (about
@@ -1944,15 +1942,11 @@ def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives
 
 
 def parameter_names(cause: str, robot: Robot, observed: Observed | None = None) -> list[str]:
-    n = robot.n_joints
-    rot = [] if observed is None or not observed.orientation else [
-        f"o{c}_rad" for c in observed.component_names(robot)[robot.task_dim:]]
-    return {"link_compliance": [f"c{i + 1}_1/(N m^2)" for i in range(robot.n_segments)],
-            "joint_coupling": [f"k{a}{b}_rad/(N m)" for i, a in enumerate(robot.joint_columns("")) for b in
-                               robot.joint_columns("")[i + 1:]],
-            "nonlinear_joint_stiffness": [f"g{i + 1}_rad/(N m)^3" for i in range(n)],
-            "backlash": [f"b{i + 1}_rad" for i in range(n)],
-            "measurement_offset": [f"o{a}_m" for a in "xyz"[: robot.task_dim]] + rot}[cause]
+    """The names of a cause's parameters (:func:`stiffcal.catalogue.parameter_names`) for what ``observed``
+    measures."""
+    from .catalogue import parameter_names as names
+
+    return names(cause, robot, observed is not None and observed.orientation)
 
 
 def loco_predictions(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None,

@@ -249,7 +249,7 @@ class Robot:
     URDF file); ``targets`` {name: (3,) [m]}: further measured points (tracker targets) in the tip frame
     (:meth:`tool_frame`), beside the tool point ``"tool"``; ``masses`` (:class:`MassModel`) the arm's own weight,
     or None (no self-weight torques, :meth:`gravity_torques`); ``calibration``
-    (:class:`stiffcal.calibrated.Calibration`): the model a calibration identified (a calibrated.yaml), or None;
+    (:class:`stiffcal.calibration.Calibration`): the model a calibration identified (a calibrated.yaml), or None;
     gravity: the unit direction of gravity in the base frame (robot-file key ``gravity``; default -y for a planar
     arm in its vertical plane, -z for a spatial one), along which hanging masses pull and the arm's own weight
     acts; cell: the :class:`stiffcal.workcell.WorkCell` the robot stands in (None: every pose within the joint
@@ -652,7 +652,7 @@ def load_robot(path: str | Path) -> Robot:
 
         robot = replace(robot, cell=parse_cell(doc["cell"], robot, src, Path(src).parent))
     if "calibration" in doc:
-        from .calibrated import from_dict
+        from .calibration import from_dict
 
         robot = replace(robot, calibration=from_dict(doc["calibration"], robot, src))
     return robot
