@@ -687,3 +687,20 @@ def test_degenerate_data_are_refused_never_a_confident_none(tmp_path, how, words
     with redirect_stderr(io.StringIO()), redirect_stdout(io.StringIO()):
         assert main(["discrepancy", "--robot", PAPER, "--data", str(_degenerate(tmp_path, "noisy")), "--out",
                      str(tmp_path / "control"), "--quiet"]) == 0
+
+
+def test_a_measured_log_beyond_the_row_limit_is_refused_before_it_is_parsed(tmp_path, monkeypatch):
+    """More data rows than MAX_MEASURED_ROWS (here lowered to 10) are refused naming the bound, before pandas
+    reads the file."""
+    import pandas as pd
+
+    from stiffcal.measurements import read_measurements
+
+    monkeypatch.setattr(limits, "MAX_MEASURED_ROWS", 10)
+    path = tmp_path / "big.csv"
+    pd.read_csv(DATA).head(11).to_csv(path, index=False)
+    calls = []
+    monkeypatch.setattr(pd, "read_csv", lambda *a, **k: calls.append(a))
+    with pytest.raises(InputError, match=r"big.csv.*more than 10 data rows \(MAX_MEASURED_ROWS"):
+        read_measurements(path, load_robot(PAPER))
+    assert calls == []

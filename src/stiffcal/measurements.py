@@ -462,8 +462,10 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
                     ("moment resolution", moment_resolution_Nm)):
         if not (np.isfinite(v) and v > 0):
             raise InputError(f"expected a {name} > 0, got {v}", field=name.replace(" ", "_"))
+    from .limits import MAX_MEASURED_ROWS
+
     try:
-        _header(path, source)
+        _header(path, source, MAX_MEASURED_ROWS)
         df = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
         raise InputError(f"cannot read a CSV table ({err})", source=source) from None
@@ -660,11 +662,12 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
         "resolution", source=source, field=f"columns {', '.join(force_cols)}")
 
 
-def _header(path, source: str) -> list[str]:
+def _header(path, source: str, max_rows: int | None = None) -> list[str]:
     """The header row as the file writes it (pandas renames a repeated name 'dx_m' to 'dx_m.1'): raises
     :class:`InputError` for a column name given twice, a header with no comma but semicolons or tabs (a
     file separated by another character: a comma-separated file is expected), or a row with more or fewer fields
-    than the header (pandas would take a surplus first field as the index and shift every column)."""
+    than the header (pandas would take a surplus first field as the index and shift every column), or more than
+    ``max_rows`` data rows (counted before anything is parsed)."""
     import csv
 
     with open(path, newline="", encoding="utf-8-sig") as fh:
@@ -679,6 +682,11 @@ def _header(path, source: str) -> list[str]:
                          "(and a decimal point)", source=source)
     with open(path, newline="", encoding="utf-8-sig") as fh:
         for line_no, row in enumerate(csv.reader(fh), start=1):
+            if max_rows is not None and line_no > max_rows + 1:
+                raise InputError(f"more than {max_rows:,} data rows (MAX_MEASURED_ROWS: the analysis grows linearly "
+                                 "with the rows, 10^5 rows of a 6-axis arm take about a minute and 1.3 GB; "
+                                 "docs/contracts.md, 'Limits'): average the replicates of each configuration and "
+                                 "load, or analyse the log in parts", source=source)
             if line_no > 1 and row and any(c.strip() for c in row) and len(row) != len(names):
                 r = line_no - 2
                 raise InputError(f"expected {len(names)} fields as in the header, got {len(row)}: a comma too "

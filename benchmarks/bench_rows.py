@@ -1,0 +1,53 @@
+"""How the measured-data analysis grows with the rows (issue 28): a lab log of hanging masses (4 loads, repeated)
+simulated by stiffcal.truth for the 2-link and the 6-axis arm at 10^2.6 .. 10^5 rows, read and analysed in this
+process (one BLAS thread); prints the CPU seconds of the read and the analysis, the peak memory, and the CPU per
+row against the smallest size in the same run (1.0: linear). Rows beyond stiffcal.limits.MAX_MEASURED_ROWS are
+refused at the read.
+
+Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_rows.py [ARM ...]   (default 2-link 6-axis; a few
+minutes)
+"""
+
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from stiffcal import discrepancy as D
+from stiffcal import rates as R
+from stiffcal import truth as T
+from stiffcal.measurements import read_measurements
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIGS = (50, 1250, 12500)  # x 8 rows: 400, 10,000, 100,000
+
+
+def main(arms) -> None:
+    robots = R.robots(ROOT)
+    for arm in arms:
+        robot, base = robots[arm], None
+        for n_cfg in CONFIGS:
+            rng = np.random.default_rng(0)
+            log = T.lab_log(robot, R.PROTOCOLS["hanging x4, repeated"], rng, n_cfg)
+            dp = T.measure(robot, T.Truth(R.compliances(robot)), log, rng)
+            with tempfile.TemporaryDirectory() as tmp:
+                path = Path(tmp) / "log.csv"
+                path.write_text(T.lab_csv(robot, log, dp), encoding="utf-8")
+                t0 = time.process_time()
+                meas = read_measurements(path, robot)
+                t1 = time.process_time()
+                verdict = D.analyse(robot, meas, 0.01, gain=False)
+                t2 = time.process_time()
+            per_row = (t2 - t0) / meas.n_rows
+            base = base or per_row
+            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
+            print(f"{arm:7s} {meas.n_rows:7d} rows  read {t1 - t0:6.2f} s  analyse {t2 - t1:6.2f} s  "
+                  f"peak {peak:5d} MB  CPU per row {per_row / base:5.2f} x the smallest  verdict {verdict['cause']}",
+                  flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:] or ["2-link", "6-axis"])
