@@ -258,6 +258,31 @@ def test_self_weight_torques_equal_pinocchio_and_finite_differences(rng):
     assert np.allclose(two.gravity_torques(q), np.column_stack([t1, t2]))
 
 
+def test_self_weight_torques_with_a_held_joint_equal_pinocchio(rng, tmp_path):
+    """A UR10 whose elbow is held at 35 deg (``joints`` and ``fixed_joints_deg``): the weight's torques at the
+    moving joints equal Pinocchio's generalised gravity of the whole arm with the elbow at 35 deg (the held angle
+    places the forearm, whose weight then hangs on the shoulder-lift joint), and differ from those at 0."""
+    import pinocchio as pin
+
+    text = (LAB / "ur10.yaml").read_text().replace("urdf: ur10.urdf", f"urdf: {LAB / 'ur10.urdf'}")
+    text = text.replace("compliances_rad_per_Nm: [2.0e-6, 2.0e-6, 4.0e-6, 1.0e-5, 1.0e-5, 1.0e-5]",
+                        "compliances_rad_per_Nm: [2.0e-6, 4.0e-6, 1.0e-5, 1.0e-5, 1.0e-5]")
+    text += ("joints: [shoulder_pan_joint, shoulder_lift_joint, wrist_1_joint, wrist_2_joint, wrist_3_joint]\n"
+             "fixed_joints_deg: {elbow_joint: 35}\n")
+    path = tmp_path / "held.yaml"
+    path.write_text(text, encoding="utf-8")
+    held = load_robot(path)
+    model = pin.buildModelFromUrdf(str(LAB / "ur10.urdf"))
+    model.gravity.linear = np.array([0.0, 0.0, -9.80665])
+    data = model.createData()
+    q = rng.uniform(-3, 3, (10, 5))
+    ours = held.gravity_torques(q)
+    for lift, expect_equal in ((np.radians(35.0), True), (0.0, False)):
+        full = np.column_stack([q[:, :2], np.full(len(q), lift), q[:, 2:]])
+        pins = np.array([-pin.computeGeneralizedGravity(model, data, x) for x in full])[:, [0, 1, 3, 4, 5]]
+        assert np.allclose(ours, pins, atol=1e-9) == expect_equal
+
+
 def test_backlash_preloaded_by_the_weight_is_the_simulators(rng):
     """The backlash regressor with the arm's own weight, J (sign(t0 + tau) - sign(t0)), times the gap's half,
     against the simulator's gap law on the total torque (tanh with a tiny smoothing torque), on the weighted

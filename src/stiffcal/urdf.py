@@ -352,37 +352,35 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
     moving_ids = [j for j, name in zip(path_joints, names) if name in moving]
     return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving),
                    tuple(i for i, name in enumerate(moving) if name not in limits),
-                   chain_masses(model, moving_ids, {j: held[name] for j, name in zip(path_joints, names)
+                   chain_masses(model, moving_ids, {j: (held[name], axes[name]) for j, name in zip(path_joints, names)
                                                     if name in held}), held)
 
 
-def chain_masses(model, moving: list[int], held: dict[int, float]) -> MassModel | None:
+def chain_masses(model, moving: list[int], held: dict[int, tuple]) -> MassModel | None:
     """The URDF's inertias as point masses on the frames of the moving joints (:class:`MassModel`; gravity the
     default, -z of the base frame, until the robot file says otherwise): every body of the model (Pinocchio
     merges the links of fixed joints into their parent's body) whose nearest moving ancestor joint is in
     ``moving`` (Pinocchio joint ids, base to tip), its mass and centre in that joint's frame, with the chain's
-    held joints at their angles ``held`` {joint id: rad} and other joints (off the chain: a gripper's fingers)
-    at Pinocchio's neutral configuration. Bodies before the first moving joint never move and are left out.
+    held joints at their angles ``held`` {joint id: (rad, unit axis (3,) in the joint's frame)} and other joints
+    (off the chain: a gripper's fingers) at Pinocchio's neutral configuration. Bodies before the first moving
+    joint never move and are left out.
     None when no such body has mass."""
     import pinocchio as pin
 
-    q0 = pin.neutral(model)
-    for j, angle in held.items():
-        jm = model.joints[j]
-        if jm.nq == 1:
-            q0[jm.idx_q] = angle
-        else:  # a continuous joint: (cos, sin)
-            q0[jm.idx_q:jm.idx_q + 2] = [np.cos(angle), np.sin(angle)]
     index = {j: i for i, j in enumerate(moving)}
     kg, link, com = [], [], []
     placed: dict[int, object] = {0: pin.SE3.Identity()}
 
-    def placement(j):  # joint j's frame at q0 in the model's root frame, joint by joint (no Data of the whole
-        if j not in placed:  # model: its matrices grow with the square of the URDF's joints)
-            joint = model.joints[j]
-            jd = joint.createData()
-            joint.calc(jd, q0[joint.idx_q:joint.idx_q + joint.nq])
-            placed[j] = placement(model.parents[j]) * model.jointPlacements[j] * jd.M
+    def motion(j):  # joint j's own motion: a held chain joint turned by its angle about its axis; every other
+        if j in held:  # joint at Pinocchio's neutral configuration, whose motion is the identity for every type
+            angle, axis = held[j]
+            return pin.SE3(rotation_about(np.asarray(axis, float), angle), np.zeros(3))
+        return pin.SE3.Identity()
+
+    def placement(j):  # joint j's frame in the model's root frame, joint by joint (no Data of the whole model:
+        if j not in placed:  # its matrices grow with the square of the URDF's joints; and no JointData, whose
+            # calc on the variant binding acts on a copy and leaves M unset)
+            placed[j] = placement(model.parents[j]) * model.jointPlacements[j] * motion(j)
         return placed[j]
 
     for b in range(1, model.njoints):
