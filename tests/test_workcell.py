@@ -617,3 +617,35 @@ def test_discriminate_and_the_next_round_on_a_real_arm_keep_their_poses_feasible
                       np.array(force, float), 4)
     poses += np.degrees(nr.poses).tolist()
     assert len(poses) >= 8 and MeshCheck("ur10").bad(robot.joint_names, poses) == (0, 0)
+
+
+@needs_arms
+def test_a_calibrated_file_keeps_its_urdf_and_srdf_from_another_folder(tmp_path):
+    """A Panda robot file naming its URDF and SRDF by relative paths; its calibrated.yaml written two folders
+    away refers to the same two files (rewritten from its own folder), and reloads with the same cell."""
+    from stiffcal import calibrated as C
+    from stiffcal import rates as R
+
+    urdf, srdf, base, tip, tool, _, _ = real_arms.ARMS["panda"]
+    root = real_arms.robots_dir()
+    here = tmp_path / "robots"
+    here.mkdir()
+    rel = lambda p: os.path.relpath(root / p, here)  # noqa: E731
+    path = here / "panda.yaml"
+    path.write_text(f"name: panda\nkind: urdf\nurdf: {rel(urdf)}\nbase_frame: {base}\ntip_frame: {tip}\n"
+                    f"tool_m: {tool}\ncell:\n  floor_m: 0.0\n  self_collision: true\n  srdf: {rel(srdf)}\n",
+                    encoding="utf-8")
+    robot = load_robot(path)
+    k = R.compliances(robot)
+    cal = C.Calibration((), tuple(range(robot.n_joints)), tuple(robot.joint_columns("k")), k, np.diag(k * 0.01) ** 2,
+                        (True,) * robot.n_joints, 3, 1e-5)
+    out = tmp_path / "results" / "deep"
+    out.mkdir(parents=True)
+    C.write_calibrated(robot, cal, out)
+    back = load_robot(out / "calibrated.yaml")
+    assert back.cell.srdf == robot.cell.srdf and Path(back.cell.srdf).is_file()
+    q = np.radians([[10, 20, 0, -120, 0, 140, 45]])
+    np.testing.assert_allclose(back.fk(q), robot.fk(q), atol=1e-12)
+    from stiffcal.workcell import feasible
+    poses = np.radians(np.random.default_rng(0).uniform(-150, 150, (50, 7)))
+    assert np.array_equal(feasible(back, poses), feasible(robot, poses))
