@@ -296,17 +296,12 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     from .certificate import approximate_design, unconstrained
     from .design import optimal_single_pose
     from .plans import best_plan
-    from .robot import narrowed_limits
     from .study import Study, check_sensing, check_test_inputs
     from .tables import plan_summary
     from .threads import one_blas_thread
-    from .workcell import cell_notes, clearance, read_candidates, with_cell
+    from .workcell import cell_notes, clearance, read_candidates
 
-    robot = _robot(robot)
-    if joint_limits_deg is not None:
-        robot = narrowed_limits(robot, joint_limits_deg, None, "joint_limits_deg")
-    if cell is not None:
-        robot = with_cell(robot, _cell_value(cell), None, "cell")
+    robot = _placed(_robot(robot), joint_limits_deg, cell)
     if criterion not in criteria.CRITERIA_KEYS:
         raise InputError(f"expected one of {', '.join(criteria.CRITERIA_KEYS)}, got {criterion!r}", field="criterion")
     force, moment, field_ = load_arguments(robot, force_N, wrench)
@@ -759,13 +754,11 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     prior's own file). Returns the JSON of docs/contracts.md ("The calibrated model"):
     ``poses_deg``, ``O_t``, ``O_t_prior``, ``O_t_fresh``, ``lower_bound``, ``gap``, ... [m^2]. Raises
     :class:`InputError` for bad arguments or a robot without a calibration."""
+    from dataclasses import replace
+
     from . import calibrated as C
-    from .robot import narrowed_limits
     from .study import check_test_inputs
     from .threads import one_blas_thread
-    from .workcell import with_cell
-
-    from dataclasses import replace
 
     prior = _robot(prior)
     if getattr(prior, "calibration", None) is None:
@@ -778,10 +771,7 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
                              f"against {', '.join(robot.joint_names)} of the robot", source=prior.source,
                              field="prior")
         robot = replace(robot, calibration=C.from_dict(prior.calibration.to_dict(), robot, prior.source))
-    if joint_limits_deg is not None:
-        robot = narrowed_limits(robot, joint_limits_deg, None, "joint_limits_deg")
-    if cell is not None:
-        robot = with_cell(robot, _cell_value(cell), None, "cell")
+    robot = _placed(robot, joint_limits_deg, cell)
     force, moment, field_ = load_arguments(robot, force_N, wrench)
     q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG), force,
                             "test_pose_deg", field_, None, moment, field_)

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .calibration import Calibration, _extension_size, _names_of, from_dict  # noqa: F401  (re-exported)
+from .calibration import Calibration, from_dict  # noqa: F401  (re-exported: part of this module's API)
 from .errors import InputError
 from .robot import Robot
 

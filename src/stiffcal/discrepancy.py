@@ -1457,7 +1457,7 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
     held = held_out(robot, pre, ext) if gain else None
     out["held_out"] = None if held is None else held.as_dict()
-    out["gain"] = _gain(robot, des, ext, noise.s2, test_pose, test_force, ob, held) if ext and gain else None
+    out["gain"] = _gain(robot, des, ext, noise.s2, test_pose, test_force, ob, out["held_out"]) if ext and gain else None
     if out["gain"] is not None and out["gain"]["loco_ratio"] is None:
         notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
                      "configurations (and a nonzero error of the extended model); it is left out")
@@ -2029,12 +2029,10 @@ def held_out(robot: Robot, pre: "Prepared", causes=()) -> HeldOut | None:
     return HeldOut(nom[1], nom[0], cal[0], np.asarray(m.config), tuple(m.config_labels), tuple(causes))
 
 
-def _gain(robot, des, causes, s2, test_pose, test_force, observed: Observed, held: HeldOut | None) -> dict:
+def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict | None) -> dict:
     """The verdict's ``gain`` of the extended model nominal + ``causes``: the held-out RMS of either model
-    (``held``, :func:`held_out`), and at the test pose the RMS error of either model's prediction and the
-    O_t-optimal plans (:func:`optimal_plan`)."""
-    ob = observed
-    ho = None if held is None else held.as_dict()
+    (``ho``: the verdict's ``held_out``, :meth:`HeldOut.as_dict`), and at the test pose the RMS error of either
+    model's prediction and the O_t-optimal plans (:func:`optimal_plan`)."""
     nom = None if ho is None else ho["rms_nominal_m"]
     ext = None if ho is None else ho["rms_calibrated_m"]
     out = {"loco_rms_nominal_m": nom, "loco_rms_extended_m": ext,
