@@ -235,6 +235,21 @@ def oracle_power(robot: Robot, log: T.LabLog, e: np.ndarray, others: list[np.nda
     return float(stats.ncf.sf(crit, r, df, max(lam, 0.0)))
 
 
+def oracle_global_p(robot: Robot, log: T.LabLog, dp: np.ndarray, alpha: float = 0.01) -> float:
+    """The p-value of "no catalogue cause is needed" by the analysis's own closed test
+    (:func:`stiffcal.discrepancy.closed_testing`, its global intersection) on the rows ``dp`` (N, w) [m] of
+    ``log`` whitened by their true covariance (:func:`stiffcal.truth.row_covariance`) with the noise scale
+    known: the oracle against which the analysis's estimated error model (weights, variance components,
+    noise) is compared seed by seed (``benchmarks/oracle_false_alarms.py``)."""
+    white = _whitening(robot, log)
+    y = D._stack(white(dp[log.noisy][..., None]))[:, 0]
+    X0 = D._stack(white(_columns(robot, log)))
+    blocks = {c: D._stack(white(_cause_block(robot, log, c))) for c in D.CAUSES}
+    sel = D.closed_testing(D.Design(X0, blocks, y, robot.task_dim), D.CAUSES,
+                           D.Noise(1.0, 10**9, "the true covariance", 0.0, 0), lambda S, f: None, alpha)
+    return float(sel.local.get((frozenset(sel.causes), False), 1.0))
+
+
 def _cause_block(robot: Robot, log: T.LabLog, cause: str) -> np.ndarray:
     """(N_noisy, w, p_c): one cause's regressors on the noisy rows (zero on the unloaded ones)."""
     n = _columns(robot, log).shape[-1]

@@ -1,0 +1,59 @@
+"""Clean data of one lab protocol, analysed as a lab would (a CSV with pose_id through stiffcal.discrepancy.analyse)
+and by the oracle that knows the rows' true covariance (stiffcal.rates.oracle_global_p: the same closed test on
+the rows whitened by it, the noise scale known), seed by seed: how many false alarms each raises, how many they
+share, and the Spearman correlation of their global p-values. An oracle rate near alpha with the analysis above it
+says the estimated error model is at fault; both above alpha on the same seeds says the seeds are unlucky.
+Run: .venv/bin/python benchmarks/oracle_false_alarms.py ARM "PROTOCOL" [SEEDS] [FIRST_SEED] [ALPHA]
+(ARM: 2-link, 3-link or 6-axis; PROTOCOL a name of stiffcal.rates.PROTOCOLS; defaults 300 seeds from 0, alpha 0.01).
+"""
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from stiffcal import discrepancy as D
+from stiffcal import rates as R
+from stiffcal import truth as T
+from stiffcal.measurements import read_measurements
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main(arm: str, protocol: str, seeds: int = 300, first: int = 0, alpha: float = 0.01) -> None:
+    robot = R.robots(ROOT)[arm]
+    pr = R.PROTOCOLS[protocol]
+    start = time.process_time()
+    analysed, oracle = [], []
+    with tempfile.TemporaryDirectory() as tmp:
+        for seed in range(first, first + seeds):
+            rng = np.random.default_rng(seed)
+            log = T.lab_log(robot, pr, rng, 40)
+            dp = T.measure(robot, T.Truth(R.compliances(robot)), log, rng)
+            path = Path(tmp) / "case.csv"
+            path.write_text(T.lab_csv(robot, log, dp, pose_id=True), encoding="utf-8")
+            v = D.analyse(robot, read_measurements(path, robot), alpha, gain=False)
+            analysed.append((v["cause"] != "none", v["p_value"]))
+            oracle.append(R.oracle_global_p(robot, log, dp, alpha))
+    a = np.array([x for x, _ in analysed])
+    o = np.array(oracle) <= alpha
+    rho = stats.spearmanr([p for _, p in analysed], oracle)[0]
+
+    def ci(k):
+        r = stats.binomtest(int(k), seeds).proportion_ci(0.95)
+        return f"{k}/{seeds} ({100 * k / seeds:.2f} %, 95 % CI {100 * r.low:.2f}-{100 * r.high:.2f} %)"
+    print(f"{arm} | {protocol} | alpha {alpha}")
+    print(f"analysis false alarms: {ci(a.sum())}")
+    print(f"oracle (true covariance) false alarms: {ci(o.sum())}")
+    print(f"both: {int((a & o).sum())}; analysis only: {int((a & ~o).sum())}; oracle only: {int((~a & o).sum())}; "
+          f"Spearman rho of the global p-values {rho:.3f}")
+    print(f"CPU {time.process_time() - start:.1f} s")
+
+
+if __name__ == "__main__":
+    args = sys.argv[1:]
+    if len(args) < 2:
+        sys.exit(__doc__)
+    main(args[0], args[1], *(int(a) for a in args[2:4]), *(float(a) for a in args[4:5]))
