@@ -375,3 +375,40 @@ def test_the_next_experiments_rivals_are_fitted_as_the_analysis_fits(tmp_path):
     ext = v["extended"]
     ours = np.concatenate([ext["k"], [p for p in ext["parameters"]]])
     assert np.allclose(rm.truth.beta, ours, rtol=1e-9, atol=1e-15)
+
+
+# --- the oracle with the rows' true covariance (benchmarks/oracle_false_alarms.py) ---------------------------------
+
+def test_oracle_global_p_is_the_closed_test_in_any_whitening_and_sees_a_strong_effect():
+    """stiffcal.rates.oracle_global_p against the same closed test on the rows whitened by an independent square
+    root of the true covariance (the symmetric inverse square root of the dense matrix, not the per-block
+    Cholesky factor: F statistics do not depend on the choice), on clean data; and a backlash of 30 noise
+    sigmas is seen (p below 1e-6) while the clean p is not."""
+    robot = R.robots(ROOT)["2-link"]
+    pr = R.PROTOCOLS["hanging x3, reference per configuration, half revisited"]
+    rng = np.random.default_rng(2)  # a seed whose global p is strictly inside (0, 1): no Bonferroni cap at 1
+    log = T.lab_log(robot, pr, rng, 12)
+    clean = T.measure(robot, T.Truth(R.compliances(robot)), log, rng)
+    p = R.oracle_global_p(robot, log, clean)
+    assert 0.01 < p < 0.9
+    noisy = np.flatnonzero(log.noisy)
+    pos = {int(r): i for i, r in enumerate(noisy)}
+    w = clean.shape[1]
+    S = np.zeros((len(noisy) * w,) * 2)
+    for rows, Sc in T.row_covariance(robot, log):
+        idx = np.concatenate([np.arange(pos[int(r)] * w, pos[int(r)] * w + w) for r in rows])
+        S[np.ix_(idx, idx)] = Sc
+    ev, V = np.linalg.eigh(S)
+    W = (V / np.sqrt(ev)) @ V.T
+    X = R._columns(robot, log)
+    X0 = W @ X.reshape(len(noisy) * w, -1)
+    blocks = {c: W @ R._cause_block(robot, log, c).reshape(len(noisy) * w, -1) for c in D.CAUSES}
+    y = W @ clean[noisy].ravel()
+    sel = D.closed_testing(D.Design(X0, blocks, y, w), D.CAUSES, D.Noise(1.0, 10**9, "dense", 0.0, 0),
+                           lambda S_, f: None, 0.01)
+    assert sel.local[(frozenset(sel.causes), False)] == pytest.approx(p, rel=1e-6, abs=1e-12)
+    sigma = float(np.median(log.sigma))
+    gap = 30 * sigma / np.linalg.norm(robot.jacobian(log.q[:1])[0], axis=0).max()
+    strong = T.measure(robot, T.Truth(R.compliances(robot), gap=np.full(robot.n_joints, gap)), log,
+                       np.random.default_rng(2))
+    assert R.oracle_global_p(robot, log, strong) < 1e-6
