@@ -24,14 +24,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def main(arm: str, protocol: str, seeds: int = 300, first: int = 0, alpha: float = 0.01) -> None:
     robot = R.robots(ROOT)[arm]
-    pr = R.PROTOCOLS[protocol]
     start = time.process_time()
     analysed, oracle = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(first, first + seeds):
-            rng = np.random.default_rng(seed)
-            log = T.lab_log(robot, pr, rng, 40)
-            dp = T.measure(robot, T.Truth(R.compliances(robot)), log, rng)
+            log, dp, _ = R.simulate_case(robot, protocol, (), seed)
             path = Path(tmp) / "case.csv"
             path.write_text(T.lab_csv(robot, log, dp, pose_id=True), encoding="utf-8")
             v = D.analyse(robot, read_measurements(path, robot), alpha, gain=False)

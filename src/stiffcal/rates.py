@@ -319,15 +319,12 @@ class CaseResult:
         return any(diag.get(k) and diag[k]["p_value"] <= v["alpha"] for k in ("time", "load_direction"))
 
 
-def run_case(robot_name: str, robot: Robot, protocol: str, effects: tuple[str, ...], seed: int,
-             alpha: float = 0.01, n_configs: int = 40, size_range=(0.02, 1.0), workdir: str | None = None,
-             both: bool = True) -> CaseResult:
-    """Simulate one case (module docstring), analyse both CSV variants (``both=False``: the one with pose_id
-    only, its verdict standing for both), and return the verdicts and the oracle power of each hidden effect.
-    Effect sizes: RMS displacement log-uniform in ``size_range`` times the median noise."""
+def simulate_case(robot: Robot, protocol: str, effects: tuple[str, ...], seed: int, n_configs: int = 40,
+                  size_range=(0.02, 1.0)) -> tuple[T.LabLog, np.ndarray, dict]:
+    """One case's lab log, its measured rows dp (N, w) [m] and each hidden effect's noise-free displacement
+    {effect: (N_noisy, w)} (module docstring; effect sizes as :func:`run_case`), all drawn from ``seed``."""
     rng = np.random.default_rng(seed)
-    pr = PROTOCOLS[protocol]
-    log = T.lab_log(robot, pr, rng, n_configs)
+    log = T.lab_log(robot, PROTOCOLS[protocol], rng, n_configs)
     k = compliances(robot)
     base = T.Truth(k)
     truth, disp = base, {}
@@ -338,7 +335,16 @@ def run_case(robot_name: str, robot: Robot, protocol: str, effects: tuple[str, .
         scaled = _scaled_truth(eff, unit, base, robot, log, size)
         disp[eff] = _effect_displacement(robot, scaled, base, log)
         truth = _merge(truth, scaled)
-    dp = T.measure(robot, truth, log, rng)
+    return log, T.measure(robot, truth, log, rng), disp
+
+
+def run_case(robot_name: str, robot: Robot, protocol: str, effects: tuple[str, ...], seed: int,
+             alpha: float = 0.01, n_configs: int = 40, size_range=(0.02, 1.0), workdir: str | None = None,
+             both: bool = True) -> CaseResult:
+    """Simulate one case (module docstring), analyse both CSV variants (``both=False``: the one with pose_id
+    only, its verdict standing for both), and return the verdicts and the oracle power of each hidden effect.
+    Effect sizes: RMS displacement log-uniform in ``size_range`` times the median noise."""
+    log, dp, disp = simulate_case(robot, protocol, effects, seed, n_configs, size_range)
     verdicts = []
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         for with_id in (True, False) if both else (True,):
