@@ -26,12 +26,12 @@ ROOT = Path(__file__).resolve().parents[1]
 BASELINE_COMMIT = "80d2fc9"
 
 
-def baseline_src() -> Path:
-    """The baseline's ``src`` (with its schemas) and its ``config/config.yaml`` (which its schema accepts; the
-    keys the benchmarks read are unchanged since) extracted from git into a temporary directory."""
+def baseline_src(commit: str = BASELINE_COMMIT) -> Path:
+    """The ``src`` of the baseline commit (with its schemas) and its ``config/config.yaml`` (which its schema
+    accepts; the keys the benchmarks read are unchanged since) extracted from git into a temporary directory."""
     out = Path(tempfile.mkdtemp(prefix="stiffcal-baseline-"))
     for part in ("src", "workflow/schemas", "config/config.yaml"):
-        blob = subprocess.run(["git", "-C", str(ROOT), "archive", BASELINE_COMMIT, part], check=True,
+        blob = subprocess.run(["git", "-C", str(ROOT), "archive", commit, part], check=True,
                               capture_output=True).stdout
         with tarfile.open(fileobj=BytesIO(blob)) as tar:
             tar.extractall(out, filter="data")

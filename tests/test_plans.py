@@ -183,6 +183,71 @@ def test_exchange_scores_match_the_general_inverse(arm, paper_robot, root, rng):
 KUKA = "config/robots/kuka_kr210_r2700.yaml"
 
 
+@pytest.mark.parametrize("arm", ["paper", "3-link", "6-axis", "6-axis, 3 loads"])
+def test_d_and_t_exchange_scores_match_the_eigen_decomposition(arm, paper_robot, root, rng):
+    """The closed forms of the exchange step for D (the determinant lemma where the other poses' information
+    is well conditioned, each candidate's determinant otherwise) and T against the criteria's loss from the
+    eigen-decomposition of every candidate's information matrix, for an empty, a rank-deficient and a
+    well-conditioned information of the other poses, with one load (rows <= parameters) and with three
+    (the pool's forms factored from its information matrices)."""
+    from stiffcal import criteria
+    from stiffcal.plans import _compact, closed_form_scores
+
+    forces = [F]
+    if arm == "paper":
+        robot, step = paper_robot, 5.0
+    elif arm == "3-link":
+        robot, step = planar_robot([0.5, 0.35, 0.15]), 20.0
+    else:
+        robot, step = load_robot(root / KUKA), 30.0
+        forces = [np.array([500.0, -300.0, -800.0])] + ([np.array([0, 0, -900.0]), np.array([400.0, 0, 0])]
+                                                        if arm.endswith("loads") else [])
+    n = robot.n_joints
+    lo, hi = robot.joint_limits_rad.T
+    pool = candidate_pool(robot, step)
+
+    def rows(q):
+        return np.concatenate([observation_matrix(robot.model_jacobian(q), f) for f in forces], axis=-2)
+    pool_A = rows(pool)
+    forms = pool_forms(*_compact(pool_A))
+    for rest_count in (0, 1, 4):
+        rest = rows(rng.uniform(lo, hi, (rest_count, n))).reshape(-1, n)
+        M_rest = rest.T @ rest
+        M_all = M_rest + pose_information(pool_A)
+        w = np.linalg.eigvalsh(M_all)
+        regular = w[:, 0] > 1e-10 * w[:, -1]
+        assert regular.any() if len(rest) + pool_A.shape[1] >= n else not regular.any()
+        np.testing.assert_allclose(closed_form_scores("t", forms, M_rest),
+                                   criteria.loss_from_info("t", M_all, rest_count + 1), rtol=1e-12)
+        fast, slow = closed_form_scores("d", forms, M_rest), criteria.loss_from_info("d", M_all, rest_count + 1)
+        np.testing.assert_allclose(fast[regular], slow[regular], rtol=1e-8)
+        # a singular candidate's determinant is round-off: a symmetric perturbation of norm delta = n eps
+        # lambda_max moves each eigenvalue by at most delta (Weyl), so |det| <= prod(|w_i| + delta)
+        delta = n * np.finfo(float).eps * w[:, -1:]
+        assert np.all(np.abs(fast[~regular]) <= 1e3 * np.prod(np.abs(w) + delta, axis=1)[~regular])
+
+
+@pytest.mark.parametrize("arm, m", [("3-link", 4), ("6-axis", 3)])
+def test_d_optimal_plan_admits_no_better_single_replacement(arm, m, root):
+    """The D-optimal exchange over a pool (scored by the closed forms) ends at a plan that no replacement of
+    one pose by any pool pose improves, each det computed independently by numpy's LU."""
+    if arm == "3-link":
+        robot, force, q_t = planar_robot([0.5, 0.35, 0.15]), F, np.radians([30.0, 40.0, -20.0])
+        pool = candidate_pool(robot, 20.0)
+    else:
+        robot, force = load_robot(root / KUKA), np.array([500.0, -300.0, -800.0])
+        q_t, pool = np.radians([20, -60, 110, 30, 45, -20]), sample_joint_space(robot, 9, seed=0)
+    prob = Problem(robot, force, "d", m, q_t)
+    plan = optimise_plan(prob, pool=pool, n_starts=4, seed=1, canonical=False)
+    A = observation_matrix(robot.model_jacobian(np.radians(plan.poses_deg)), force)
+    det = np.linalg.det(information_matrix(A))
+    assert plan.loss == pytest.approx(-det, rel=1e-9) and det > 0
+    pool_info = pose_information(observation_matrix(robot.model_jacobian(pool), force))
+    for j in range(m):
+        others = information_matrix(np.delete(A, j, axis=0))
+        assert np.linalg.det(others + pool_info).max() <= det * (1 + 1e-9)
+
+
 @pytest.mark.parametrize("arm, m", [("paper", 2), ("paper", 3), ("paper", 6), ("3-link", 4), ("6-axis", 2),
                                     ("6-axis", 6)])
 def test_plans_are_the_same_as_with_the_general_inverse_scoring(arm, m, paper_robot, root):

@@ -284,6 +284,51 @@ def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.n
     return val
 
 
+def _symmetric_det(S: np.ndarray, dim: int) -> np.ndarray:
+    """Determinants of a batch of symmetric dim x dim matrices given by their upper triangles, component
+    first (dim(dim+1)/2, K) as :func:`_inverse_traces` takes them: closed forms for dim <= 3, LU beyond."""
+    if dim == 1:
+        return S[0]
+    if dim == 2:
+        return S[0] * S[2] - S[1] * S[1]
+    if dim == 3:
+        a, b, c, d, e, f = S[:6]
+        return a * (d * f - e * e) + b * (c * e - b * f) + c * (b * e - c * d)
+    iu = np.triu_indices(dim)
+    full = np.zeros((S.shape[1], dim, dim))
+    full[(slice(None), *iu)] = S.T
+    full[(slice(None), iu[1], iu[0])] = S.T
+    return np.linalg.det(full)
+
+
+#: criteria whose exchange step has a closed form other than the L-optimal ones': D (the determinant lemma)
+#: and T (a sum of traces)
+CLOSED_FORM = ("d", "t")
+
+
+def closed_form_scores(key: str, forms: PoolForms, M_rest: np.ndarray) -> np.ndarray:
+    """The loss (:func:`stiffcal.criteria.loss_from_info`, minus the value of these 'max' criteria) of every
+    candidate c of a pool with the other poses' information M_rest (p, p): for ``key`` 'd',
+    ``-det(M_rest + X_c^T X_c)``, for 't' ``-trace(M_rest) - trace(X_c^T X_c)``. Returns (K,).
+
+    D: where M_rest is well conditioned and p > 3, the determinant lemma ``det(M_rest + X_c^T X_c) =
+    det(M_rest) det(I + X_c M_rest^-1 X_c^T)`` (Harville, Matrix Algebra From a Statistician's Perspective,
+    thm. 18.1.1), the d x d matrices ``I + X_c R X_c^T`` linear in R = M_rest^-1 and so one product with the
+    pool's ``forms.quad``, their determinants in closed form (d <= 3); otherwise (a singular M_rest, as
+    for any plan of fewer poses than it takes to identify the compliances) each ``M_rest + X_c^T X_c`` from
+    its upper triangle by the closed form (p <= 3) or LU. Either way no eigen-decomposition per candidate."""
+    p = M_rest.shape[-1]
+    if key == "t":
+        r, c = np.triu_indices(p)
+        return -(np.trace(M_rest) + forms.vech[r == c].sum(axis=0))
+    w = np.linalg.eigvalsh(M_rest)
+    if p > 3 and forms.quad is not None and w[0] > WOODBURY_MIN_RATIO * w[-1]:
+        d = forms.d
+        S = (vech(np.linalg.inv(M_rest)) @ forms.quad).reshape(d * (d + 1) // 2, -1) + vech(np.eye(d))[:, None]
+        return -np.prod(w) * _symmetric_det(S, d)
+    return -_symmetric_det(vech(M_rest)[:, None] + forms.vech, p)
+
+
 @dataclass
 class ExchangeResult:
     """Result of :func:`fedorov_exchange`: indices (m,) of the chosen pool points (sorted; repeats allowed);
@@ -400,8 +445,9 @@ def exchange_plans(problem: Problem, plans: np.ndarray, pool: np.ndarray, pool_A
 
     O_t and A-optimality are scored by :func:`exchange_scores` (``scores``: another function of its
     single-M_rest signature, e.g. :func:`stiffcal.reference.general_exchange_scores` in the tests; forms: the
-    pool's :func:`pool_forms`, computed here when not given); other criteria from the information matrices
-    ``M_rest + A_c^T A_c`` of every candidate, and G-optimality, which needs the rows themselves, stacks them.
+    pool's :func:`pool_forms`, computed here when not given); D and T by :func:`closed_form_scores`; other
+    criteria from the eigen-decomposition of the information matrices ``M_rest + A_c^T A_c`` of every
+    candidate, and G-optimality, which needs the rows themselves, stacks them.
     Returns the improved plans (S, m, n) and their losses (S,).
     """
     plans = np.asarray(plans, float)
@@ -420,6 +466,12 @@ def exchange_plans(problem: Problem, plans: np.ndarray, pool: np.ndarray, pool_A
                 return s2 * exchange_scores(forms, M_rest, Xt)
             return s2 * np.stack([scores(forms, M, Xt) for M in M_rest])
         pool_P = forms.info
+    elif key in CLOSED_FORM:
+        forms = forms or pool_forms(pool_A)
+        pool_P = forms.info
+
+        def score(_, __, M_rest):
+            return np.stack([closed_form_scores(key, forms, M) for M in M_rest])
     else:
         pool_P = pose_information(pool_A)
 
@@ -788,7 +840,7 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
     if not problem.continuous:  # a candidate file: plans of its poses only
         inits = [q for q in inits if _in_pool(q, pool)]
     inits += [pool[rng.choice(len(pool), m, replace=len(pool) < m)] for _ in range(n_starts)]
-    forms = pool_forms(*_compact(pool_A)) if problem.criterion in L_OPTIMAL else None
+    forms = pool_forms(*_compact(pool_A)) if problem.criterion in L_OPTIMAL + CLOSED_FORM else None
     plans, losses = exchange_plans(problem, np.stack(inits), pool, pool_A, forms=forms, scores=scores)
     order = np.argsort(losses, kind="stable")[:n_polish or len(plans)]
     keys = [q[np.lexsort(q.T[::-1])].tobytes() for q in plans]  # the same plan from several starts: polished once

@@ -1,0 +1,45 @@
+"""Benchmark: M-pose plans for the criteria other than O_t, ours against the baseline in the same run (issue 27,
+item 2).
+
+``stiffcal.design`` on the default study's 6-axis arm (config/robots/kuka_kr210_r2700.yaml, the machining test
+pose and load of config/config.yaml) for D-optimality at M = 2, 3 and 6, T-optimality at M = 6 and O_t at M = 6
+(the reference the issue measures D against). The baseline is the code of commit ``BASELINE_COMMIT`` (before the
+closed forms of the exchange step for D and T: every candidate's loss from its information matrix's
+eigen-decomposition), extracted with ``git archive`` and run in a subprocess by the same measuring code as ours.
+Each figure is CPU seconds of the call (``time.process_time``, one BLAS thread), beside the baseline's, with
+whether both give the same plan (same loss to 1e-9, poses to 1e-3 deg), and each D figure as a ratio to O_t's
+at the same M in our code. T's M = 6 plan differs from the baseline's for a reason older than this change (at
+0fbeb92 it is one pose repeated, O_t infinite; since the commits before the closed forms, f5aa8cc included, the
+plan of the current code, which identifies every compliance).
+
+Run: .venv/bin/python benchmarks/bench_criteria.py   (about 6 minutes, the baseline's D at M = 6 alone ~3)
+"""
+
+from bench_plans import ROOT, baseline_src, run, same
+
+#: stiffcal before issue 27's closed forms for D and T
+BASELINE_COMMIT = "0fbeb92"
+
+DESIGN = """
+import json, time
+from stiffcal import api
+t0 = time.process_time()
+r = api.design("config/robots/kuka_kr210_r2700.yaml", [20, -60, 110, 30, 45, -20], [500, -300, -800],
+               experiments={m}, criterion="{criterion}", progress=False)
+print(json.dumps(dict(cpu=time.process_time() - t0, O_t=[r.O_t], poses=[r.poses_deg.round(6).tolist()])))
+"""
+
+if __name__ == "__main__":
+    base = baseline_src(BASELINE_COMMIT)
+    print(f"stiffcal.design, 6-axis arm (KR 210 R2700), CPU seconds, one BLAS thread; baseline = {BASELINE_COMMIT}")
+    print(f"{'criterion, M':14s} {'ours [s]':>9s} {'baseline [s]':>12s} {'speed-up':>9s} {'/ O_t':>7s}")
+    ot = {}
+    for criterion, m in (("ot", 6), ("d", 6), ("t", 6), ("d", 3), ("ot", 2), ("d", 2)):
+        code = DESIGN.replace("{m}", str(m)).replace("{criterion}", criterion)
+        ours, old = run(ROOT / "src", code), run(base, code)
+        if criterion == "ot":
+            ot[m] = ours["cpu"]
+        ratio = f"{ours['cpu'] / ot[m]:6.2f}x" if criterion == "d" and m in ot else ""
+        label = f"{criterion}, M = {m}"
+        print(f"{label:14s} {ours['cpu']:9.2f} {old['cpu']:12.2f} {old['cpu'] / ours['cpu']:8.1f}x {ratio:>7s}   "
+              f"{'same plan' if same(ours, old) else 'PLANS DIFFER'}", flush=True)
