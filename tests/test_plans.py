@@ -227,10 +227,41 @@ def test_d_and_t_exchange_scores_match_the_eigen_decomposition(arm, paper_robot,
         assert np.all(np.abs(fast[~regular]) <= 1e3 * np.prod(np.abs(w) + delta, axis=1)[~regular])
 
 
+@pytest.mark.parametrize("criterion", ["d", "t"])
+def test_max_criteria_plans_are_polished_to_a_stationary_point(criterion, rng):
+    """A 'max' criterion's loss is negative (minus its value): the continuous polish still runs and ends where
+    the central difference of the criterion, computed independently with numpy (det, trace), vanishes on every
+    angle inside the joint limits, above the start's value."""
+    robot, m = planar_robot([0.5, 0.35, 0.15]), 4
+    prob = Problem(robot, F, criterion, m, np.radians([30.0, 40.0, -20.0]))
+    start = rng.uniform(-2.5, 2.5, (m, 3))
+
+    def value(q):
+        c = np.cumsum(q, axis=-1)
+        L = np.array([0.5, 0.35, 0.15])
+        J = np.stack([-np.flip(np.cumsum(np.flip(L * np.sin(c), -1), -1), -1),
+                      np.flip(np.cumsum(np.flip(L * np.cos(c), -1), -1), -1)], axis=-2)
+        A = (J * np.einsum("...dj,d->...j", J, F)[..., None, :]).reshape(-1, 3)
+        M = A.T @ A
+        return np.linalg.det(M) if criterion == "d" else np.trace(M)
+
+    q, loss = polish(prob, start)
+    assert loss == pytest.approx(-value(q), rel=1e-9) and value(q) > value(start) * 1.01
+    lo, hi = robot.joint_limits_rad.T
+    h = 1e-5
+    for i in range(m):
+        for j in range(3):
+            if min(q[i, j] - lo[j], hi[j] - q[i, j]) > 1e-3:
+                e = np.zeros((m, 3))
+                e[i, j] = h
+                slope = (value(q + e) - value(q - e)) / (2 * h)
+                assert abs(slope) <= 1e-5 * value(q)
+
+
 @pytest.mark.parametrize("arm, m", [("3-link", 4), ("6-axis", 3)])
 def test_d_optimal_plan_admits_no_better_single_replacement(arm, m, root):
-    """The D-optimal exchange over a pool (scored by the closed forms) ends at a plan that no replacement of
-    one pose by any pool pose improves, each det computed independently by numpy's LU."""
+    """The D-optimal plan (the exchange over a pool scored by the closed forms, then polished) is one that no
+    replacement of one pose by any pool pose improves, each det computed independently by numpy's LU."""
     if arm == "3-link":
         robot, force, q_t = planar_robot([0.5, 0.35, 0.15]), F, np.radians([30.0, 40.0, -20.0])
         pool = candidate_pool(robot, 20.0)

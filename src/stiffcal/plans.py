@@ -696,8 +696,9 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
 
     z0 = plan[:, free].ravel()
     f0 = f(z0)
-    if not np.isfinite(f0) or f0 <= 0:
+    if not np.isfinite(f0) or f0 == 0:
         return plan, f0
+    scale = abs(f0)  # a 'max' criterion's loss is minus its value (negative): relative to its size all the same
     steps = POLISH_STEP_RAD * np.vstack([np.eye(z0.size), -np.eye(z0.size)])
 
     def differences(z):
@@ -706,7 +707,9 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
         zs = np.vstack([z, z + steps])
         q = np.broadcast_to(plan, (len(zs), m, n)).copy()
         q[:, :, free] = zs.reshape(len(zs), m, -1)
-        v = plan_loss(problem, q) / f0
+        v = plan_loss(problem, q) / scale
+        if problem.robot.cell is not None:  # a step out of the cell is refused, as in polish_plans
+            v = np.where(~problem.feasible(q).all(axis=-1), np.maximum(v, 1.0) * INFEASIBLE_FACTOR, v)
         k = z.size
         up, down = v[1:k + 1], v[k + 1:]
         with np.errstate(invalid="ignore"):  # a step onto a singular plan (loss inf): one-sided differences
@@ -716,10 +719,11 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
         return float(v[0]), np.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0)
 
     bounds = [(None if np.isinf(lo) else lo, None if np.isinf(hi) else hi) for lo, hi in _polish_bounds(problem, free, m)]
-    res = minimize(differences, z0, jac=True, method="L-BFGS-B", bounds=bounds,
-                   options=ROUGH_POLISH if rough else FULL_POLISH)
+    opts = CELL_POLISH if problem.robot.cell is not None else ROUGH_POLISH if rough else FULL_POLISH
+    res = minimize(differences, z0, jac=True, method="L-BFGS-B", bounds=bounds, options=opts)
     loss = f(res.x)
-    if np.isfinite(loss) and loss <= f0:
+    feasible = problem.robot.cell is None or problem.feasible(full(res.x)).all()
+    if np.isfinite(loss) and loss <= f0 and feasible:
         return full(res.x), loss
     return plan, f0
 
