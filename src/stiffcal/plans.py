@@ -8,7 +8,8 @@ whole candidate pool at once, and passes repeat until no pose changes. For O_t (
 candidate is scored in closed form from quantities of the pool computed once (:func:`exchange_scores`:
 the adjugate formula for up to 3 parameters, the Woodbury identity with the pool's quadratic forms
 beyond), a few vector operations per step for the whole pool, with exactly the values (and so the plans)
-of a general inverse of every candidate's information matrix. The same engine serves any linear model
+of a general inverse of every candidate's information matrix; D and T likewise (:func:`closed_form_scores`:
+the determinant lemma, traces). The same engine serves any linear model
 (:func:`fedorov_exchange`); a slot holding the same point as one already verified since the last change is
 not rescored, so a converged plan of M poses at k distinct points costs k scorings a pass. Every distinct
 exchanged plan is then polished in the continuum (L-BFGS-B on all M n angles, with the gradient of O_t
