@@ -144,16 +144,20 @@ def _inverse_traces(S, G, dim: int, norm: bool = True) -> tuple[np.ndarray, np.n
         if not norm:
             return num / det, None
         return num / det, np.sqrt(A11**2 + A22**2 + A33**2 + 2 * (A12**2 + A13**2 + A23**2)) / np.abs(det)
-    iu = np.triu_indices(dim)
+    inv = np.linalg.inv(_full_symmetric(S, dim))
+    return (np.einsum("...ij,...ji->...", inv, _full_symmetric(G, dim)),
+            np.linalg.norm(inv, axis=(-2, -1)) if norm else None)
 
-    def full(v):
-        v = np.moveaxis(np.asarray(v), 0, -1)
-        out = np.zeros(v.shape[:-1] + (dim, dim))
-        out[(..., *iu)] = v
-        out[(..., iu[1], iu[0])] = v
-        return out
-    inv = np.linalg.inv(full(S))
-    return np.einsum("...ij,...ji->...", inv, full(G)), np.linalg.norm(inv, axis=(-2, -1)) if norm else None
+
+def _full_symmetric(v, dim: int) -> np.ndarray:
+    """Symmetric dim x dim matrices (..., dim, dim) from their upper triangles, component first
+    (dim(dim+1)/2, ...)."""
+    iu = np.triu_indices(dim)
+    v = np.moveaxis(np.asarray(v), 0, -1)
+    out = np.zeros(v.shape[:-1] + (dim, dim))
+    out[(..., *iu)] = v
+    out[(..., iu[1], iu[0])] = v
+    return out
 
 
 @dataclass(frozen=True)
@@ -295,11 +299,7 @@ def _symmetric_det(S: np.ndarray, dim: int) -> np.ndarray:
     if dim == 3:
         a, b, c, d, e, f = S[:6]
         return a * (d * f - e * e) + b * (c * e - b * f) + c * (b * e - c * d)
-    iu = np.triu_indices(dim)
-    full = np.zeros((S.shape[1], dim, dim))
-    full[(slice(None), *iu)] = S.T
-    full[(slice(None), iu[1], iu[0])] = S.T
-    return np.linalg.det(full)
+    return np.linalg.det(_full_symmetric(S, dim))
 
 
 #: criteria whose exchange step has a closed form other than the L-optimal ones': D (the determinant lemma)
