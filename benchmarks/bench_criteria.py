@@ -6,13 +6,11 @@ pose and load of config/config.yaml) for D-optimality at M = 2, 3 and 6, T-optim
 (the reference the issue measures D against). The baseline is the code of commit ``BASELINE_COMMIT`` (before the
 closed forms of the exchange step for D and T: every candidate's loss from its information matrix's
 eigen-decomposition), extracted with ``git archive`` and run in a subprocess by the same measuring code as ours.
-Each figure is CPU seconds of the call (``time.process_time``, one BLAS thread), beside the baseline's, with
-whether both give the same plan (same loss to 1e-9, poses to 1e-3 deg), and each D figure as a ratio to O_t's
-(D's and T's plans differ from the baseline's since the 'max' criteria are polished in the continuum too, which
-the baseline skipped; the D-criterion of the polished plans is printed beside the baseline's),
-at the same M in our code. T's M = 6 plan differs from the baseline's for a reason older than this change (at
-0fbeb92 it is one pose repeated, O_t infinite; since the commits before the closed forms, f5aa8cc included, the
-plan of the current code, which identifies every compliance).
+Each figure is CPU seconds of the call (``time.process_time``, one BLAS thread), beside the baseline's, each D figure
+as a ratio to O_t's at the same M in our code, then det(M) of our plan over the baseline's and whether both give
+the same plan (same O_t to 1e-9, poses to 1e-3 deg). D's and T's plans differ from the baseline's: the 'max'
+criteria are now polished in the continuum after the exchange, which the baseline skipped (T's M = 6 plan also
+differed for an older reason: at 0fbeb92 it is one pose repeated, O_t infinite).
 
 Run: .venv/bin/python benchmarks/bench_criteria.py   (about 6 minutes, the baseline's D at M = 6 alone ~3)
 """
@@ -28,12 +26,13 @@ from stiffcal import api
 t0 = time.process_time()
 r = api.design("config/robots/kuka_kr210_r2700.yaml", [20, -60, 110, 30, 45, -20], [500, -300, -800],
                experiments={m}, criterion="{criterion}", progress=False)
+cpu = time.process_time() - t0
 from stiffcal.robot import load_robot
 from stiffcal.stiffness import information_matrix, observation_matrix
 import numpy as np
 robot = load_robot("config/robots/kuka_kr210_r2700.yaml")
 A = observation_matrix(robot.model_jacobian(np.radians(r.poses_deg)), np.array([500.0, -300.0, -800.0]))
-print(json.dumps(dict(cpu=time.process_time() - t0, O_t=[r.O_t], poses=[r.poses_deg.round(6).tolist()],
+print(json.dumps(dict(cpu=cpu, O_t=[r.O_t], poses=[r.poses_deg.round(6).tolist()],
                       det=float(np.linalg.det(information_matrix(A))))))
 """
 

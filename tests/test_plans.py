@@ -16,19 +16,20 @@ F = np.array([0.0, -1.0])
 QT = np.radians([60.0, 30.0])
 
 
+def planar_rows(links, q, force):
+    """Observation rows (..., 2, n) of a planar arm at poses q (..., n) [rad] with numpy only (eqs. 2-4)."""
+    L = np.asarray(links)
+    c = np.cumsum(q, axis=-1)
+    J = np.stack([-np.flip(np.cumsum(np.flip(L * np.sin(c), -1), -1), -1),
+                  np.flip(np.cumsum(np.flip(L * np.cos(c), -1), -1), -1)], axis=-2)
+    return J * np.einsum("...dj,d->...j", J, force)[..., None, :]
+
+
 def independent_ot(links, plans_deg, force, test_pose):
     """O_t of many plans (..., m, n) [deg] with numpy only (inverse via np.linalg.inv)."""
-    L = np.asarray(links)
-
-    def A_of(q):
-        c = np.cumsum(q, axis=-1)
-        J = np.stack([-np.flip(np.cumsum(np.flip(L * np.sin(c), -1), -1), -1),
-                      np.flip(np.cumsum(np.flip(L * np.cos(c), -1), -1), -1)], axis=-2)
-        return J * np.einsum("...dj,d->...j", J, force)[..., None, :]
-
-    A = A_of(np.radians(plans_deg))
+    A = planar_rows(links, np.radians(plans_deg), force)
     M = np.einsum("...mdi,...mdj->...ij", A, A)
-    At = A_of(test_pose)
+    At = planar_rows(links, test_pose, force)
     with np.errstate(all="ignore"):
         ok = np.linalg.cond(M) < 1e12
         Minv = np.linalg.inv(np.where(ok[..., None, None], M, np.eye(M.shape[-1])))
@@ -237,11 +238,7 @@ def test_max_criteria_plans_are_polished_to_a_stationary_point(criterion, rng):
     start = rng.uniform(-2.5, 2.5, (m, 3))
 
     def value(q):
-        c = np.cumsum(q, axis=-1)
-        L = np.array([0.5, 0.35, 0.15])
-        J = np.stack([-np.flip(np.cumsum(np.flip(L * np.sin(c), -1), -1), -1),
-                      np.flip(np.cumsum(np.flip(L * np.cos(c), -1), -1), -1)], axis=-2)
-        A = (J * np.einsum("...dj,d->...j", J, F)[..., None, :]).reshape(-1, 3)
+        A = planar_rows([0.5, 0.35, 0.15], q, F).reshape(-1, 3)
         M = A.T @ A
         return np.linalg.det(M) if criterion == "d" else np.trace(M)
 

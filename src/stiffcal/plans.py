@@ -458,19 +458,17 @@ def exchange_plans(problem: Problem, plans: np.ndarray, pool: np.ndarray, pool_A
     A = _plan_A(problem, plans)  # (S, m, d, p)
     slot_P = pose_information(A)
     idx = np.full((S, m), -1)
-    if key in L_OPTIMAL:
+    if key in L_OPTIMAL + CLOSED_FORM:
         forms = forms or pool_forms(pool_A)
+        pool_P = forms.info
+    if key in L_OPTIMAL:
         Xt, s2 = (problem.At, problem.sigma**2) if key == "ot" else (np.eye(p), 1.0)
 
         def score(_, __, M_rest):
             if scores is None:
                 return s2 * exchange_scores(forms, M_rest, Xt)
             return s2 * np.stack([scores(forms, M, Xt) for M in M_rest])
-        pool_P = forms.info
     elif key in CLOSED_FORM:
-        forms = forms or pool_forms(pool_A)
-        pool_P = forms.info
-
         def score(_, __, M_rest):
             return np.stack([closed_form_scores(key, forms, M) for M in M_rest])
     else:
@@ -620,6 +618,19 @@ INFEASIBLE_FACTOR = 1e3
 CELL_POLISH = dict(maxiter=150, ftol=1e-10, gtol=1e-10)
 
 
+def _outside_cell_refused(problem: Problem, q: np.ndarray, val: np.ndarray) -> np.ndarray:
+    """Relative losses val (S,) of plans q (S, m, n) [rad] with a plan the cell does not allow put far above the
+    start (:data:`INFEASIBLE_FACTOR`), so the line search backtracks (a finite value: the routine needs one)."""
+    if problem.robot.cell is None:
+        return val
+    return np.where(~problem.feasible(q).all(axis=-1), np.maximum(val, 1.0) * INFEASIBLE_FACTOR, val)
+
+
+def _polish_options(problem: Problem, rough: bool) -> dict:
+    """The L-BFGS-B options of a polish: :data:`CELL_POLISH` in a cell, else the rough or the full stop."""
+    return CELL_POLISH if problem.robot.cell is not None else ROUGH_POLISH if rough else FULL_POLISH
+
+
 def _polish_bounds(problem: Problem, free: np.ndarray, m: int) -> np.ndarray:
     """L-BFGS-B bounds (m n_free, 2) [rad] of the free joints of m poses: +-inf for full-turn joints."""
     lims = problem.robot.joint_limits_rad[free]
@@ -659,14 +670,9 @@ def polish_plans(problem: Problem, plans: np.ndarray, free: np.ndarray | None = 
         q = full(rows, Z)
         val, g = l_criterion_gradient(problem, q, free, At=At)
         val, g = val / f0[rows], g.reshape(len(rows), -1) / f0[rows, None]
-        if problem.robot.cell is not None:  # a step out of the cell is refused: far above the start, so the line
-            out = ~problem.feasible(q).all(axis=-1)  # search backtracks (a finite value: the routine needs one)
-            val = np.where(out, np.maximum(val, 1.0) * INFEASIBLE_FACTOR, val)
-        return val, g
+        return _outside_cell_refused(problem, q, val), g
 
-    opts = ROUGH_POLISH if rough else FULL_POLISH
-    if problem.robot.cell is not None:
-        opts = CELL_POLISH
+    opts = _polish_options(problem, rough)
     Z0 = plans[go][:, :, free].reshape(len(go), -1)
     Z, _ = lbfgsb_lockstep(fun_grad, Z0, _polish_bounds(problem, free, m), **opts)
     out, losses = plans.copy(), f0.copy()
@@ -708,9 +714,7 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
         zs = np.vstack([z, z + steps])
         q = np.broadcast_to(plan, (len(zs), m, n)).copy()
         q[:, :, free] = zs.reshape(len(zs), m, -1)
-        v = plan_loss(problem, q) / scale
-        if problem.robot.cell is not None:  # a step out of the cell is refused, as in polish_plans
-            v = np.where(~problem.feasible(q).all(axis=-1), np.maximum(v, 1.0) * INFEASIBLE_FACTOR, v)
+        v = _outside_cell_refused(problem, q, plan_loss(problem, q) / scale)
         k = z.size
         up, down = v[1:k + 1], v[k + 1:]
         with np.errstate(invalid="ignore"):  # a step onto a singular plan (loss inf): one-sided differences
@@ -720,8 +724,7 @@ def polish(problem: Problem, plan: np.ndarray, free: np.ndarray | None = None, r
         return float(v[0]), np.nan_to_num(g, nan=0.0, posinf=0.0, neginf=0.0)
 
     bounds = [(None if np.isinf(lo) else lo, None if np.isinf(hi) else hi) for lo, hi in _polish_bounds(problem, free, m)]
-    opts = CELL_POLISH if problem.robot.cell is not None else ROUGH_POLISH if rough else FULL_POLISH
-    res = minimize(differences, z0, jac=True, method="L-BFGS-B", bounds=bounds, options=opts)
+    res = minimize(differences, z0, jac=True, method="L-BFGS-B", bounds=bounds, options=_polish_options(problem, rough))
     loss = f(res.x)
     feasible = problem.robot.cell is None or problem.feasible(full(res.x)).all()
     if np.isfinite(loss) and loss <= f0 and feasible:
