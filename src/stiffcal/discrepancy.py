@@ -581,8 +581,11 @@ class VarianceModel:
     dispersion 2 that chi-square variances have (McCullagh & Nelder, *Generalized Linear Models*, 2nd ed.,
     1989, ch. 8; Carroll & Ruppert, *Transformation and Weighting in Regression*, 1988, ch. 3).
 
+    The same GLM, fitted per configuration to the residuals of generalised least squares, refines it
+    (:func:`residual_variance_model`).
+
     weights: (N,) 1 / sigma_i relative to the median row; p_value: of the likelihood-ratio test against a
-    constant variance; sigma_ratio: largest over smallest sigma_i of the rows."""
+    constant variance that decided to weight; sigma_ratio: largest over smallest sigma_i of the rows."""
     weights: np.ndarray
     p_value: float
     sigma_ratio: float
@@ -609,13 +612,7 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
         return None
     s2 = s2 / df
     s2 = s2 / np.median(s2)  # metres squared are tiny; the log link's intercept absorbs the scale
-    reach = max(robot.reach_m, 1e-9)
-
-    def covariates(q):
-        p = as_xyz(robot.fk(q))[:, : robot.task_dim] / reach
-        return np.column_stack([np.ones(len(p)), p, (p**2).sum(1)])
-
-    Z = covariates(meas.q[[r[0] for r in groups]])
+    Z = position_covariates(robot, meas.q[[r[0] for r in groups]])
     family = sm.families.Gamma(sm.families.links.Log())
     use = np.ones(len(s2), bool)
 
@@ -647,9 +644,70 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
     p = float(stats.chi2.sf(lr, Z.shape[1] - 1))
     if not np.isfinite(p) or p >= HETEROSCEDASTICITY_ALPHA:
         return None
-    log_s2 = covariates(meas.q) @ full.params
+    log_s2 = position_covariates(robot, meas.q) @ full.params
     sigma = np.exp(0.5 * (log_s2 - np.median(log_s2)))
     return VarianceModel(1.0 / sigma, p, float(sigma.max() / sigma.min()))
+
+
+def position_covariates(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """(N, d + 2): the covariates z = [1, x, y (, z), |p|^2] of :class:`VarianceModel` at poses q (N, n) [rad],
+    the tool point p over the reach."""
+    p = as_xyz(robot.fk(q))[:, : robot.task_dim] / max(robot.reach_m, 1e-9)
+    return np.column_stack([np.ones(len(p)), p, (p**2).sum(1)])
+
+
+#: most refits of the noise model on the error model's residuals (:func:`residual_variance_model`), and the
+#: largest change of a weight (relative) at which they stop
+VARIANCE_REFITS = 3
+VARIANCE_CONVERGED = 0.02
+
+
+def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test: bool = True) -> VarianceModel | None:
+    """The correction of the rows' noise weights that the residuals of the union of all extensions in
+    generalised least squares (``gls``: weighted and whitened by the error model) show, or None when the data
+    have fewer than 8 configurations with residual degrees of freedom, or (``test``: the rows are not weighted
+    yet) a constant correction is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`; rows already weighted
+    take the correction whatever its p-value (the variance function refined, as iterated reweighting does).
+
+    Per configuration c its residual sum of squares RSS_c, on df_c = n_c w - h_c (h_c its share of the hat
+    matrix's trace), has the expectation kappa_c^2 sigma^2 df_c with kappa_c the factor by which its rows'
+    noise differs from the weights': RSS_c / df_c is fitted by the Gamma GLM of :class:`VarianceModel` on the
+    configuration's position (Carroll & Ruppert, *Transformation and Weighting in Regression*, 1988, sec. 3.3:
+    the variance function estimated from the residuals of a generalised least-squares fit). These residuals hold
+    every row, the shared errors whitened out, where the replicates' spread (:func:`variance_model`) holds few
+    rows and, on a protocol with revisits, the robot's return error too. Returns the factors 1 / kappa_i of
+    every row (N,) relative to the median row."""
+    import statsmodels.api as sm
+
+    X, y = gls.union(), gls.y
+    norm = np.linalg.norm(X, axis=0)
+    Q = _span(X / np.where(norm > 0, norm, 1.0), np.arange(X.shape[1]))  # the rank rule of fit()
+    r = (y - Q @ (Q.T @ y)).reshape(-1, gls.d)
+    h = (Q**2).sum(1).reshape(-1, gls.d).sum(1)
+    configs = np.unique(meas.config)
+    rss = np.array([(r[meas.config == c] ** 2).sum() for c in configs])
+    dof = np.array([gls.d * (meas.config == c).sum() - h[meas.config == c].sum() for c in configs])
+    use = (dof > 0.5) & (rss > 0)
+    if use.sum() < 8:
+        return None
+    first = np.array([np.flatnonzero(meas.config == c)[0] for c in configs])
+    Z = position_covariates(robot, meas.q[first])[use]
+    s2 = rss[use] / dof[use]
+    s2 = s2 / np.median(s2)
+    family = sm.families.Gamma(sm.families.links.Log())
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            full = sm.GLM(s2, Z, family=family, var_weights=dof[use]).fit(scale=2.0)
+            null = sm.GLM(s2, Z[:, :1], family=family, var_weights=dof[use]).fit(scale=2.0)
+    except (ValueError, np.linalg.LinAlgError, Warning):
+        return None
+    p = float(stats.chi2.sf(max(null.deviance - full.deviance, 0.0) / 2.0, Z.shape[1] - 1))
+    if not np.isfinite(p) or (test and p >= HETEROSCEDASTICITY_ALPHA):
+        return None
+    log_s2 = position_covariates(robot, meas.q) @ full.params
+    kappa = np.exp(0.5 * (log_s2 - np.median(log_s2)))
+    return VarianceModel(1.0 / kappa, p, float(kappa.max() / kappa.min()))
 
 
 # --- closed testing over the catalogue ---------------------------------------------------------------------
@@ -918,8 +976,9 @@ class ConfigurationModel:
     With several targets every target of a configuration has its own response, and with moments the load
     is the wrench W: y = C_ct W + o_ct for the rows of target t at configuration c, y every measured component.
 
-    basis: per configuration and target (rows (L_c,), orthonormal basis (L_c, r_c) of the span of [F, 1] (or
-    [W, 1]) over its rows); rank: d sum_c r_c, the number of parameters of G."""
+    basis: per configuration (rows (L_c,), orthonormal basis (L_c d, r_c) of the span of [F, 1] (or [W, 1]) of
+    each target, for every measured component, over its rows flattened row by row, coordinate by coordinate,
+    whitened by the error model); rank: sum_c r_c, the number of parameters of G."""
     basis: tuple
     rank: int
     d: int
@@ -943,24 +1002,24 @@ class ConfigurationModel:
                 Z = np.zeros((len(rows), load.shape[1] + 1))
                 Z[mine] = np.hstack([load[rows[mine]], np.ones((int(mine.sum()), 1))]) * w[rows[mine], None]
                 cols.append(Z)
-            Z = np.hstack(cols)
+            Z = np.kron(np.hstack(cols), np.eye(d))  # every measured component its own response (rows flattened)
             if c in roots:
                 order, W = roots[c]
                 pos = {int(r): i for i, r in enumerate(rows)}
-                Z = W @ Z[[pos[int(r)] for r in order]]
                 rows = order
+                Z = W @ Z[(np.array([pos[int(r)] for r in order])[:, None] * d + np.arange(d)).ravel()]
             U, sv, _ = np.linalg.svd(Z, full_matrices=False)
             r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
             blocks.append((rows, U[:, :r]))
-            rank += r * d
+            rank += r
         return cls(tuple(blocks), rank, d)
 
     def residualise(self, A: np.ndarray) -> np.ndarray:
         """(N d, ...) stacked rows -> the same with G's fit removed, configuration by configuration."""
         B = A.reshape(-1, self.d, *A.shape[1:]).copy()
         for rows, Q in self.basis:
-            block = B[rows]
-            B[rows] = block - np.einsum("ir,jr,j...->i...", Q, Q, block)
+            block = B[rows].reshape(len(rows) * self.d, -1)
+            B[rows] = (block - Q @ (Q.T @ block)).reshape(B[rows].shape)
         return B.reshape(A.shape)
 
 
@@ -1085,8 +1144,23 @@ def noise_variance(des: Design, meas: Measurements) -> Noise:
     return Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
 
 
+def return_motion(robot: Robot, ob: Observed):
+    """``motion(q (R, n) [rad], target (R,)) -> (R, w, n)``: the loading of the robot's return error on rows of
+    the quantities ``ob`` (:func:`stiffcal.errormodel.return_loading`: the Jacobian of the row's target, and of
+    the rotation weighted by ``ob.rad_weight``, normalised by the tool point's)."""
+    from . import errormodel as EM
+
+    offsets = target_offsets(robot, ob.names)
+
+    def motion(q: np.ndarray, target: np.ndarray) -> np.ndarray:
+        J6, R, _ = tool_twists(robot, q)
+        rows = observe(robot, J6, R, offsets[target][:, None, :], ob.orientation, ob.rad_weight)
+        return EM.return_loading(rows, observe(robot, J6, R, np.zeros((len(q), 1, 3)), False))
+    return motion
+
+
 def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.ndarray, w0: np.ndarray, rw: float,
-                    alpha: float):
+                    alpha: float, motion=None):
     """The rows' error model (:func:`stiffcal.errormodel.estimate`: which reference reading every row was taken
     from, the errors they share, by REML) and the verdict's ``zero_point``, for the loaded rows ``keep`` (bool
     (N,)) of ``meas`` whose weighted design is ``des`` (weights w (N_kept,)), the unloaded rows weighted by
@@ -1098,7 +1172,8 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     deleted residual: a blunder must not be read as the shared error of its group), and named when its
     Bonferroni-adjusted p (times the unloaded rows still in) is at most ``alpha``, up to
     :data:`ZERO_POINT_MAX_OUTLIERS` of them (at least one); then whether the others as a whole moved from zero
-    (a drift, a disturbed target). Returns ``(ErrorModel, zero_point)``."""
+    (a drift, a disturbed target). motion: the return's loading (:func:`return_motion`; None: isotropic).
+    Returns ``(ErrorModel, zero_point)``."""
     from . import errormodel as EM
 
     N = int(keep.sum())
@@ -1112,7 +1187,7 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     out, p_out = [], []
 
     def model(excluded, lrt=True):
-        st = EM.reading_structure(meas, keep, excluded)
+        st = EM.reading_structure(meas, keep, excluded, motion)
         Y = np.vstack([Yl, zw[st.zero_index]]) if len(st.zero_index) else Yl
         weights = np.concatenate([w, w0[st.zero_index]])
         return st, Y, weights, EM.estimate(st, Y, weights, groups, Xu, lrt=lrt)
@@ -1351,7 +1426,18 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
     w = np.ones(m.n_rows) if vm is None else vm.weights
     des = des_all.rows(keep).weighted(w)
     w0 = zero_weights(meas, keep, w)
-    em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha)
+    motion = return_motion(robot, ob_full)
+    em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
+    for _ in range(VARIANCE_REFITS):  # the noise model refitted on the error model's residuals
+        step = residual_variance_model(robot, m, gls_design(des, em), test=vm is None)
+        if step is None or np.abs(np.log(step.weights)).max() < VARIANCE_CONVERGED:
+            break
+        w = w * step.weights
+        w = w / np.median(w)
+        vm = VarianceModel(w, step.p_value if vm is None else vm.p_value, float(w.max() / w.min()))
+        des = des_all.rows(keep).weighted(w)
+        w0 = zero_weights(meas, keep, w)
+        em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
     weighted, des = des, gls_design(des, em)
     noise = Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
     check_noise(m, noise)

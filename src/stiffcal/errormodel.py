@@ -25,18 +25,25 @@ rows can show a shared error (unloaded rows with noise, or several visits); rows
 (one visit, no unloaded row) are taken as independent, as nothing in them could tell a shared reference
 from a misfit of the model.
 
-**The components**, each a random effect per group, one per measured component (x, y (, z), and the weighted
-rotation), independent between groups (Searle, Casella & McCulloch, *Variance Components*, 1992, ch. 6):
+**The components**, each a random effect per group, independent between groups (Searle, Casella & McCulloch,
+*Variance Components*, 1992, ch. 6):
 
 - ``reference`` (a known reference reading: its rows), ``visit`` and ``configuration`` (per visit, per
-  configuration, where the reference is not known), of every target apart: the reference reading's error,
-  of variance ``lambda sigma_i^2`` relative to the row's own noise (the same tracker at the same place);
-- ``return``: the robot's pose error on a visit measured against another visit's reference, shared by all its
-  targets, of variance ``lambda sigma_0^2`` in metres whatever the tracker's noise (sigma_0 the noise of the
-  median row).
+  configuration, where the reference is not known), of every target apart: the reference reading's error, one
+  effect per measured component (x, y (, z), and the weighted rotation), of variance ``lambda sigma_i^2``
+  relative to the row's own noise (the same tracker at the same place);
+- ``return``: the robot's pose error on a visit measured against another visit's reference, a joint error
+  ``dq ~ N(0, lambda sigma_0^2 I)`` (sigma_0 the noise of the median row) that moves every target and the
+  rotation of the visit's rows through the arm's Jacobian at the configuration, normalised so that the tool
+  point's displacement has the variance ``lambda sigma_0^2`` per coordinate on average everywhere
+  (:func:`return_loading`: the
+  repeatability is stated as a distance of the tool point, ISO 9283): in metres whatever the tracker's noise,
+  and as anisotropic as the arm (a planar arm near a stretched pose hardly moves along its links).
 
-Rows of different configurations are independent, so the covariance is block diagonal by configuration:
-``V_c = sigma^2 (I + sum_k lambda_k Z_ck Z_ck^T) (x) I_w`` on the rows weighted by the tracker's noise model.
+Rows of different configurations are independent, so the covariance is block diagonal by configuration: on
+the rows weighted by the tracker's noise model and flattened row by row, coordinate by coordinate,
+``V_c = sigma^2 (I + sum_k lambda_k Z_ck Z_ck^T)`` with ``Z = Z_group (x) I_w`` for the reference readings and
+the group's loadings for the return.
 
 **Estimation** by restricted maximum likelihood (Patterson & Thompson 1971; Harville, *JASA* 72, 1977) on the
 residuals of the union of every catalogue cause, the unloaded rows (of mean zero) included: the union holds any
@@ -44,10 +51,11 @@ catalogue effect, so none of them is read as a shared error, and the whole data 
 pure error's contrasts alone hold too little of a reference shared by a configuration: the lack-of-fit tests on
 them were anticonservative, 7 % at 1 % on a protocol with a reference per configuration). An effect outside the
 catalogue can only make a component larger (its lack of fit then harder to see), not smaller. Our own
-implementation, for speed and for the structure statsmodels' ``MixedLM`` (univariate, unweighted) does not
-take: per configuration H = I + Z Lambda Z^T has a few groups, so every likelihood is the Woodbury identity on
-sufficient statistics reduced once (Z^T Z, Z^T Y, Z^T X per block; the fixed effects in an orthonormal basis),
-about a millisecond for a 6-axis data set; it is checked against ``MixedLM`` in the tests. A component's
+implementation, for speed and for the structure statsmodels' ``MixedLM`` (univariate, unweighted, no loadings
+across the measured components) does not take: per configuration H = I + Z Lambda Z^T has a few columns, so
+every likelihood is the Woodbury identity on sufficient statistics reduced once (Z^T Z, Z^T Y, Z^T X per block;
+the fixed effects in an orthonormal basis), about a millisecond for a 6-axis data set; it is checked against
+``MixedLM`` and against the dense likelihood in the tests. A component's
 likelihood-ratio p-value is against the boundary mixture 1/2 chi^2_0 + 1/2 chi^2_1 (Self & Liang, *JASA* 82,
 1987).
 
@@ -89,10 +97,13 @@ KINDS = {"reference": "one known reference reading (its rows)",
 class Component:
     """One variance component: ``label`` (R,) int, the group of every model row (-1: not in it); ``absolute``:
     its variance is in metres whatever the tracker's noise (the return's pose error; else relative to the
-    row's noise, the reference reading's error)."""
+    row's noise, the reference reading's error); ``loading`` (R, w, r) or None: the motion of every row's
+    measured components per unit of the group's effect (the return: the robot's joint error, through the
+    Jacobian of what the row measures), else None: one independent effect per measured component."""
     name: str
     label: np.ndarray
     absolute: bool = False
+    loading: np.ndarray | None = None
 
     @property
     def n_groups(self) -> int:
@@ -162,11 +173,15 @@ def _file_rows(meas, keep: np.ndarray, zero_out) -> dict:
         config, target, exact, group = log.config, log.target, log.exact, log.group
     rows = np.concatenate([file_l, file_u])
     loaded = np.concatenate([np.ones(len(file_l), bool), np.zeros(len(file_u), bool)])
+    first = {int(c): i for i, c in reversed(list(enumerate(meas.config)))}  # a loaded row of every configuration
+    zero_q = np.array([meas.q[first[int(c)]] if int(c) in first else np.full(meas.q.shape[1], np.nan)
+                       for c in meas.zero_config[zero_idx]]).reshape(-1, meas.q.shape[1])
     return {"rows": rows, "loaded": loaded, "loaded_idx": loaded_idx, "zero_idx": zero_idx,
             "time": get["time"][rows], "label": None if get["label"] is None else get["label"][rows],
             "visit": None if get["visit"] is None else get["visit"][rows],
             "reference": None if get["reference"] is None else get["reference"][rows],
-            "config": config[rows], "target": target[rows], "exact": exact[rows], "group": group[rows]}
+            "config": config[rows], "target": target[rows], "exact": exact[rows], "group": group[rows],
+            "q": np.vstack([meas.q[loaded_idx], zero_q])}
 
 
 def _visits(f: dict) -> np.ndarray:
@@ -244,10 +259,14 @@ def _pairs(a: np.ndarray, b: np.ndarray, where: np.ndarray) -> np.ndarray:
     return lab
 
 
-def reading_structure(meas, keep: np.ndarray, zero_out=()) -> ReadingStructure:
+def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None) -> ReadingStructure:
     """The :class:`ReadingStructure` of the loaded rows ``keep`` (bool (N,)) of ``meas`` and its unloaded rows but
     ``zero_out`` (indices into ``zero_rows``: blunders among them), from the ``reference`` and ``visit``
-    columns, the exact-zero reference rows, the ``pose_id`` labels and the time order (module docstring)."""
+    columns, the exact-zero reference rows, the ``pose_id`` labels and the time order (module docstring).
+
+    motion: ``motion(q (R, n) [rad], target (R,)) -> (R, w, n)``, the motion of what each model row measures
+    per unit joint error at its configuration (the return's loading, :func:`return_loading`), or None: the
+    return taken as an independent error per measured component."""
     f = _file_rows(meas, np.asarray(keep, bool), zero_out)
     loaded_cfg = set(f["config"][f["loaded"]].tolist())
     at_loaded = np.array([c in loaded_cfg for c in f["config"]])
@@ -278,7 +297,9 @@ def reading_structure(meas, keep: np.ndarray, zero_out=()) -> ReadingStructure:
     comps.append(Component("return", _renumber(np.where(away & model, visit, -1)), absolute=True))
     # the model rows: loaded first (in the measurements' order), then the unloaded rows with noise
     idx = np.flatnonzero(model)
-    comps = [Component(c.name, _renumber(c.label[idx]), c.absolute) for c in comps]
+    loading = None if motion is None else motion(f["q"][idx], f["target"][idx])
+    comps = [Component(c.name, _renumber(c.label[idx]), c.absolute, loading if c.name == "return" else None)
+             for c in comps]
     comps = _pruned(comps)
     cfg = f["config"][idx]
     block = _renumber(cfg)
@@ -302,6 +323,19 @@ def reading_structure(meas, keep: np.ndarray, zero_out=()) -> ReadingStructure:
                             (), np.asarray(f["time"][idx], float), ref_time[idx])
 
 
+def return_loading(jacobian: np.ndarray, tool_jacobian: np.ndarray) -> np.ndarray:
+    """(R, w, n): the loading of the return component, the Jacobian of what each row measures ``jacobian``
+    (R, w, n) [m/rad, rotation rows weighted as the rows are] scaled by sqrt(d) / ||J_tool||_F with
+    ``tool_jacobian`` (R, d, n) [m/rad] the tool point's position Jacobian at the row's configuration: a joint
+    error N(0, lambda sigma_0^2 I) then moves the tool point by lambda sigma_0^2 per coordinate on average at
+    every configuration, its repeatability (RMS distance, ISO 9283 sec. 7.2.2) the same everywhere, and every
+    target and the rotation move with it as the arm's geometry says. A zero tool Jacobian (the arm cannot move its
+    tool point) leaves the loading unscaled."""
+    d = tool_jacobian.shape[1]
+    norm = np.sqrt(np.einsum("rdn,rdn->r", tool_jacobian, tool_jacobian))
+    return jacobian * (np.sqrt(d) / np.where(norm > 0, norm, 1.0))[:, None, None]
+
+
 def independent(n_loaded: int) -> ReadingStructure:
     """The structure of n_loaded rows taken as independent (no shared reference, no unloaded row)."""
     t = np.arange(n_loaded, dtype=float)
@@ -317,7 +351,7 @@ def _pruned(comps: list[Component]) -> list[Component]:
         counts = np.bincount(c.label[c.label >= 0]) if (c.label >= 0).any() else np.zeros(0, int)
         if not np.any(counts >= 2):
             continue
-        key = (c.absolute, tuple(c.label.tolist()))
+        key = (c.absolute, c.loading is not None, tuple(c.label.tolist()))
         if key in seen:
             continue
         seen.append(key)
@@ -349,9 +383,10 @@ def _kind(f: dict, ref: np.ndarray, visit: np.ndarray, known: np.ndarray, holder
 
 @dataclass(frozen=True)
 class _Batch:
-    """Blocks with the same number g of random-effect groups, reduced once for the Woodbury identity
-    H^-1 = I - Z D (I + D Z^T Z D)^-1 D Z^T, D = diag(sqrt(lambda)) per group (Henderson; Searle et al. 1992,
-    sec. 6.9): comp (g,) the component of each group; ZtZ (B, g, g); ZtY (B, g, w); ZtX (B, g, w, p)."""
+    """Blocks with the same random-effect columns (m of them, by component), reduced once for the Woodbury
+    identity H^-1 = I - Z D (I + D Z^T Z D)^-1 D Z^T, D = diag(sqrt(lambda)) per column (Henderson; Searle et
+    al. 1992, sec. 6.9), the rows flattened: comp (m,) the component of each column; ZtZ (B, m, m); ZtY (B, m);
+    ZtX (B, m, p)."""
     comp: np.ndarray
     ZtZ: np.ndarray
     ZtY: np.ndarray
@@ -367,21 +402,20 @@ def _fixed(block: dict) -> np.ndarray:
 class _Likelihood:
     """The REML log-likelihood of a variance-components model over independent blocks (module docstring),
     from sufficient statistics reduced once: with H = I + Z Lambda Z^T per block, every term needs only the small
-    matrices of :class:`_Batch` and the totals Y^T Y, X^T Y, X^T X (columns of X scaled to unit norm)."""
+    matrices of :class:`_Batch` and the totals Y^T Y, X^T Y, X^T X (columns of X scaled to unit norm), the rows
+    flattened row by row, coordinate by coordinate."""
     batches: list
     yty: float
     xty: np.ndarray
     xtx: np.ndarray
     n_obs: int
     rank: int
-    width: int
 
     @classmethod
     def of(cls, blocks: list[dict], comps: list[int]) -> "_Likelihood":
-        """blocks: per configuration ``Y`` (n, w), ``Z`` {k: (n, g)}, ``X`` (n, w, p) and ``D`` (n, w, k) or None
+        """blocks: per configuration ``Y`` (n, w), ``Z`` {k: (n w, m)}, ``X`` (n, w, p) and ``D`` (n, w, k) or None
         (the fixed effects, :func:`_fixed`); comps: the components' indices (their lambdas, in this order)."""
         fixed = [_fixed(b) for b in blocks]
-        width = blocks[0]["Y"].shape[1]
         scale = np.sqrt(sum(np.einsum("nwp,nwp->p", X, X) for X in fixed))  # unit norm, as discrepancy.fit
         scale[scale == 0] = 1.0
         stacked = np.concatenate([(X / scale).reshape(-1, X.shape[-1]) for X in fixed])
@@ -391,39 +425,38 @@ class _Likelihood:
         yty, xty = 0.0, np.zeros(rank)
         by_size: dict[tuple, list] = {}
         for b, X in zip(blocks, fixed):
-            X = X @ T
-            Y = b["Y"]
-            yty += float((Y**2).sum())
-            xty += np.einsum("nwp,nw->p", X, Y)
+            X = (X @ T).reshape(-1, rank)
+            Y = b["Y"].ravel()
+            yty += float(Y @ Y)
+            xty += X.T @ Y
             parts = [(i, b["Z"][k]) for i, k in enumerate(comps) if k in b["Z"]]
             if not parts:
                 continue
             Z = np.hstack([z for _, z in parts])
             comp = np.concatenate([np.full(z.shape[1], i) for i, z in parts])
-            by_size.setdefault(tuple(comp), []).append((Z.T @ Z, Z.T @ Y, np.einsum("ng,nwp->gwp", Z, X)))
+            by_size.setdefault(tuple(comp), []).append((Z.T @ Z, Z.T @ Y, Z.T @ X))
         batches = [_Batch(np.array(key, int), np.stack([p[0] for p in v]), np.stack([p[1] for p in v]),
                           np.stack([p[2] for p in v])) for key, v in by_size.items()]
-        n_obs = sum(len(b["Y"]) for b in blocks) * width
-        return cls(batches, yty, xty, np.eye(rank), n_obs, rank, width)
+        n_obs = sum(b["Y"].size for b in blocks)
+        return cls(batches, yty, xty, np.eye(rank), n_obs, rank)
 
     def parts(self, lam: np.ndarray):
-        """(sum of log|H| over blocks (per coordinate), log det M up to a constant, residual quadratic form Q),
-        M = X^T H^-1 X in the orthonormal basis of the fixed effects (full rank)."""
+        """(log|H| summed over blocks, log det M up to a constant, residual quadratic form Q), M = X^T H^-1 X in
+        the orthonormal basis of the fixed effects (full rank)."""
         logdet, Q = 0.0, self.yty
         M, b = self.xtx.copy(), self.xty.copy()
         for bt in self.batches:
-            d = np.sqrt(np.asarray(lam, float)[bt.comp])  # (g,)
+            d = np.sqrt(np.asarray(lam, float)[bt.comp])  # (m,)
             C = np.eye(len(d)) + d[None, :, None] * bt.ZtZ * d[None, None, :]
             L = np.linalg.cholesky(C)
             logdet += 2.0 * float(np.log(np.diagonal(L, axis1=1, axis2=2)).sum())
-            a = d[None, :, None] * bt.ZtY  # (B, g, w)
-            bx = d[None, :, None, None] * bt.ZtX  # (B, g, w, p)
-            B, g, w, p = bx.shape
-            sol = np.linalg.solve(C, np.concatenate([a, bx.reshape(B, g, w * p)], axis=2))
-            sa, sx = sol[:, :, :w], sol[:, :, w:]
+            a = d[None, :] * bt.ZtY  # (B, m)
+            bx = d[None, :, None] * bt.ZtX  # (B, m, p)
+            sol = np.linalg.solve(C, np.concatenate([a[:, :, None], bx], axis=2))
+            sa, sx = sol[:, :, 0], sol[:, :, 1:]
             Q -= float((a * sa).sum())
-            flat = bx.reshape(-1, p)
-            M -= flat.T @ sx.reshape(-1, p)
+            flat = bx.reshape(-1, bx.shape[-1])
+            M -= flat.T @ sx.reshape(-1, bx.shape[-1])
             b -= flat.T @ sa.reshape(-1)
         logdet_M = 0.0
         if self.rank:
@@ -442,8 +475,8 @@ class _Likelihood:
         fixed at ``sigma2``)."""
         logdet, logdet_M, Q = self.parts(lam)
         if sigma2 is None:
-            return -0.5 * (self.width * logdet + logdet_M + self.df * np.log(Q / self.df))
-        return -0.5 * (self.width * logdet + logdet_M + self.df * np.log(sigma2) + Q / sigma2)
+            return -0.5 * (logdet + logdet_M + self.df * np.log(Q / self.df))
+        return -0.5 * (logdet + logdet_M + self.df * np.log(sigma2) + Q / sigma2)
 
     def sigma2(self, lam: np.ndarray) -> float:
         return self.parts(lam)[2] / max(self.df, 1)
@@ -489,6 +522,14 @@ def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict
 
 # --- the error model -------------------------------------------------------------------------------------------
 
+def _apply(M: np.ndarray, A: np.ndarray, n_out: int | None = None) -> np.ndarray:
+    """M (n_out w, n w) applied to the rows of A (n, w, ...) flattened row by row, coordinate by coordinate:
+    (n_out, w, ...)."""
+    n, w = A.shape[:2]
+    rest = A.shape[2:]
+    return (M @ A.reshape(n * w, -1)).reshape((n if n_out is None else n_out, w) + rest)
+
+
 @dataclass(frozen=True)
 class ErrorModel:
     """The fitted error model of one data set (module docstring).
@@ -497,8 +538,9 @@ class ErrorModel:
     estimable); estimable (K,) bool; p_values (K,): likelihood-ratio p of each component (None where not
     estimable); stage: what the variance components were estimated on; sigma2 [m^2 of the median row], df,
     source: the error variance the tests use; ss_pe, df_pe: the whitened pure error of the loaded rows;
-    blocks: per configuration ``(loaded rows (n_L,), unloaded model rows (n_U,), W (n_L, n_L), B (n_L, n_U))``
-    with W = H_{L|U}^{-1/2} and B = H_LU H_UU^-1 (only for configurations whose rows share an error);
+    blocks: per configuration ``(loaded rows (n_L,), unloaded model rows (n_U,), W (n_L w, n_L w), B (n_L w,
+    n_U w))`` with W = H_{L|U}^{-1/2} and B = H_LU H_UU^-1 on the rows flattened row by row, coordinate by
+    coordinate (only for configurations whose rows share an error);
     q_unloaded: the unloaded rows' quadratic form y_U^T H_UU^-1 y_U, on df_unloaded; notes."""
     structure: ReadingStructure
     ratios: np.ndarray
@@ -526,7 +568,7 @@ class ErrorModel:
         is zero on the unloaded rows, so it needs no conditioning)."""
         out = np.array(A, float, copy=True)
         for rows, _, W, _ in self.blocks:
-            out[rows] = np.einsum("ij,j...->i...", W, A[rows])
+            out[rows] = _apply(W, out[rows])
         return out
 
     def whiten_observations(self, Y: np.ndarray) -> np.ndarray:
@@ -538,8 +580,8 @@ class ErrorModel:
         regressor that is not zero there, such as a drift) -> W (A_L - B A_U) per configuration."""
         out = np.array(A, float, copy=True)
         for rows, zrows, W, B in self.blocks:
-            block = A[rows] - np.einsum("iu,u...->i...", B, A_unloaded[zrows]) if len(zrows) else A[rows]
-            out[rows] = np.einsum("ij,j...->i...", W, block)
+            block = out[rows] - _apply(B, A_unloaded[zrows], len(rows)) if len(zrows) else out[rows]
+            out[rows] = _apply(W, block)
         return out
 
     def adjusted(self, Y: np.ndarray) -> np.ndarray:
@@ -547,27 +589,7 @@ class ErrorModel:
         out = np.array(Y, float, copy=True)
         for rows, zrows, _, B in self.blocks:
             if len(zrows):
-                out[rows] -= B @ self.zero_y[zrows]
-        return out
-
-    def blups(self, resid: np.ndarray, weights: np.ndarray) -> dict:
-        """The best linear unbiased predictions of every component's group effects (Henderson 1975; Searle et al.
-        1992, sec. 7.4): {name: (G, w) [weighted m]} from the residuals ``resid`` (R, w) of every model row (loaded
-        rows less the fit, unloaded rows as they are; weighted by ``weights`` (R,) as :func:`estimate` took them):
-        u_k = lambda_k Z_k^T H^-1 r per configuration."""
-        st = self.structure
-        out = {c.name: np.zeros((c.n_groups, resid.shape[1])) for c in st.components}
-        groups = np.zeros(len(resid), int)
-        for b in _block_arrays(st, resid, groups[: st.n_loaded], None, weights):
-            rows = b["rows"]
-            H = np.eye(len(rows))
-            for k, Z in b["Z"].items():
-                H += self.ratios[k] * (Z @ Z.T)
-            Hr = np.linalg.solve(H, b["Y"])
-            for k, Z in b["Z"].items():
-                comp = st.components[k]
-                lab = np.unique(comp.label[rows][comp.label[rows] >= 0])
-                out[comp.name][lab] = self.ratios[k] * (Z.T @ Hr)
+                out[rows] -= _apply(B, self.zero_y[zrows], len(rows))
         return out
 
     def components(self) -> dict:
@@ -585,60 +607,96 @@ class ErrorModel:
                 "shared_error": self.shared}
 
 
+def _group_columns(comp: Component, rows: np.ndarray, weights: np.ndarray, w: int) -> np.ndarray | None:
+    """(n w, m): the columns of component ``comp``'s random effects on a block's model rows ``rows`` (n,), the
+    rows flattened row by row, coordinate by coordinate; None where no row is in it. Without a loading: one
+    effect per group and measured component (Z (x) I_w; entries 1, or the row's weight for a component in
+    metres); with one: per group the rows' weighted loadings, reduced to their column space (the same
+    covariance Z Z^T with as few columns as its rank)."""
+    lab = comp.label[rows]
+    if not (lab >= 0).any():
+        return None
+    g, inv = np.unique(lab[lab >= 0], return_inverse=True)
+    inv = inv.ravel()
+    on = np.flatnonzero(lab >= 0)
+    scale = weights[rows][on] if comp.absolute else np.ones(len(on))
+    n = len(rows)
+    if comp.loading is None:
+        M = np.zeros((n, len(g)))
+        M[on, inv] = scale
+        return np.kron(M, np.eye(w))
+    cols = []
+    for j in range(len(g)):
+        mine = on[inv == j]
+        Z = np.zeros((n, w, comp.loading.shape[-1]))
+        Z[mine] = comp.loading[rows[mine]] * scale[inv == j][:, None, None]
+        U, sv, _ = np.linalg.svd(Z.reshape(n * w, -1), full_matrices=False)
+        r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+        cols.append(U[:, :r] * sv[:r])
+    return np.hstack(cols)
+
+
 def _block_arrays(structure: ReadingStructure, Y: np.ndarray, groups: np.ndarray, X: np.ndarray | None,
                   weights: np.ndarray, drift: np.ndarray | None = None) -> list[dict]:
-    """Per configuration: rows, Y (n, w), Z {k: (n, g)} (entries 1, or the row's weight for a component in
-    metres), L (n, l) the replicate groups of the loaded rows (zero on the unloaded rows), X (n, w, p), D (n, w, k)
-    further fixed effects on every model row (``drift``, (R, w, k)) or None."""
+    """Per configuration: rows (n,), Y (n, w), Z {k: (n w, m)} (:func:`_group_columns`), L (n, l) the replicate
+    groups of the loaded rows (zero on the unloaded rows), X (n, w, p), D (n, w, k) further fixed effects on
+    every model row (``drift``, (R, w, k)) or None."""
     N = structure.n_loaded
+    w = Y.shape[1]
     blocks = []
     for c in range(int(structure.block.max(initial=-1)) + 1):
         rows = np.flatnonzero(structure.block == c)
         Z = {}
         for k, comp in enumerate(structure.components):
-            lab = comp.label[rows]
-            if not (lab >= 0).any():
-                continue
-            g, inv = np.unique(lab[lab >= 0], return_inverse=True)
-            M = np.zeros((len(rows), len(g)))
-            M[np.flatnonzero(lab >= 0), inv.ravel()] = weights[rows][lab >= 0] if comp.absolute else 1.0
-            Z[k] = M
+            cols = _group_columns(comp, rows, weights, w)
+            if cols is not None and cols.shape[1]:
+                Z[k] = cols
         lr = rows[rows < N]
         gl, inv = np.unique(groups[lr], return_inverse=True)
         L = np.zeros((len(rows), len(gl)))
         L[np.arange(len(lr)), inv.ravel()] = 1.0
         Xb = None
         if X is not None:
-            Xb = np.zeros((len(rows), Y.shape[1], X.shape[-1]))
+            Xb = np.zeros((len(rows), w, X.shape[-1]))
             Xb[: len(lr)] = X[lr]
         blocks.append({"rows": rows, "Y": Y[rows], "Z": Z, "L": L, "X": Xb,
                        "D": None if drift is None else drift[rows]})
     return blocks
 
 
+def _covariance(block: dict, lam: np.ndarray) -> np.ndarray:
+    """(n w, n w): H = I + sum_k lambda_k Z_k Z_k^T of a block's flattened rows (the rows' covariance over
+    sigma^2)."""
+    n, w = block["Y"].shape
+    H = np.eye(n * w)
+    for k, Z in block["Z"].items():
+        H += lam[k] * (Z @ Z.T)
+    return H
+
+
+def _flat(rows: np.ndarray, w: int) -> np.ndarray:
+    """The flattened indices (row by row, coordinate by coordinate) of rows (k,) of w components each."""
+    return (np.asarray(rows)[:, None] * w + np.arange(w)).ravel()
+
+
 def _estimable(blocks: list[dict], K: int) -> list[int]:
-    """The components (of K) that have rows left after the fixed effects (their Z, one column per group and
-    coordinate, not in the fixed effects' span)."""
-    w = blocks[0]["Y"].shape[1]
+    """The components (of K) that have rows left after the fixed effects (their columns Z, flattened, not in the
+    fixed effects' span)."""
     X = np.concatenate([_fixed(b).reshape(-1, _fixed(b).shape[-1]) for b in blocks])
     norm = np.linalg.norm(X, axis=0)
     U, sv, _ = np.linalg.svd(X / np.where(norm > 0, norm, 1.0), full_matrices=False)
     Q = U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
+    sizes = np.cumsum([0] + [b["Y"].size for b in blocks])
     out = []
     for k in range(K):
-        mine = [b for b in blocks if k in b["Z"]]
+        mine = [(i, b["Z"][k]) for i, b in enumerate(blocks) if k in b["Z"]]
         if not mine:
             continue
-        Z = np.zeros((X.shape[0], sum(b["Z"][k].shape[1] for b in mine) * w))
-        row, col = 0, 0
-        for b in blocks:
-            n = len(b["Y"])
-            if k in b["Z"]:
-                Zk = b["Z"][k]
-                for j in range(w):  # rows ordered row by row, coordinate by coordinate
-                    Z[row + j: row + n * w: w, col: col + Zk.shape[1]] = Zk
-                    col += Zk.shape[1]
-            row += n * w
+        Z = np.zeros((X.shape[0], sum(z.shape[1] for _, z in mine)))
+        col = 0
+        for i, z in mine:
+            Z[sizes[i]: sizes[i + 1], col: col + z.shape[1]] = z
+            col += z.shape[1]
         total = float((Z**2).sum())
         if total > 0 and float(((Z - Q @ (Q.T @ Z)) ** 2).sum()) > IDENTIFIABLE_RTOL * total:
             out.append(k)
@@ -708,29 +766,26 @@ def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, s
     ss_pe, df_pe, q_u, df_u = 0.0, 0, 0.0, 0
     for b in blocks:
         rows = b["rows"]
-        n = len(rows)
-        H = np.eye(n)
-        for k, Z in b["Z"].items():
-            H += lam[k] * (Z @ Z.T)
+        H = _covariance(b, lam)
         loaded = rows < N
-        iL, iU = np.flatnonzero(loaded), np.flatnonzero(~loaded)
+        iL, iU = _flat(np.flatnonzero(loaded), w), _flat(np.flatnonzero(~loaded), w)
         HLL, HLU, HUU = H[np.ix_(iL, iL)], H[np.ix_(iL, iU)], H[np.ix_(iU, iU)]
+        y = b["Y"].ravel()
         if len(iU):
             Bm = np.linalg.solve(HUU, HLU.T).T
             C = HLL - Bm @ HLU.T
-            q_u += float(np.einsum("uw,uw->", b["Y"][iU], np.linalg.solve(HUU, b["Y"][iU])))
-            df_u += len(iU) * w
+            q_u += float(y[iU] @ np.linalg.solve(HUU, y[iU]))
+            df_u += len(iU)
         else:
             Bm, C = np.zeros((len(iL), 0)), HLL
-        shared = not np.allclose(H, np.eye(n))
+        shared = not np.allclose(H, np.eye(len(H)))
         if shared:
             ev, V = np.linalg.eigh(C)
             W = (V / np.sqrt(ev)) @ V.T
         else:
             W = np.eye(len(iL))
-        yL = b["Y"][iL] - Bm @ b["Y"][iU]
-        wy = W @ yL
-        G = W @ b["L"][iL]
+        wy = W @ (y[iL] - Bm @ y[iU])
+        G = W @ np.kron(b["L"][loaded], np.eye(w))
         if G.shape[1]:
             U, sv, _ = np.linalg.svd(G, full_matrices=False)
             r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
@@ -738,9 +793,9 @@ def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, s
         else:
             r, resid = 0, wy
         ss_pe += float((resid**2).sum())
-        df_pe += (len(iL) - r) * w
+        df_pe += len(iL) - r
         if shared:
-            out_blocks.append((rows[iL], rows[iU] - N, W, Bm))
+            out_blocks.append((rows[loaded], rows[~loaded] - N, W, Bm))
     if df_union is None:
         df, s2 = df_pe + df_u, (ss_pe + q_u) / max(df_pe + df_u, 1)
     else:
@@ -752,14 +807,11 @@ def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, s
 # --- the unloaded rows: blunders among them, and a zero point that moved ------------------------------------------
 
 def _full_roots(em: ErrorModel, blocks: list[dict]) -> list[np.ndarray]:
-    """Per block the symmetric inverse square root of its rows' H (every model row, loaded and unloaded)."""
+    """Per block the symmetric inverse square root of its rows' H (every model row, loaded and unloaded;
+    flattened)."""
     out = []
     for b in blocks:
-        n = len(b["rows"])
-        H = np.eye(n)
-        for k, Z in b["Z"].items():
-            H += em.ratios[k] * (Z @ Z.T)
-        ev, V = np.linalg.eigh(H)
+        ev, V = np.linalg.eigh(_covariance(b, em.ratios))
         out.append((V / np.sqrt(ev)) @ V.T)
     return out
 
@@ -780,52 +832,35 @@ def unloaded_tests(em: ErrorModel, Y: np.ndarray, groups: np.ndarray, X_union: n
     roots = _full_roots(em, blocks)
     local = em.df_pe > 0  # with replicates the reference is their groups' means (the pure error's model)
     if not local:
-        Xw = np.concatenate([np.einsum("ij,jwp->iwp", S, b["X"]) for S, b in zip(roots, blocks)])
-        Q0 = np.linalg.svd(Xw.reshape(-1, Xw.shape[-1]), full_matrices=False)[0]
-        sv = np.linalg.svd(Xw.reshape(-1, Xw.shape[-1]), compute_uv=False)
-        Q0 = Q0[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else Q0[:, :0]
-        Yw = np.concatenate([S @ b["Y"] for S, b in zip(roots, blocks)]).ravel()
-        r_all = (Yw - Q0 @ (Q0.T @ Yw)).reshape(-1, w)
-        Q0 = Q0.reshape(-1, w, Q0.shape[1])
+        Xw = np.concatenate([S @ b["X"].reshape(len(S), -1) for S, b in zip(roots, blocks)])
+        Q0 = _basis(Xw)
+        Yw = np.concatenate([S @ b["Y"].ravel() for S, b in zip(roots, blocks)])
+        r_all = Yw - Q0 @ (Q0.T @ Yw)
     at = 0
     stats_rows = {}
-    shift_num = np.zeros(w)
-    shift_den = 0.0
-    shift_G = None
+    shift_num, shift_AA, shift_G = np.zeros(w), np.zeros((w, w)), 0.0
     total = 0.0
     for S, b in zip(roots, blocks):
-        n = len(b["rows"])
+        size = len(S)
         if local:
-            Lw = S @ b["L"]
-            U, sv, _ = np.linalg.svd(Lw, full_matrices=False)
-            Qb = U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
-            r = S @ b["Y"]
+            Qb = _basis(S @ np.kron(b["L"], np.eye(w)))
+            r = S @ b["Y"].ravel()
             r = r - Qb @ (Qb.T @ r)
         else:
-            r = r_all[at:at + n]
-            Qb = Q0[at:at + n]
-        total += float((r**2).sum())
-        for i in np.flatnonzero(b["rows"] >= N):
-            a = S[:, i]
-            num = a @ r  # (w,)
-            if local:
-                v = float(a @ a - (Qb.T @ a) @ (Qb.T @ a))
-                stats_rows[int(b["rows"][i]) - N] = float((num**2).sum() / v) if v > 0 else 0.0
-            else:
-                G = np.einsum("r,rjp->pj", a, Qb)
-                V = float(a @ a) * np.eye(w) - G.T @ G
-                stats_rows[int(b["rows"][i]) - N] = float(num @ np.linalg.solve(V, num))
-        u = (b["rows"] >= N).astype(float)
-        if u.any():
-            a = S @ u
-            shift_num += a @ r
-            if local:
-                shift_den += float(a @ a - (Qb.T @ a) @ (Qb.T @ a))
-            else:
-                G = np.einsum("r,rjp->pj", a, Qb)
-                shift_den += float(a @ a)
-                shift_G = G if shift_G is None else shift_G + G
-        at += n
+            r, Qb = r_all[at:at + size], Q0[at:at + size]
+        total += float(r @ r)
+        unloaded = np.flatnonzero(b["rows"] >= N)
+        for i in unloaded:
+            A = S[:, _flat([i], w)]  # (n w, w): a shift of that row alone, whitened
+            G = Qb.T @ A
+            stats_rows[int(b["rows"][i]) - N] = _quadratic(A.T @ r, A.T @ A - G.T @ G)
+        if len(unloaded):
+            A = S[:, _flat(unloaded, w)] @ np.tile(np.eye(w), (len(unloaded), 1))  # all unloaded rows shifted
+            G = Qb.T @ A
+            shift_num += A.T @ r
+            shift_AA += A.T @ A - (G.T @ G if local else 0.0)
+            shift_G = shift_G + (0.0 if local else G)
+        at += size
     df = em.df
     p_rows = np.ones(st.n_rows - N)
     for i, ss in stats_rows.items():
@@ -833,11 +868,22 @@ def unloaded_tests(em: ErrorModel, Y: np.ndarray, groups: np.ndarray, X_union: n
         p_rows[i] = float(stats.f.sf(F, w, max(df - w, 1)))
     p_shift = None
     if st.n_rows > N:
-        if local:
-            ss = float((shift_num**2).sum() / shift_den) if shift_den > 0 else 0.0
-        else:
-            V = shift_den * np.eye(w) - shift_G.T @ shift_G
-            ss = float(shift_num @ np.linalg.solve(V, shift_num))
+        V = shift_AA if local else shift_AA - shift_G.T @ shift_G
+        ss = _quadratic(shift_num, V)
         F = (ss / w) / (max(total - ss, 1e-300) / max(df - w, 1))
         p_shift = float(stats.f.sf(F, w, max(df - w, 1)))
     return p_rows, p_shift, (w, max(df - w, 1))
+
+
+def _basis(A: np.ndarray) -> np.ndarray:
+    """An orthonormal basis of the column space of A (k, p) (relative rank :data:`RANK_RTOL`)."""
+    U, sv, _ = np.linalg.svd(A, full_matrices=False)
+    return U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
+
+
+def _quadratic(v: np.ndarray, V: np.ndarray) -> float:
+    """v^T V^+ v (0 where V is zero: a shift the fixed effects absorb), V symmetric positive semi-definite."""
+    ev, U = np.linalg.eigh(V)
+    keep = ev > RANK_RTOL * max(float(ev.max(initial=0.0)), 1e-300)
+    z = U[:, keep].T @ v
+    return float(z @ (z / ev[keep])) if keep.any() else 0.0
