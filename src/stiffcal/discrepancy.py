@@ -658,14 +658,18 @@ def position_covariates(robot: Robot, q: np.ndarray) -> np.ndarray:
 
 #: most refits of the noise model on the error model's residuals (:func:`residual_variance_model`), and the
 #: largest change of a weight (relative) at which they stop
-VARIANCE_REFITS = 3
-VARIANCE_CONVERGED = 0.02
+VARIANCE_REFITS = 2
+VARIANCE_CONVERGED = 0.05
+#: configurations (with residual degrees of freedom) per covariate of the variance function that a refit needs:
+#: fewer fit their own residuals' scatter (12 configurations of a planar arm gave 3 points per parameter)
+VARIANCE_CONFIGS_PER_COVARIATE = 5
 
 
 def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test: bool = True) -> VarianceModel | None:
     """The correction of the rows' noise weights that the residuals of the union of all extensions in
     generalised least squares (``gls``: weighted and whitened by the error model) show, or None when the data
-    have fewer than 8 configurations with residual degrees of freedom, or (``test``: the rows are not weighted
+    have fewer than :data:`VARIANCE_CONFIGS_PER_COVARIATE` configurations with residual degrees of freedom per
+    covariate, or (``test``: the rows are not weighted
     yet) a constant correction is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`; rows already weighted
     take the correction whatever its p-value (the variance function refined, as iterated reweighting does).
 
@@ -688,10 +692,10 @@ def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test:
     rss = np.array([(r[meas.config == c] ** 2).sum() for c in configs])
     dof = np.array([gls.d * (meas.config == c).sum() - h[meas.config == c].sum() for c in configs])
     use = (dof > 0.5) & (rss > 0)
-    if use.sum() < 8:
-        return None
     first = np.array([np.flatnonzero(meas.config == c)[0] for c in configs])
     Z = position_covariates(robot, meas.q[first])[use]
+    if use.sum() < VARIANCE_CONFIGS_PER_COVARIATE * Z.shape[1]:
+        return None
     s2 = rss[use] / dof[use]
     s2 = s2 / np.median(s2)
     family = sm.families.Gamma(sm.families.links.Log())
