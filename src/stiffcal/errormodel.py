@@ -684,8 +684,7 @@ def _estimable(blocks: list[dict], K: int) -> list[int]:
     fixed effects' span)."""
     X = np.concatenate([_fixed(b).reshape(-1, _fixed(b).shape[-1]) for b in blocks])
     norm = np.linalg.norm(X, axis=0)
-    U, sv, _ = np.linalg.svd(X / np.where(norm > 0, norm, 1.0), full_matrices=False)
-    Q = U[:, : int(np.sum(sv > RANK_RTOL * sv[0]))] if sv.size and sv[0] > 0 else U[:, :0]
+    Q = _basis(X / np.where(norm > 0, norm, 1.0))
     sizes = np.cumsum([0] + [b["Y"].size for b in blocks])
     out = []
     for k in range(K):
@@ -785,15 +784,10 @@ def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, s
         else:
             W = np.eye(len(iL))
         wy = W @ (y[iL] - Bm @ y[iU])
-        G = W @ np.kron(b["L"][loaded], np.eye(w))
-        if G.shape[1]:
-            U, sv, _ = np.linalg.svd(G, full_matrices=False)
-            r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
-            resid = wy - U[:, :r] @ (U[:, :r].T @ wy)
-        else:
-            r, resid = 0, wy
+        Qg = _basis(W @ np.kron(b["L"][loaded], np.eye(w)))
+        resid = wy - Qg @ (Qg.T @ wy)
         ss_pe += float((resid**2).sum())
-        df_pe += len(iL) - r
+        df_pe += len(iL) - Qg.shape[1]
         if shared:
             out_blocks.append((rows[loaded], rows[~loaded] - N, W, Bm))
     if df_union is None:
