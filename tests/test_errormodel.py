@@ -184,7 +184,7 @@ def test_the_error_models_covariance_at_the_true_ratios_is_the_simulators(tmp_pa
         mine = file_rows[b["rows"]]
         rows, S = truth[int(log.config[mine[0]])]
         pos = {int(r): i for i, r in enumerate(rows)}
-        sel = EM._flat([pos[int(r)] for r in mine], w)
+        sel = EM.flat_index([pos[int(r)] for r in mine], w)
         want = (S * np.outer(np.tile(scale, len(rows)), np.tile(scale, len(rows))))[np.ix_(sel, sel)]
         assert sorted(mine.tolist()) == sorted(rows.tolist())
         got = sigma**2 * EM._covariance(b, lam)

@@ -66,6 +66,7 @@ from .observation import (Sensing, as_wrench, force_dim, moment_dim, observe, se
 from .observation import torques as observation_torques
 from .robot import TOOL_TARGET, Robot, as_xyz
 from .errormodel import KINDS as EMKINDS
+from .errormodel import flat_index
 from .stiffness import observation_matrix, random_directions
 
 #: relative singular value below which a direction of a design matrix counts as absent
@@ -599,8 +600,6 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
     """The :class:`VarianceModel` of the replicate groups (their spread about their means, or about
     ``resid``'s group means when given), or None when the data have too few replicates to tell (fewer than
     8 groups with replicates) or a constant variance is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`."""
-    import statsmodels.api as sm
-
     y = meas.dp if resid is None else resid
     groups = [np.flatnonzero(meas.group == g) for g in np.unique(meas.group)]
     groups = [r for r in groups if len(r) > 1]
@@ -613,11 +612,10 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
     s2 = s2 / df
     s2 = s2 / np.median(s2)  # metres squared are tiny; the log link's intercept absorbs the scale
     Z = position_covariates(robot, meas.q[[r[0] for r in groups]])
-    family = sm.families.Gamma(sm.families.links.Log())
     use = np.ones(len(s2), bool)
 
     def glm(rows, cols=slice(None)):
-        return sm.GLM(s2[rows], Z[rows][:, cols], family=family, var_weights=df[rows]).fit(scale=2.0)
+        return _gamma_fit(s2[rows], Z[rows][:, cols], df[rows])
 
     try:
         with warnings.catch_warnings():
@@ -640,11 +638,29 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
             full, null = glm(use), glm(use, slice(0, 1))
     except (ValueError, np.linalg.LinAlgError, Warning):
         return None
-    lr = max(null.deviance - full.deviance, 0.0) / 2.0
-    p = float(stats.chi2.sf(lr, Z.shape[1] - 1))
+    p = _constant_variance_p(full, null, Z.shape[1])
     if not np.isfinite(p) or p >= HETEROSCEDASTICITY_ALPHA:
         return None
-    log_s2 = position_covariates(robot, meas.q) @ full.params
+    return _fitted_variance(robot, meas.q, full.params, p)
+
+
+def _gamma_fit(s2: np.ndarray, Z: np.ndarray, df: np.ndarray):
+    """The Gamma GLM (log link) of relative variances s2 (k,) on covariates Z (k, c), each on df (k,) degrees of
+    freedom, with the dispersion 2 of chi-square variances (:class:`VarianceModel`)."""
+    import statsmodels.api as sm
+
+    family = sm.families.Gamma(sm.families.links.Log())
+    return sm.GLM(s2, Z, family=family, var_weights=df).fit(scale=2.0)
+
+
+def _constant_variance_p(full, null, n_covariates: int) -> float:
+    """The likelihood-ratio p-value of a constant variance (``null``) against the fit on every covariate."""
+    return float(stats.chi2.sf(max(null.deviance - full.deviance, 0.0) / 2.0, n_covariates - 1))
+
+
+def _fitted_variance(robot: Robot, q: np.ndarray, params: np.ndarray, p: float) -> VarianceModel:
+    """The :class:`VarianceModel` of the rows at poses q (N, n) [rad] with the GLM's coefficients ``params``."""
+    log_s2 = position_covariates(robot, q) @ params
     sigma = np.exp(0.5 * (log_s2 - np.median(log_s2)))
     return VarianceModel(1.0 / sigma, p, float(sigma.max() / sigma.min()))
 
@@ -669,9 +685,9 @@ def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test:
     """The correction of the rows' noise weights that the residuals of the union of all extensions in
     generalised least squares (``gls``: weighted and whitened by the error model) show, or None when the data
     have fewer than :data:`VARIANCE_CONFIGS_PER_COVARIATE` configurations with residual degrees of freedom per
-    covariate, or (``test``: the rows are not weighted
-    yet) a constant correction is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`; rows already weighted
-    take the correction whatever its p-value (the variance function refined, as iterated reweighting does).
+    covariate, or (``test``: the rows are not weighted yet) a constant correction is not rejected at
+    :data:`HETEROSCEDASTICITY_ALPHA`; rows already weighted take the correction whatever its p-value (the
+    variance function refined, as iterated reweighting does).
 
     Per configuration c its residual sum of squares RSS_c, on df_c = n_c w - h_c (h_c its share of the hat
     matrix's trace), has the expectation kappa_c^2 sigma^2 df_c with kappa_c the factor by which its rows'
@@ -681,37 +697,30 @@ def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test:
     every row, the shared errors whitened out, where the replicates' spread (:func:`variance_model`) holds few
     rows and, on a protocol with revisits, the robot's return error too. Returns the factors 1 / kappa_i of
     every row (N,) relative to the median row."""
-    import statsmodels.api as sm
-
     X, y = gls.union(), gls.y
     norm = np.linalg.norm(X, axis=0)
     Q = _span(X / np.where(norm > 0, norm, 1.0), np.arange(X.shape[1]))  # the rank rule of fit()
     r = (y - Q @ (Q.T @ y)).reshape(-1, gls.d)
     h = (Q**2).sum(1).reshape(-1, gls.d).sum(1)
-    configs = np.unique(meas.config)
+    configs, first = np.unique(meas.config, return_index=True)
     rss = np.array([(r[meas.config == c] ** 2).sum() for c in configs])
     dof = np.array([gls.d * (meas.config == c).sum() - h[meas.config == c].sum() for c in configs])
     use = (dof > 0.5) & (rss > 0)
-    first = np.array([np.flatnonzero(meas.config == c)[0] for c in configs])
     Z = position_covariates(robot, meas.q[first])[use]
     if use.sum() < VARIANCE_CONFIGS_PER_COVARIATE * Z.shape[1]:
         return None
     s2 = rss[use] / dof[use]
     s2 = s2 / np.median(s2)
-    family = sm.families.Gamma(sm.families.links.Log())
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error")
-            full = sm.GLM(s2, Z, family=family, var_weights=dof[use]).fit(scale=2.0)
-            null = sm.GLM(s2, Z[:, :1], family=family, var_weights=dof[use]).fit(scale=2.0)
+            full, null = _gamma_fit(s2, Z, dof[use]), _gamma_fit(s2, Z[:, :1], dof[use])
     except (ValueError, np.linalg.LinAlgError, Warning):
         return None
-    p = float(stats.chi2.sf(max(null.deviance - full.deviance, 0.0) / 2.0, Z.shape[1] - 1))
+    p = _constant_variance_p(full, null, Z.shape[1])
     if not np.isfinite(p) or (test and p >= HETEROSCEDASTICITY_ALPHA):
         return None
-    log_s2 = position_covariates(robot, meas.q) @ full.params
-    kappa = np.exp(0.5 * (log_s2 - np.median(log_s2)))
-    return VarianceModel(1.0 / kappa, p, float(kappa.max() / kappa.min()))
+    return _fitted_variance(robot, meas.q, full.params, p)
 
 
 # --- closed testing over the catalogue ---------------------------------------------------------------------
@@ -1011,7 +1020,7 @@ class ConfigurationModel:
                 order, W = roots[c]
                 pos = {int(r): i for i, r in enumerate(rows)}
                 rows = order
-                Z = W @ Z[(np.array([pos[int(r)] for r in order])[:, None] * d + np.arange(d)).ravel()]
+                Z = W @ Z[flat_index([pos[int(r)] for r in order], d)]
             U, sv, _ = np.linalg.svd(Z, full_matrices=False)
             r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
             blocks.append((rows, U[:, :r]))
@@ -1427,22 +1436,24 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
         des_all = build_design(robot, meas, ob_all)
         ob = ob_all.take(keep)
     vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
-    w = np.ones(m.n_rows) if vm is None else vm.weights
-    des = des_all.rows(keep).weighted(w)
-    w0 = zero_weights(meas, keep, w)
     motion = return_motion(robot, ob_full)
-    em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
+
+    def weighted_fit(w):  # the rows weighted by w, their error model and its generalised least squares
+        des = des_all.rows(keep).weighted(w)
+        w0 = zero_weights(meas, keep, w)
+        em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
+        return des, w0, em, zp, gls_design(des, em)
+
+    w = np.ones(m.n_rows) if vm is None else vm.weights
+    weighted, w0, em, zp, des = weighted_fit(w)
     for _ in range(VARIANCE_REFITS):  # the noise model refitted on the error model's residuals
-        step = residual_variance_model(robot, m, gls_design(des, em), test=vm is None)
+        step = residual_variance_model(robot, m, des, test=vm is None)
         if step is None or np.abs(np.log(step.weights)).max() < VARIANCE_CONVERGED:
             break
         w = w * step.weights
         w = w / np.median(w)
         vm = VarianceModel(w, step.p_value if vm is None else vm.p_value, float(w.max() / w.min()))
-        des = des_all.rows(keep).weighted(w)
-        w0 = zero_weights(meas, keep, w)
-        em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
-    weighted, des = des, gls_design(des, em)
+        weighted, w0, em, zp, des = weighted_fit(w)
     noise = Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
     check_noise(m, noise)
     notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])

@@ -327,10 +327,10 @@ def return_loading(jacobian: np.ndarray, tool_jacobian: np.ndarray) -> np.ndarra
     """(R, w, n): the loading of the return component, the Jacobian of what each row measures ``jacobian``
     (R, w, n) [m/rad, rotation rows weighted as the rows are] scaled by sqrt(d) / ||J_tool||_F with
     ``tool_jacobian`` (R, d, n) [m/rad] the tool point's position Jacobian at the row's configuration: a joint
-    error N(0, lambda sigma_0^2 I) then moves the tool point by lambda sigma_0^2 per coordinate on average at
-    every configuration, its repeatability (RMS distance, ISO 9283 sec. 7.2.2) the same everywhere, and every
-    target and the rotation move with it as the arm's geometry says. A zero tool Jacobian (the arm cannot move its
-    tool point) leaves the loading unscaled."""
+    error N(0, lambda sigma_0^2 I) then moves the tool point with the variance lambda sigma_0^2 per coordinate
+    on average at every configuration, its repeatability (RMS distance, ISO 9283 sec. 7.2.2) the same
+    everywhere, and every target and the rotation move with it as the arm's geometry says. A zero tool Jacobian
+    (the arm cannot move its tool point) leaves the loading unscaled."""
     d = tool_jacobian.shape[1]
     norm = np.sqrt(np.einsum("rdn,rdn->r", tool_jacobian, tool_jacobian))
     return jacobian * (np.sqrt(d) / np.where(norm > 0, norm, 1.0))[:, None, None]
@@ -674,7 +674,7 @@ def _covariance(block: dict, lam: np.ndarray) -> np.ndarray:
     return H
 
 
-def _flat(rows: np.ndarray, w: int) -> np.ndarray:
+def flat_index(rows, w: int) -> np.ndarray:
     """The flattened indices (row by row, coordinate by coordinate) of rows (k,) of w components each."""
     return (np.asarray(rows)[:, None] * w + np.arange(w)).ravel()
 
@@ -767,7 +767,7 @@ def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, s
         rows = b["rows"]
         H = _covariance(b, lam)
         loaded = rows < N
-        iL, iU = _flat(np.flatnonzero(loaded), w), _flat(np.flatnonzero(~loaded), w)
+        iL, iU = flat_index(np.flatnonzero(loaded), w), flat_index(np.flatnonzero(~loaded), w)
         HLL, HLU, HUU = H[np.ix_(iL, iL)], H[np.ix_(iL, iU)], H[np.ix_(iU, iU)]
         y = b["Y"].ravel()
         if len(iU):
@@ -845,11 +845,11 @@ def unloaded_tests(em: ErrorModel, Y: np.ndarray, groups: np.ndarray, X_union: n
         total += float(r @ r)
         unloaded = np.flatnonzero(b["rows"] >= N)
         for i in unloaded:
-            A = S[:, _flat([i], w)]  # (n w, w): a shift of that row alone, whitened
+            A = S[:, flat_index([i], w)]  # (n w, w): a shift of that row alone, whitened
             G = Qb.T @ A
             stats_rows[int(b["rows"][i]) - N] = _quadratic(A.T @ r, A.T @ A - G.T @ G)
         if len(unloaded):
-            A = S[:, _flat(unloaded, w)] @ np.tile(np.eye(w), (len(unloaded), 1))  # all unloaded rows shifted
+            A = S[:, flat_index(unloaded, w)] @ np.tile(np.eye(w), (len(unloaded), 1))  # all unloaded rows shifted
             G = Qb.T @ A
             shift_num += A.T @ r
             shift_AA += A.T @ A - (G.T @ G if local else 0.0)
