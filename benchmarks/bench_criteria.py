@@ -12,6 +12,11 @@ the same plan (same O_t to 1e-9, poses to 1e-3 deg). D's and T's plans differ fr
 criteria are now polished in the continuum after the exchange, which the baseline skipped (T's M = 6 plan also
 differed for an older reason: at 0fbeb92 it is one pose repeated, O_t infinite).
 
+First, one scoring of the pool by the exchange with the other poses' information regular (the Woodbury path: the
+exchange's linear-algebra limit) and singular (every plan of M = 2 on a 6-axis arm: Jacobi-scaled Cholesky over
+the batch, the eigen-decomposition only for candidates near singular in fact), ours and the baseline's: the
+singular path's cost in multiples of the regular one (issue 27: within 3x).
+
 Run: .venv/bin/python benchmarks/bench_criteria.py   (about 6 minutes, the baseline's D at M = 6 alone ~3)
 """
 
@@ -36,8 +41,45 @@ print(json.dumps(dict(cpu=cpu, O_t=[r.O_t], poses=[r.poses_deg.round(6).tolist()
                       det=float(np.linalg.det(information_matrix(A))))))
 """
 
+#: one scoring of the 6-axis pool (8192 candidates) in the exchange, with the other poses' information regular
+#: (5 poses: the Woodbury path, the exchange's linear-algebra limit) and singular (1 pose: every plan of M = 2)
+SCORING = """
+import json, time
+import numpy as np
+from stiffcal.certificate import candidate_pool, default_pool_step
+from stiffcal.plans import exchange_scores, pool_forms
+from stiffcal.robot import load_robot
+from stiffcal.stiffness import information_matrix, observation_matrix
+robot = load_robot("config/robots/kuka_kr210_r2700.yaml")
+F = np.array([500.0, -300.0, -800.0])
+rng = np.random.default_rng(0)
+lo, hi = robot.joint_limits_rad.T
+A = lambda q: observation_matrix(robot.model_jacobian(q), F)
+forms = pool_forms(A(candidate_pool(robot, default_pool_step(6))))
+Xt = A(np.radians([20, -60, 110, 30, 45, -20]))
+out = {}
+for rest in (5, 1):
+    Ms = [information_matrix(A(rng.uniform(lo, hi, (rest, 6)))) for _ in range(20)]
+    t0 = time.process_time()
+    for M in Ms:
+        exchange_scores(forms, M, Xt)
+    out[rest] = (time.process_time() - t0) / len(Ms)
+print(json.dumps(dict(regular=out[5], singular=out[1])))
+"""
+
+
+def scoring(base) -> None:
+    """The singular path (M = 2) against the regular one, per scoring of the pool, ours and the baseline's."""
+    ours, old = run(ROOT / "src", SCORING), run(base, SCORING)
+    print("one scoring of the 6-axis pool (8192 candidates) [ms]: other poses regular (Woodbury) / singular (M = 2)")
+    for name, r in (("ours", ours), ("baseline", old)):
+        print(f"  {name:9s} {1e3 * r['regular']:7.2f} {1e3 * r['singular']:8.2f}   singular / regular "
+              f"{r['singular'] / r['regular']:5.1f}x")
+
+
 if __name__ == "__main__":
     base = baseline_src(BASELINE_COMMIT)
+    scoring(base)
     print(f"stiffcal.design, 6-axis arm (KR 210 R2700), CPU seconds, one BLAS thread; baseline = {BASELINE_COMMIT}")
     print(f"{'criterion, M':14s} {'ours [s]':>9s} {'baseline [s]':>12s} {'speed-up':>9s} {'/ O_t':>7s}   "
           "det(M) ours / baseline's")

@@ -38,6 +38,13 @@ def paper_study(paper_config):
     return study_from_config(paper_config, ROOT)
 
 
+@pytest.fixture(autouse=True)
+def _own_design_cache(tmp_path_factory, monkeypatch):
+    """Every test its own empty cache of approximate designs (stiffcal.designcache) for ``stiffcal design``: no test
+    reads another's entry (one that patches the certificate sees its patch), none writes to ~/.cache."""
+    monkeypatch.setenv("STIFFCAL_CACHE_DIR", str(tmp_path_factory.mktemp("design-cache")))
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

@@ -181,6 +181,47 @@ def test_exchange_scores_match_the_general_inverse(arm, paper_robot, root, rng):
         np.testing.assert_allclose(fast[ok], slow[ok], rtol=1e-7)
 
 
+def _exact_trace_of_inverse(M: np.ndarray, G: np.ndarray) -> float:
+    """trace(M^-1 G) in exact rational arithmetic (Gauss-Jordan on Fractions of the float entries)."""
+    from fractions import Fraction
+
+    p = len(M)
+    A = [[Fraction(float(M[i, j])) for j in range(p)] + [Fraction(float(G[i, j])) for j in range(p)]
+         for i in range(p)]
+    for col in range(p):
+        piv = next(r for r in range(col, p) if A[r][col] != 0)
+        A[col], A[piv] = A[piv], A[col]
+        A[col] = [v / A[col][col] for v in A[col]]
+        for r in range(p):
+            if r != col and A[r][col] != 0:
+                A[r] = [a - A[r][col] * b for a, b in zip(A[r], A[col])]
+    return float(sum(A[i][p + i] for i in range(p)))  # M^-1 G's diagonal
+
+
+def test_scaled_cholesky_scores_are_exact_for_badly_scaled_information(rng):
+    """The direct path for p > 3 (Jacobi scaling and Cholesky, plans._scaled_inverse_traces) against exact rational
+    arithmetic, on 6 x 6 information matrices whose compliances' scales span 1e-8..1 (the wrist against the base):
+    relative error below 1e-10; an exactly singular one and one of eigenvalue ratio ~1e-19 flagged for the general
+    path, and the batch is not thrown off by them."""
+    from stiffcal.certificate import vech
+    from stiffcal.plans import _scaled_inverse_traces
+
+    p = 6
+    X = rng.normal(size=(6, 8, p)) * np.logspace(0, -4, p)  # columns scaled: information 1 .. 1e-8
+    M = np.einsum("kdi,kdj->kij", X, X)
+    Z = rng.normal(size=(3, p))
+    singular = Z.T @ Z  # rank 3
+    v = rng.normal(size=p)
+    tiny = np.outer(v, v) + 1e-19 * np.eye(p) * np.trace(np.outer(v, v))
+    M = np.concatenate([M, singular[None], tiny[None]])
+    W = rng.normal(size=(2, p))
+    G = W.T @ W
+    val, ok = _scaled_inverse_traces(np.ascontiguousarray(vech(M).T), W, p)
+    assert ok.tolist() == [True] * 6 + [False, False]
+    exact = np.array([_exact_trace_of_inverse(m, G) for m in M[:6]])
+    np.testing.assert_allclose(val[:6], exact, rtol=1e-10)
+
+
 KUKA = "config/robots/kuka_kr210_r2700.yaml"
 
 

@@ -261,7 +261,8 @@ def _stages(progress, stages):
 def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1, criterion: str = "ot",
            sigma: float = 1.0, targets=None, orientation: bool = False, sigma_rad: float | None = None,
            test_target: str = "tool", orientation_length_m: float = 0.0, joint_limits_deg=None, loads=None,
-           cell=None, candidates=None, seed: int = 0, progress: bool | None = None) -> DesignResult:
+           cell=None, candidates=None, seed: int = 0, progress: bool | None = None,
+           cache_dir=None) -> DesignResult:
     """Optimal measurement poses for stiffness calibration at a test pose (the paper's method).
 
     robot: a :class:`~stiffcal.robot.Robot` or the path of a robot file (docs/contracts.md); test_pose_deg:
@@ -285,7 +286,10 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     the joint names in radians): the plan is chosen among those the cell allows, and the bound is exact over
     them; seed: seed of the random starts of M-pose plans (results are deterministic for a seed, whatever the
     BLAS thread count); progress: the progress on stderr, a bar on a terminal and a line every few seconds
-    elsewhere, with an estimate of the time left (None or True; False: none; :mod:`stiffcal.progress`).
+    elsewhere, with an estimate of the time left (None or True; False: none; :mod:`stiffcal.progress`);
+    cache_dir: a folder where the optimal approximate design and its certificate (the same for every M,
+    criterion and seed) are kept and read back by later calls with the same inputs (None: computed afresh;
+    :mod:`stiffcal.designcache`; the result is the same either way, bit for bit).
 
     M = 1 is an exhaustive global search over one pose; M > 1 a Fedorov exchange over a candidate pool
     started from the rounded optimal approximate design, polished in the continuum. For 'ot', the
@@ -293,11 +297,12 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     Raises :class:`InputError` for bad arguments or a file that does not hold a valid robot.
     """
     from . import criteria
-    from .certificate import approximate_design, unconstrained
+    from .certificate import unconstrained
     from .design import optimal_single_pose
+    from .designcache import cached_design, cached_pool
     from .plans import best_plan
     from .study import Study, check_sensing, check_test_inputs
-    from .tables import plan_summary
+    from .design import plan_summary
     from .threads import one_blas_thread
     from .workcell import cell_notes, clearance, read_candidates
 
@@ -311,6 +316,10 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     sigma = positive_number(sigma, "sigma")
     sigma_rad = None if sigma_rad is None else positive_number(sigma_rad, "sigma_rad")
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
+    if cache_dir is not None:
+        from .safeio import check_out_dir as check_dir
+
+        cache_dir = check_dir(_path(cache_dir, "cache_dir", "a folder for the cache"), field="cache_dir")
     if not isinstance(test_target, str):
         raise InputError(f"expected a target's name, got {short_repr(test_target)}", field="test_target")
     sensing, test_target, length = check_sensing(
@@ -338,12 +347,13 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
             notes, degenerate, optimal_set = list(res1.notes), res1.degenerate, res1.optimal_set_deg
             poses = res1.pose_deg[None, :]
         bar.advance()
-        approx = approximate_design(study.problem("ot"))
+        approx = cached_design(study.problem("ot"), cache_dir)
         if approx.exact_over_candidates and robot.cell is not None and base.continuous:
-            continuum = approximate_design(unconstrained(study.problem("ot")))
+            continuum = cached_design(unconstrained(study.problem("ot")), cache_dir)
         bar.advance()
         if m > 1:
-            poses = best_plan(study.problem(criterion, m), approx, seed).poses_deg
+            pool = None if cache_dir is None else cached_pool(study.problem("ot"), cache_dir)
+            poses = best_plan(study.problem(criterion, m), approx, seed, pool).poses_deg
             bar.advance()
     summ = plan_summary(study, poses)
     bound = feasible_bound = None

@@ -87,12 +87,30 @@ def design(args) -> dict:
                sigma_rad=args.sigma_rad, test_target=args.test_target,
                orientation_length_m=args.orientation_length_m, joint_limits_deg=joint_limits(args.joint_limits_deg),
                loads=args.loads, cell=args.cell, candidates=args.candidates, seed=args.seed,
-               progress=False if args.quiet else None).to_dict()
+               progress=False if args.quiet else None, cache_dir=_cache_dir(args)).to_dict()
+
+
+def _cache_dir(args):
+    """The folder of the approximate-design cache (:mod:`stiffcal.designcache`): ``--cache-dir``, None with
+    ``--no-cache``, else the default folder when it can be written (else None: computed afresh)."""
+    from .designcache import default_cache_dir
+    from .safeio import check_out_dir
+
+    if args.no_cache:
+        if args.cache_dir is not None:
+            raise InputError("expected --cache-dir or --no-cache, not both", field="cache_dir")
+        return None
+    if args.cache_dir is not None:
+        return args.cache_dir
+    try:
+        return check_out_dir(default_cache_dir())
+    except InputError:
+        return None
 
 
 #: design options the next round (``--prior``) does not take: it plans the tool point's position under the test load
 _NOT_WITH_PRIOR = {"criterion": "ot", "targets": None, "orientation": False, "sigma_rad": None, "test_target": "tool",
-                   "orientation_length_m": 0.0, "loads": None, "candidates": None}
+                   "orientation_length_m": 0.0, "loads": None, "candidates": None, "cache_dir": None}
 
 
 def next_round(args) -> dict:
@@ -241,6 +259,10 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--candidates", help="CSV of candidate poses (columns q1_deg.. or the joint names in radians): the "
                                         "plan is chosen among those the cell allows")
     d.add_argument("--seed", type=int, default=0, help="seed of the random starts of M-pose plans (default 0)")
+    d.add_argument("--cache-dir", help="folder where the optimal approximate design (the same for every M, criterion "
+                                       "and seed) is kept for later calls with the same inputs (default "
+                                       "$STIFFCAL_CACHE_DIR, else ~/.cache/stiffcal; not with --prior)")
+    d.add_argument("--no-cache", action="store_true", help="compute the approximate design afresh, store nothing")
     d.add_argument("--quiet", action="store_true", help="no progress on stderr (a bar on a terminal, else a line "
                                                         "every few seconds with an estimate)")
     d.set_defaults(func=design)

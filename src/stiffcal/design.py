@@ -38,7 +38,7 @@ from .errors import InputError
 from .observation import (Loads, Sensing, as_wrench, loaded_rows, observation_rows, sensed_params, target_offsets,
                           test_rows)
 from .robot import TOOL_TARGET, Robot
-from .stiffness import observation_matrix, pose_information
+from .stiffness import functional_variance, information_matrix, observation_matrix, pose_information, spectral
 from .threads import single_threaded
 
 TWO_PI = 2.0 * np.pi
@@ -698,3 +698,26 @@ def _degenerate_result(problem: Problem, grids, values) -> SinglePoseResult:
     note = (f"{criteria.label(problem.criterion)} is constant ({value:.6g}) over every nonsingular pose: "
             "one pose gives as many equations as parameters, so no pose is better than another")
     return SinglePoseResult(rep, poses[:0], float(values[np.isfinite(values)].min()), value, True, [note])
+
+
+def plan_summary(study, plan_deg: np.ndarray) -> dict:
+    """O_t, chi, E[dk_i^2] and dk_i = sqrt(E[dk_i^2]) of plans of a :class:`stiffcal.study.Study`, vectorised.
+
+    plan_deg: (..., m, n) [deg]. Returns a dict of arrays of shape (...,): 'O_t' (eq. 16; inf when a
+    compliance is not identifiable), 'chi' (eq. 27), 'E_dk1'.. (eq. 11), 'dk1'.. (per joint, named by
+    ``robot.joint_columns``: 'E_dk_a1' for a joint named a1).
+    """
+    plan = np.radians(np.asarray(plan_deg, float))
+    m, n = plan.shape[-2:]
+    prob = study.problem("ot", m)
+    M = information_matrix(prob.rows(plan))
+    spec = spectral(M)  # one eigen-decomposition for both
+    cov_p = functional_variance(M, np.eye(M.shape[-1]), study.sigma, spec)  # covariance_diagonal
+    ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma, spec), np.inf)
+    out = {"O_t": ot, "chi": prob.ot_star(m) / np.asarray(ot, float)}
+    cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint the measurements never see: not identifiable
+    cov[..., prob.params] = cov_p
+    for i, (e, dk) in enumerate(zip(study.robot.joint_columns("E_dk"), study.robot.joint_columns("dk"))):
+        out[e] = cov[..., i]
+        out[dk] = np.sqrt(cov[..., i])
+    return out

@@ -278,15 +278,90 @@ def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.n
     Mc = vech(M_rest)[:, None] + forms.vech  # (p(p+1)/2, K)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         try:
-            val, inv_norm = _inverse_traces(Mc, vech(Xt.T @ Xt), p)
-            r, c = np.triu_indices(p)
-            ok = np.isfinite(val) & (1.0 / (inv_norm * Mc[r == c].sum(axis=0)) > DIRECT_MIN_RATIO)
+            val, ok = (_inverse_traces_checked(Mc, vech(Xt.T @ Xt), p) if p <= 3 else
+                       _scaled_inverse_traces(Mc, Xt, p))
         except np.linalg.LinAlgError:  # LU met an exactly singular candidate: all by the general path
             val, ok = np.zeros(Mc.shape[1]), np.zeros(Mc.shape[1], bool)
     if not ok.all():
         val = np.array(val, float)
         val[~ok] = _general_scores(M_rest[None] + forms.info[~ok], Xt)
     return val
+
+
+def _inverse_traces_checked(Mc: np.ndarray, G: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(trace(M_c^-1 G), ok)`` for candidates' information matrices M_c (upper triangles, component first), ok
+    where ``1 / (||M_c^-1||_F trace M_c)`` (a lower bound on the eigenvalue ratio) clears DIRECT_MIN_RATIO."""
+    val, inv_norm = _inverse_traces(Mc, G, p)
+    r, c = np.triu_indices(p)
+    return val, np.isfinite(val) & (1.0 / (inv_norm * Mc[r == c].sum(axis=0)) > DIRECT_MIN_RATIO)
+
+
+#: the eigenvalue-ratio bound above which a candidate is certainly not singular by the zero-eigenvalue rule of
+#: :func:`stiffcal.stiffness.spectral` (ratio <= n eps), with a margin of 1e4 for the round-off of that rule
+SINGULAR_MARGIN = 1e4 * np.finfo(float).eps
+
+
+def _scaled_inverse_traces(Mc: np.ndarray, Xt: np.ndarray, p: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(trace(X_t M_c^-1 X_t^T), ok)`` for candidates' information matrices M_c (p > 3; upper triangles,
+    component first), each scaled to a unit diagonal first (Jacobi scaling, ``M_c = D^1/2 S D^1/2``) and S
+    factored by Cholesky (:func:`_inverse_cholesky_factor`, ``S^-1 = L^-T L^-1``): the value is
+    ``||L^-1 D^-1/2 X_t^T||_F^2``, and its accuracy follows the condition of S (van der Sluis; Higham, Accuracy and
+    Stability of Numerical Algorithms, 2nd ed., secs. 7.3 and 10.1), not the scale of the compliances' units (a
+    wrist joint's information 1e-8 of the base's), so only candidates near singular in fact go the general path.
+    ok: the pivots are positive, and the eigenvalue-ratio bounds ``1 / (||L^-1||_F^2 p)`` of S and ``1 /
+    (||L^-1 D^-1/2||_F^2 trace M_c)`` of M_c (``||A^-1||_2 <= ||L^-1||_F^2``) clear DIRECT_MIN_RATIO and
+    :data:`SINGULAR_MARGIN` (the zero-eigenvalue rule is on M_c itself). Every step on (K,) vectors, one entry
+    at a time (no (p, p, K) temporaries)."""
+    r, c = np.triu_indices(p)
+    diag = Mc[r == c]  # (p, K)
+    good = np.all(diag > 0.0, axis=0)
+    scale = 1.0 / np.sqrt(np.where(good, diag, 1.0))
+    Li, regular = _inverse_cholesky_factor(Mc * (scale[r] * scale[c]), p)
+    val, norm_s, norm = (np.zeros(Mc.shape[1]) for _ in range(3))
+    xs = [Xt[:, j][:, None] * scale[j] for j in range(p)]  # columns of X_t D^-1/2, (d_t, K) each
+    for i in range(p):
+        y = Li[i][i] * xs[i]
+        norm_s += Li[i][i] ** 2
+        norm += (Li[i][i] * scale[i]) ** 2
+        for j in range(i):
+            y += Li[i][j] * xs[j]
+            norm_s += Li[i][j] ** 2
+            norm += (Li[i][j] * scale[j]) ** 2
+        val += np.einsum("tk,tk->k", y, y)
+    ratio_s = 1.0 / (norm_s * p)
+    ratio = 1.0 / (norm * diag.sum(axis=0))
+    return val, good & regular & np.isfinite(val) & (ratio_s > DIRECT_MIN_RATIO) & (ratio > SINGULAR_MARGIN)
+
+
+def _inverse_cholesky_factor(S: np.ndarray, p: int) -> tuple[list, np.ndarray]:
+    """The inverse L^-1 of the Cholesky factor of a batch of symmetric positive definite p x p matrices, ``S =
+    L L^T`` (Golub and Van Loan, Matrix Computations, 4th ed., alg. 4.2.1), vectorised over the batch: S
+    (p(p+1)/2, K) upper triangles component first (:func:`stiffcal.certificate.vech` order) -> ``Li`` with
+    ``Li[i][j]`` (K,) the entry (i, j <= i) of L^-1, and ok (K,): every pivot positive (else that candidate's
+    entries are meaningless). A few hundred operations on (K,) vectors instead of K LAPACK calls."""
+    at = {ij: k for k, ij in enumerate(zip(*np.triu_indices(p)))}
+    L = [[None] * p for _ in range(p)]
+    ok = np.ones(S.shape[1], bool)
+    for j in range(p):
+        d = S[at[j, j]].copy()
+        for k in range(j):
+            d -= L[j][k] ** 2
+        ok &= d > 0.0
+        L[j][j] = np.sqrt(np.where(d > 0.0, d, 1.0))
+        for i in range(j + 1, p):
+            v = S[at[j, i]].copy()
+            for k in range(j):
+                v -= L[i][k] * L[j][k]
+            L[i][j] = v / L[j][j]
+    Li = [[None] * p for _ in range(p)]
+    for i in range(p):
+        Li[i][i] = 1.0 / L[i][i]
+        for j in range(i):
+            v = L[i][j] * Li[j][j]
+            for k in range(j + 1, i):
+                v += L[i][k] * Li[k][j]
+            Li[i][j] = -v * Li[i][i]
+    return Li, ok
 
 
 def _symmetric_det(S: np.ndarray, dim: int) -> np.ndarray:

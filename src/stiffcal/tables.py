@@ -14,8 +14,8 @@ import pandas as pd
 
 from . import criteria
 from .csvtext import FLOAT_FORMAT, numeric_csv
-from .design import optimal_single_pose, plan_observations
-from .stiffness import covariance_diagonal, functional_variance, identify_batch, information_matrix, spectral
+from .design import optimal_single_pose, plan_observations, plan_summary  # noqa: F401 (tables.plan_summary)
+from .stiffness import covariance_diagonal, identify_batch, information_matrix
 from .study import Study
 
 
@@ -47,29 +47,6 @@ def _numeric_csv(df: pd.DataFrame) -> str | None:
 def _pose_cols(robot) -> list[str]:
     """The joint-angle columns of a robot's tables: q1_deg..qn_deg, or q_<name>_deg for named joints."""
     return robot.joint_columns("q", "_deg")
-
-
-def plan_summary(study: Study, plan_deg: np.ndarray) -> dict:
-    """O_t, chi, E[dk_i^2] and dk_i = sqrt(E[dk_i^2]) of plans, vectorised.
-
-    plan_deg: (..., m, n) [deg]. Returns a dict of arrays of shape (...,): 'O_t' (eq. 16; inf when a
-    compliance is not identifiable), 'chi' (eq. 27), 'E_dk1'.. (eq. 11), 'dk1'.. (per joint, named by
-    ``robot.joint_columns``: 'E_dk_a1' for a joint named a1).
-    """
-    plan = np.radians(np.asarray(plan_deg, float))
-    m, n = plan.shape[-2:]
-    prob = study.problem("ot", m)
-    M = information_matrix(prob.rows(plan))
-    spec = spectral(M)  # one eigen-decomposition for both
-    cov_p = functional_variance(M, np.eye(M.shape[-1]), study.sigma, spec)  # covariance_diagonal
-    ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma, spec), np.inf)
-    out = {"O_t": ot, "chi": prob.ot_star(m) / np.asarray(ot, float)}
-    cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint the measurements never see: not identifiable
-    cov[..., prob.params] = cov_p
-    for i, (e, dk) in enumerate(zip(study.robot.joint_columns("E_dk"), study.robot.joint_columns("dk"))):
-        out[e] = cov[..., i]
-        out[dk] = np.sqrt(cov[..., i])
-    return out
 
 
 def table2(study: Study) -> pd.DataFrame:
