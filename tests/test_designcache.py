@@ -4,6 +4,7 @@ options are checked before any work."""
 
 import dataclasses
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -166,3 +167,29 @@ def test_a_urdf_arm_in_a_cell_is_keyed_by_its_collision_meshes_too(tmp_path):
     assert designcache.fingerprint(study.problem("ot")) != key
     mesh.write_bytes(original)
     assert designcache.fingerprint(study.problem("ot")) == key
+
+
+@pytest.mark.parametrize("cache", [[], ["--no-cache"]])
+def test_several_m_in_one_call_are_the_plans_of_separate_calls(tmp_path, capsys, cache):
+    """``--experiments 2-3,5``: a JSON array of the plans of M = 2, 3 and 5 in that order, each the object a call
+    for that M alone prints (the approximate design computed once, with --no-cache too, which then stores
+    nothing)."""
+    base = ["design", "--robot", str(PAPER), "--test-pose-deg", "60,30", "--force-N", "0,-1", "--quiet"]
+    assert main(base + ["--experiments", "5,2-3", *cache]) == 0
+    several = json.loads(capsys.readouterr().out)
+    alone = []
+    for m in (2, 3, 5):
+        assert main(base + ["--experiments", str(m), "--no-cache"]) == 0
+        alone.append(json.loads(capsys.readouterr().out))
+    assert several == alone
+    assert not cache or not any(Path(os.environ[designcache.CACHE_ENV]).rglob("*.json"))
+
+
+@pytest.mark.parametrize("value, needle", [("2-", "expected a whole number M, a range A-B"),
+                                           ("3-2", "A <= B"), ("0-4", "in [1, 1000]"), ("1-5000", "at most 1000 poses"),
+                                           ("1-1000", "at most 100 values of M")])
+def test_bad_experiment_lists_are_refused_naming_the_option(capsys, value, needle):
+    base = ["design", "--robot", str(PAPER), "--test-pose-deg", "60,30", "--force-N", "0,-1", "--quiet"]
+    assert main(base + ["--experiments", value]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and "'--experiments'" in captured.err and needle in captured.err

@@ -4,7 +4,8 @@ docs/contracts.md.
 ``stiffcal design --robot FILE --test-pose-deg Q1,Q2,... (--force-N FX,FY[,FZ] | --wrench F..,M..)
 [--experiments M] [--criterion ot|a|t|d|g|mdc|o1|o2|o3|o4] [--sigma S] [--targets A,B] [--orientation
 --sigma-rad S] [--test-target T] [--orientation-length-m L] [--loads SPEC] [--cell FILE] [--joint-limits-deg
-LO:HI,...] [--candidates CSV] [--seed N] [--quiet]`` prints one JSON object.
+LO:HI,...] [--candidates CSV] [--seed N] [--cache-dir DIR | --no-cache] [--quiet]`` prints one JSON object (an
+array of them for several M: ``--experiments 2-8``).
 
 Bad input gives one line on stderr naming the file or option and what was expected, and exit code 2;
 never a traceback. An internal error (a bug) is one line too, with exit code 1 (``STIFFCAL_TRACEBACK=1``
@@ -14,6 +15,7 @@ shows the traceback). List options take negative numbers with or without ``=`` (
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import re
@@ -75,19 +77,53 @@ def joint_limits(text: str | None, option: str = "--joint-limits-deg"):
     return out
 
 
-def design(args) -> dict:
-    """Run ``stiffcal design``; returns the JSON-ready dict."""
+#: the most values of M one ``stiffcal design --experiments`` may ask for
+MAX_EXPERIMENT_VALUES = 100
+
+
+def experiment_values(text) -> list[int]:
+    """``--experiments``: ``M``, a range ``A-B`` or a comma-separated list of both (``2-8``, ``2,4,6``, ``2-4,8``)
+    -> the values of M, ascending, without repeats; InputError naming ``--experiments`` otherwise."""
+    from .api import whole_number
+    from .limits import MAX_DESIGN_EXPERIMENTS
+
+    values: set[int] = set()
+    for part in str(text).split(","):
+        m = re.fullmatch(r"\s*(\d{1,12})\s*(?:-\s*(\d{1,12})\s*)?", part)
+        if not m or int(m[2] or m[1]) < int(m[1]):
+            raise InputError(f"expected a whole number M, a range A-B (A <= B) or a comma-separated list of them (6, "
+                             f"2-8, 2,4,6), got {text!r}", field="--experiments")
+        lo, hi = (whole_number(int(v), "--experiments", 1, MAX_DESIGN_EXPERIMENTS, "poses")
+                  for v in (m[1], m[2] or m[1]))
+        values.update(range(lo, hi + 1))
+    if len(values) > MAX_EXPERIMENT_VALUES:
+        raise InputError(f"expected at most {MAX_EXPERIMENT_VALUES} values of M, got {len(values)} ({text!r})",
+                         field="--experiments")
+    return sorted(values)
+
+
+def design(args) -> dict | list:
+    """Run ``stiffcal design``; returns the JSON-ready dict (a list of them, in M order, for several M)."""
+    import tempfile
+
     from .api import design as run
 
+    ms = experiment_values(args.experiments)
     if args.prior is not None:
-        return next_round(args)
-    return run(args.robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=args.experiments,
-               criterion=args.criterion, sigma=1.0 if args.sigma is None else args.sigma, targets=args.targets,
-               orientation=args.orientation,
-               sigma_rad=args.sigma_rad, test_target=args.test_target,
-               orientation_length_m=args.orientation_length_m, joint_limits_deg=joint_limits(args.joint_limits_deg),
-               loads=args.loads, cell=args.cell, candidates=args.candidates, seed=args.seed,
-               progress=False if args.quiet else None, cache_dir=_cache_dir(args)).to_dict()
+        if len(ms) > 1:
+            raise InputError("expected one M with --prior", field="--experiments")
+        return next_round(args, ms[0])
+    cache = _cache_dir(args)
+    with tempfile.TemporaryDirectory(prefix="stiffcal-design-") if cache is None and len(ms) > 1 else \
+            contextlib.nullcontext(cache) as folder:  # several M share one approximate design, even with --no-cache
+        out = [run(args.robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=m,
+                   criterion=args.criterion, sigma=1.0 if args.sigma is None else args.sigma, targets=args.targets,
+                   orientation=args.orientation, sigma_rad=args.sigma_rad, test_target=args.test_target,
+                   orientation_length_m=args.orientation_length_m,
+                   joint_limits_deg=joint_limits(args.joint_limits_deg), loads=args.loads, cell=args.cell,
+                   candidates=args.candidates, seed=args.seed, progress=False if args.quiet else None,
+                   cache_dir=folder).to_dict() for m in ms]
+    return out[0] if len(ms) == 1 else out
 
 
 def _cache_dir(args):
@@ -113,8 +149,9 @@ _NOT_WITH_PRIOR = {"criterion": "ot", "targets": None, "orientation": False, "si
                    "orientation_length_m": 0.0, "loads": None, "candidates": None, "cache_dir": None}
 
 
-def next_round(args) -> dict:
-    """``stiffcal design --prior CALIBRATED``: the next round's plan given the calibration's information."""
+def next_round(args, m: int) -> dict:
+    """``stiffcal design --prior CALIBRATED``: the next round's plan of m poses given the calibration's
+    information."""
     from .api import plan_next_round, positive_number
     from .robot import load_robot
 
@@ -124,7 +161,7 @@ def next_round(args) -> dict:
                          f"{', '.join('--' + k.replace('_', '-') for k in given)} cannot be given with it",
                          field="--prior")
     out = plan_next_round(load_robot(args.prior), args.test_pose_deg, args.force_N, wrench=args.wrench,
-                          experiments=args.experiments,
+                          experiments=m,
                           sigma_m=None if args.sigma is None else positive_number(args.sigma, "--sigma"),
                           joint_limits_deg=joint_limits(args.joint_limits_deg), cell=args.cell, seed=args.seed,
                           robot=load_robot(args.robot))
@@ -238,7 +275,8 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--force-N", help="force F [N] at the tool point, comma-separated (or --wrench)")
     d.add_argument("--wrench", help="force and moment about the tool point [N, N m]: FX,FY,MZ (planar) or "
                                     "FX,FY,FZ,MX,MY,MZ (spatial), instead of --force-N")
-    d.add_argument("--experiments", type=int, default=1, help="number of measurement poses M (default 1)")
+    d.add_argument("--experiments", default="1", help="number of measurement poses M (default 1); a range A-B or a "
+                                                      "list 2,4,6 prints one plan per M (a JSON array)")
     d.add_argument("--criterion", default="ot", help="ot a t d g mdc o1 o2 o3 o4 (default ot)")
     d.add_argument("--sigma", default=None, help="position noise s.t.d. [m] (default 1; with --prior the "
                                                  "calibration's)")
@@ -365,7 +403,7 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # the reader went away (`| head`): no traceback, the usual exit status
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 141
-    return 0 if out.get("ok", True) else 1
+    return 0 if not isinstance(out, dict) or out.get("ok", True) else 1
 
 
 if __name__ == "__main__":  # pragma: no cover
