@@ -298,11 +298,10 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     """
     from . import criteria
     from .certificate import unconstrained
-    from .design import optimal_single_pose
+    from .design import optimal_single_pose, plan_summary
     from .designcache import cached_design, cached_pool
     from .plans import best_plan
     from .study import Study, check_sensing, check_test_inputs
-    from .design import plan_summary
     from .threads import one_blas_thread
     from .workcell import cell_notes, clearance, read_candidates
 

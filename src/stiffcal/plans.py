@@ -228,7 +228,8 @@ def exchange_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.
       linear in R and RWR, hence one matrix product with the precomputed ``forms.quad`` for the whole pool,
       and S_c is inverted in closed form (d <= 3).
     * otherwise (direct): ``M_c = M_rest + X_c^T X_c`` is formed from its p(p+1)/2 entries and inverted by
-      the adjugate formula for p <= 3 (a few vector operations for the whole pool), by LU beyond.
+      the adjugate formula for p <= 3 (a few vector operations for the whole pool), beyond by Cholesky on
+      M_c scaled to a unit diagonal (:func:`_scaled_inverse_traces`, vectorised over the pool the same way).
       Since ``lambda_min / lambda_max >= 1 / (||M_c^-1||_F trace M_c)``, candidates where that bound is at
       most ``DIRECT_MIN_RATIO`` (near singular, where round-off would matter) are rescored by the general
       path (:func:`stiffcal.criteria.loss_from_info`, an eigen-decomposition), so singular plans get +inf
@@ -277,11 +278,7 @@ def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.n
     p = M_rest.shape[-1]
     Mc = vech(M_rest)[:, None] + forms.vech  # (p(p+1)/2, K)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        try:
-            val, ok = (_inverse_traces_checked(Mc, vech(Xt.T @ Xt), p) if p <= 3 else
-                       _scaled_inverse_traces(Mc, Xt, p))
-        except np.linalg.LinAlgError:  # LU met an exactly singular candidate: all by the general path
-            val, ok = np.zeros(Mc.shape[1]), np.zeros(Mc.shape[1], bool)
+        val, ok = _inverse_traces_checked(Mc, vech(Xt.T @ Xt), p) if p <= 3 else _scaled_inverse_traces(Mc, Xt, p)
     if not ok.all():
         val = np.array(val, float)
         val[~ok] = _general_scores(M_rest[None] + forms.info[~ok], Xt)
