@@ -12,13 +12,14 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # e
 from snakemake.utils import min_version
 
 from stiffcal.config import workflow_config as _workflow_config
+from stiffcal.memo import WORKFLOW_MEMO_DIR as _MEMO_DIR
 from stiffcal.errors import InputError as _InputError
 
 min_version("9.0")
 
 try:
     CONFIG_SOURCE, _config = _workflow_config(workflow.config_settings.configfiles,
-                                              dict(workflow.config_settings.config))
+                                              dict(workflow.config_settings.config), memo_dir=_MEMO_DIR)
 except _InputError as _err:
     _sys.exit(f"stiffcal: error: {_err}")
 config.clear()

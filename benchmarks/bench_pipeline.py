@@ -10,6 +10,8 @@ Copies the workflow (Snakefile, workflow/, config/, paper/, data/) into a tempor
 * the whole run's CPU (``resource.getrusage(RUSAGE_CHILDREN)``: Snakemake itself, its job wrappers and
   every job; what ``/usr/bin/time`` reports for ``make clean report``), and what Snakemake and the wrappers
   cost beyond the jobs;
+* the CPU of ``snakemake -n`` with nothing to do after the run (median of 3: the config check, the code
+  versions and the DAG; issue 27 asks for at most 2 s);
 * as the baseline of the same run, the CPU of one bare job start-up (Python importing numpy and pandas,
   which every numeric job needs), and each rule's mean job CPU as a multiple of it; with ``--baseline REF``
   also the whole pipeline of the git commit REF (its workflow and its ``src/``, first on ``PYTHONPATH``; same
@@ -84,6 +86,20 @@ def run_pipeline(wd: Path, extra: list[str], env: dict | None = None) -> tuple[f
     return total, per_rule
 
 
+def dry_run_cpu(wd: Path, extra: list[str], env: dict | None = None, repeats: int = 3) -> float:
+    """Median CPU [s] of ``snakemake -n`` with nothing to do in ``wd`` (after a complete run there)."""
+    runs = []
+    for _ in range(repeats):
+        before = children_cpu()
+        res = subprocess.run([str(BIN / "snakemake"), "-n", "--cores", "2", "--workflow-profile",
+                              "workflow/profiles/default", "--quiet", *extra], cwd=wd, capture_output=True, text=True,
+                             env=env)
+        runs.append(children_cpu() - before)
+        if res.returncode != 0:
+            sys.exit(f"the dry run failed in {wd}:\n{res.stderr[-3000:]}")
+    return sorted(runs)[len(runs) // 2]
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--baseline", metavar="REF", help="also run the pipeline of this git commit (e.g. main) first")
@@ -104,9 +120,11 @@ def main() -> int:
         path = os.pathsep.join(filter(None, [str(bd / "src"), os.environ.get("PYTHONPATH")]))
         env = {**os.environ, "PYTHONPATH": path}
         base_total, base_rules = run_pipeline(bd, extra, env)
+        base_dry = dry_run_cpu(bd, extra, env)
         shutil.rmtree(bd, ignore_errors=True)
     base = bare_startup()
     total, per_rule = run_pipeline(wd, extra)
+    dry = dry_run_cpu(wd, extra)
 
     def cpu(v):
         return sum(t for t, _ in v)
@@ -136,6 +154,8 @@ def main() -> int:
         print(line)
     print(f"whole run: {total:.1f} s of CPU (target {TARGET_CPU_S:g} s: {total / TARGET_CPU_S:.2f} x the target)"
           + (f"; baseline {args.baseline}: {base_total:.1f} s" if args.baseline else ""))
+    print(f"snakemake -n with nothing to do: {dry:.2f} s of CPU (median of 3; target 2 s)"
+          + (f"; baseline {args.baseline}: {base_dry:.2f} s ({dry / base_dry:.2f}x)" if args.baseline else ""))
     print(f"baseline in this run: a bare job start-up (python -c 'import numpy, pandas') = {base:.3f} s CPU")
     if not args.keep:
         shutil.rmtree(wd, ignore_errors=True)

@@ -89,7 +89,7 @@ def test_every_input_of_the_design_changes_the_key(paper_robot):
 
 def test_the_key_changes_with_the_code(paper_robot, monkeypatch):
     base = designcache.fingerprint(_problem(paper_robot))
-    monkeypatch.setattr(designcache, "code_fingerprint", lambda: "another version")
+    monkeypatch.setattr(designcache, "package_fingerprint", lambda: "another version")
     assert designcache.fingerprint(_problem(paper_robot)) != base
 
 

@@ -135,9 +135,35 @@ def _lines(text: str) -> list[str]:
     return re.findall(r"[^\r\n]*(?:\r\n|\r|\n)|[^\r\n]+$", text)
 
 
+#: the workflow's memo of code versions (:func:`remember_code_versions`), or None
+_MEMO = None
+
+
+def remember_code_versions(path) -> None:
+    """Keep the code versions in the JSON file ``path`` between runs, under the package's source
+    (:func:`stiffcal.memo.package_fingerprint`): a rerun with no library edit reads them instead of parsing the
+    package (the workflow: ``.snakemake/stiffcal/code-versions.json``); any edit starts the file afresh."""
+    from .memo import JsonMemo, package_fingerprint
+
+    global _MEMO
+    _MEMO = JsonMemo(path, package_fingerprint())
+    code_version.cache_clear()
+
+
 @lru_cache(maxsize=None)
 def code_version(*steps: str) -> str:
     """12 hex digits of SHA-256 over the code that the pipeline functions ``steps`` run (module docstring)."""
+    if _MEMO is None:
+        return _code_version(steps)
+    key = ",".join(steps)
+    found = _MEMO.read().get(key)
+    if not (isinstance(found, str) and re.fullmatch(r"[0-9a-f]{12}", found)):
+        found = _code_version(steps)
+        _MEMO.write({**_MEMO.read(), key: found})
+    return found
+
+
+def _code_version(steps) -> str:
     used, modules = step_closure(steps)
     h = hashlib.sha256()
     for name in used:

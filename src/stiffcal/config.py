@@ -21,13 +21,15 @@ from .errors import InputError
 DEFAULT = "config/config.yaml"
 
 
-def workflow_config(configfiles, overrides: dict | None = None, root: str | Path = ".") -> tuple[str, dict]:
+def workflow_config(configfiles, overrides: dict | None = None, root: str | Path = ".",
+                    memo_dir: str | Path | None = None) -> tuple[str, dict]:
     """(source, config): the config the workflow runs with. configfiles: the ``--configfile`` arguments (at most
     one; none means :data:`DEFAULT`); overrides: the ``--config`` values. Read with
     :func:`stiffcal.validation.read_yaml` (duplicate keys, aliases, YAML 1.2 numbers) and checked by
     :func:`check_config`; an error names the file (or ``--config``) and the field. Its keys are sorted at every
     level, so that the same config written in another order (results/config.effective.yaml given back) gives
-    the rules the same parameters and reruns nothing."""
+    the rules the same parameters and reruns nothing. memo_dir: where the check remembers the measured-data
+    files it has read and found good (:func:`check_config`)."""
     from .validation import read_yaml
 
     root_abs = Path(root).resolve()
@@ -46,13 +48,38 @@ def workflow_config(configfiles, overrides: dict | None = None, root: str | Path
 
         update_config(config, overrides)
     try:
-        check_config(config, root, source)
+        check_config(config, root, source, memo_dir)
     except InputError as err:
         top = (err.field or "").split(".")[0].split("[")[0]
         if top in overrides:
             raise err.renamed(source="--config") from None
         raise
     return source, _sorted(fill_defaults(config))
+
+
+def _check_data(data: Path, robot, memo) -> None:
+    """Read the measured-data file ``data`` for ``robot`` (:func:`stiffcal.measurements.read_measurements`:
+    InputError naming the CSV, row and column) unless ``memo`` (a :class:`stiffcal.memo.JsonMemo`, or None)
+    holds the fingerprint of these bytes read for this robot; a good file's fingerprint is added to it."""
+    import hashlib
+
+    from .measurements import read_measurements
+    from .memo import NotFingerprintable, feed, feed_file
+
+    key = None
+    if memo is not None:
+        h = hashlib.sha256()
+        try:
+            feed_file(h, data)
+            feed(h, robot)
+            key = h.hexdigest()
+        except NotFingerprintable:
+            key = None
+        if key is not None and memo.read().get(key) is True:
+            return
+    read_measurements(data, robot)
+    if key is not None:
+        memo.write({**memo.read(), key: True})
 
 
 def _sorted(doc):
@@ -135,11 +162,12 @@ def _check_load_ranges(config: dict, source: str) -> None:
 
 def _check_lab_loads(entry: dict, robot, source: str, where: str) -> None:
     """The load set a data set's next experiment may use (``discriminate.loads``), parsed and bounded as the job
-    will parse it (:func:`stiffcal.discrimination.load_set`); the loads of the data need no check."""
+    will parse it (:func:`stiffcal.loads.load_set`, which :func:`stiffcal.discrimination.load_set` calls); the
+    loads of the data need no check."""
     spec = (entry.get("discriminate") or {}).get("loads")
     if spec is None or spec.strip().partition(":")[0] == "data":
         return
-    from .discrimination import load_set
+    from .loads import load_set
     from .measurements import FORCE_RESOLUTION_N
 
     try:
@@ -148,9 +176,13 @@ def _check_lab_loads(entry: dict, robot, source: str, where: str) -> None:
         raise err.renamed(f"{where}.discriminate.loads", source) from None
 
 
-def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) -> None:
+def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT,
+                 memo_dir: str | Path | None = None) -> None:
     """Check a workflow config completely (module docstring); raise :class:`InputError` naming ``source`` and
-    the field."""
+    the field. memo_dir: a folder where the check keeps the fingerprints of the measured-data files it has read
+    and found good (their bytes, the robot they were read for and the package's source,
+    ``data-checked.json``; :mod:`stiffcal.memo`), so that a rerun does not read them again; None: every file
+    is read every time."""
     from .maps import map_studies
     from .observation import moment_dim
     from .robot import load_robot
@@ -172,6 +204,11 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
     design_studies(config, root, source)
     map_studies(config, root, source)
     names = set()
+    memo = None
+    if memo_dir is not None:
+        from .memo import JsonMemo, package_fingerprint
+
+        memo = JsonMemo(Path(memo_dir) / "data-checked.json", package_fingerprint())
     for i, entry in enumerate(config.get("measured_data") or []):
         where = f"measured_data[{i}]"
         if entry["name"] in names:
@@ -185,9 +222,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT) ->
 
             regular_file(data, source=source, field=f"{where}.data")
             raise InputError(f"no such file: {entry['data']}", source=source, field=f"{where}.data")
-        from .measurements import read_measurements
-
-        read_measurements(data, data_robot)  # the data themselves (the message names the CSV, row and column)
+        _check_data(data, data_robot, memo)  # the data themselves (the message names the CSV, row and column)
         _check_lab_loads(entry, data_robot, source, where)
         force = entry.get("force_N", config["study"]["force_N"])
         moment = entry.get("moment_Nm", config["study"].get("moment_Nm"))

@@ -9,12 +9,13 @@ inputs (a study of M = 2..8 from a script, a lab asking for M = 6 and then M = 1
 of the output are the same as without the cache, bit for bit (the design is stored as JSON, whose floats read
 back exactly, the pool as .npy).
 
-Key: SHA-256 of the problem's every field (:func:`fingerprint`: the robot's kinematics, limits, masses, cell
-and targets as their exact bytes; for a URDF arm in a cell the URDF file and its collision meshes too), the
-source of the ``stiffcal`` package and the versions of numpy, scipy and Pinocchio: an edit to any of them
-makes a new entry (old entries stay, 5 kB and 0.4 MB for a 6-axis arm, until the folder is cleared). An
-entry that cannot be read back (truncated, edited, from another layout) is recomputed and rewritten. Entries
-are written whole (a temporary file renamed), so concurrent calls never read half an entry.
+Key: SHA-256 of the problem's every field (:func:`fingerprint`, :func:`stiffcal.memo.feed`: the robot's
+kinematics, limits, masses, cell and targets as their exact bytes; for a URDF arm in a cell the URDF file and
+its collision meshes too), the source of the ``stiffcal`` package and the versions of numpy, scipy and
+Pinocchio: an edit to any of them makes a new entry (old entries stay, 5 kB and 0.4 MB for a 6-axis arm, until
+the folder is cleared). An entry that cannot be read back (truncated, edited, from another layout) is
+recomputed and rewritten. Entries are written whole (a temporary file renamed), so concurrent calls never read
+half an entry.
 
 Where: ``--cache-dir`` (API ``cache_dir``), else the environment variable ``STIFFCAL_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/stiffcal`` (``~/.cache/stiffcal``); ``--no-cache`` (API ``cache_dir=None``) computes it afresh.
@@ -27,13 +28,12 @@ import hashlib
 import io
 import json
 import os
-import tempfile
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from .certificate import ApproximateDesign
+from .memo import NotFingerprintable, feed, feed_file, package_fingerprint, write_whole
 
 #: the environment variable naming the cache folder
 CACHE_ENV = "STIFFCAL_CACHE_DIR"
@@ -48,87 +48,20 @@ def default_cache_dir() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "stiffcal"
 
 
-class NotFingerprintable(TypeError):
-    """An input holds an object whose content :func:`fingerprint` cannot read (the design is then not cached)."""
-
-
-def _feed(h, obj) -> None:
-    """Feed the exact content of obj to the hash h (type-tagged, so that 1, 1.0 and '1' differ)."""
-    if obj is None:
-        h.update(b"None;")
-    elif isinstance(obj, (bool, int, float, str, np.generic)):
-        h.update(f"{type(obj).__name__}:{obj!r};".encode())
-    elif isinstance(obj, os.PathLike):
-        _feed(h, os.fspath(obj))
-    elif isinstance(obj, np.ndarray):
-        h.update(f"array:{obj.dtype.str}:{obj.shape};".encode())
-        if obj.dtype == object:
-            for item in obj.ravel():
-                _feed(h, item)
-        else:
-            h.update(np.ascontiguousarray(obj).tobytes())
-    elif dataclasses.is_dataclass(obj) and not isinstance(obj, type):
-        h.update(f"{type(obj).__module__}.{type(obj).__qualname__}{{".encode())
-        for f in dataclasses.fields(obj):
-            if f.name.startswith("_"):  # a private cache (a cell's collision engines), not an input
-                continue
-            h.update(f"{f.name}=".encode())
-            _feed(h, getattr(obj, f.name))
-        h.update(b"}")
-    elif isinstance(obj, (list, tuple)):
-        h.update(f"{type(obj).__name__}[{len(obj)}]".encode())
-        for item in obj:
-            _feed(h, item)
-    elif isinstance(obj, dict):
-        h.update(f"dict[{len(obj)}]".encode())
-        for k in sorted(obj, key=repr):
-            _feed(h, k)
-            _feed(h, obj[k])
-    else:
-        raise NotFingerprintable(f"cannot fingerprint a {type(obj).__name__}")
-
-
-def _file_bytes(h, path) -> None:
-    p = Path(path)
-    _feed(h, str(p))
-    h.update(p.read_bytes() if p.is_file() else b"<missing>")
-
-
-@lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """SHA-256 of the ``stiffcal`` package's Python source and of the numerical libraries' versions."""
-    import scipy
-
-    h = hashlib.sha256()
-    root = Path(__file__).resolve().parent
-    for path in sorted(root.rglob("*.py")):
-        _feed(h, path.relative_to(root).as_posix())
-        h.update(path.read_bytes())
-    versions = [np.__version__, scipy.__version__]
-    try:
-        import pinocchio
-
-        versions.append(pinocchio.__version__)
-    except ImportError:  # pragma: no cover - pinocchio is a dependency
-        versions.append("no pinocchio")
-    _feed(h, versions)
-    return h.hexdigest()
-
-
 def fingerprint(problem) -> str:
     """The cache key (hex SHA-256) of the approximate design and pool of ``problem``; raises
-    :class:`NotFingerprintable` for an input it cannot read exactly."""
+    :class:`stiffcal.memo.NotFingerprintable` for an input it cannot read exactly."""
     h = hashlib.sha256()
-    _feed(h, [FORMAT, code_fingerprint()])
-    _feed(h, problem)
+    feed(h, [FORMAT, package_fingerprint()])
+    feed(h, problem)
     robot = problem.robot
     if robot.cell is not None and robot.urdf_info:  # the cell's collision meshes are read from files
         from .workcell import _urdf_geometry
 
-        _file_bytes(h, robot.urdf_info["path"])
+        feed_file(h, robot.urdf_info["path"])
         for g in _urdf_geometry(robot)[2].geometryObjects:
             if getattr(g, "meshPath", ""):
-                _file_bytes(h, g.meshPath)
+                feed_file(h, g.meshPath)
     return h.hexdigest()
 
 
@@ -164,21 +97,6 @@ def _read(path: Path, decode):
         return None
 
 
-def _write(path: Path, data: bytes) -> None:
-    """Write data to path whole (a temporary file renamed); a folder that cannot be written is skipped (it only
-    costs the next call the computation)."""
-    tmp = None
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile("wb", dir=path.parent, suffix=".tmp", delete=False) as f:
-            tmp = f.name
-            f.write(data)
-        os.replace(tmp, path)
-    except OSError:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
-
-
 def _cached(problem, cache_dir, folder: str, suffix: str, compute, encode, decode):
     """compute() read from / stored in ``cache_dir/folder/<fingerprint>suffix``; computed and not stored with
     cache_dir None or inputs that cannot be fingerprinted; an entry that does not decode is recomputed."""
@@ -192,7 +110,7 @@ def _cached(problem, cache_dir, folder: str, suffix: str, compute, encode, decod
     if found is None:
         found = compute()
         try:
-            _write(path, encode(found))
+            write_whole(path, encode(found))
         except ValueError:  # a non-finite number: never read back as a valid entry, so not written
             pass
     return found

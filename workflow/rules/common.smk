@@ -4,7 +4,7 @@
 import dataclasses as _dc
 import sys as _sys
 
-from stiffcal.codeversion import code_version
+from stiffcal.codeversion import code_version, remember_code_versions as _remember_code_versions
 from stiffcal.errors import InputError as _InputError
 from stiffcal.maps import MAP_DEFAULTS as _MAP_DEFAULTS
 from stiffcal.maps import map_studies as _map_studies
@@ -17,6 +17,10 @@ from stiffcal.study import DESIGN_KEYS as _DESIGN_KEYS
 from stiffcal.study import PROBLEM_KEYS as _PROBLEM_KEYS
 from stiffcal.workcell import cell_inputs as _cell_inputs
 from stiffcal.study import design_studies as _design_studies
+
+# code versions kept between runs (.snakemake/stiffcal/code-versions.json): no parsing of the package's source
+# when it did not change (stiffcal.memo)
+_remember_code_versions(_MEMO_DIR / "code-versions.json")
 
 TABLES = "results/tables"
 # the config as the run saw it (rule effective_config); its hash is the one the report shows
