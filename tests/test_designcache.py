@@ -3,6 +3,7 @@ computed, every input that changes the design changes the key, a damaged entry i
 options are checked before any work."""
 
 import dataclasses
+import io
 import json
 import os
 from pathlib import Path
@@ -28,6 +29,10 @@ cell:
   clearance_m: 0.02
   link_radius_m: 0.04
 """
+
+
+def _entries(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.rglob("*") if p.is_file())
 
 
 def _forbid_computing(monkeypatch):
@@ -100,11 +105,11 @@ def test_the_key_changes_with_the_code(paper_robot, monkeypatch):
 def test_a_damaged_entry_is_recomputed_and_rewritten(tmp_path, damage):
     cache = tmp_path / "cache"
     fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
-    for entry in cache.rglob("*.*"):
+    for entry in _entries(cache):
         entry.write_bytes(damage)
     again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
     assert json.dumps(again.to_dict()) == json.dumps(fresh.to_dict())
-    assert all(e.read_bytes() != damage for e in cache.rglob("*.*"))
+    assert all(e.read_bytes() != damage for e in _entries(cache))
 
 
 def test_a_cache_folder_that_cannot_be_written_is_refused_before_any_work(tmp_path, capsys):
@@ -116,8 +121,10 @@ def test_a_cache_folder_that_cannot_be_written_is_refused_before_any_work(tmp_pa
     base = ["design", "--robot", str(PAPER), "--test-pose-deg", "60,30", "--force-N", "0,-1", "--experiments", "2"]
     assert main(base + ["--cache-dir", str(blocker)]) == 2
     assert main(base + ["--cache-dir", str(tmp_path / "c"), "--no-cache"]) == 2
+    assert main(base + ["--cache-dir", ""]) == 2
     err = capsys.readouterr().err
-    assert "cache_dir" in err and "not both" in err and not (tmp_path / "c").exists()
+    assert err.count("field '--cache-dir'") == 3 and "not both" in err and "empty path" in err
+    assert not (tmp_path / "c").exists() and not any(Path.cwd().glob("approximate-design"))
 
 
 def test_the_cli_uses_the_default_folder_and_no_cache_leaves_it_empty(tmp_path, monkeypatch, capsys):
@@ -131,7 +138,7 @@ def test_the_cli_uses_the_default_folder_and_no_cache_leaves_it_empty(tmp_path, 
     afresh = capsys.readouterr().out
     assert not folder.exists()
     assert main(base) == 0
-    assert capsys.readouterr().out == afresh and any(folder.rglob("*.json"))
+    assert capsys.readouterr().out == afresh and any(_entries(folder))
     blocker = tmp_path / "file"
     blocker.write_text("x")
     monkeypatch.setenv(designcache.CACHE_ENV, str(blocker / "cache"))  # a default that cannot be a folder
@@ -182,7 +189,7 @@ def test_several_m_in_one_call_are_the_plans_of_separate_calls(tmp_path, capsys,
         assert main(base + ["--experiments", str(m), "--no-cache"]) == 0
         alone.append(json.loads(capsys.readouterr().out))
     assert several == alone
-    assert not cache or not any(Path(os.environ[designcache.CACHE_ENV]).rglob("*.json"))
+    assert not cache or not any(_entries(Path(os.environ[designcache.CACHE_ENV])))
 
 
 @pytest.mark.parametrize("value, needle", [("2-", "expected a whole number M, a range A-B"),
@@ -193,3 +200,80 @@ def test_bad_experiment_lists_are_refused_naming_the_option(capsys, value, needl
     assert main(base + ["--experiments", value]) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and "'--experiments'" in captured.err and needle in captured.err
+
+
+def _forge(entry: Path, payload: bytes) -> None:
+    """Replace an entry's content by payload with a checksum that matches (a damage the checksum cannot see)."""
+    kind, key = entry.parent.name, entry.name
+    entry.write_bytes(designcache._entry(key, kind, payload))
+
+
+@pytest.mark.parametrize("edit", ["weights", "phi_lower", "region"])
+def test_an_edited_entry_is_recomputed(tmp_path, edit):
+    """An entry edited by hand (a weight, the bound's phi, the region) no longer matches its checksum: recomputed,
+    the output that of a fresh computation."""
+    cache = tmp_path / "cache"
+    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False).to_dict()
+    stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
+    entry = next(e for e in _entries(cache) if e.parent.name == "approximate-design")
+    head, _, payload = entry.read_bytes().partition(b"\n")
+    doc = json.loads(payload)
+    doc[edit] = {"weights": [w * 0.5 for w in doc["weights"]], "phi_lower": 1e-4, "region": "candidate poses"}[edit]
+    entry.write_bytes(head + b"\n" + json.dumps(doc).encode())
+    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    assert json.dumps(again, sort_keys=True) == json.dumps(fresh, sort_keys=True)
+
+
+def _design_payload(**raw) -> bytes:
+    """A design entry's JSON with some values given as raw JSON text (a one-pose design at the paper's optimum
+    otherwise, which this code would read back)."""
+    doc = {"support_deg": "[[60.0, 30.0]]", "weights": "[1.0]", "phi": "1.0", "max_phi": "1.0", "phi_lower": "1.0",
+           "iterations": "1", "region": '"joint space"', "n_candidates": "0", **raw}
+    return ("{" + ", ".join(f'"{k}": {v}' for k, v in doc.items()) + "}").encode()
+
+
+@pytest.mark.parametrize("payload, used", [
+    (_design_payload(), True),  # the control: a forged design that is well formed is read (the forge works)
+    (_design_payload(iterations="1e999"), False), (_design_payload(n_candidates="Infinity"), False),
+    (_design_payload(phi="1" + "0" * 400), False), (_design_payload(region="[" * 100000 + "]" * 100000), False),
+    (_design_payload(support_deg="[]", weights="[]"), False), (_design_payload(weights="[-1.0]"), False),
+    (_design_payload(support_deg="[[60.0]]"), False), (_design_payload(iterations="-1"), False),
+    (_design_payload(phi="0.0"), False)])
+def test_a_well_formed_entry_that_no_computation_gives_is_recomputed(tmp_path, payload, used):
+    cache = tmp_path / "cache"
+    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False).to_dict()
+    stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
+    _forge(next(e for e in _entries(cache) if e.parent.name == "approximate-design"), payload)
+    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    assert (json.dumps(again, sort_keys=True) == json.dumps(fresh, sort_keys=True)) is not used
+
+
+@pytest.mark.parametrize("pool", ["empty", "huge header", "wrong width", "nan"])
+def test_a_pool_entry_that_no_computation_gives_is_recomputed(tmp_path, pool):
+    """An empty pool, a .npy header that claims 10^12 rows (never allocated), another width, a NaN: recomputed."""
+    cache = tmp_path / "cache"
+    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False).to_dict()
+    stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
+    arrays = {"empty": np.zeros((0, 2)), "wrong width": np.zeros((5, 3)), "nan": np.full((5, 2), np.nan),
+              "huge header": np.zeros((3, 2))}
+    payload = designcache._pool_bytes(arrays[pool])
+    if pool == "huge header":  # the same header length (padded with spaces), 10^12 rows claimed
+        head_len = 10 + int.from_bytes(payload[8:10], "little")
+        head = payload[10:head_len].replace(b"(3, 2)", b"(1000000000000, 2)")
+        payload = payload[:10] + head[:head_len - 10 - 1].ljust(head_len - 10 - 1) + b"\n" + payload[head_len:]
+        assert np.lib.format.read_array_header_1_0(io.BytesIO(payload[8:]))[0] == (10**12, 2)
+    _forge(next(e for e in _entries(cache) if e.parent.name == "candidate-pool"), payload)
+    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    assert json.dumps(again, sort_keys=True) == json.dumps(fresh, sort_keys=True)
+
+
+def test_the_cells_srdf_is_part_of_the_key(tmp_path):
+    """The SRDF names the body pairs a cell leaves unchecked: editing it gives a new key."""
+    srdf = tmp_path / "arm.srdf"
+    srdf.write_text('<robot name="a"><disable_collisions link1="l1" link2="l2" reason="Adjacent"/></robot>')
+    from stiffcal.workcell import WorkCell
+
+    robot = dataclasses.replace(load_robot(PAPER), cell=WorkCell(srdf=str(srdf)))
+    key = designcache.fingerprint(_problem(robot))
+    srdf.write_text('<robot name="a"></robot>')
+    assert designcache.fingerprint(_problem(robot)) != key

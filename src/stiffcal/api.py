@@ -318,7 +318,9 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     if cache_dir is not None:
         from .safeio import check_out_dir as check_dir
 
-        cache_dir = check_dir(_path(cache_dir, "cache_dir", "a folder for the cache"), field="cache_dir")
+        if not str(_path(cache_dir, "cache_dir", "a folder for the cache")).strip():
+            raise InputError("expected a folder for the cache, got an empty path", field="cache_dir")
+        cache_dir = check_dir(cache_dir, field="cache_dir")
     if not isinstance(test_target, str):
         raise InputError(f"expected a target's name, got {short_repr(test_target)}", field="test_target")
     sensing, test_target, length = check_sensing(

@@ -89,7 +89,7 @@ def experiment_values(text) -> list[int]:
 
     values: set[int] = set()
     for part in str(text).split(","):
-        m = re.fullmatch(r"\s*(\d{1,12})\s*(?:-\s*(\d{1,12})\s*)?", part)
+        m = re.fullmatch(r"\s*([0-9]{1,12})\s*(?:-\s*([0-9]{1,12})\s*)?", part, re.ASCII)
         if not m or int(m[2] or m[1]) < int(m[1]):
             raise InputError(f"expected a whole number M, a range A-B (A <= B) or a comma-separated list of them (6, "
                              f"2-8, 2,4,6), got {text!r}", field="--experiments")
@@ -134,10 +134,12 @@ def _cache_dir(args):
 
     if args.no_cache:
         if args.cache_dir is not None:
-            raise InputError("expected --cache-dir or --no-cache, not both", field="cache_dir")
+            raise InputError("expected --cache-dir or --no-cache, not both", field="--cache-dir")
         return None
     if args.cache_dir is not None:
-        return args.cache_dir
+        if not args.cache_dir.strip():
+            raise InputError("expected a folder for the cache, got an empty path", field="--cache-dir")
+        return check_out_dir(args.cache_dir, field="--cache-dir")
     try:
         return check_out_dir(default_cache_dir())
     except InputError:

@@ -10,12 +10,13 @@ of the output are the same as without the cache, bit for bit (the design is stor
 back exactly, the pool as .npy).
 
 Key: SHA-256 of the problem's every field (:func:`fingerprint`, :func:`stiffcal.memo.feed`: the robot's
-kinematics, limits, masses, cell and targets as their exact bytes; for a URDF arm in a cell the URDF file and
-its collision meshes too), the source of the ``stiffcal`` package and the versions of numpy, scipy and
-Pinocchio: an edit to any of them makes a new entry (old entries stay, 5 kB and 0.4 MB for a 6-axis arm, until
-the folder is cleared). An entry that cannot be read back (truncated, edited, from another layout) is
-recomputed and rewritten. Entries are written whole (a temporary file renamed), so concurrent calls never read
-half an entry.
+kinematics, limits, masses, cell and targets as their exact bytes; for a URDF arm in a cell the URDF file, its
+collision meshes and the cell's SRDF too), the source of the ``stiffcal`` package and the versions of numpy,
+scipy and Pinocchio: an edit to any of them makes a new entry (old entries stay, 5 kB and 0.4 MB for a 6-axis
+arm, until the folder is cleared). Every entry starts with a line that holds the SHA-256 of its key and
+content: an entry that does not match it (truncated, edited, renamed, from another layout) or does not hold a
+design or pool this code could have written is recomputed and rewritten. Entries are written whole (a
+temporary file renamed, readable as the umask allows), so concurrent calls never read half an entry.
 
 Where: ``--cache-dir`` (API ``cache_dir``), else the environment variable ``STIFFCAL_CACHE_DIR``, else
 ``$XDG_CACHE_HOME/stiffcal`` (``~/.cache/stiffcal``); ``--no-cache`` (API ``cache_dir=None``) computes it afresh.
@@ -38,7 +39,7 @@ from .memo import NotFingerprintable, feed, feed_file, package_fingerprint, writ
 #: the environment variable naming the cache folder
 CACHE_ENV = "STIFFCAL_CACHE_DIR"
 #: the layout of an entry (a new layout ignores the old entries)
-FORMAT = 1
+FORMAT = 2
 
 
 def default_cache_dir() -> Path:
@@ -55,6 +56,8 @@ def fingerprint(problem) -> str:
     feed(h, [FORMAT, package_fingerprint()])
     feed(h, problem)
     robot = problem.robot
+    if robot.cell is not None and robot.cell.srdf:  # the pairs the cell leaves unchecked are read from a file
+        feed_file(h, robot.cell.srdf)
     if robot.cell is not None and robot.urdf_info:  # the cell's collision meshes are read from files
         from .workcell import _urdf_geometry
 
@@ -65,52 +68,96 @@ def fingerprint(problem) -> str:
     return h.hexdigest()
 
 
-def _to_json(design: ApproximateDesign) -> str:
-    return json.dumps({"format": FORMAT, **{f.name: (v.tolist() if isinstance(v, np.ndarray) else v)
-                                            for f in dataclasses.fields(design)
-                                            for v in [getattr(design, f.name)]}}, sort_keys=True,
-                      allow_nan=False, default=lambda v: v.item())  # numpy scalars; a non-finite value is not stored
+def _to_json(design: ApproximateDesign) -> bytes:
+    return json.dumps({f.name: (v.tolist() if isinstance(v, np.ndarray) else v)
+                       for f in dataclasses.fields(design) for v in [getattr(design, f.name)]}, sort_keys=True,
+                      allow_nan=False, default=lambda v: v.item()).encode()  # a non-finite value is not stored
 
 
 def _from_json(data: bytes, n_joints: int) -> ApproximateDesign | None:
-    """The design of an entry, or None when the entry is not one this code wrote (then it is recomputed)."""
+    """The design of an entry's payload, or None when it is not a design of n_joints this code could have
+    written (then it is recomputed)."""
     try:
         doc = json.loads(data.decode("utf-8"))
-        if doc.pop("format") != FORMAT or set(doc) != {f.name for f in dataclasses.fields(ApproximateDesign)}:
+        if not isinstance(doc, dict) or set(doc) != {f.name for f in dataclasses.fields(ApproximateDesign)}:
             return None
         support = np.array(doc["support_deg"], float).reshape(-1, n_joints)
         weights = np.array(doc["weights"], float)
-        scalars = [float(doc[k]) for k in ("phi", "max_phi", "phi_lower")]
-        if weights.shape != (len(support),) or not (np.all(np.isfinite(support)) and np.all(np.isfinite(weights))
-                                                    and np.all(np.isfinite(scalars))):
+        scalars = np.array([doc[k] for k in ("phi", "max_phi", "phi_lower")], float)
+        counts = [doc["iterations"], doc["n_candidates"]]
+        if not (len(support) and weights.shape == (len(support),) and np.isfinite(support).all()
+                and np.isfinite(weights).all() and weights.min() >= 0.0 and abs(weights.sum() - 1.0) <= 1e-9
+                and np.isfinite(scalars).all() and scalars.min() > 0.0 and isinstance(doc["region"], str)
+                and all(type(c) is int and 0 <= c < 2**53 for c in counts)):
             return None
-        return ApproximateDesign(support, weights, *scalars, int(doc["iterations"]), str(doc["region"]),
-                                 int(doc["n_candidates"]))
-    except (ValueError, TypeError, KeyError, AttributeError, UnicodeDecodeError):
+        return ApproximateDesign(support, weights, *map(float, scalars), *counts[:1], doc["region"], counts[1])
+    except (ValueError, TypeError, KeyError, AttributeError, UnicodeDecodeError, OverflowError, RecursionError):
         return None
 
 
-def _read(path: Path, decode):
+def _pool_bytes(pool: np.ndarray) -> bytes:
+    buf = io.BytesIO()
+    np.save(buf, pool, allow_pickle=False)
+    return buf.getvalue()
+
+
+def _pool_from(data: bytes, n_joints: int) -> np.ndarray | None:
+    """The pool (N >= 1, n_joints) float64 of an entry's payload, or None; the .npy header is checked against
+    the payload's length before anything is allocated."""
     try:
-        return decode(path.read_bytes())
-    except OSError:
+        buf = io.BytesIO(data)
+        version = np.lib.format.read_magic(buf)
+        if version not in ((1, 0), (2, 0)):
+            return None
+        read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, fortran, dtype = read(buf)
+        if (dtype != np.float64 or fortran or len(shape) != 2 or shape[1] != n_joints or shape[0] < 1
+                or len(data) - buf.tell() != shape[0] * n_joints * 8):
+            return None
+        pool = np.load(io.BytesIO(data), allow_pickle=False)
+    except (ValueError, OSError, EOFError, TypeError, SyntaxError):
         return None
+    return pool if np.isfinite(pool).all() else None
 
 
-def _cached(problem, cache_dir, folder: str, suffix: str, compute, encode, decode):
-    """compute() read from / stored in ``cache_dir/folder/<fingerprint>suffix``; computed and not stored with
-    cache_dir None or inputs that cannot be fingerprinted; an entry that does not decode is recomputed."""
+#: the first line of an entry: its layout, what it holds and the SHA-256 of its key and payload
+_HEADER = "stiffcal-cache {format} {kind} {digest}\n"
+
+
+def _entry(key: str, kind: str, payload: bytes) -> bytes:
+    digest = hashlib.sha256(key.encode() + b"\0" + payload).hexdigest()
+    return _HEADER.format(format=FORMAT, kind=kind, digest=digest).encode() + payload
+
+
+def _payload(key: str, kind: str, data: bytes) -> bytes | None:
+    """The payload of an entry written by :func:`_entry` for this key and kind, or None (another layout, a
+    truncated, edited or renamed entry: its checksum fails)."""
+    head, sep, payload = data.partition(b"\n")
+    if not sep or len(head) > 200:
+        return None
+    expected = _entry(key, kind, payload)
+    return payload if data == expected else None
+
+
+def _cached(problem, cache_dir, kind: str, compute, encode, decode):
+    """compute() read from / stored in ``cache_dir/kind/<fingerprint>``; computed and not stored with cache_dir
+    None or inputs that cannot be fingerprinted; an entry that does not check and decode is recomputed."""
     if cache_dir is None:
         return compute()
     try:
-        path = Path(cache_dir) / folder / f"{fingerprint(problem)}{suffix}"
+        key = fingerprint(problem)
     except NotFingerprintable:
         return compute()
-    found = _read(path, decode)
+    path = Path(cache_dir) / kind / key
+    try:
+        payload = _payload(key, kind, path.read_bytes())
+    except OSError:
+        payload = None
+    found = None if payload is None else decode(payload)
     if found is None:
         found = compute()
         try:
-            write_whole(path, encode(found))
+            write_whole(path, _entry(key, kind, encode(found)), shared=True)
         except ValueError:  # a non-finite number: never read back as a valid entry, so not written
             pass
     return found
@@ -123,8 +170,8 @@ def cached_design(problem, cache_dir) -> ApproximateDesign:
     from .certificate import approximate_design
 
     n = problem.robot.n_joints
-    return _cached(problem, cache_dir, "approximate-design", ".json", lambda: approximate_design(problem),
-                   lambda d: _to_json(d).encode(), lambda b: _from_json(b, n))
+    return _cached(problem, cache_dir, "approximate-design", lambda: approximate_design(problem), _to_json,
+                   lambda b: _from_json(b, n))
 
 
 def cached_pool(problem, cache_dir) -> np.ndarray:
@@ -133,19 +180,6 @@ def cached_pool(problem, cache_dir) -> np.ndarray:
     from .certificate import candidate_pool, default_pool_step
 
     n = problem.robot.n_joints
-
-    def encode(pool):
-        buf = io.BytesIO()
-        np.save(buf, pool, allow_pickle=False)
-        return buf.getvalue()
-
-    def decode(data):
-        try:
-            pool = np.load(io.BytesIO(data), allow_pickle=False)
-        except (ValueError, OSError, EOFError):
-            return None
-        ok = pool.ndim == 2 and pool.shape[1] == n and pool.dtype == np.float64 and np.isfinite(pool).all()
-        return pool if ok else None
-
-    return _cached(problem, cache_dir, "candidate-pool", ".npy",
-                   lambda: candidate_pool(problem.robot, default_pool_step(n), problem), encode, decode)
+    return _cached(problem, cache_dir, "candidate-pool", lambda: candidate_pool(problem.robot, default_pool_step(n),
+                                                                                problem),
+                   _pool_bytes, lambda b: _pool_from(b, n))

@@ -103,15 +103,20 @@ def package_fingerprint() -> str:
     return h.hexdigest()
 
 
-def write_whole(path: Path, data: bytes) -> bool:
+def write_whole(path: Path, data: bytes, shared: bool = False) -> bool:
     """Write data to path whole (a temporary file in its folder, renamed); False (nothing left behind) when the
-    folder cannot be written: a memo that cannot be kept only costs the next run the work."""
+    folder cannot be written: a memo that cannot be kept only costs the next run the work. shared: readable by
+    others as the umask allows (a cache folder several users share), else by the owner only."""
     tmp = None
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile("wb", dir=path.parent, suffix=".tmp", delete=False) as f:
             tmp = f.name
             f.write(data)
+        if shared:
+            umask = os.umask(0o022)
+            os.umask(umask)
+            os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
         return True
     except OSError:
