@@ -277,3 +277,14 @@ def test_the_cells_srdf_is_part_of_the_key(tmp_path):
     key = designcache.fingerprint(_problem(robot))
     srdf.write_text('<robot name="a"></robot>')
     assert designcache.fingerprint(_problem(robot)) != key
+
+
+def test_a_fifo_in_place_of_an_entry_is_not_read(tmp_path):
+    """A FIFO where an entry should be would block a reader: it is passed over (computed afresh)."""
+    cache = tmp_path / "cache"
+    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    for entry in _entries(cache):
+        entry.unlink()
+        os.mkfifo(entry)
+    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    assert json.dumps(again, sort_keys=True) == json.dumps(fresh, sort_keys=True)

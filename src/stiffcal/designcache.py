@@ -29,6 +29,7 @@ import hashlib
 import io
 import json
 import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,8 @@ from .memo import NotFingerprintable, feed, feed_file, package_fingerprint, writ
 CACHE_ENV = "STIFFCAL_CACHE_DIR"
 #: the layout of an entry (a new layout ignores the old entries)
 FORMAT = 2
+#: the largest entry read back [bytes] (a pool of 10^7 poses of 7 joints is 0.56 GB)
+MAX_ENTRY_BYTES = 2**30
 
 
 def default_cache_dir() -> Path:
@@ -149,8 +152,10 @@ def _cached(problem, cache_dir, kind: str, compute, encode, decode):
     except NotFingerprintable:
         return compute()
     path = Path(cache_dir) / kind / key
-    try:
-        payload = _payload(key, kind, path.read_bytes())
+    try:  # a FIFO, a device or an oversized file in its place is never read (a FIFO would block)
+        info = path.stat()
+        payload = (_payload(key, kind, path.read_bytes())
+                   if stat.S_ISREG(info.st_mode) and info.st_size <= MAX_ENTRY_BYTES else None)
     except OSError:
         payload = None
     found = None if payload is None else decode(payload)
