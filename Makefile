@@ -53,6 +53,7 @@ PIPELINE_BASELINE ?= 863eed4
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_plans.py
 	$(BIN)/python benchmarks/bench_criteria.py
+	$(BIN)/python benchmarks/bench_design_cache.py
 	$(BIN)/python benchmarks/bench_maps.py
 	$(BIN)/python benchmarks/bench_spatial.py
 	$(BIN)/python benchmarks/bench_urdf.py
