@@ -75,13 +75,6 @@ def feed_file(h, path) -> None:
     h.update(p.read_bytes() if p.is_file() else b"<missing>")
 
 
-def fingerprint(*parts) -> str:
-    """Hex SHA-256 of parts (:func:`feed`) and of the package (:func:`package_fingerprint`)."""
-    h = hashlib.sha256()
-    feed(h, [package_fingerprint(), *parts])
-    return h.hexdigest()
-
-
 @lru_cache(maxsize=1)
 def package_fingerprint() -> str:
     """SHA-256 of the ``stiffcal`` package's Python source and of the numerical libraries' versions (numpy,
