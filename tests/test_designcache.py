@@ -31,6 +31,11 @@ cell:
 """
 
 
+def _plan(cache=None) -> dict:
+    """The paper arm's 2-pose plan (to_dict), with the cache folder ``cache`` or none."""
+    return stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+
+
 def _entries(folder: Path) -> list[Path]:
     return sorted(p for p in folder.rglob("*") if p.is_file())
 
@@ -104,11 +109,11 @@ def test_the_key_changes_with_the_code(paper_robot, monkeypatch):
                                     b'"n_candidates": 0}'])
 def test_a_damaged_entry_is_recomputed_and_rewritten(tmp_path, damage):
     cache = tmp_path / "cache"
-    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
+    fresh = _plan(cache)
     for entry in _entries(cache):
         entry.write_bytes(damage)
-    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
-    assert json.dumps(again.to_dict()) == json.dumps(fresh.to_dict())
+    again = _plan(cache)
+    assert json.dumps(again) == json.dumps(fresh)
     assert all(e.read_bytes() != damage for e in _entries(cache))
 
 
@@ -213,14 +218,14 @@ def test_an_edited_entry_is_recomputed(tmp_path, edit):
     """An entry edited by hand (a weight, the bound's phi, the region) no longer matches its checksum: recomputed,
     the output that of a fresh computation."""
     cache = tmp_path / "cache"
-    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False).to_dict()
-    stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
+    fresh = _plan()
+    _plan(cache)
     entry = next(e for e in _entries(cache) if e.parent.name == "approximate-design")
     head, _, payload = entry.read_bytes().partition(b"\n")
     doc = json.loads(payload)
     doc[edit] = {"weights": [w * 0.5 for w in doc["weights"]], "phi_lower": 1e-4, "region": "candidate poses"}[edit]
     entry.write_bytes(head + b"\n" + json.dumps(doc).encode())
-    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    again = _plan(cache)
     assert json.dumps(again, sort_keys=True) == json.dumps(fresh, sort_keys=True)
 
 
@@ -241,10 +246,10 @@ def _design_payload(**raw) -> bytes:
     (_design_payload(phi="0.0"), False)])
 def test_a_well_formed_entry_that_no_computation_gives_is_recomputed(tmp_path, payload, used):
     cache = tmp_path / "cache"
-    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False).to_dict()
-    stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
+    fresh = _plan()
+    _plan(cache)
     _forge(next(e for e in _entries(cache) if e.parent.name == "approximate-design"), payload)
-    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    again = _plan(cache)
     assert (json.dumps(again, sort_keys=True) == json.dumps(fresh, sort_keys=True)) is not used
 
 
@@ -252,8 +257,8 @@ def test_a_well_formed_entry_that_no_computation_gives_is_recomputed(tmp_path, p
 def test_a_pool_entry_that_no_computation_gives_is_recomputed(tmp_path, pool):
     """An empty pool, a .npy header that claims 10^12 rows (never allocated), another width, a NaN: recomputed."""
     cache = tmp_path / "cache"
-    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False).to_dict()
-    stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache)
+    fresh = _plan()
+    _plan(cache)
     arrays = {"empty": np.zeros((0, 2)), "wrong width": np.zeros((5, 3)), "nan": np.full((5, 2), np.nan),
               "huge header": np.zeros((3, 2))}
     payload = designcache._pool_bytes(arrays[pool])
@@ -263,7 +268,7 @@ def test_a_pool_entry_that_no_computation_gives_is_recomputed(tmp_path, pool):
         payload = payload[:10] + head[:head_len - 10 - 1].ljust(head_len - 10 - 1) + b"\n" + payload[head_len:]
         assert np.lib.format.read_array_header_1_0(io.BytesIO(payload[8:]))[0] == (10**12, 2)
     _forge(next(e for e in _entries(cache) if e.parent.name == "candidate-pool"), payload)
-    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    again = _plan(cache)
     assert json.dumps(again, sort_keys=True) == json.dumps(fresh, sort_keys=True)
 
 
@@ -282,9 +287,9 @@ def test_the_cells_srdf_is_part_of_the_key(tmp_path):
 def test_a_fifo_in_place_of_an_entry_is_not_read(tmp_path):
     """A FIFO where an entry should be would block a reader: it is passed over (computed afresh)."""
     cache = tmp_path / "cache"
-    fresh = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    fresh = _plan(cache)
     for entry in _entries(cache):
         entry.unlink()
         os.mkfifo(entry)
-    again = stiffcal.design(PAPER, [60, 30], [0, -1], experiments=2, progress=False, cache_dir=cache).to_dict()
+    again = _plan(cache)
     assert json.dumps(again, sort_keys=True) == json.dumps(fresh, sort_keys=True)
