@@ -162,7 +162,7 @@ def _cached(problem, cache_dir, kind: str, compute, encode, decode):
     if found is None:
         found = compute()
         try:
-            write_whole(path, _entry(key, kind, encode(found)), shared=True)
+            write_whole(path, _entry(key, kind, encode(found)))
         except ValueError:  # a non-finite number: never read back as a valid entry, so not written
             pass
     return found

@@ -16,7 +16,6 @@ import dataclasses
 import hashlib
 import json
 import os
-import tempfile
 from functools import lru_cache
 from pathlib import Path
 
@@ -96,25 +95,16 @@ def package_fingerprint() -> str:
     return h.hexdigest()
 
 
-def write_whole(path: Path, data: bytes, shared: bool = False) -> bool:
-    """Write data to path whole (a temporary file in its folder, renamed); False (nothing left behind) when the
-    folder cannot be written: a memo that cannot be kept only costs the next run the work. shared: readable by
-    others as the umask allows (a cache folder several users share), else by the owner only."""
-    tmp = None
+def write_whole(path: Path, data: bytes) -> bool:
+    """:func:`stiffcal.integrity.atomic_write` (a temporary file beside it, renamed; readable as the umask
+    allows), False when the folder cannot be written: a memo that cannot be kept only costs the next run the
+    work."""
+    from .integrity import atomic_write
+
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile("wb", dir=path.parent, suffix=".tmp", delete=False) as f:
-            tmp = f.name
-            f.write(data)
-        if shared:
-            umask = os.umask(0o022)
-            os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
+        atomic_write(path, data)
         return True
     except OSError:
-        if tmp is not None:
-            Path(tmp).unlink(missing_ok=True)
         return False
 
 
