@@ -225,6 +225,27 @@ def test_reml_with_a_loaded_component_equals_the_dense_likelihood():
         return -0.5 * (np.linalg.slogdet(V)[1] + np.linalg.slogdet(M)[1] + k * np.log(Q / k))
     a, b = np.array([0.7, 2.5]), np.array([1.9, 0.3])
     assert abs((lik.loglik(a) - lik.loglik(b)) - (dense(a) - dense(b))) < 1e-9 * max(1.0, abs(dense(a)))
+    # the analytic gradient (the REML optimiser's) against differences of the dense formula (central; forward at
+    # the boundary lambda = 0), profiled and with sigma^2 fixed (dense: -1/2 (log|V| + log|M| + k log s2 + Q / s2))
+    def difference(f, lam, h=1e-6):
+        return [(f(lam + h * e) - f(lam - h * e)) / (2 * h) if v > h else
+                (-3 * f(lam) + 4 * f(lam + h * e) - f(lam + 2 * h * e)) / (2 * h) for v, e in zip(lam, np.eye(2))]
+
+    def dense_fixed(lam, s2):
+        from scipy.linalg import block_diag
+        V = block_diag(*[EM._covariance(b, lam) for b in blocks])
+        Xf, y = X.reshape(-1, p), Y.ravel()
+        Vi = np.linalg.inv(V)
+        M = Xf.T @ Vi @ Xf
+        Q = y @ Vi @ y - (Xf.T @ Vi @ y) @ np.linalg.solve(M, Xf.T @ Vi @ y)
+        return -0.5 * (np.linalg.slogdet(V)[1] + np.linalg.slogdet(M)[1] + (len(y) - p) * np.log(s2) + Q / s2)
+
+    for lam in (a, b, np.array([0.0, 4.0])):
+        value, grad = lik.loglik_and_gradient(lam)
+        assert value == lik.loglik(lam)
+        np.testing.assert_allclose(grad, difference(dense, lam), rtol=1e-6, atol=1e-8)
+        _, grad_fixed = lik.loglik_and_gradient(lam, 0.8)
+        np.testing.assert_allclose(grad_fixed, difference(lambda v: dense_fixed(v, 0.8), lam), rtol=1e-6, atol=1e-8)
 
 
 def test_the_simulators_row_covariance_equals_a_monte_carlo_of_itself():

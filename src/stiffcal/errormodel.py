@@ -440,13 +440,17 @@ class _Likelihood:
         n_obs = sum(b["Y"].size for b in blocks)
         return cls(batches, yty, xty, np.eye(rank), n_obs, rank)
 
-    def parts(self, lam: np.ndarray):
+    def parts(self, lam: np.ndarray, gradient: bool = False):
         """(log|H| summed over blocks, log det M up to a constant, residual quadratic form Q), M = X^T H^-1 X in
-        the orthonormal basis of the fixed effects (full rank)."""
+        the orthonormal basis of the fixed effects (full rank); with ``gradient`` also (t, u), each (K,): the
+        derivatives d(log|H| + log det M)/d lambda_k = tr(Z_k^T P Z_k) and dQ/d lambda_k = -||Z_k^T P y||^2,
+        P = H^-1 - H^-1 X M^-1 X^T H^-1 (Harville 1977, eqs. 4.2-4.3), from the same reduced statistics."""
+        lam = np.asarray(lam, float)
         logdet, Q = 0.0, self.yty
         M, b = self.xtx.copy(), self.xty.copy()
+        kept = []
         for bt in self.batches:
-            d = np.sqrt(np.asarray(lam, float)[bt.comp])  # (m,)
+            d = np.sqrt(lam[bt.comp])  # (m,)
             C = np.eye(len(d)) + d[None, :, None] * bt.ZtZ * d[None, None, :]
             L = np.linalg.cholesky(C)
             logdet += 2.0 * float(np.log(np.diagonal(L, axis1=1, axis2=2)).sum())
@@ -458,13 +462,31 @@ class _Likelihood:
             flat = bx.reshape(-1, bx.shape[-1])
             M -= flat.T @ sx.reshape(-1, bx.shape[-1])
             b -= flat.T @ sa.reshape(-1)
-        logdet_M = 0.0
+            if gradient:
+                kept.append((bt, d, C, sa, sx))
+        logdet_M, beta = 0.0, np.zeros(self.rank)
         if self.rank:
             LM = np.linalg.cholesky(M)
             logdet_M = 2.0 * float(np.log(np.diagonal(LM)).sum())
             z = np.linalg.solve(LM, b)
             Q -= float(z @ z)
-        return logdet, logdet_M, max(Q, 1e-300)
+            if gradient:
+                beta = np.linalg.solve(LM.T, z)  # M^-1 X^T H^-1 y
+        if not gradient:
+            return logdet, logdet_M, max(Q, 1e-300)
+        t, u = np.zeros(len(lam)), np.zeros(len(lam))
+        Minv = np.linalg.inv(M) if self.rank else np.zeros((0, 0))
+        for bt, d, C, sa, sx in kept:
+            # Woodbury: Z^T H^-1 A = Z^T A - G D C^-1 D Z^T A, G = Z^T Z, for A = Z, y, X
+            GD = bt.ZtZ * d[None, None, :]  # (B, m, m)
+            ZHZ = bt.ZtZ - GD @ np.linalg.solve(C, np.swapaxes(GD, 1, 2))
+            ZHy = bt.ZtY - np.einsum("bij,bj->bi", GD, sa)
+            ZHX = bt.ZtX - GD @ sx
+            Pz = ZHy - ZHX @ beta  # Z^T P y (B, m)
+            tr = np.einsum("bii->bi", ZHZ) - np.einsum("bip,pq,biq->bi", ZHX, Minv, ZHX)  # diag of Z^T P Z
+            np.add.at(t, bt.comp, tr.sum(axis=0))
+            np.add.at(u, bt.comp, -(Pz ** 2).sum(axis=0))
+        return logdet, logdet_M, max(Q, 1e-300), t, u
 
     @property
     def df(self) -> int:
@@ -473,7 +495,15 @@ class _Likelihood:
     def loglik(self, lam: np.ndarray, sigma2: float | None = None) -> float:
         """The REML log-likelihood (constants dropped) at the variance ratios lam (K,), sigma^2 profiled out (or
         fixed at ``sigma2``)."""
-        logdet, logdet_M, Q = self.parts(lam)
+        return self._value(*self.parts(lam), sigma2)
+
+    def loglik_and_gradient(self, lam: np.ndarray, sigma2: float | None = None) -> tuple[float, np.ndarray]:
+        """(:meth:`loglik`, its gradient (K,) in lam) at lam, from one pass over the blocks."""
+        logdet, logdet_M, Q, t, u = self.parts(lam, gradient=True)
+        return (self._value(logdet, logdet_M, Q, sigma2),
+                -0.5 * (t + (self.df / Q if sigma2 is None else 1.0 / sigma2) * u))
+
+    def _value(self, logdet: float, logdet_M: float, Q: float, sigma2: float | None) -> float:
         if sigma2 is None:
             return -0.5 * (logdet + logdet_M + self.df * np.log(Q / self.df))
         return -0.5 * (logdet + logdet_M + self.df * np.log(sigma2) + Q / sigma2)
@@ -484,7 +514,8 @@ class _Likelihood:
 
 def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict | None = None,
               start: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """(lam (k,), log-likelihood) at the REML estimate over lam >= 0 (L-BFGS-B from two starts, on
+    """(lam (k,), log-likelihood) at the REML estimate over lam >= 0 (L-BFGS-B with the analytic gradient of
+    :meth:`_Likelihood.loglik_and_gradient`, from two starts, on
     log(1 + lam) so that both small and large ratios are found; from ``start`` alone when given); ``fixed``
     {index: value} held."""
     from scipy.optimize import minimize
@@ -500,10 +531,14 @@ def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict
         return lam
 
     def objective(x):
+        """-loglik and its gradient in x (lam = expm1(x): d lam / d x = 1 + lam; zero beyond the clip)."""
+        lam = full(x)
         try:
-            return -lik.loglik(full(x), sigma2)
+            value, grad = lik.loglik_and_gradient(lam, sigma2)
         except np.linalg.LinAlgError:
-            return np.inf
+            return np.inf, np.zeros(len(free))
+        inside = (x >= 0.0) & (x <= np.log1p(MAX_RATIO))
+        return -value, np.where(inside, -grad[free] * (1.0 + lam[free]), 0.0)
 
     if not free:
         lam = full(np.zeros(0))
@@ -511,7 +546,7 @@ def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict
     best = None
     starts = (np.zeros(len(free)), np.full(len(free), np.log(2.0))) if start is None else (np.log1p(start[free]),)
     for x0 in starts:
-        res = minimize(objective, x0, method="L-BFGS-B", bounds=[(0.0, np.log1p(MAX_RATIO))] * len(free),
+        res = minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=[(0.0, np.log1p(MAX_RATIO))] * len(free),
                        options={"ftol": 1e-12, "gtol": 1e-8, "maxiter": 200})
         if best is None or res.fun < best.fun:
             best = res
