@@ -522,12 +522,13 @@ def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict
 
     fixed = fixed or {}
     free = [i for i in range(k) if i not in fixed]
+    top = np.log1p(MAX_RATIO)  # the bound of x = log(1 + lam)
 
     def full(x):
         lam = np.zeros(k)
         for i, v in fixed.items():
             lam[i] = v
-        lam[free] = np.expm1(np.clip(x, 0.0, np.log1p(MAX_RATIO)))
+        lam[free] = np.expm1(np.clip(x, 0.0, top))
         return lam
 
     def objective(x):
@@ -537,7 +538,7 @@ def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict
             value, grad = lik.loglik_and_gradient(lam, sigma2)
         except np.linalg.LinAlgError:
             return np.inf, np.zeros(len(free))
-        inside = (x >= 0.0) & (x <= np.log1p(MAX_RATIO))
+        inside = (x >= 0.0) & (x <= top)
         return -value, np.where(inside, -grad[free] * (1.0 + lam[free]), 0.0)
 
     if not free:
@@ -546,7 +547,7 @@ def _maximise(lik: _Likelihood, k: int, sigma2: float | None = None, fixed: dict
     best = None
     starts = (np.zeros(len(free)), np.full(len(free), np.log(2.0))) if start is None else (np.log1p(start[free]),)
     for x0 in starts:
-        res = minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=[(0.0, np.log1p(MAX_RATIO))] * len(free),
+        res = minimize(objective, x0, jac=True, method="L-BFGS-B", bounds=[(0.0, top)] * len(free),
                        options={"ftol": 1e-12, "gtol": 1e-8, "maxiter": 200})
         if best is None or res.fun < best.fun:
             best = res
