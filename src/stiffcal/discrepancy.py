@@ -65,6 +65,7 @@ from .observation import (Sensing, as_wrench, force_dim, moment_dim, observe, se
                           tool_twists)
 from .observation import torques as observation_torques
 from .robot import TOOL_TARGET, Robot, as_xyz
+from .errormodel import INFLATION_NOTE
 from .errormodel import KINDS as EMKINDS
 from .errormodel import flat_index
 from .stiffness import observation_matrix, random_directions
@@ -1298,6 +1299,10 @@ def error_model_notes(em) -> list[str]:
                  f"{st.n_visits} visits, {st.n_revisited} configurations visited more than once): "
                  + "; ".join(comps) + " RMS, estimated by REML on " + em.stage
                  + "; every fit, test and interval is generalised least squares for them (error_model)")
+    if em.inflation > INFLATION_NOTE:
+        notes.append(f"the shared errors are estimated from few groups: taking them as known (as every test and "
+                     f"interval does) understates a parameter's variance by up to {100 * em.inflation:.3g} % "
+                     "(Kenward-Roger; error_model.variance_inflation): read p-values near alpha with care")
     return notes
 
 

@@ -70,7 +70,7 @@ unloaded rows), else from the union of all extensions.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
@@ -81,6 +81,9 @@ from .errors import InputError
 IDENTIFIABLE_RTOL = 1e-8
 #: largest variance ratio searched (a shared error 1000 times the row's own noise is not a tracker's)
 MAX_RATIO = 1e6
+#: variance inflation (:func:`variance_inflation`) above which the verdict says the plug-in understates the
+#: parameters' variances
+INFLATION_NOTE = 0.1
 #: relative singular value below which a direction of a design counts as absent (as stiffcal.discrepancy)
 RANK_RTOL = 1e-9
 
@@ -577,7 +580,9 @@ class ErrorModel:
     blocks: per configuration ``(loaded rows (n_L,), unloaded model rows (n_U,), W (n_L w, n_L w), B (n_L w,
     n_U w))`` with W = H_{L|U}^{-1/2} and B = H_LU H_UU^-1 on the rows flattened row by row, coordinate by
     coordinate (only for configurations whose rows share an error);
-    q_unloaded: the unloaded rows' quadratic form y_U^T H_UU^-1 y_U, on df_unloaded; notes."""
+    q_unloaded: the unloaded rows' quadratic form y_U^T H_UU^-1 y_U, on df_unloaded; notes; inflation: the largest
+    relative increase of a parameter combination's variance from estimating the components
+    (:func:`variance_inflation`; the tests and intervals take them as known)."""
     structure: ReadingStructure
     ratios: np.ndarray
     estimable: np.ndarray
@@ -593,6 +598,7 @@ class ErrorModel:
     df_unloaded: int
     notes: tuple[str, ...] = ()
     zero_y: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
+    inflation: float = 0.0
 
     @property
     def shared(self) -> bool:
@@ -640,7 +646,7 @@ class ErrorModel:
     def as_dict(self) -> dict:
         return {**self.structure.as_dict(), "components": self.components(), "estimated_on": self.stage,
                 "method": "REML (variance components; generalised least squares for every fit)",
-                "shared_error": self.shared}
+                "shared_error": self.shared, "variance_inflation": self.inflation}
 
 
 def _group_columns(comp: Component, rows: np.ndarray, weights: np.ndarray, w: int) -> np.ndarray | None:
@@ -777,8 +783,9 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
         if not estimable[k]:
             notes.append(f"a shared error per {KINDS[structure.components[k].name]} cannot be estimated from these "
                          "data (the fixed effects absorb it): it is left out")
-    return _finish(structure, blocks, lam, estimable, tuple(pvals), stage, sigma2, None if replicated else lik.df,
-                   source, w, notes, Y[N:])
+    em = _finish(structure, blocks, lam, estimable, tuple(pvals), stage, sigma2, None if replicated else lik.df,
+                 source, w, notes, Y[N:])
+    return em if drift is not None else replace(em, inflation=variance_inflation(blocks, lam))
 
 
 def _lrt(lik: _Likelihood, lam: np.ndarray, ll: float, i: int, sigma2, fixed: dict | None = None) -> float:
@@ -832,6 +839,72 @@ def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, s
         df, s2, df_pe, ss_pe = df_union, sigma2, 0, 0.0
     return ErrorModel(structure, lam, estimable, pvals, stage, float(s2), int(df), source, ss_pe, df_pe,
                       tuple(out_blocks), q_u, df_u, tuple(notes), np.asarray(zero_y, float))
+
+
+# --- the estimated variance components' share in the fixed effects' covariance ---------------------------------
+
+def kenward_roger(blocks: list[dict], lam: np.ndarray) -> np.ndarray | None:
+    """The Kackar-Harville inflation of the generalised least-squares estimator's covariance for variance
+    components that are estimated, not known (Kenward & Roger, *Biometrics* 53, 1997, eqs. 2-5): with
+    V = sigma^2 H(lambda), theta = (sigma^2, sigma^2 lambda_k for each lambda_k > 0), G_0 = I, G_k = Z_k Z_k^T,
+    P_i = X^T V^-1 G_i V^-1 X, Q_ij = X^T V^-1 G_i V^-1 G_j V^-1 X, W the inverse of the expected REML
+    information (1/2 tr(Pi G_i Pi G_j), Pi the REML projection), Phi = (X^T V^-1 X)^-1:
+    Var(beta_hat) ~ Phi_A = Phi + 2 Lambda, Lambda = Phi sum_ij W_ij (Q_ij - P_i Phi P_j) Phi (one Lambda for the
+    extra variance of beta_hat, one for the bias of Phi(theta_hat)). Lambda / sigma^2 does not depend on sigma^2.
+
+    blocks: as :func:`_block_arrays` (every model row of a configuration; X zero on the unloaded rows), lam (K,)
+    the estimated ratios. Returns Lambda / sigma^2 (r, r) in an orthonormal basis of the fixed effects in the
+    metric X^T H^-1 X (the whitened union; r its rank), in which Phi_A / sigma^2 = I + 2 Lambda / sigma^2; None
+    when no component is in use (ordinary least squares: nothing estimated but sigma^2, whose uncertainty the F-tests' degrees of
+    freedom hold)."""
+    used = [k for k in range(len(lam)) if lam[k] > 0]
+    if not used:
+        return None
+    fixed = [_fixed(b) for b in blocks]
+    p = fixed[0].shape[-1]
+    g = len(used) + 1
+    M = np.zeros((p, p))
+    Pm = np.zeros((g, p, p))
+    Qm = np.zeros((g, g, p, p))
+    t = np.zeros((g, g))
+    for b, X in zip(blocks, fixed):
+        H = _covariance(b, lam)
+        Hi = np.linalg.inv(H)
+        X = X.reshape(len(H), p)
+        HX = Hi @ X
+        G = [np.eye(len(H))] + [b["Z"][k] @ b["Z"][k].T if k in b["Z"] else np.zeros_like(H) for k in used]
+        HG = [Hi @ Gi for Gi in G]
+        GHX = [Gi @ HX for Gi in G]
+        HGHX = [HGi @ HX for HGi in HG]
+        M += X.T @ HX
+        for i in range(g):
+            Pm[i] += HX.T @ GHX[i]
+            for j in range(i, g):
+                Qm[i, j] += HGHX[i].T @ GHX[j]
+                t[i, j] += float(np.sum(HG[i] * HG[j].T))
+    for i in range(g):
+        for j in range(i):
+            Qm[i, j], t[i, j] = Qm[j, i].T, t[j, i]
+    scale = np.sqrt(np.diag(M).copy())
+    scale[scale == 0] = 1.0
+    ev, V = np.linalg.eigh(M / np.outer(scale, scale))
+    keep = ev > RANK_RTOL * max(float(ev.max(initial=0.0)), 1e-300)
+    basis = V[:, keep] / np.sqrt(ev[keep]) / scale[:, None]  # (p, r): basis^T M basis = I
+    Po = np.einsum("pa,ipq,qb->iab", basis, Pm, basis)
+    Qo = np.einsum("pa,ijpq,qb->ijab", basis, Qm, basis)
+    info = 0.5 * (t - 2.0 * np.einsum("ijaa->ij", Qo) + np.einsum("iab,jba->ij", Po, Po))
+    W = np.linalg.pinv(info)
+    inflation = np.einsum("ij,ijab->ab", W, Qo - np.einsum("iab,jbc->ijac", Po, Po))
+    return 0.5 * (inflation + inflation.T)
+
+
+def variance_inflation(blocks: list[dict], lam: np.ndarray) -> float:
+    """The largest relative increase of a fixed-effect combination's variance when the variance components are
+    estimated rather than known: the largest eigenvalue of 2 Lambda in the metric of Phi (:func:`kenward_roger`;
+    0 without a component in use). The analysis's tests and intervals take the REML ratios as known (plug-in);
+    this says how much that understates the parameters' variances."""
+    kr = kenward_roger(blocks, lam)
+    return 0.0 if kr is None else float(max(2.0 * np.linalg.eigvalsh(kr).max(initial=0.0), 0.0))
 
 
 # --- the unloaded rows: blunders among them, and a zero point that moved ------------------------------------------
