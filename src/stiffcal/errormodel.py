@@ -855,8 +855,8 @@ def kenward_roger(blocks: list[dict], lam: np.ndarray) -> np.ndarray | None:
     blocks: as :func:`_block_arrays` (every model row of a configuration; X zero on the unloaded rows), lam (K,)
     the estimated ratios. Returns Lambda / sigma^2 (r, r) in an orthonormal basis of the fixed effects in the
     metric X^T H^-1 X (the whitened union; r its rank), in which Phi_A / sigma^2 = I + 2 Lambda / sigma^2; None
-    when no component is in use (ordinary least squares: nothing estimated but sigma^2, whose uncertainty the F-tests' degrees of
-    freedom hold)."""
+    when no component is in use (ordinary least squares: nothing estimated but sigma^2, whose uncertainty the
+    F-tests' degrees of freedom hold)."""
     used = [k for k in range(len(lam)) if lam[k] > 0]
     if not used:
         return None
