@@ -753,7 +753,8 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     (N,) the loaded rows' replicate groups; X_union (N, w, p): the loaded rows' regressors of the union of
     every catalogue cause, weighted; drift (R, w, k): further fixed effects on every model row, in every stage (a
     tracker's drift, so that it is not read as a shared error); lrt: compute each component's likelihood-ratio
-    p-value (else None). Raises :class:`InputError` when no degree of freedom is left for the noise.
+    p-value (else None) and, without a drift, the variance inflation (:func:`variance_inflation`; else 0).
+    Raises :class:`InputError` when no degree of freedom is left for the noise.
     """
     N, R = structure.n_loaded, structure.n_rows
     K = len(structure.components)
@@ -785,7 +786,7 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
                          "data (the fixed effects absorb it): it is left out")
     em = _finish(structure, blocks, lam, estimable, tuple(pvals), stage, sigma2, None if replicated else lik.df,
                  source, w, notes, Y[N:])
-    return em if drift is not None else replace(em, inflation=variance_inflation(blocks, lam))
+    return replace(em, inflation=variance_inflation(blocks, lam)) if drift is None and lrt else em
 
 
 def _lrt(lik: _Likelihood, lam: np.ndarray, ll: float, i: int, sigma2, fixed: dict | None = None) -> float:
