@@ -2,7 +2,10 @@
 and by the oracle that knows the rows' true covariance (stiffcal.rates.oracle_global_p: the same closed test on
 the rows whitened by it, the noise scale known), seed by seed: how many false alarms each raises, how many they
 share, and the Spearman correlation of their global p-values. An oracle rate near alpha with the analysis above it
-says the estimated error model is at fault; both above alpha on the same seeds says the seeds are unlucky.
+says the estimated error model is at fault; both above alpha on the same seeds says the seeds are unlucky. An
+ablation beside them: the same analysis told the simulator's true noise weights (1 / sigma of each row's reading,
+relative to the median row) and without the blunder screen, which says how much of an excess the estimated
+noise weights (stiffcal.discrepancy.variance_model and residual_variance_model) bring.
 Run: .venv/bin/python benchmarks/oracle_false_alarms.py ARM "PROTOCOL" [SEEDS] [FIRST_SEED] [ALPHA]
 (ARM: 2-link, 3-link or 6-axis; PROTOCOL a name of stiffcal.rates.PROTOCOLS; defaults 300 seeds from 0, alpha 0.01).
 """
@@ -10,6 +13,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 from scipy import stats
@@ -25,14 +29,16 @@ ROOT = Path(__file__).resolve().parents[1]
 def main(arm: str, protocol: str, seeds: int = 300, first: int = 0, alpha: float = 0.01) -> None:
     robot = R.robots(ROOT)[arm]
     start = time.process_time()
-    analysed, oracle = [], []
+    analysed, oracle, ablated = [], [], []
     with tempfile.TemporaryDirectory() as tmp:
         for seed in range(first, first + seeds):
             log, dp, _ = R.simulate_case(robot, protocol, (), seed)
             path = Path(tmp) / "case.csv"
             path.write_text(T.lab_csv(robot, log, dp, pose_id=True), encoding="utf-8")
-            v = D.analyse(robot, read_measurements(path, robot), alpha, gain=False)
+            meas = read_measurements(path, robot)
+            v = D.analyse(robot, meas, alpha, gain=False)
             analysed.append((v["cause"] != "none", v["p_value"]))
+            ablated.append(_with_true_weights(robot, log, meas, alpha)["cause"] != "none")
             oracle.append(R.oracle_global_p(robot, log, dp, alpha))
     a = np.array([x for x, _ in analysed])
     o = np.array(oracle) <= alpha
@@ -44,9 +50,27 @@ def main(arm: str, protocol: str, seeds: int = 300, first: int = 0, alpha: float
     print(f"{arm} | {protocol} | alpha {alpha}")
     print(f"analysis false alarms: {ci(a.sum())}")
     print(f"oracle (true covariance) false alarms: {ci(o.sum())}")
+    print(f"analysis with the true noise weights, no blunder screen: {ci(int(np.sum(ablated)))}")
     print(f"both: {int((a & o).sum())}; analysis only: {int((a & ~o).sum())}; oracle only: {int((~a & o).sum())}; "
           f"Spearman rho of the global p-values {rho:.3f}")
     print(f"CPU {time.process_time() - start:.1f} s")
+
+
+def _with_true_weights(robot, log: T.LabLog, meas, alpha: float) -> dict:
+    """The verdict of ``meas`` (the loaded rows of ``log``, in its order) with the noise weights the simulator used
+    and no blunder screen (an ablation: the analysis's own weight estimates and screen patched out)."""
+    sigma = log.sigma[log.loaded]
+    weights = np.median(sigma) / sigma
+    weights = weights / np.median(weights)
+    if len(weights) != meas.n_rows:
+        raise SystemExit(f"the log has {len(weights)} loaded rows, the data {meas.n_rows}")
+
+    def told(robot, m, resid=None):
+        return D.VarianceModel(weights, 0.0, float(weights.max() / weights.min()))
+    with mock.patch.object(D, "variance_model", told), mock.patch.object(D, "residual_variance_model",
+                                                                       lambda *a, **k: None), \
+            mock.patch.object(D, "find_blunders", lambda *a, **k: []):
+        return D.analyse(robot, meas, alpha, gain=False)
 
 
 if __name__ == "__main__":
