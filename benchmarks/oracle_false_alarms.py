@@ -59,8 +59,7 @@ def main(arm: str, protocol: str, seeds: int = 300, first: int = 0, alpha: float
 def _with_true_weights(robot, log: T.LabLog, meas, alpha: float) -> dict:
     """The verdict of ``meas`` (the loaded rows of ``log``, in its order) with the noise weights the simulator used
     and no blunder screen (an ablation: the analysis's own weight estimates and screen patched out)."""
-    sigma = log.sigma[log.loaded]
-    weights = np.median(sigma) / sigma
+    weights = 1.0 / log.sigma[log.loaded]
     weights = weights / np.median(weights)
     if len(weights) != meas.n_rows:
         raise SystemExit(f"the log has {len(weights)} loaded rows, the data {meas.n_rows}")

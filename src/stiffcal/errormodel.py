@@ -873,9 +873,9 @@ def kenward_roger(blocks: list[dict], lam: np.ndarray) -> np.ndarray | None:
         Hi = np.linalg.inv(H)
         X = X.reshape(len(H), p)
         HX = Hi @ X
-        G = [np.eye(len(H))] + [b["Z"][k] @ b["Z"][k].T if k in b["Z"] else np.zeros_like(H) for k in used]
-        HG = [Hi @ Gi for Gi in G]
-        GHX = [Gi @ HX for Gi in G]
+        G = [b["Z"][k] @ b["Z"][k].T if k in b["Z"] else np.zeros_like(H) for k in used]
+        HG = [Hi] + [Hi @ Gi for Gi in G]  # G_0 = I: no product
+        GHX = [HX] + [Gi @ HX for Gi in G]
         HGHX = [HGi @ HX for HGi in HG]
         M += X.T @ HX
         for i in range(g):
