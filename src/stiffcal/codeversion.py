@@ -7,7 +7,10 @@ Every rule declares ``params: code=code_version("<step>", ...)``, naming the fun
 * the source of those functions and of every module-level function and constant of ``pipeline.py`` they
   refer to (transitively), and
 * the complete source of every ``stiffcal`` module they import (at module level or inside a function),
-  and of every module those import, transitively.
+  and of every module those import, transitively: modules of subpackages too (``stiffcal/a/b.py`` is
+  ``a.b``, with ``a/__init__.py``), under every import form (``import stiffcal.a.b``, ``from stiffcal.a import
+  b``, ``from stiffcal import name`` of a module or of a name the package imports on first use, relative
+  imports of any level). The package's own ``__init__.py`` is left out: it only names what modules define.
 
 Snakemake stores the parameters of every job it runs and reruns a job whose parameters changed (rerun
 trigger ``params``, on by default), so editing ``plots.py`` reruns the figure jobs and the report, and
@@ -24,38 +27,94 @@ from functools import lru_cache
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
+#: the module whose functions are the workflow's steps
+PIPELINE = "pipeline"
+
+
+def _file(module: str) -> Path | None:
+    """The source file of the ``stiffcal`` module ``module`` (a dotted name below the package, ``"plots"`` or
+    ``"measured.verdict"``): ``<name>.py``, or a subpackage's ``__init__.py``; None if there is none."""
+    base = PACKAGE.joinpath(*module.split("."))
+    for path in (base.parent / f"{base.name}.py", base / "__init__.py"):
+        if path.is_file():
+            return path
+    return None
 
 
 @lru_cache(maxsize=None)
 def _source(module: str) -> tuple[str, ast.Module]:
-    text = (PACKAGE / f"{module}.py").read_text(encoding="utf-8")
+    path = _file(module)
+    if path is None:
+        raise KeyError(f"stiffcal has no module {module!r}")
+    text = path.read_text(encoding="utf-8")
     return text, ast.parse(text)
 
 
 def _is_module(name: str) -> bool:
-    return (PACKAGE / f"{name}.py").is_file()
+    return bool(name) and _file(name) is not None
 
 
-def imported_modules(node: ast.AST) -> set[str]:
-    """The ``stiffcal`` modules imported anywhere inside ``node`` (relative or absolute imports)."""
+@lru_cache(maxsize=None)
+def _lazy_names() -> dict[str, str]:
+    """The package's names imported on first use (``_LAZY`` of ``stiffcal/__init__.py``: name -> module), so
+    that ``from stiffcal import analyse_measurements`` counts as an import of the module behind it."""
+    init = PACKAGE / "__init__.py"
+    if not init.is_file():
+        return {}
+    for node in ast.parse(init.read_text(encoding="utf-8")).body:
+        if (isinstance(node, ast.Assign) and any(isinstance(t, ast.Name) and t.id == "_LAZY" for t in node.targets)
+                and isinstance(node.value, ast.Dict)):
+            return {k.value: v.value for k, v in zip(node.value.keys, node.value.values)
+                    if isinstance(k, ast.Constant) and isinstance(v, ast.Constant)}
+    return {}
+
+
+def _with_parents(parts: list[str]) -> set[str]:
+    """A module and the subpackages above it (importing ``a.b.c`` runs ``a/__init__.py`` and ``a/b/__init__.py``);
+    the package's own ``__init__.py``, which only names what the modules define, is left out."""
+    return {".".join(parts[:i]) for i in range(1, len(parts) + 1)}
+
+
+def _imported_by(n: ast.Import | ast.ImportFrom, module: str) -> set[str]:
+    """The ``stiffcal`` modules (dotted names below the package) that the import statement ``n`` of ``module``
+    runs, for every import form: ``import stiffcal.a.b``, ``from stiffcal.a import b``, ``from stiffcal import
+    name`` (a module, or a name of ``_LAZY``), and relative imports of any level."""
+    if isinstance(n, ast.Import):
+        return set().union(*(_with_parents(a.name.split(".")[1:]) for a in n.names if a.name.startswith("stiffcal.")))
+    if n.level:
+        here, path = module.split("."), _file(module)
+        package = here if path is not None and path.name == "__init__.py" else here[:-1]
+        if n.level - 1 > len(package):
+            return set()
+        base = package[: len(package) - (n.level - 1)]
+    elif n.module == "stiffcal" or (n.module or "").startswith("stiffcal."):
+        base = []
+        n = ast.ImportFrom(module=".".join(n.module.split(".")[1:]) or None, names=n.names, level=0)
+    else:
+        return set()
+    target = base + (n.module.split(".") if n.module else [])
+    out = _with_parents(target)
+    for a in n.names:
+        out |= _with_parents(target + [a.name])
+        if not target and a.name in _lazy_names():
+            out |= _with_parents(_lazy_names()[a.name].split("."))
+    return out
+
+
+def imported_modules(node: ast.AST, module: str = PIPELINE) -> set[str]:
+    """The ``stiffcal`` modules imported anywhere inside ``node`` of the module ``module`` (every import form,
+    :func:`_imported_by`), as dotted names below the package."""
     out: set[str] = set()
     for n in ast.walk(node):
-        if isinstance(n, ast.ImportFrom):
-            if n.level == 1 and n.module:
-                out.add(n.module.split(".")[0])
-            elif n.level == 1 or (n.level == 0 and n.module == "stiffcal"):
-                out |= {a.name for a in n.names}
-            elif n.level == 0 and n.module and n.module.startswith("stiffcal."):
-                out.add(n.module.split(".")[1])
-        elif isinstance(n, ast.Import):
-            out |= {a.name.split(".")[1] for a in n.names if a.name.startswith("stiffcal.")}
+        if isinstance(n, (ast.Import, ast.ImportFrom)):
+            out |= _imported_by(n, module)
     return {m for m in out if _is_module(m)}
 
 
 @lru_cache(maxsize=None)
 def _module_imports(module: str) -> frozenset[str]:
     """The ``stiffcal`` modules that ``module`` imports anywhere (parsed once per Snakefile parse)."""
-    return frozenset(imported_modules(_source(module)[1]))
+    return frozenset(imported_modules(_source(module)[1], module))
 
 
 def module_closure(modules) -> set[str]:
@@ -84,16 +143,32 @@ def _definitions(tree: ast.Module) -> dict[str, ast.AST]:
 
 @lru_cache(maxsize=None)
 def _pipeline_definitions() -> dict[str, ast.AST]:
-    return _definitions(_source("pipeline")[1])
+    return _definitions(_source(PIPELINE)[1])
+
+
+@lru_cache(maxsize=None)
+def _pipeline_imports() -> dict[str, frozenset[str]]:
+    """The names that module-level imports of the pipeline bind -> the ``stiffcal`` modules behind each."""
+    out: dict[str, frozenset[str]] = {}
+    for node in _source(PIPELINE)[1].body:
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            for a in node.names:
+                one = ast.Import(names=[a]) if isinstance(node, ast.Import) else ast.ImportFrom(
+                    module=node.module, names=[a], level=node.level)
+                bound = a.asname or a.name.split(".")[0]
+                out[bound] = out.get(bound, frozenset()) | {m for m in _imported_by(one, PIPELINE) if _is_module(m)}
+    return out
 
 
 @lru_cache(maxsize=None)
 def _definition_uses(name: str) -> tuple[frozenset[str], frozenset[str]]:
-    """(pipeline definitions that the definition ``name`` refers to, stiffcal modules it imports)."""
-    defs = _pipeline_definitions()
+    """(pipeline definitions that the definition ``name`` refers to, stiffcal modules it imports, inside it or
+    through a name a module-level import binds)."""
+    defs, bound = _pipeline_definitions(), _pipeline_imports()
     node = defs[name]
-    refs = frozenset(n.id for n in ast.walk(node) if isinstance(n, ast.Name) and n.id in defs)
-    return refs, frozenset(imported_modules(node))
+    names = {n.id for n in ast.walk(node) if isinstance(n, ast.Name)}
+    through = set().union(*(bound[n] for n in names if n in bound))
+    return frozenset(names & defs.keys()), frozenset(imported_modules(node, PIPELINE) | through)
 
 
 def step_closure(steps) -> tuple[list[str], set[str]]:
@@ -101,7 +176,7 @@ def step_closure(steps) -> tuple[list[str], set[str]]:
     defs = _pipeline_definitions()
     missing = [s for s in steps if s not in defs]
     if missing:
-        raise KeyError(f"stiffcal.pipeline has no step {missing[0]!r}")
+        raise KeyError(f"stiffcal.{PIPELINE} has no step {missing[0]!r}")
     used: set[str] = set()
     modules: set[str] = set()
     todo = list(steps)
@@ -119,7 +194,7 @@ def step_closure(steps) -> tuple[list[str], set[str]]:
 @lru_cache(maxsize=None)
 def _segment(name: str) -> str:
     """The source text of the pipeline definition ``name`` (what ``ast.get_source_segment`` gives)."""
-    text = _source("pipeline")[0]
+    text = _source(PIPELINE)[0]
     node = _pipeline_definitions()[name]
     lines = _lines(text)
     first, last = node.lineno - 1, node.end_lineno - 1
@@ -161,6 +236,13 @@ def code_version(*steps: str) -> str:
         found = _code_version(steps)
         _MEMO.write({**_MEMO.read(), key: found})
     return found
+
+
+def forget() -> None:
+    """Drop every parsed source and derived version (after :data:`PACKAGE` or a source file changed)."""
+    for f in (_source, _lazy_names, _module_imports, _pipeline_definitions, _pipeline_imports, _definition_uses,
+              _segment, _lines, code_version):
+        f.cache_clear()
 
 
 def _code_version(steps) -> str:
