@@ -5,6 +5,7 @@ decompression; long jobs report progress wherever stderr goes; provenance names 
 git does not vouch for. Ends with a seeded fuzz test over every command (a few dozen generated inputs)."""
 
 import gzip
+import hashlib
 import io
 import json
 import os
@@ -334,6 +335,98 @@ def test_a_link_member_in_place_of_a_listed_file_is_named(tmp_path):
             else:
                 tout.addfile(m, tin.extractfile(m))
     assert A.verify_archive(bad)[1] == ["missing: t.csv (not a regular file in the archive)"]
+
+
+def _with_members(tmp_path, extra, sums_edit=None) -> Path:
+    """The small valid archive with members added: ``extra`` [(TarInfo, data)]; ``sums_edit(text) -> text`` rewrites
+    its SHA256SUMS (its checksums stay true to the files)."""
+    good, bad = _archive(tmp_path), tmp_path / "extra.tar.gz"
+    with tarfile.open(good) as tin, tarfile.open(bad, "w:gz", format=tarfile.GNU_FORMAT) as tout:
+        for m in tin.getmembers():
+            data = tin.extractfile(m).read()
+            if sums_edit and m.name.endswith("SHA256SUMS"):
+                data = sums_edit(data.decode()).encode()
+                m.size = len(data)
+            tout.addfile(m, io.BytesIO(data))
+        for info, data in extra:
+            info.size = len(data)
+            tout.addfile(info, io.BytesIO(data))
+    return bad
+
+
+def _sum_line(name: str, data: bytes) -> str:
+    return f"{hashlib.sha256(data).hexdigest()}  {name}\n"
+
+
+@pytest.mark.parametrize("member,listed,problem", [
+    ("stiffcal-x/../../evil.sh", "../../evil.sh", "unsafe name listed in SHA256SUMS"),
+    ("stiffcal-x/../../evil.sh", None, "unsafe member name (absolute, or with '..', '.' or an empty part): "
+                                       "stiffcal-x/../../evil.sh"),
+    ("/tmp/evil.sh", None, "unsafe member name"),
+    ("evil_toplevel.sh", None, "outside the archive's top directory: evil_toplevel.sh"),
+    ("othertop/t.csv", None, "outside the archive's top directory (othertop): othertop/t.csv"),
+    ("stiffcal-x/x\nstiffcal verify-archive: all good", None, "not listed in SHA256SUMS: x\\nstiffcal verify-archive"),
+])
+def test_members_outside_the_top_directory_or_with_unsafe_names_are_named(tmp_path, member, listed, problem):
+    """A '../' name that extraction would write outside the folder (listed in SHA256SUMS or not), an absolute name,
+    a member beside or outside the one top directory (a second tree that shadows the first), and a name with a
+    newline that would forge a line of the report: each named (control characters escaped), never 'ok'."""
+    data = b"echo evil\n"
+    bad = _with_members(tmp_path, [(tarfile.TarInfo(member), data)],
+                        (lambda text: text + _sum_line(listed, data)) if listed else None)
+    ok, problems = A.verify_archive(bad)
+    assert any(problem in p for p in problems), problems
+    assert all("\n" not in p for p in problems)
+    code, out, err = cli(["verify-archive", str(bad)])
+    assert code == 1 and "Traceback" not in err and json.loads(out)["ok"] is False
+    assert not any(line.startswith("stiffcal verify-archive: all good") for line in (out + err).splitlines())
+
+
+def test_an_archive_that_lists_nothing_is_not_ok(tmp_path):
+    """A SHA256SUMS that lists no file (or not provenance.json) verified nothing: it is not a stiffcal archive."""
+    bad = tmp_path / "empty_sums.tar.gz"
+    with tarfile.open(bad, "w:gz") as tar:
+        tar.addfile(tarfile.TarInfo("top/SHA256SUMS"), io.BytesIO(b""))
+    assert A.verify_archive(bad) == (0, ["SHA256SUMS does not list provenance.json (it lists no file): not a "
+                                         "complete stiffcal archive"])
+    assert cli(["verify-archive", str(bad)])[0] == 1
+
+
+def test_a_sparse_member_counts_as_the_size_its_header_records(tmp_path, monkeypatch):
+    """A sparse member of a few hundred bytes can expand to a terabyte of zeros that the gzip bound never sees:
+    the members' sizes as their headers record them are bounded too (4 MiB here)."""
+    monkeypatch.setattr(A, "MAX_UNPACKED_BYTES", 4 * 1024**2)
+    sparse = tmp_path / "zeros.bin"
+    with open(sparse, "wb") as fh:
+        fh.truncate(64 * 1024**2)
+    bad = tmp_path / "sparse.tar.gz"
+    made = subprocess.run(["tar", "--sparse", "-C", str(tmp_path), "-czf", str(bad), "zeros.bin"], capture_output=True)
+    if made.returncode != 0:
+        pytest.skip("GNU tar with --sparse is not installed")
+    assert bad.stat().st_size < 10_000
+    with pytest.raises(InputError, match="members add up to more than 0 GiB"):
+        A.verify_archive(bad)
+
+
+def test_a_huge_extended_header_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    """A GNU long-name header of 2 GB (a few MB compressed) was read whole by tarfile (3.9 GB of memory): refused
+    from its size, before reading it."""
+    import tracemalloc
+
+    size = 64 * 1024**2
+    bad = tmp_path / "longname.tar.gz"
+    head = tarfile.TarInfo("././@LongLink")
+    head.type, head.size = tarfile.GNUTYPE_LONGNAME, size
+    with gzip.open(bad, "wb", compresslevel=1) as gz:
+        gz.write(head.tobuf(format=tarfile.USTAR_FORMAT))
+        for _ in range(size // 1024**2):
+            gz.write(b"a" * 1024**2)
+    tracemalloc.start()
+    with pytest.raises(InputError, match="extended tar header .* of 67,108,864 bytes"):
+        A.verify_archive(bad)
+    peak = tracemalloc.get_traced_memory()[1]
+    tracemalloc.stop()
+    assert peak < 16 * 1024**2
 
 
 # --- provenance -------------------------------------------------------------------------------------------

@@ -228,14 +228,92 @@ def _read_sums(data: bytes) -> tuple[dict[str, str], str | None]:
     return listed, None
 
 
+#: the largest extended header (a GNU long name, a PAX header) read [bytes]: Python's tarfile reads one whole
+MAX_HEADER_BYTES = 1024**2
+
+
+class _BoundedInfo(tarfile.TarInfo):
+    """A tar header whose extended headers (long names, PAX records) are refused beyond :data:`MAX_HEADER_BYTES`
+    before tarfile reads them into memory."""
+
+    def _proc_member(self, tarfile_):
+        extended = (tarfile.GNUTYPE_LONGNAME, tarfile.GNUTYPE_LONGLINK, tarfile.XHDTYPE, tarfile.XGLTYPE,
+                    tarfile.SOLARIS_XHDTYPE)
+        if self.type in extended and self.size > MAX_HEADER_BYTES:
+            raise InputError(f"holds an extended tar header (a long name or PAX record) of {self.size:,} bytes (at "
+                             f"most {MAX_HEADER_BYTES:,}): not a stiffcal archive (docs/contracts.md, 'Limits')")
+        return super()._proc_member(tarfile_)
+
+
+def printable(name: str) -> str:
+    """A member name as one line of text: control characters (a newline, an escape) written as escapes, so that a
+    name cannot forge lines of the report."""
+    return name if name.isprintable() else name.encode("unicode_escape").decode("ascii")
+
+
+def _unsafe(name: str) -> bool:
+    """A member name that extraction would write outside the archive's folder, or that names no file: absolute,
+    with a '..', '.' or empty component, or a backslash (a Windows separator)."""
+    parts = name.split("/")
+    return name.startswith("/") or "\\" in name or any(p in ("", ".", "..") for p in parts)
+
+
+def _hash_members(tar, path: Path) -> tuple[dict[str, str], bytes | None, list[str], list[str], set[str]]:
+    """Read the members of the open stream ``tar`` once: ({name below the top directory: SHA-256}, the bytes of
+    SHA256SUMS, names that are not regular files, problems of the layout, top directories seen). Bounds the
+    members' count and their total size as recorded in the headers (a sparse member expands beyond its bytes)."""
+    digests, sums, odd, layout, tops = {}, None, [], [], set()
+    total = 0
+    for count, m in enumerate(tar, start=1):
+        if count > MAX_MEMBERS:
+            raise InputError(f"more than {MAX_MEMBERS:,} members: not a stiffcal archive (docs/contracts.md, "
+                             "'Limits')", source=str(path))
+        total += max(m.size, 0)
+        if total > MAX_UNPACKED_BYTES:
+            raise InputError(f"its members add up to more than {MAX_UNPACKED_BYTES // 1024**3} GiB (as their headers "
+                             "record, sparse members included): not a stiffcal archive (docs/contracts.md, 'Limits')",
+                             source=str(path))
+        if _unsafe(m.name.rstrip("/") if m.isdir() else m.name):
+            layout.append(f"unsafe member name (absolute, or with '..', '.' or an empty part): {printable(m.name)}")
+            continue
+        top, sep, name = m.name.partition("/")
+        tops.add(top)
+        if not sep or not name:
+            if not m.isdir():
+                layout.append(f"outside the archive's top directory: {printable(m.name)}")
+            continue
+        if len(tops) > 1:
+            layout.append(f"outside the archive's top directory ({printable(sorted(tops)[0])}): {printable(m.name)}")
+            continue
+        if not m.isfile():
+            if not m.isdir():
+                odd.append(name)
+            continue
+        fh = tar.extractfile(m)
+        if name == SUMS:
+            if m.size > MAX_SUMS_BYTES:
+                raise InputError(f"its {SUMS} has {m.size:,} bytes (at most {MAX_SUMS_BYTES:,}): not a "
+                                 "stiffcal archive", source=str(path))
+            sums = fh.read()
+            continue
+        h = hashlib.sha256()
+        while block := fh.read(_CHUNK):
+            h.update(block)
+        digests[name] = h.hexdigest()
+    return digests, sums, odd, layout, tops
+
+
 def verify_archive(path: str | Path) -> tuple[int, list[str]]:
     """Check every member against SHA256SUMS. Returns (files verified, problems): one line per changed,
-    missing or unlisted file, or one line saying that the compressed stream itself is damaged (gzip's own
-    CRC-32 and length, checked over the whole stream first: a flipped byte or a damaged trailer) or that
-    SHA256SUMS is unreadable. Raises :class:`InputError` when the file cannot be read (a FIFO, a device or a
-    directory is refused at once), is not a gzip stream, expands beyond :data:`MAX_UNPACKED_BYTES` or holds more
-    than :data:`MAX_MEMBERS` members (a gzip bomb), or is not a stiffcal archive. Members are read one at a time
-    and hashed in blocks: memory stays small whatever the archive holds."""
+    missing or unlisted file, a member that is not a regular file, one outside the archive's one top directory or
+    with an unsafe name (absolute, '..'), a SHA256SUMS that lists nothing or not provenance.json, or one line
+    saying that the compressed stream itself is damaged (gzip's own CRC-32 and length, checked over the whole
+    stream first: a flipped byte or a damaged trailer) or that SHA256SUMS is unreadable. Names are printed with
+    control characters escaped. Raises :class:`InputError` when the file cannot be read (a FIFO, a device or a
+    directory is refused at once), is not a gzip stream, expands beyond :data:`MAX_UNPACKED_BYTES` (counted while
+    decompressing, and as the members' headers record: a sparse member), holds more than :data:`MAX_MEMBERS`
+    members or an extended header beyond :data:`MAX_HEADER_BYTES` (a gzip or tar bomb), or is not a stiffcal
+    archive. Members are read one at a time and hashed in blocks: memory stays small whatever the archive holds."""
     from .safeio import regular_file
 
     path = regular_file(path, expected="a results archive (.tar.gz)")
@@ -244,48 +322,34 @@ def verify_archive(path: str | Path) -> tuple[int, list[str]]:
     damaged = _gzip_problem(path)
     if damaged:
         return 0, [damaged]
-    digests, sums, odd = {}, None, []
     try:
-        with tarfile.open(path, mode="r|gz") as tar:
-            for count, m in enumerate(tar, start=1):
-                if count > MAX_MEMBERS:
-                    raise InputError(f"more than {MAX_MEMBERS:,} members: not a stiffcal archive (docs/contracts.md, "
-                                     "'Limits')", source=str(path))
-                if "/" not in m.name:
-                    continue
-                name = m.name.split("/", 1)[1]
-                if not m.isfile():
-                    if not m.isdir():
-                        odd.append(name)
-                    continue
-                fh = tar.extractfile(m)
-                if name == SUMS:
-                    if m.size > MAX_SUMS_BYTES:
-                        raise InputError(f"its {SUMS} has {m.size:,} bytes (at most {MAX_SUMS_BYTES:,}): not a "
-                                         "stiffcal archive", source=str(path))
-                    sums = fh.read()
-                    continue
-                h = hashlib.sha256()
-                while block := fh.read(_CHUNK):
-                    h.update(block)
-                digests[name] = h.hexdigest()
+        with tarfile.open(path, mode="r|gz", tarinfo=_BoundedInfo) as tar:
+            digests, sums, odd, layout, tops = _hash_members(tar, path)
+    except InputError as err:
+        raise InputError(err.message, source=str(path)) from None
     except (OSError, tarfile.TarError, EOFError) as err:
         return 0, [f"damaged: the tar stream inside cannot be read ({err}); no file in it can be trusted"]
     if sums is None:
-        raise InputError(f"no {SUMS} in the archive: not a stiffcal archive", source=str(path))
+        raise InputError(f"no {SUMS} in the archive's top directory: not a stiffcal archive", source=str(path))
     listed, bad_sums = _read_sums(sums)
     if bad_sums:
         return 0, [bad_sums]
-    problems = []
+    problems = list(layout)
+    if PROVENANCE not in listed:
+        problems.append(f"{SUMS} does not list {PROVENANCE}" + (" (it lists no file)" if not listed else "") +
+                        ": not a complete stiffcal archive")
+    problems += [f"unsafe name listed in {SUMS} (absolute, or with '..', '.' or an empty part): {printable(name)}"
+                 for name in sorted(listed) if _unsafe(name)]
     for name, digest in sorted(listed.items()):
         if name not in digests:
-            problems.append(f"missing: {name}" + (" (not a regular file in the archive)" if name in odd else ""))
+            problems.append(f"missing: {printable(name)}" + (" (not a regular file in the archive)" if name in odd
+                                                             else ""))
         elif digests[name] != digest:
-            problems.append(f"changed: {name}")
-    problems += [f"not listed in {SUMS}: {name}" for name in sorted(set(digests) - set(listed))]
-    problems += [f"not a regular file (a link or a device) in the archive: {name}"
+            problems.append(f"changed: {printable(name)}")
+    problems += [f"not listed in {SUMS}: {printable(name)}" for name in sorted(set(digests) - set(listed))]
+    problems += [f"not a regular file (a link or a device) in the archive: {printable(name)}"
                  for name in sorted(set(odd) - set(listed))]
-    return len(listed) - sum(p.startswith(("missing", "changed")) for p in problems), problems
+    return sum(1 for name in listed if digests.get(name) == listed[name]), problems
 
 
 def read_bounded_head(path: Path, size: int = 2) -> bytes:
