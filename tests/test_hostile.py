@@ -454,9 +454,19 @@ def test_provenance_names_pinocchio_and_flint_and_every_untracked_input(tmp_path
     assert prov["dirty"] is True and prov["untracked_inputs"] == ["lab/robot.yaml", "my.yaml"]
     (tmp_path / "tracked.yaml").write_text("a: 2\n")
     assert A.provenance("h", "s", "e", tmp_path, ["tracked.yaml"])["modified_inputs"] == ["tracked.yaml"]
-    for dist in ("pin", "python-flint", "numpy", "defusedxml"):
+    for dist in ("pin", "python-flint", "numpy", "defusedxml", "coal"):
         assert prov["packages"][dist] == metadata.version(dist)
     json.dumps(prov, allow_nan=False)
+    # what the report and the archive's name say: the commit marked dirty by an untracked input alone
+    (tmp_path / "tracked.yaml").write_text("a: 1\n")
+    config = {"robot": "lab/robot.yaml"}
+    status = A.run_status(config, tmp_path)
+    assert status["commit"].endswith("-dirty") and status["untracked_inputs"] == ["lab/robot.yaml"]
+    assert status["packages"]["pin"] == metadata.version("pin")
+    assert A.run_status({"robot": "tracked.yaml"}, tmp_path, packages=False) == {
+        "commit": A.run_status({}, tmp_path)["commit"], "untracked_inputs": [], "modified_inputs": []}
+    assert not A.run_status({}, tmp_path)["commit"].endswith("-dirty")
+    assert A.run_status({}, tmp_path, config_source="my.yaml")["commit"].endswith("-dirty")
 
 
 # --- progress ----------------------------------------------------------------------------------------------

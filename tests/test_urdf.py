@@ -5,6 +5,7 @@ message naming the file and the field."""
 
 import json
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -306,6 +307,34 @@ def test_the_workflow_lists_the_urdf_as_an_input_of_its_robot(root):
     rules = (root / "workflow/rules/studies.smk").read_text() + (root / "workflow/rules/discrepancy.smk").read_text()
     assert rules.count("urdf=lambda wc: robot_inputs(") == 2  # discrepancy, discriminate
     assert rules.count("urdf=study_files,") == 3  # design, plans, summary (robot_inputs and the cell's files)
+
+
+def test_a_cell_lists_the_collision_meshes_pinocchio_reads(tmp_path):
+    """With a cell, the collision meshes are inputs too (an edited mesh reruns the robot's jobs and goes into the
+    archive): the files robot_inputs names are exactly those Pinocchio's geometry model of the URDF reads."""
+    import sys
+
+    import pinocchio as pin
+
+    from stiffcal.robot import robot_inputs
+    from stiffcal.workcell import _package_dirs
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    import real_arms
+
+    if real_arms.robots_dir() is None:
+        pytest.skip("example-robot-data is not installed (requirements-test.lock pins it)")
+    robot_file = real_arms.write_robot_file("panda", tmp_path)
+    urdf = str(real_arms.robots_dir() / real_arms.ARMS["panda"][0])
+    model = pin.buildModelFromUrdf(urdf)
+    geom = pin.buildGeomFromUrdf(model, urdf, pin.GeometryType.COLLISION, package_dirs=_package_dirs(Path(urdf)))
+    read = {str(Path(g.meshPath).resolve()) for g in geom.geometryObjects if Path(g.meshPath).is_file()}  # not "BOX"
+    listed = robot_inputs(robot_file)
+    assert listed[0] == urdf and listed[-1].endswith("panda.srdf")
+    assert set(listed[1:-1]) == read and len(read) >= 5
+    without_cell = tmp_path / "plain.yaml"
+    without_cell.write_text(robot_file.read_text().split("cell:")[0])
+    assert robot_inputs(without_cell) == [urdf]
 
 
 def test_a_continuous_joint_has_no_limits(root):

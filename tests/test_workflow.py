@@ -369,6 +369,9 @@ def test_archive_verifies_and_names_a_changed_file(built, tmp_path):
                  "/config/robots/paper_2r.yaml", "/data/synthetic_paper_2r.csv", "/paper/printed_values.yaml"):
         assert any(n.endswith(part) for n in names), part
     assert {"commit", "dirty", "python", "packages", "platform", "config_hash", "started", "ended"} <= set(prov)
+    html = (built / "paper/build/report.html").read_text()  # the report says the same: libraries, inputs
+    assert f"pin {prov['packages']['pin']}" in html and f"python-flint {prov['packages']['python-flint']}" in html
+    assert "Untracked inputs (not in the commit): " in html and "config/robots/paper_2r.yaml" in html  # no git here
     bad = tmp_path / "bad.tar.gz"
     with tarfile.open(tgz) as tin, tarfile.open(bad, "w:gz") as tout:
         for m in tin.getmembers():

@@ -29,8 +29,8 @@ from .errors import InputError, short_repr
 #: python-flint (exact root isolation in the maps), statsmodels (the discrepancy analysis), the readers of robot
 #: files, configs and URDFs, the figures, the report and the PDF
 PACKAGES = ("stiffcal", "numpy", "scipy", "pandas", "statsmodels", "matplotlib", "pillow", "pin", "libpinocchio",
-            "cmeel-urdfdom", "cmeel-tinyxml2", "python-flint", "Jinja2", "PyYAML", "jsonschema", "defusedxml",
-            "snakemake", "weasyprint", "fonttools", "pydyf", "tqdm")
+            "eigenpy", "coal", "libcoal", "cmeel-assimp", "cmeel-urdfdom", "cmeel-tinyxml2", "python-flint", "Jinja2",
+            "PyYAML", "jsonschema", "defusedxml", "snakemake", "weasyprint", "fonttools", "pydyf", "tqdm")
 SUMS = "SHA256SUMS"
 PROVENANCE = "provenance.json"
 
@@ -92,17 +92,40 @@ def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".
     status = input_status(inputs, root)
     dirty = None if commit is None else bool(_git(["status", "--porcelain", "--untracked-files=no"], root)
                                              or status["untracked"] or status["modified"])
+    return {"commit": commit or "unknown", "dirty": dirty, "untracked_inputs": status["untracked"],
+            "modified_inputs": status["modified"], "python": sys.version.split()[0],
+            "packages": package_versions(), "platform": platform.platform(), "machine": platform.machine(),
+            "config_hash": config_hash, "started": started, "ended": ended,
+            "source_date_epoch": source_date_epoch(root)}
+
+
+def run_status(config, root: str | Path = ".", config_source: str | None = None, packages: bool = True) -> dict:
+    """What the report and the archive's name say of a run: ``commit`` (12 hex digits, '-dirty' when the work tree
+    has changes or an input git does not vouch for), ``untracked_inputs`` and ``modified_inputs``
+    (:func:`input_status` of ``config_source``, the config file, and :func:`config_files`), and ``packages``
+    (the installed version of every library of :data:`PACKAGES`, those installed; left out with
+    ``packages=False``)."""
+    from .report import git_commit
+
+    status = input_status([*config_files(config, root), *([config_source] if config_source else [])], root)
+    commit = git_commit(root)
+    if commit != "unknown" and not commit.endswith("-dirty") and (status["untracked"] or status["modified"]):
+        commit += "-dirty"
+    out = {"commit": commit, "untracked_inputs": status["untracked"], "modified_inputs": status["modified"]}
+    if packages:
+        out["packages"] = {k: v for k, v in package_versions().items() if v is not None}
+    return out
+
+
+def package_versions() -> dict[str, str | None]:
+    """{distribution: installed version or None} for every library of :data:`PACKAGES`."""
     versions = {}
     for name in PACKAGES:
         try:
             versions[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
             versions[name] = None
-    return {"commit": commit or "unknown", "dirty": dirty, "untracked_inputs": status["untracked"],
-            "modified_inputs": status["modified"], "python": sys.version.split()[0],
-            "packages": versions, "platform": platform.platform(), "machine": platform.machine(),
-            "config_hash": config_hash, "started": started, "ended": ended,
-            "source_date_epoch": source_date_epoch(root)}
+    return versions
 
 
 def config_files(config, root: str | Path = ".") -> list[Path]:

@@ -796,18 +796,23 @@ def narrowed_limits(robot: Robot, limits_deg, src: str | None, field: str = "joi
 
 
 def robot_inputs(path: str | Path) -> list[str]:
-    """The files a robot file reads besides itself: its URDF (``kind: urdf``) and its cell's SRDF (or a cell file's
-    SRDF), as paths relative to where ``path`` is relative to; nothing for a file that cannot be read (loading it
-    reports why).
+    """The files a robot file reads besides itself: its URDF (``kind: urdf``), with a cell the URDF's collision
+    meshes (:func:`stiffcal.urdf.collision_meshes`, absolute paths), and its cell's SRDF (or a cell file's SRDF),
+    the others as paths relative to where ``path`` is relative to; nothing for a file that cannot be read (loading
+    it reports why).
     The workflow lists them as inputs, so that editing a URDF reruns the jobs of its robot."""
     try:
         doc = read_yaml(path)
     except InputError:
         return []
     out = []
+    cell = (doc.get("cell") if "kind" in doc else doc) if isinstance(doc, dict) else None  # a robot file or a cell file
     if isinstance(doc, dict) and doc.get("kind") == "urdf" and isinstance(doc.get("urdf"), str):
         out.append(str(Path(path).parent / doc["urdf"]))
-    cell = (doc.get("cell") if "kind" in doc else doc) if isinstance(doc, dict) else None  # a robot file or a cell file
+        if isinstance(cell, dict):  # a cell reads the URDF's collision meshes
+            from .urdf import collision_meshes
+
+            out += collision_meshes(out[0])
     if isinstance(cell, dict) and isinstance(cell.get("srdf"), str):
         out.append(str(Path(path).parent / cell["srdf"]))
     return out

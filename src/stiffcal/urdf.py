@@ -74,6 +74,32 @@ def _listing(names, near: str | None = None) -> str:
 XACRO_NAMESPACES = ("http://www.ros.org/wiki/xacro", "http://ros.org/wiki/xacro", "http://wiki.ros.org/xacro")
 
 
+def collision_meshes(urdf_path: str | Path) -> list[str]:
+    """The mesh files of the URDF's ``<collision>`` geometry that exist, as the cell's geometry reads them
+    (``package://name/...`` looked for in every directory above the URDF, :func:`stiffcal.workcell._package_dirs`;
+    ``file://`` and relative names against the URDF's folder), sorted, as absolute paths. Nothing for a URDF that
+    cannot be read (loading it reports why). The workflow lists them as inputs of a robot in a cell."""
+    path = Path(urdf_path)
+    try:
+        root = _check_text(path, str(path))
+    except InputError:
+        return []
+    found = set()
+    for collision in root.iter("collision"):
+        for mesh in collision.iter("mesh"):
+            name = mesh.get("filename", "")
+            if name.startswith("package://"):
+                rest = name[len("package://"):]
+                candidates = [parent / rest for parent in path.resolve().parents]
+            else:
+                name = name[len("file://"):] if name.startswith("file://") else name
+                candidates = [path.resolve().parent / name] if name else []
+            hit = next((c for c in candidates if c.is_file()), None)
+            if hit is not None:
+                found.add(str(hit))
+    return sorted(found)
+
+
 def _check_text(path: Path, source: str):
     """The URDF's parsed XML (its root element), refused (naming the robot file's field ``urdf``) when missing,
     not a regular file (a directory, a FIFO, a device), too large, not UTF-8, a xacro file, not well-formed XML,

@@ -4,10 +4,11 @@
 import datetime as _dt
 
 from stiffcal.archive import config_files as _config_files
-from stiffcal.report import git_commit as _git_commit
+from stiffcal.archive import run_status as _run_status
 
 RUN_STARTED = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
-ARCHIVE = f"results/archive/stiffcal-{_git_commit()}.tar.gz"
+# named for its commit, with '-dirty' when the tree or an input (the config, a file it names) is not as committed
+ARCHIVE = f"results/archive/stiffcal-{_run_status(config, '.', CONFIG_SOURCE, packages=False)['commit']}.tar.gz"
 
 
 rule archive:
