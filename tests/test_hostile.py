@@ -273,6 +273,52 @@ def test_a_discriminating_plan_is_bounded_in_its_measurements(tmp_path, monkeypa
             "'--experiments'", f"at most {limits.MAX_DISCRIMINATE_EXPERIMENTS} measurements")
 
 
+def test_output_folders_that_are_files_are_named(tmp_path):
+    """Every folder of the workflow's outputs (one per data set, study and map too) and every folder above it must
+    be a folder or missing; a file, a FIFO or a broken link in its place is named (stiffcal.config)."""
+    from stiffcal.config import check_output_folders, output_folders
+
+    config = {"studies": [{"name": "s1"}], "maps": {"studies": [{"name": "m1"}]}, "measured_data": [{"name": "d1"}]}
+    assert {"results/studies/s1", "figures/studies/s1", "results/maps/m1", "results/discrepancy/d1"} <= set(
+        output_folders(config))
+    check_output_folders(config, tmp_path)  # nothing there yet: fine
+    (tmp_path / "results/discrepancy").mkdir(parents=True)
+    (tmp_path / "results/discrepancy/d1").write_text("x")
+    with pytest.raises(InputError, match=r"^results/discrepancy/d1: expected a folder .* but it is a file"):
+        check_output_folders(config, tmp_path)
+    (tmp_path / "results/discrepancy/d1").unlink()
+    os.mkfifo(tmp_path / "results/discrepancy/d1")
+    with pytest.raises(InputError, match="it is a FIFO"):
+        check_output_folders(config, tmp_path)
+    (tmp_path / "results/discrepancy/d1").unlink()
+    (tmp_path / "results/discrepancy/d1").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(InputError, match="a broken symbolic link"):
+        check_output_folders(config, tmp_path)
+    (tmp_path / "results/discrepancy/d1").unlink()
+    (tmp_path / "elsewhere").mkdir()
+    (tmp_path / "results/discrepancy/d1").symlink_to(tmp_path / "elsewhere")  # a link to a folder is a folder
+    check_output_folders(config, tmp_path)
+
+
+@pytest.mark.parametrize("where", ["study", "studies[0]", "measured_data[0]", "maps.studies[0]"])
+def test_a_robot_file_that_does_not_exist_is_named_with_the_config_field(tmp_path, where):
+    """'config/robots/nope.yaml: cannot read file' did not say which config entry named it: now the config file and
+    the field."""
+    import yaml
+
+    from stiffcal.config import workflow_config
+
+    cfg = yaml.safe_load((ROOT / "config/config.yaml").read_text())
+    entry = {"study": cfg["study"], "studies[0]": cfg["studies"][0], "measured_data[0]": cfg["measured_data"][0],
+             "maps.studies[0]": cfg["maps"]["studies"][0]}[where]
+    entry["robot"] = "config/robots/nope.yaml"
+    (tmp_path / "c.yaml").write_text(yaml.safe_dump(cfg))
+    with pytest.raises(InputError) as err:
+        workflow_config([str(tmp_path / "c.yaml")], root=ROOT)
+    assert str(err.value) == (f"{tmp_path / 'c.yaml'}: field '{where}.robot': expected a robot file, but "
+                              "config/robots/nope.yaml does not exist")
+
+
 # --- archives ---------------------------------------------------------------------------------------------
 
 def _archive(tmp_path, edit=None) -> Path:

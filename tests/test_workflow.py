@@ -531,3 +531,16 @@ def test_bad_config_is_rejected_by_the_schema(root, tmp_path):
     assert res.returncode != 0
     assert "sigma_m" in res.stderr
     assert not (wd / "results").exists()
+
+
+@pytest.mark.parametrize("blocker", ["results", "results/discrepancy/synthetic-paper-2r", "figures/studies"])
+def test_an_output_folder_that_is_a_file_is_refused_before_any_job(root, tmp_path, blocker):
+    """A file where the workflow needs a folder (the results folder, a data set's or the studies' folder) ended
+    in Snakemake's traceback (NotADirectoryError) after jobs had run: now one line naming it, before any job."""
+    wd = _workdir(root, tmp_path)
+    (wd / blocker).parent.mkdir(parents=True, exist_ok=True)
+    (wd / blocker).write_text("x\n")
+    res = _snakemake(wd)
+    assert res.returncode != 0 and "Traceback" not in res.stderr
+    assert f"stiffcal: error: {blocker}: expected a folder for the workflow's outputs" in res.stderr
+    assert not (wd / "results/tables").exists()

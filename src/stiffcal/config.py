@@ -12,6 +12,7 @@ that can identify every compliance, and the measured-data CSVs (read as the disc
 from __future__ import annotations
 
 import copy
+import os
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +55,52 @@ def workflow_config(configfiles, overrides: dict | None = None, root: str | Path
         if top in overrides:
             raise err.renamed(source="--config") from None
         raise
+    check_output_folders(config, root)
     return source, _sorted(fill_defaults(config))
+
+
+#: the folders the workflow writes into (below the working directory), before the per-name ones
+OUTPUT_FOLDERS = ("results/tables", "results/maps", "results/design", "results/studies", "results/discrepancy",
+                  "results/archive", "figures/studies", "paper/build", "logs/discrepancy", "logs/discriminate",
+                  "logs/maps", "logs/studies")
+
+
+def output_folders(config: dict) -> list[str]:
+    """Every folder the workflow of ``config`` writes into: :data:`OUTPUT_FOLDERS` and one per design study
+    (``results/studies/<name>``, ``figures/studies/<name>``), map study (``results/maps/<name>``) and measured data
+    set (``results/discrepancy/<name>``)."""
+    def names(items):
+        return [str(x["name"]) for x in items or [] if isinstance(x, dict) and "name" in x]
+
+    out = list(OUTPUT_FOLDERS)
+    out += [f"{top}/{n}" for n in names(config.get("studies")) for top in ("results/studies", "figures/studies")]
+    out += [f"results/maps/{n}" for n in names((config.get("maps") or {}).get("studies"))]
+    out += [f"results/discrepancy/{n}" for n in names(config.get("measured_data"))]
+    return out
+
+
+def check_output_folders(config: dict, root: str | Path = ".") -> None:
+    """Refuse (InputError naming the path) a run whose output folder, or a folder above it, is something else than
+    a folder (a file, a FIFO, a broken link): checked before any job runs, so that no job fails half-way."""
+    from .safeio import file_kind
+
+    root = Path(root)
+    seen = set()
+    for folder in output_folders(config):
+        parts = Path(folder).parts
+        for k in range(1, len(parts) + 1):
+            rel = Path(*parts[:k])
+            if rel in seen:
+                continue
+            seen.add(rel)
+            path = root / rel
+            if path.is_dir():
+                continue
+            if not os.path.lexists(path):
+                break  # missing: the workflow makes it and everything below
+            what = file_kind(path.stat().st_mode) or "a file" if path.exists() else "a broken symbolic link"
+            raise InputError(f"expected a folder for the workflow's outputs ({folder}), but it is {what}: move it "
+                             "away", source=str(rel))
 
 
 def _check_data(data: Path, robot, memo) -> None:
@@ -185,7 +231,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT,
     is read every time."""
     from .maps import map_studies
     from .observation import moment_dim
-    from .robot import load_robot
+    from .robot import load_config_robot
     from .study import check_load_bends, design_studies, study_from_config
     from .validation import validate
 
@@ -215,7 +261,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT,
             raise InputError(f"expected unique names, got {entry['name']!r} twice", source=source,
                              field=f"{where}.name")
         names.add(entry["name"])
-        data_robot = load_robot(Path(root) / entry["robot"])
+        data_robot = load_config_robot(root, entry["robot"], source, f"{where}.robot")
         data = Path(root) / entry["data"]
         if not data.is_file():
             from .safeio import regular_file  # a FIFO, a device or a directory is named as such

@@ -615,9 +615,9 @@ def map_studies(config: dict, root=".", source: str = "config") -> list[MapStudy
         names.add(s["name"])
         figures.add(s["figure"])
         if "robot" in s:
-            from .robot import load_robot
+            from .robot import load_config_robot
 
-            robot = load_robot(Path(root) / s["robot"])
+            robot = load_config_robot(root, s["robot"], source, f"{field}.robot")
             if robot.kind != "planar" or robot.n_joints != 2:
                 raise InputError(f"expected a planar robot with 2 joints for a map, got {robot.kind} with "
                                  f"{robot.n_joints}", source=source, field=f"{field}.robot")

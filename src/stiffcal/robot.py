@@ -607,6 +607,16 @@ def with_targets(robot: Robot, targets, src: str) -> Robot:
     return replace(robot, targets=out)
 
 
+def load_config_robot(root: str | Path, path: str, source: str, field: str) -> Robot:
+    """:func:`load_robot` of the robot file ``path`` (relative to ``root``) that the config ``source`` names in
+    ``field``: a path that names nothing is refused naming the config and the field (the file's own errors name
+    the file)."""
+    full = Path(root) / path
+    if not os.path.lexists(full):
+        raise InputError(f"expected a robot file, but {path} does not exist", source=source, field=field)
+    return load_robot(full)
+
+
 def load_robot(path: str | Path) -> Robot:
     """Read and validate a robot file (planar, spatial or urdf; schema ``workflow/schemas/robot.schema.yaml``).
 

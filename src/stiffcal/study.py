@@ -12,7 +12,7 @@ from .criteria import CRITERIA_KEYS
 from .design import Problem
 from .errors import InputError
 from .observation import Loads, Sensing, measurement_loads, moment_dim
-from .robot import TOOL_TARGET, Robot, load_robot
+from .robot import TOOL_TARGET, Robot, load_config_robot
 from .validation import read_yaml, validate
 
 #: the keys of a study entry (``study`` or an item of ``studies``) that say what is loaded and measured, with
@@ -79,7 +79,7 @@ def study_from_entry(entry: dict, root: str | Path = ".", source: str = "config"
     Checks what the schema cannot: one test-pose angle per joint, within the joint limits; one force
     component per measured coordinate; a nonzero force. ``where`` names the entry in messages."""
     s = {**DEFAULTS, **CELL_DEFAULTS, **entry}
-    robot = load_robot(Path(root) / s["robot"])
+    robot = load_config_robot(root, s["robot"], source, f"{where}.robot")
     if s["joint_limits_deg"] is not None:
         from .robot import narrowed_limits
 
