@@ -698,6 +698,50 @@ def _fuzz_inputs(rng: random.Random, tmp: Path):
             out = rng.choice([str(tmp / "afile" / "x"), "/proc/stiffcal", str(tmp / "afile")])
             cases.append(([command, "--robot", PAPER, "--data", DATA, "--out", out,
                            *(["--experiments", "4"] if command == "discriminate" else [])], [out]))
+    cases += _fuzz_tables(rng, tmp)
+    return cases
+
+
+def _broken_csv(rng: random.Random, text: str) -> tuple[str, list[str]]:
+    """``text`` (a CSV) with one hostile edit: a cell made nan, inf, text, 1e400 or blank; a column dropped; a field
+    too many on a row. Returns (the CSV, what the message must hold: the column, or 'row')."""
+    lines = text.splitlines()
+    header = lines[0].split(",")
+    r = rng.randrange(1, len(lines))
+    c = rng.choice([i for i, name in enumerate(header) if name != "pose_id"])  # pose_id is optional
+    cells = [line.split(",") for line in lines]
+    how = rng.randrange(3)
+    if how == 0:
+        cells[r][c] = rng.choice(["nan", "inf", "-inf", "abc", "1e400", "", "1,5"])
+        needles = ["row"] if cells[r][c] == "1,5" else [f"column {header[c]}"]
+    elif how == 1:
+        cells = [row[:c] + row[c + 1:] for row in cells]
+        needles = [header[c]]
+    else:
+        cells[r].append("1")
+        needles = ["row"]
+    return "\n".join(",".join(row) for row in cells) + "\n", needles
+
+
+def _fuzz_tables(rng: random.Random, tmp: Path):
+    """(argv, needles): the measured data of discrepancy and discriminate, the poses of predict and the path of
+    compensate, each a valid file with one hostile edit (:func:`_broken_csv`)."""
+    robot = tmp / "calibrated_2r.yaml"  # compliances to predict with
+    robot.write_text(Path(PAPER).read_text() + "compliances_rad_per_Nm: [1.0e-6, 2.0e-6]\n")
+    data = Path(DATA).read_text()
+    data = "\n".join(data.splitlines()[:40]) + "\n"
+    poses = "q1_deg,q2_deg,fx_N,fy_N\n60,30,0,-300\n10,80,0,-300\n-40,100,50,-200\n"
+    cases = []
+    for k in range(12):
+        command = ["discrepancy", "discriminate", "predict", "compensate"][k % 4]
+        text, needles = _broken_csv(rng, data if command in ("discrepancy", "discriminate") else poses)
+        path = tmp / f"table{k}.csv"
+        path.write_text(text)
+        option = {"discrepancy": "--data", "discriminate": "--data", "predict": "--poses", "compensate": "--path"}
+        argv = [command, "--robot", str(robot if command in ("predict", "compensate") else PAPER),
+                option[command], str(path), "--out", str(tmp / (f"o{k}.csv" if command in ("predict", "compensate")
+                                                                  else f"o{k}"))]
+        cases.append((argv + (["--experiments", "4"] if command == "discriminate" else []), [path.name, *needles]))
     return cases
 
 
@@ -763,9 +807,10 @@ def _fuzz_configs(rng: random.Random, tmp: Path):
 
 
 def test_fuzz_every_command_with_hostile_inputs(tmp_path, monkeypatch):
-    """Seeded and bounded (about 60 inputs, a few seconds): hostile URDFs, robot files, options, output folders and
-    load specs through the command line, archives through verify-archive, configs through the workflow's config
-    check. Every one: exit 2 (verify-archive: 1 for a damaged archive, as documented), one line naming the file
+    """Seeded and bounded (about 70 inputs, a few seconds): hostile URDFs, robot files, options, output folders and
+    load specs through the command line, measured data (discrepancy, discriminate) and pose tables (predict,
+    compensate) with one bad cell, column or row, archives through verify-archive, configs through the workflow's
+    config check. Every one: exit 2 (verify-archive: 1 for a damaged archive, as documented), one line naming the file
     or the field, no traceback, nothing written."""
     import yaml
 
