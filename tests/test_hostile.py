@@ -319,6 +319,55 @@ def test_a_robot_file_that_does_not_exist_is_named_with_the_config_field(tmp_pat
                               "config/robots/nope.yaml does not exist")
 
 
+@pytest.mark.parametrize("command", ["discrepancy", "discriminate"])
+def test_an_empty_output_folder_is_refused_not_the_current_folder(tmp_path, monkeypatch, command):
+    """--out '' wrote the verdict, figures and calibrated.yaml into the current folder (as --cache-dir '' did not)."""
+    monkeypatch.chdir(tmp_path)
+    refused(*cli([command, "--robot", PAPER, "--data", DATA, "--out", "", "--quiet",
+                  *(["--experiments", "3"] if command == "discriminate" else [])]), "field '--out'", "empty path")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("what", ["fifo", "too many", "angle", "huge field"])
+def test_hostile_candidate_files_are_refused_at_once(tmp_path, monkeypatch, what):
+    """design --candidates: a FIFO blocked forever, 2,000,000 rows ran out of memory, an angle of 1e300 degrees was
+    taken modulo a turn, a field over 128 KiB was an internal error: each one line, exit 2."""
+    monkeypatch.setattr(limits, "MAX_CANDIDATES", 50)
+    path = tmp_path / "cand.csv"
+    if what == "fifo":
+        os.mkfifo(path)
+    elif what == "too many":
+        path.write_text("q1_deg,q2_deg\n" + "10,20\n" * 51)
+    elif what == "angle":
+        path.write_text("q1_deg,q2_deg\n1,1e300\n2,3\n")
+    else:
+        path.write_text("q1_deg,q2_deg,note\n1,2," + "x" * 200_000 + "\n")
+    needle = {"fifo": "FIFO", "too many": "more than 50 candidate poses", "angle": "row 2, column q2_deg",
+              "huge field": "field larger than field limit"}[what]
+    refused(*cli(["design", "--robot", PAPER, "--test-pose-deg", "60,30", "--force-N", "0,-1", "--no-cache",
+                  "--quiet", "--candidates", str(path)]), "cand.csv", needle)
+
+
+@pytest.mark.parametrize("what", ["huge field", "huge header", "wide"])
+def test_hostile_measured_data_shapes_are_refused_by_row(tmp_path, what):
+    """A field over csv's 128 KiB limit was an internal error; 300,000 extra columns ran for minutes (a quadratic
+    check of repeated names): one line naming the file and the row, exit 2, nothing written."""
+    lines = Path(DATA).read_text().splitlines()
+    if what == "huge field":
+        lines[3] = "y" * 200_000 + lines[3][lines[3].index(","):]
+    elif what == "huge header":
+        lines[0] = lines[0] + "," + "h" * 200_000
+        lines[1:] = [x + ",0" for x in lines[1:]]
+    else:
+        lines = [x + ",0" * (limits.MAX_MEASURED_COLUMNS + 5) for x in lines]
+    path = tmp_path / "d.csv"
+    path.write_text("\n".join(lines) + "\n")
+    row = {"huge field": "row 4", "huge header": "row 1", "wide": "row 1"}[what]
+    refused(*cli(["discrepancy", "--robot", PAPER, "--data", str(path), "--out", str(tmp_path / "o"), "--quiet"]),
+            "d.csv", f"field '{row}'")
+    assert not (tmp_path / "o").exists()
+
+
 # --- archives ---------------------------------------------------------------------------------------------
 
 def _archive(tmp_path, edit=None) -> Path:

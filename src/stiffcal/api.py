@@ -518,13 +518,13 @@ def check_load(force: np.ndarray, moment: np.ndarray | None, field: str, moment_
                          f"loads; docs/contracts.md, 'Limits'), got {size:g}", field=field)
 
 
-def check_out_dir(out) -> Path:
-    """An output directory that can be written (:func:`stiffcal.safeio.check_out_dir`: it is a directory or does
-    not exist, no folder on its way is a file, and its nearest existing folder is writable), checked before any
-    work; InputError naming ``out`` otherwise."""
+def check_out_dir(out, field: str | None = None) -> Path:
+    """An output directory that can be written (:func:`stiffcal.safeio.check_out_dir`: not empty, a directory or
+    not existing, no folder on its way is a file, and its nearest existing folder is writable), checked before any
+    work; InputError naming ``out`` (and ``field``, the option or argument) otherwise."""
     from .safeio import check_out_dir as check
 
-    return check(out)
+    return check(out, field)
 
 
 def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None, force_N=None, wrench=None,

@@ -300,13 +300,15 @@ def read_poses(path, robot: Robot) -> PoseFile:
     import pandas as pd
 
     from . import measurements as M
+    from .limits import MAX_MEASURED_ROWS
     from .observation import force_dim, moment_dim
     from .safeio import regular_file
 
     source = str(path)
     regular_file(path, source=source)
     try:
-        M._header(path, source)
+        M._header(path, source, MAX_MEASURED_ROWS, "(the most poses read, as of measured data; docs/contracts.md, "
+                  "'Limits'): split the path")
         df = pd.read_csv(path, dtype=str, keep_default_na=False)
     except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
         raise InputError(f"cannot read a CSV table ({err})", source=source) from None

@@ -137,8 +137,6 @@ def _cache_dir(args):
             raise InputError("expected --cache-dir or --no-cache, not both", field="--cache-dir")
         return None
     if args.cache_dir is not None:
-        if not args.cache_dir.strip():
-            raise InputError("expected a folder for the cache, got an empty path", field="--cache-dir")
         return check_out_dir(args.cache_dir, field="--cache-dir")
     try:
         return check_out_dir(default_cache_dir())
@@ -176,7 +174,7 @@ def discrepancy(args) -> dict:
     """``stiffcal discrepancy``: what the model gets wrong in measured data (writes DIR/verdict.json)."""
     from .api import analyse_measurements, check_out_dir
 
-    check_out_dir(args.out)  # before any work
+    check_out_dir(args.out, "--out")  # before any work
     v = analyse_measurements(args.robot, args.data, alpha=args.alpha, test_pose_deg=args.test_pose_deg,
                              force_N=args.force_N, wrench=args.wrench, out=args.out,
                              angle_resolution_deg=args.angle_resolution_deg, force_resolution_N=args.force_resolution_N,
@@ -193,7 +191,7 @@ def discriminate(args) -> dict:
     """``stiffcal discriminate``: the next experiment that tells rival causes apart (writes DIR/plan.json)."""
     from .api import check_out_dir, plan_discrimination
 
-    check_out_dir(args.out)  # before any work
+    check_out_dir(args.out, "--out")  # before any work
     out = plan_discrimination(args.robot, args.data, args.experiments, loads=args.loads, repeats=args.repeats,
                               weight=args.weight, truth=args.truth, alpha=args.alpha,
                               test_pose_deg=args.test_pose_deg, force_N=args.force_N, out=args.out,

@@ -49,6 +49,8 @@ MIN_LOAD = 1e-6
 #: 6-axis arm take about a minute and 1.3 GB, benchmarks/bench_rows.py; a day's tracker log of 10^6 rows would
 #: take ten times that): average the replicates of a configuration and load, or analyse the log in parts
 MAX_MEASURED_ROWS = 200_000
+#: measured data: the most columns of a measured-data CSV (its own are a dozen or two; other columns are ignored)
+MAX_MEASURED_COLUMNS = 1000
 #: measured data: the RMS displacement [m] of the loaded rows below which the loads move nothing measurable (a
 #: picometre, far below any tracker's resolution: zeros written for blanks, or a wrong unit)
 MIN_DISPLACEMENT_M = 1e-12
@@ -74,6 +76,10 @@ MAX_DESIGN_EXPERIMENTS = 1000
 MAX_DISCRIMINATE_EXPERIMENTS = 100
 #: most loads of a load set (--loads: directions times magnitudes, or forces)
 MAX_LOADS = 64
+#: most candidate poses read from a file (stiffcal design --candidates; the generated pools hold about 10^4), and
+#: the largest such file [bytes]
+MAX_CANDIDATES = 100_000
+MAX_CANDIDATE_BYTES = 50_000_000
 
 #: the address-space cap of a command or a workflow job [MB], unless STIFFCAL_MAX_MEMORY_MB says otherwise
 DEFAULT_MAX_MEMORY_MB = 4096

@@ -662,17 +662,35 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
         "resolution", source=source, field=f"columns {', '.join(force_cols)}")
 
 
-def _header(path, source: str, max_rows: int | None = None) -> list[str]:
+#: what a measured-data file beyond MAX_MEASURED_ROWS should do instead
+ROWS_HINT = ("(MAX_MEASURED_ROWS: the analysis grows linearly with the rows, 10^5 rows of a 6-axis arm take about a "
+             "minute and 1.3 GB; docs/contracts.md, 'Limits'): average the replicates of each configuration and load, "
+             "or analyse the log in parts")
+
+
+def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HINT) -> list[str]:
     """The header row as the file writes it (pandas renames a repeated name 'dx_m' to 'dx_m.1'): raises
     :class:`InputError` for a column name given twice, a header with no comma but semicolons or tabs (a
     file separated by another character: a comma-separated file is expected), or a row with more or fewer fields
     than the header (pandas would take a surplus first field as the index and shift every column), or more than
     ``max_rows`` data rows (counted before anything is parsed)."""
     import csv
+    from collections import Counter
+
+    from .limits import MAX_MEASURED_COLUMNS
+
+    def split(rows, at):  # csv's own errors (a field over its 128 KiB limit) named by the row at[0]
+        try:
+            yield from rows
+        except csv.Error as err:
+            raise InputError(f"not a CSV row a reader can split ({err})", source=source, field=f"row {at[0]}") from None
 
     with open(path, newline="", encoding="utf-8-sig") as fh:
         line = fh.readline()
-    names = [c.strip() for c in next(csv.reader([line]), [])]
+    if line.count(",") >= MAX_MEASURED_COLUMNS:
+        raise InputError(f"more than {MAX_MEASURED_COLUMNS:,} columns in the header (the most read; a measured-data "
+                         "file has a dozen or two): not a measured-data table", source=source, field="row 1")
+    names = [c.strip() for c in next(split(csv.reader([line]), [1]), [])]
     seps = {";": "';' (semicolons)", "\t": "tabs"}
     seen = [sep for sep in seps if sep in line]
     if len(names) <= 1 and seen:
@@ -681,19 +699,19 @@ def _header(path, source: str, max_rows: int | None = None) -> list[str]:
                          f"({line.strip()[:80]!r}), but the file must be comma-separated; save it as CSV with commas "
                          "(and a decimal point)", source=source)
     with open(path, newline="", encoding="utf-8-sig") as fh:
-        for line_no, row in enumerate(csv.reader(fh), start=1):
+        at = [1]
+        for line_no, row in enumerate(split(csv.reader(fh), at), start=1):
+            at[0] = line_no + 1
             if max_rows is not None and line_no > max_rows + 1:
-                raise InputError(f"more than {max_rows:,} data rows (MAX_MEASURED_ROWS: the analysis grows linearly "
-                                 "with the rows, 10^5 rows of a 6-axis arm take about a minute and 1.3 GB; "
-                                 "docs/contracts.md, 'Limits'): average the replicates of each configuration and "
-                                 "load, or analyse the log in parts", source=source)
+                raise InputError(f"more than {max_rows:,} data rows {hint}", source=source)
             if line_no > 1 and row and any(c.strip() for c in row) and len(row) != len(names):
                 r = line_no - 2
                 raise InputError(f"expected {len(names)} fields as in the header, got {len(row)}: a comma too "
                                  f"{'many' if len(row) > len(names) else 'few'} (a trailing comma, a decimal comma, "
                                  "a value or a header name missing?)", source=source,
                                  field=f"row {line_no} (data row {r})")
-    twice = sorted({c for c in names if names.count(c) > 1}, key=names.index)
+    counts = Counter(names)
+    twice = sorted({c for c in names if counts[c] > 1}, key=names.index)
     if twice:
         where = "; ".join(f"{c} (header columns {', '.join(str(i + 1) for i, x in enumerate(names) if x == c)})"
                           for c in twice)

@@ -79,7 +79,10 @@ def check_out_dir(out: str | os.PathLike, field: str | None = None) -> Path:
     """An output directory that can be written, checked before any work: ``out`` is a directory or does not
     exist yet; no folder on its way is a file; the nearest folder that exists is a directory in which a file can
     be created (tried: a temporary directory made and removed, so a read-only file system, /proc, or missing
-    permissions are found, whoever runs it). InputError naming ``out`` otherwise."""
+    permissions are found, whoever runs it). InputError naming ``out`` otherwise (an empty path too: it would
+    scatter the outputs into the current folder)."""
+    if not str(out).strip():
+        raise InputError("expected a directory to write into, got an empty path", field=field)
     out = Path(out)
     try:
         if out.exists() and not out.is_dir():

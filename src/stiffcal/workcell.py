@@ -1015,18 +1015,30 @@ def read_candidates(path, robot) -> np.ndarray:
     """Candidate poses (N, n) [rad] from a CSV file (FIGAROH-style: one configuration per row): columns
     ``q1_deg`` .. (``q_<name>_deg``, the project's pose columns, in degrees) or the joint names themselves (in
     radians, as ROS joint states and FIGAROH write them); other columns are ignored. Rows outside the joint
-    limits are refused. Raises :class:`InputError` naming the file, row and column."""
+    limits or beyond +-MAX_JOINT_ANGLE_DEG are refused, and so is a file that is not a regular file (a FIFO), larger
+    than :data:`~stiffcal.limits.MAX_CANDIDATE_BYTES` or with more than :data:`~stiffcal.limits.MAX_CANDIDATES`
+    poses (before it is parsed). Raises :class:`InputError` naming the file, row and column."""
     import csv
+
+    from .limits import MAX_CANDIDATE_BYTES, MAX_CANDIDATES
+    from .robot import MAX_JOINT_ANGLE_DEG
+    from .safeio import read_bounded
 
     path = Path(path)
     src = str(path)
+    raw = read_bounded(path, MAX_CANDIDATE_BYTES, source=src, what="candidate file")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise InputError(f"cannot read file ({err.strerror})", source=src) from None
-    except UnicodeDecodeError:
-        raise InputError("not UTF-8 text", source=src) from None
-    rows = list(csv.reader(text.splitlines()))
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise InputError(f"not UTF-8 text (byte 0x{raw[err.start]:02x} at {err.start})", source=src) from None
+    lines = text.splitlines()
+    if sum(1 for line in lines if line.strip()) - 1 > MAX_CANDIDATES:
+        raise InputError(f"more than {MAX_CANDIDATES:,} candidate poses (the most read; docs/contracts.md, 'Limits'):"
+                         " thin the set", source=src)
+    try:
+        rows = list(csv.reader(lines))
+    except csv.Error as err:
+        raise InputError(f"not a CSV file a reader can split ({err})", source=src) from None
     if not rows:
         raise InputError("empty file: expected a header row and one pose per row", source=src)
     header = [h.strip() for h in rows[0]]
@@ -1050,8 +1062,9 @@ def read_candidates(path, robot) -> np.ndarray:
             except (ValueError, IndexError):
                 raise InputError(f"expected a number, got {row[i] if i < len(row) else 'nothing'!r}", source=src,
                                  field=f"row {r}, column {c}") from None
-            if not np.isfinite(v):
-                raise InputError(f"expected a finite number, got {v}", source=src, field=f"row {r}, column {c}")
+            if not np.isfinite(v) or abs(v * scale) > np.radians(MAX_JOINT_ANGLE_DEG) * (1 + 1e-12):
+                raise InputError(f"expected a finite angle within +-{MAX_JOINT_ANGLE_DEG:g} deg, got {row[i]}",
+                                 source=src, field=f"row {r}, column {c}")
             vals.append(v * scale)
         out.append(vals)
     if not out:
