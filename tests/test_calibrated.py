@@ -16,7 +16,7 @@ from stiffcal import calibrated as C
 from stiffcal import discrepancy as D
 from stiffcal import rates as R
 from stiffcal import truth as T
-from stiffcal.measurements import read_measurements
+from stiffcal.measurements import read_measurements, rows_by_label
 from stiffcal.robot import load_robot
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -250,6 +250,25 @@ def _loco_by_hand(X: np.ndarray, y: np.ndarray, config: np.ndarray) -> np.ndarra
         beta = np.linalg.lstsq(X[~out].reshape(-1, X.shape[-1]), y[~out].ravel(), rcond=None)[0]
         pred[out] = X[out] @ beta
     return pred
+
+
+def test_leave_one_group_out_without_refitting_equals_refitting_each_group():
+    """The block deletion formula (one SVD, a small solve per configuration) gives what fit() on the rows outside
+    each group gives: predictions of the held-out rows equal to 1e-9, on a design that is rank-deficient as a
+    whole (two equal columns) and where one group alone carries a column (its deletion drops the rank: refitted)."""
+    rng = np.random.default_rng(5)
+    n_groups, w, p = 60, 2, 6
+    group = np.repeat(np.arange(n_groups), 3)
+    X = rng.normal(size=(len(group), w, p)) * np.array([1.0, 1e3, 1e-3, 1.0, 1.0, 1.0])
+    X[..., 4] = X[..., 3]  # rank-deficient as a whole
+    X[..., 5] = 0.0
+    X[group == 7, :, 5] = rng.normal(size=(3, w))  # only group 7 sees parameter 6
+    y = rng.normal(size=(len(group), w))
+    fast = list(D._leave_one_group_out(X, y, rows_by_label(group, n_groups)))
+    for g in range(n_groups):
+        out = group != g
+        slow = D.fit(X[out].reshape(-1, p), y[out].ravel()).beta
+        np.testing.assert_allclose(X[~out] @ fast[g], X[~out] @ slow, rtol=1e-9, atol=1e-12)
 
 
 def test_held_out_against_a_refit_by_hand(tmp_path):

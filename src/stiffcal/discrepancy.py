@@ -60,7 +60,7 @@ from scipy import stats
 from .catalogue import CAUSES, MEASUREMENT_CAUSES  # noqa: F401  (the catalogue, by name; part of this module)
 from .design import is_sampled, sample_joint_space
 from .errors import InputError
-from .measurements import Measurements
+from .measurements import Measurements, rows_by_label
 from .observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
                           tool_twists)
 from .observation import torques as observation_torques
@@ -363,8 +363,9 @@ def pure_error(y: np.ndarray, groups: np.ndarray) -> tuple[float, int]:
     """(SS, df) of the replicates: the spread of each coordinate about its group mean (Draper & Smith 2.1).
     y: (N, d) [m]; groups: (N,) int."""
     ss, df = 0.0, 0
-    for g in np.unique(groups):
-        rows = y[groups == g]
+    values, index = np.unique(groups, return_inverse=True)
+    for mine in rows_by_label(index, len(values)):
+        rows = y[mine]
         if len(rows) > 1:
             ss += float(((rows - rows.mean(axis=0)) ** 2).sum())
             df += rows.size - rows.shape[1]
@@ -602,8 +603,8 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
     ``resid``'s group means when given), or None when the data have too few replicates to tell (fewer than
     8 groups with replicates) or a constant variance is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`."""
     y = meas.dp if resid is None else resid
-    groups = [np.flatnonzero(meas.group == g) for g in np.unique(meas.group)]
-    groups = [r for r in groups if len(r) > 1]
+    values, index = np.unique(meas.group, return_inverse=True)
+    groups = [r for r in rows_by_label(index, len(values)) if len(r) > 1]
     if len(groups) < 8:
         return None
     s2 = np.array([((y[r] - y[r].mean(0)) ** 2).sum() for r in groups])
@@ -703,9 +704,10 @@ def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test:
     Q = _span(X / np.where(norm > 0, norm, 1.0), np.arange(X.shape[1]))  # the rank rule of fit()
     r = (y - Q @ (Q.T @ y)).reshape(-1, gls.d)
     h = (Q**2).sum(1).reshape(-1, gls.d).sum(1)
-    configs, first = np.unique(meas.config, return_index=True)
-    rss = np.array([(r[meas.config == c] ** 2).sum() for c in configs])
-    dof = np.array([gls.d * (meas.config == c).sum() - h[meas.config == c].sum() for c in configs])
+    configs, first, index = np.unique(meas.config, return_index=True, return_inverse=True)
+    rows = rows_by_label(index, len(configs))
+    rss = np.array([(r[mine] ** 2).sum() for mine in rows])
+    dof = np.array([gls.d * len(mine) - h[mine].sum() for mine in rows])
     use = (dof > 0.5) & (rss > 0)
     Z = position_covariates(robot, meas.q[first])[use]
     if use.sum() < VARIANCE_CONFIGS_PER_COVARIATE * Z.shape[1]:
@@ -1008,8 +1010,7 @@ class ConfigurationModel:
         w = np.ones(meas.n_rows) if weights is None else weights
         load = load_of(meas)
         roots = {} if error is None else {int(meas.config[rows[0]]): (rows, W) for rows, _, W, _ in error.blocks}
-        for c in range(meas.n_configurations):
-            rows = np.flatnonzero(meas.config == c)
+        for c, rows in enumerate(rows_by_label(meas.config, meas.n_configurations)):
             cols = []
             for t in np.unique(meas.target[rows]):
                 mine = meas.target[rows] == t
@@ -2078,11 +2079,38 @@ def loco_predictions(robot: Robot, meas: Measurements, causes=(), observed: Obse
     else:
         Xw, yw = X, y
     pred = np.empty((len(y), d))
-    for g in range(meas.n_configurations):
-        test = meas.config == g
-        f = fit(_stack(Xw[~test]), yw[~test].ravel())
-        pred[test] = np.einsum("ndp,p->nd", X[test], f.beta)[:, :d]
+    groups = rows_by_label(meas.config, meas.n_configurations)
+    for test, beta in zip(groups, _leave_one_group_out(Xw, yw, groups)):
+        pred[test] = np.einsum("ndp,p->nd", X[test], beta)[:, :d]
     return pred, y[:, :d]
+
+
+def _leave_one_group_out(X: np.ndarray, y: np.ndarray, groups: list[np.ndarray]):
+    """Yield, for each group (``groups``: the rows of each, :func:`stiffcal.measurements.rows_by_label`), the
+    coefficients (p,) of :func:`fit` on the rows of X (N, w, p), y (N, w) outside it, without refitting: with the
+    SVD of the whole (column-scaled) X = U S V^T, dropping group g's rows leaves the normal equations
+    (I - U_g^T U_g) c = U^T y - U_g^T y_g in c = S V^T beta (the block deletion formula; Belsley, Kuh & Welsch,
+    *Regression Diagnostics*, 1980, ch. 2): one small solve per group, so the whole is linear in the rows. Where a
+    group carries a direction that the others barely do (the deletion would change :func:`fit`'s rank decision),
+    that group is refitted from scratch."""
+    X2, y2, w = _stack(X), y.ravel(), X.shape[1]
+    scale = np.linalg.norm(X2, axis=0)
+    scale[scale == 0] = 1.0
+    U, s, Vt = np.linalg.svd(X2 / scale, full_matrices=False)
+    keep = s > RANK_RTOL * s[0] if s.size else np.zeros(0, bool)
+    U, s, Vt = U[:, keep], s[keep], Vt[keep]
+    c = U.T @ y2
+    safe = (10 * RANK_RTOL * s[0] / s[-1]) ** 2 if s.size else 1.0  # the least eigenvalue of I - U_g^T U_g
+    for rows in groups:
+        mine = (rows[:, None] * w + np.arange(w)).ravel()  # the group's flattened rows
+        Ug = U[mine]
+        M = np.eye(len(s)) - Ug.T @ Ug
+        if s.size and np.linalg.eigvalsh(M)[0] > safe:
+            yield Vt.T @ (np.linalg.solve(M, c - Ug.T @ y2[mine]) / s) / scale
+        else:
+            out = np.ones(len(y2), bool)
+            out[mine] = False
+            yield fit(X2[out], y2[out]).beta
 
 
 def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None, des: Design | None = None,
@@ -2112,11 +2140,11 @@ class HeldOut:
         def rms(pred, rows=slice(None)):
             return float(np.sqrt(np.mean((self.measured[rows] - pred[rows]) ** 2)))
 
+        values, index = np.unique(self.config, return_inverse=True)
         table = [{"configuration": str(self.labels[g]) if g < len(self.labels) else str(g),
-                  "rows": int((self.config == g).sum()),
-                  "rms_nominal_m": rms(self.nominal, self.config == g),
-                  "rms_calibrated_m": rms(self.calibrated, self.config == g)}
-                 for g in np.unique(self.config)]
+                  "rows": len(mine), "rms_nominal_m": rms(self.nominal, mine),
+                  "rms_calibrated_m": rms(self.calibrated, mine)}
+                 for g, mine in zip(values, rows_by_label(index, len(values)))]
         return {"method": "leave-one-configuration-out", "calibrated_causes": list(self.causes),
                 "rms_nominal_m": rms(self.nominal), "rms_calibrated_m": rms(self.calibrated),
                 "per_configuration": table}

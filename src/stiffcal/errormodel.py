@@ -76,6 +76,7 @@ import numpy as np
 from scipy import stats
 
 from .errors import InputError
+from .measurements import rows_by_label
 
 #: a component is estimated only where its groups have some row left after the fixed effects (relative norm)
 IDENTIFIABLE_RTOL = 1e-8
@@ -287,9 +288,11 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None) -> Readi
     # only at configurations whose rows show one: unloaded rows with noise (readings against the reference), or
     # several visits; elsewhere nothing in the data could tell it from the model's own misfit
     evidence = set()
+    in_config = rows_by_label(f["config"])
     for c in np.unique(f["config"][model]):
-        at = f["config"] == c
-        if (at & ~f["loaded"] & ~f["exact"]).any() or len(np.unique(visit[at & f["loaded"]])) > 1:
+        at = in_config[c]
+        loaded = f["loaded"][at]
+        if (~loaded & ~f["exact"][at]).any() or len(np.unique(visit[at][loaded])) > 1:
             evidence.add(int(c))
     unknown = ~known & model & np.array([int(c) in evidence for c in f["config"]])
     if unknown.any():
@@ -686,8 +689,7 @@ def _block_arrays(structure: ReadingStructure, Y: np.ndarray, groups: np.ndarray
     N = structure.n_loaded
     w = Y.shape[1]
     blocks = []
-    for c in range(int(structure.block.max(initial=-1)) + 1):
-        rows = np.flatnonzero(structure.block == c)
+    for rows in rows_by_label(structure.block):
         Z = {}
         for k, comp in enumerate(structure.components):
             cols = _group_columns(comp, rows, weights, w)
@@ -729,17 +731,13 @@ def _estimable(blocks: list[dict], K: int) -> list[int]:
     Q = _basis(X / np.where(norm > 0, norm, 1.0))
     sizes = np.cumsum([0] + [b["Y"].size for b in blocks])
     out = []
-    for k in range(K):
-        mine = [(i, b["Z"][k]) for i, b in enumerate(blocks) if k in b["Z"]]
+    for k in range(K):  # |Z - Q Q^T Z|^2 = |Z|^2 - |Q^T Z|^2, the columns of Z block by block (linear in the rows)
+        mine = [(Q[sizes[i]: sizes[i + 1]], b["Z"][k]) for i, b in enumerate(blocks) if k in b["Z"]]
         if not mine:
             continue
-        Z = np.zeros((X.shape[0], sum(z.shape[1] for _, z in mine)))
-        col = 0
-        for i, z in mine:
-            Z[sizes[i]: sizes[i + 1], col: col + z.shape[1]] = z
-            col += z.shape[1]
-        total = float((Z**2).sum())
-        if total > 0 and float(((Z - Q @ (Q.T @ Z)) ** 2).sum()) > IDENTIFIABLE_RTOL * total:
+        total = sum(float((z**2).sum()) for _, z in mine)
+        kept = sum(float(((Qi.T @ z) ** 2).sum()) for Qi, z in mine)
+        if total > 0 and total - kept > IDENTIFIABLE_RTOL * total:
             out.append(k)
     return out
 

@@ -54,6 +54,17 @@ _NAMES = {"q": "joint angles", "f": "force components", "d": "displacements", "m
 _MAX_LISTED = 5
 
 
+def rows_by_label(labels, n: int | None = None) -> list[np.ndarray]:
+    """The rows (ascending) of each label 0 .. n - 1 (default: the largest label + 1; a label without rows gets an
+    empty array), as ``[np.flatnonzero(labels == g) for g in range(n)]`` gives them, in O(N log N) rather than
+    O(N n): a log of 10^5 rows has 10^4 configurations and more."""
+    labels = np.asarray(labels).ravel()
+    n = int(labels.max(initial=-1)) + 1 if n is None else int(n)
+    order = np.argsort(labels, kind="stable")
+    bounds = np.searchsorted(labels[order], np.arange(n + 1))
+    return [order[bounds[g]: bounds[g + 1]] for g in range(n)]
+
+
 def cluster(values: np.ndarray, resolution: np.ndarray, period: np.ndarray | None = None) -> np.ndarray:
     """Labels (N,) int of the connected groups of rows that agree within ``resolution`` on every column.
 
@@ -180,8 +191,8 @@ class Measurements:
                              np.full(self.q.shape[1], 360.0))
             object.__setattr__(self, "config", config)
         if not self.config_labels:
-            object.__setattr__(self, "config_labels", tuple(_angle_label(np.degrees(self.q[np.flatnonzero(
-                self.config == c)[0]])) for c in range(int(self.config.max(initial=-1)) + 1)))
+            object.__setattr__(self, "config_labels", tuple(_angle_label(np.degrees(self.q[r[0]]))
+                                                            for r in rows_by_label(self.config)))
         if self.rows is None:
             object.__setattr__(self, "rows", np.arange(n_rows))
         if self.zero_dp is None:
@@ -241,7 +252,7 @@ class Measurements:
     def structure(self) -> dict:
         """Counts that say how the data were taken: configurations, loads per configuration, replicate
         groups and their sizes, unloaded rows (all plain ints, JSON-ready)."""
-        loads = [len(np.unique(self.group[self.config == c])) for c in range(self.n_configurations)]
+        loads = [len(np.unique(self.group[r])) for r in rows_by_label(self.config, self.n_configurations)]
         sizes = np.bincount(self.group)
         return {"n_rows": int(self.n_rows), "n_configurations": self.n_configurations,
                 "loads_per_configuration": _span(loads), "n_replicate_groups": int(len(sizes)),
@@ -413,12 +424,12 @@ def _configurations(labels, q_deg: np.ndarray, angle_res: float, source: str) ->
     note); without labels, by its joint angles."""
     n = q_deg.shape[1]
     config = cluster(q_deg, np.full(n, angle_res), np.full(n, 360.0))
-    first = [int(np.flatnonzero(config == c)[0]) for c in range(config.max(initial=-1) + 1)]
+    in_config = rows_by_label(config)
+    first = [int(r[0]) for r in in_config]
     if labels is None:
         return config, tuple(_angle_label(q_deg[i]) for i in first), []
     names, index = np.unique(labels, return_inverse=True)
-    for c in range(len(names)):
-        rows = np.flatnonzero(index.ravel() == c)
+    for c, rows in enumerate(rows_by_label(index, len(names))):
         if len(np.unique(config[rows])) > 1:
             other = rows[config[rows] != config[rows[0]]]
             diff = np.abs((q_deg[other[0]] - q_deg[rows[0]] + 180.0) % 360.0 - 180.0)
@@ -428,7 +439,7 @@ def _configurations(labels, q_deg: np.ndarray, angle_res: float, source: str) ->
                 f"differ by {diff[j]:.4g} deg in q{j + 1} (more than the angle resolution of {angle_res:g} deg); "
                 "give each configuration its own pose_id, or raise the angle resolution", source=source,
                 field="column pose_id")
-    per_config = [list(dict.fromkeys(labels[config == c])) for c in range(len(first))]  # in file order
+    per_config = [list(dict.fromkeys(labels[r])) for r in in_config]  # in file order
     merged = [m for m in per_config if len(m) > 1]
     notes = []
     if merged:

@@ -308,6 +308,12 @@ def _rows_label(rows) -> str:
     return f"blunder (outlier_rows): data row{'s' if len(rows) > 1 else ''} {shown}"
 
 
+#: beyond this many points a residual panel is drawn as an image inside the SVG (vector text and axes), and beyond
+#: MAX_BARS configurations the held-out check is a step line: a log of 10^5 rows draws in seconds, not minutes
+RASTER_POINTS = 2000
+MAX_BARS = 200
+
+
 def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigma: float, title: str,
                   outlier_rows=()):
     """Residuals of the nominal fit [m]: first per robot configuration (every load of a configuration side by
@@ -341,18 +347,20 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
         order = np.argsort(meas.config, kind="stable")
         order = order[ok[order]]
         n_cfg = max(meas.n_configurations, 1)
-        # within a configuration, spread its rows by load (sorted by force magnitude) across 0.7 of a slot
+        # within a configuration, spread its rows by load (sorted by force magnitude, then row) across 0.7 of a slot
+        config = np.asarray(meas.config)
+        by = np.lexsort((np.arange(len(fmag)), fmag, config))
+        counts = np.bincount(config, minlength=n_cfg)
+        rank = np.arange(len(by)) - (np.cumsum(counts) - counts)[config[by]]
         slot = np.zeros(len(fmag))
-        for c in range(n_cfg):
-            r = np.flatnonzero(meas.config == c)
-            rank = np.argsort(np.argsort(fmag[r], kind="stable"), kind="stable")
-            slot[r] = c - 0.35 + 0.7 * (rank + 0.5) / max(len(r), 1)
+        slot[by] = config[by] - 0.35 + 0.7 * (rank + 0.5) / counts[config[by]]
+        dense = len(fmag) > RASTER_POINTS  # many points: drawn as an image inside the SVG, the text stays vector
         norm = (plt.Normalize(fmag.min(), fmag.max()) if by_magnitude else plt.Normalize(-180.0, 180.0))
         for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
             if j < resid.shape[1]:
                 sc = ax0.scatter(slot[order], um[order, j], c=colour[order],
                                  cmap="viridis" if by_magnitude else "twilight", norm=norm,
-                                 marker=mk, s=9, alpha=0.85, label=f"d{lab}")
+                                 marker=mk, s=9, alpha=0.85, label=f"d{lab}", rasterized=dense or None)
         if out.any():
             _outliers(ax0, slot[out], um[out], lim, _rows_label(meas.rows[out]), meas.rows[out])
         ax0.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
@@ -366,7 +374,7 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
             ax = fig.add_subplot(grid[1 + i // cols, i % cols])
             for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
                 if j < resid.shape[1]:
-                    ax.plot(v[ok], um[ok, j], mk, ms=3, alpha=0.7, label=f"d{lab}")
+                    ax.plot(v[ok], um[ok, j], mk, ms=3, alpha=0.7, label=f"d{lab}", rasterized=dense or None)
             if out.any():
                 _outliers(ax, v[out], um[out], lim)
             ax.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
@@ -609,16 +617,21 @@ def fig_held_out(held: dict | None, sigma: float, title: str):
         table = held["per_configuration"]
         x = np.arange(len(table))
         cal = " + ".join(held["calibrated_causes"]) or "nominal"
-        ax.bar(x - 0.2, [1e6 * r["rms_nominal_m"] for r in table], 0.4, color="0.6",
-               label=f"nominal (all: {1e6 * held['rms_nominal_m']:.3g} µm)")
-        ax.bar(x + 0.2, [1e6 * r["rms_calibrated_m"] for r in table], 0.4, color="C0",
-               label=f"calibrated: {cal} (all: {1e6 * held['rms_calibrated_m']:.3g} µm)")
+        labels = (f"nominal (all: {1e6 * held['rms_nominal_m']:.3g} µm)",
+                  f"calibrated: {cal} (all: {1e6 * held['rms_calibrated_m']:.3g} µm)")
+        values = [[1e6 * r[key] for r in table] for key in ("rms_nominal_m", "rms_calibrated_m")]
+        many = len(table) > MAX_BARS  # too many for bars: a step line per model, drawn as an image in the SVG
+        for shift, colour, label, v in zip((-0.2, 0.2), ("0.6", "C0"), labels, values):
+            if many:
+                ax.plot(x, v, drawstyle="steps-mid", color=colour, lw=0.6, label=label, rasterized=True)
+            else:
+                ax.bar(x + shift, v, 0.4, color=colour, label=label)
         ax.axhline(1e6 * sigma, color="k", ls=":", lw=1, label="noise σ")
         step = max(1, len(table) // 24)
         ax.set_xticks(x[::step], [r["configuration"] for r in table][::step], rotation=60, ha="right", fontsize=6)
         ax.set_xlabel("held-out configuration")
         ax.set_ylabel("RMS prediction error [µm]")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper right" if many else "best")
         ax.grid(alpha=0.3, axis="y")
         ax.set_title(title, fontsize=9)
         fig.tight_layout()
