@@ -465,6 +465,10 @@ def _predicted(robot_path, poses):
     (lambda c: c.__setitem__("estimable", c["estimable"][:1]), "calibration.estimable"),
     (lambda c: c["parameter_names"].__setitem__(2, "b9_rad"), "calibration.parameter_names"),
     (lambda c: c.__setitem__("parameters", c["parameters"][:-1]), "calibration.parameters"),
+    # a variance of 1e300, a covariance of zeros, a noise of 1e-300 m: LinAlgError in design --prior before
+    (lambda c: c["covariance"][0].__setitem__(0, 1e300), "calibration.covariance"),
+    (lambda c: c.__setitem__("covariance", [[0.0] * len(row) for row in c["covariance"]]), "calibration.covariance"),
+    (lambda c: c.__setitem__("sigma_m", 1e-300), "calibration.sigma_m"),
 ])
 def test_hand_edited_calibration_is_refused(tmp_path, calibrated_file, edit, key):
     """A calibrated.yaml edited by hand so that it no longer fits its robot is refused naming the key."""

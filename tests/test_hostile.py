@@ -266,6 +266,17 @@ def test_load_specs_outside_the_range_are_refused_before_any_allocation(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_design_load_below_the_smallest_is_refused_naming_the_design_bound(tmp_path, monkeypatch):
+    """design has no load cell: its loads are bounded by MIN_LOAD (documented), not by a lab's resolution of 0.5 N,
+    and the message named --force-resolution-N, an option design does not have."""
+    monkeypatch.chdir(tmp_path)
+    base = ["design", "--robot", PAPER, "--test-pose-deg", "60,30", "--force-N", "0,-1", "--quiet", "--no-cache"]
+    code, out, err = cli([*base, "--loads", "hanging:0.2"])
+    assert code == 0 and json.loads(out)["O_t"] > 0
+    refused(*cli([*base, "--loads", f"hanging:{limits.MIN_LOAD / 10:g}"]), "'--loads'", "MIN_LOAD")
+    assert "--force-resolution-N" not in cli([*base, "--loads", "hanging:1e-9"])[2]
+
+
 def test_a_discriminating_plan_is_bounded_in_its_measurements(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     m = limits.MAX_DISCRIMINATE_EXPERIMENTS + 1
@@ -908,17 +919,29 @@ def _degenerate(tmp_path, how):
         df[cols] *= 1e-300
     elif how == "copies":
         df[cols] = df.groupby(["q1_deg", "q2_deg", "fx_N", "fy_N"])[cols].transform("mean")
+    elif how in ("exact", "rounded"):  # eq. 2 without noise (k = 1e-6, 2e-6), no replicates: full digits, or 4
+        from stiffcal.robot import load_robot
+
+        df = df.drop_duplicates(subset=["q1_deg", "q2_deg", "fx_N", "fy_N"]).reset_index(drop=True)
+        J = load_robot(PAPER).jacobian(np.radians(df[["q1_deg", "q2_deg"]].to_numpy()))
+        F = df[["fx_N", "fy_N"]].to_numpy()
+        df[cols] = np.einsum("nij,j,nkj,nk->ni", J, [1e-6, 2e-6], J, F)
+        if how == "rounded":  # the displacements printed with 4 digits, as a simulation might write them
+            df[cols] = df[cols].map(lambda v: f"{v:.4g}")
     path = tmp_path / f"{how}.csv"
     df.to_csv(path, index=False)
     return path
 
 
 @pytest.mark.parametrize("how, words", [("zeros", "move nothing measurable"), ("tiny", "move nothing measurable"),
-                                        ("copies", "exact copies")])
+                                        ("copies", "exact copies"), ("exact", "the model fits the rows exactly"),
+                                        ("rounded", "no more than the rounding of the displacements")])
 def test_degenerate_data_are_refused_never_a_confident_none(tmp_path, how, words):
     """Data that carry no deflection or no noise in fact gave compliances of 0 +- 0 and `none` at p = 1, or
-    intervals of zero width: refused with the reason, exit 2, nothing written; the same file untouched gives a
-    verdict (the refusal is the degeneracy's, not the file's)."""
+    intervals of zero width; noise-free simulated data got `unexplained` at p = 1e-132 (their scatter is the fits'
+    round-off, 1e-8 of the displacements) or, printed with 4 digits, a verdict on their rounding: refused with the
+    reason, exit 2, nothing written; the same file untouched gives a verdict (the refusal is the degeneracy's, not
+    the file's)."""
     out = tmp_path / "out"
     err = io.StringIO()
     with redirect_stderr(err), redirect_stdout(io.StringIO()):

@@ -457,7 +457,12 @@ def prior_design_bound(P: np.ndarray, prior: np.ndarray, W: np.ndarray, m: int, 
     best = (-np.inf, w, np.inf)
     for _ in range(iters):
         M = prior + m * np.einsum("k,kij->ij", w, P)
-        Minv = np.linalg.inv(M)
+        try:
+            Minv = np.linalg.inv(M)
+        except np.linalg.LinAlgError:
+            raise InputError("the prior's information with every candidate pose cannot identify every parameter of "
+                             "the calibrated model (the calibration's covariance is singular in a direction no pose "
+                             "measures)", field="prior") from None
         f = float(np.trace(W @ Minv))
         B = Minv @ W @ Minv
         phi = np.einsum("ij,kji->k", B, P)

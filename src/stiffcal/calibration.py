@@ -59,6 +59,12 @@ class Calibration:
                           "error_model": self.error_model, "source": self.source})
 
 
+#: the largest standard deviation of a calibration's parameter accepted (SI units: rad/(N m), rad, m, 1/(N m^2)),
+#: and the range of its noise s.d. [m] (the config's and the command line's sigma_m)
+MAX_PARAMETER_SD = 1e3
+MIN_SIGMA_M, MAX_SIGMA_M = 1e-15, 1e6
+
+
 def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
     """The :class:`Calibration` of a robot file's ``calibration`` section (validated by the robot schema),
     checked against the robot: one joint number per compliance within the robot's joints, a parameter vector
@@ -90,6 +96,20 @@ def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
     if lam[0] < -1e-9 * max(lam[-1], 0.0) or lam[-1] < 0:
         raise bad(f"expected a positive semi-definite matrix (a covariance), got an eigenvalue {lam[0]:.3g} (the "
                   f"largest {lam[-1]:.3g})", "covariance")
+    variance = np.diag(cov)
+    est = np.array([bool(e) for e in doc.get("estimable", [True] * theta.size)])
+    if est.size == theta.size and np.any(est & ~(variance > 0)):
+        i = int(np.flatnonzero(est & ~(variance > 0))[0])
+        raise bad(f"expected a positive variance for every estimable parameter (a variance of 0 claims it known "
+                  f"exactly, which no data can give), got {variance[i]:.3g} for {names[i]}", "covariance")
+    if np.any(variance > MAX_PARAMETER_SD**2):
+        i = int(np.argmax(variance))
+        raise bad(f"expected standard deviations of at most {MAX_PARAMETER_SD:g} in the parameters' SI units (no "
+                  f"compliance, angle, offset or bending compliance is that uncertain), got {np.sqrt(variance[i]):.3g} "
+                  f"for {names[i]}", "covariance")
+    if not MIN_SIGMA_M <= float(doc["sigma_m"]) <= MAX_SIGMA_M:
+        raise bad(f"expected a noise s.d. in [{MIN_SIGMA_M:g}, {MAX_SIGMA_M:g}] m (as sigma_m everywhere), got "
+                  f"{doc['sigma_m']}", "sigma_m")
     expected = len(joints) + _extension_size(robot, causes, int(doc["n_offsets"]))
     if theta.size != expected:
         raise bad(f"expected {expected} parameters (the compliances of joints {doc['k_joints']} and those of "

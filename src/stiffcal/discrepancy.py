@@ -1395,22 +1395,38 @@ def check_moves(meas: Measurements) -> None:
                          source=meas.source, field="column dx_m")
 
 
+#: the scatter about the model below which data read from a file carry no noise beyond their printed digits: this
+#: factor times the RMS rounding error of the printed displacements (Sheppard: step / sqrt(12)); at 1.5 the
+#: measurement noise would be under a third of a printed digit
+ROUNDING_NOISE_FACTOR = 1.5
+
+
 def check_noise(meas: Measurements, noise: "Noise") -> None:
     """Refuse data that have no noise in fact: the noise estimate below :data:`stiffcal.limits.MIN_NOISE_RATIO`
-    times the RMS displacement (replicates that are exact copies of an average, or noise-free simulated data),
-    where every interval would have zero width and every test be infinitely confident. Raises
-    :class:`InputError`."""
+    times the RMS displacement (replicates that are exact copies of an average, or noise-free simulated data), or
+    (data read from a file) below :data:`ROUNDING_NOISE_FACTOR` times the RMS rounding of the printed
+    displacements and a thousandth of their RMS (noise-free simulated data written with a fixed number of digits),
+    where every interval would have zero width, or rest on rounding, and every test be infinitely confident.
+    Raises :class:`InputError`."""
     from .limits import MIN_NOISE_RATIO
 
     sigma, rms = float(np.sqrt(max(noise.s2, 0.0))), _rms_displacement(meas)
     if not sigma > MIN_NOISE_RATIO * rms:
         what = ("the replicate groups' readings are exact copies of each other (averaged values written once per "
-                "replicate?)" if str(noise.source).startswith("replicates") else
+                "replicate, or noise-free simulated data?)" if str(noise.source).startswith("replicates") else
                 "the model fits the rows exactly (noise-free simulated data?)")
         raise InputError(f"the noise estimate ({noise.source}) is {sigma:.3g} m against an RMS displacement of "
                          f"{rms:.3g} m, a ratio below {MIN_NOISE_RATIO:g}: {what}; with no noise in the data no "
                          "interval or test can be made: give each reading as it was measured (or the averages once "
                          "each, without copies), or add the instrument's noise to simulated data",
+                         source=meas.source, field="column dx_m")
+    step = meas.dp_step_m
+    if step is not None and sigma < ROUNDING_NOISE_FACTOR * step / np.sqrt(12.0) and sigma < 1e-3 * rms:
+        raise InputError(f"the rows scatter about the model by {sigma:.3g} m ({noise.source}), no more than the "
+                         f"rounding of the displacements as the file prints them ({step:.3g} m a last digit, "
+                         f"{step / np.sqrt(12.0):.3g} m RMS): the data carry no measurement noise beyond their "
+                         "printed digits (noise-free simulated data rounded on output?), so no interval or test can "
+                         "be made; give the readings as measured, or add the instrument's noise to simulated data",
                          source=meas.source, field="column dx_m")
 
 

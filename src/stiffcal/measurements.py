@@ -154,7 +154,8 @@ class Measurements:
     index into target_names; zero_rot (N0, d_r) [rad] the unloaded rows' orientation (None without it);
     labelled: config_labels are the data's ``pose_id`` labels (False: the joint angles, or given by the caller);
     log: what the file says of every data row (:class:`RowLog`: times, labels, visits, references, exact-zero
-    reference rows), None for measurements made in memory.
+    reference rows), None for measurements made in memory; dp_step_m [m]: the RMS rounding step of the
+    displacements as the file prints them (the value of their last digit; :func:`printed_step`), None in memory.
     """
 
     q: np.ndarray
@@ -177,6 +178,7 @@ class Measurements:
     zero_rot: np.ndarray | None = None
     labelled: bool = False
     log: RowLog | None = None
+    dp_step_m: float | None = None
 
     def __post_init__(self):
         n_rows = len(self.q)
@@ -233,7 +235,7 @@ class Measurements:
                             config.ravel(), tuple(self.config_labels[c] for c in used), self.rows[keep],
                             self.zero_rows, self.zero_dp, self.zero_config, self.notes, self.resolutions,
                             self.moment[keep], None if self.rot is None else self.rot[keep], self.target[keep],
-                            self.target_names, self.zero_rot, self.labelled, self.log)
+                            self.target_names, self.zero_rot, self.labelled, self.log, self.dp_step_m)
 
     @property
     def wrench(self) -> np.ndarray:
@@ -393,6 +395,26 @@ def _check_units(columns, source: str) -> None:
 
 #: magnitudes no measurement of a robot reaches (a value beyond is a corrupted cell, not a measurement)
 _MAX_ABS = {"q": 3600.0, "f": 1e7, "d": 100.0, "m": 1e7, "r": 10.0, "t": 1e12}
+
+
+def printed_step(texts) -> float | None:
+    """The RMS rounding step of numbers as printed: each nonzero one's step is the value of its last digit (1e-10
+    for '2.638988e-04', 1e-6 for '0.000120'), at most 10 times their median (a round number printed without its
+    trailing zeros, '0.0002', says little of the writer's digits); None when none is nonzero. Rounding scatters the
+    values by this step / sqrt(12) (Sheppard): data whose scatter about the model is no larger carry no
+    measurement noise."""
+    import pandas as pd
+
+    parts = pd.Series(np.asarray(texts, dtype=str)).str.extract(
+        r"^\s*[+-]?(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?\s*$")
+    digits = (parts[0].fillna("") + parts[1].fillna("")).str.strip("0")
+    keep = (digits != "").to_numpy()
+    if not keep.any():
+        return None
+    exponent = pd.to_numeric(parts[2], errors="coerce").fillna(0).to_numpy()[keep]
+    decimals = parts[1].fillna("").str.len().to_numpy()[keep]
+    step = 10.0 ** (exponent - decimals)
+    return float(np.sqrt(np.mean(np.minimum(step, 10.0 * np.median(step)) ** 2)))
 
 
 def _numbers(df, cols: list[str], source: str) -> np.ndarray:
@@ -569,7 +591,8 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     return Measurements(np.radians(q_deg[loaded]), force[loaded], dp[loaded], group, source, cfg_index.ravel(),
                         tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config,
                         tuple(notes + log_notes), res, moment[loaded], None if rot is None else rot[loaded],
-                        target[loaded], target_names, None if rot is None else rot[zero], labels is not None, log)
+                        target[loaded], target_names, None if rot is None else rot[zero], labels is not None, log,
+                        printed_step(df.loc[loaded, used[n + d:n + 2 * d]].to_numpy().ravel()))
 
 
 def _row_log(df, source: str, labels, target, config, unloaded, dp, rot, group, loaded) -> tuple[RowLog, list[str]]:

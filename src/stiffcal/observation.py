@@ -262,7 +262,7 @@ def measurement_loads(robot: Robot, spec: str, field: str = "loads", source: str
                          "'wrenches:...', 'bar:...'): a design has no data to take them from", source=source,
                          field=field)
     try:
-        ls = load_set(spec, force_dim(robot), field_name=field, gravity=robot.gravity)
+        ls = load_set(spec, force_dim(robot), resolution_N=None, field_name=field, gravity=robot.gravity)
     except InputError as err:
         raise err.renamed(field=field, source=source) if source else err from None
     return Loads(np.asarray(ls.forces, float), ls.arm, ls.kind in ("hanging", "bar"), ls.spec)
