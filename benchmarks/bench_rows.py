@@ -46,8 +46,9 @@ def main(arms) -> None:
             per_row = (t2 - t0) / meas.n_rows
             base = base or per_row
             peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
-            print(f"{arm:7s} {meas.n_rows:7d} rows  read {t1 - t0:6.2f} s  run (read, analyse, write) {t2 - t1:6.2f} s  "
-                  f"peak {peak:5d} MB  CPU per row {per_row / base:5.2f} x the smallest  verdict {verdict['cause']}",
+            print(f"{arm:7s} {meas.n_rows:7d} rows  read {t1 - t0:6.2f} s  run (read, analyse, write) "
+                  f"{t2 - t1:6.2f} s  peak {peak:5d} MB  CPU per row {per_row / base:5.2f} x the smallest  "
+                  f"verdict {verdict['cause']}",
                   flush=True)
 
 
