@@ -613,7 +613,12 @@ def test_progress_prints_lines_off_a_terminal_only_for_the_innermost_and_not_whe
     quiet = io.StringIO()
     with Progress("job", [("only", 100.0)], stream=quiet, interval=0.01, enabled=False):
         time.sleep(0.1)
+        with Progress("a step inside the quiet job", [("only", 100.0)], stream=quiet, interval=0.01):
+            time.sleep(0.1)  # left to its default, it is quiet too (--quiet silences a step's own progress)
     assert quiet.getvalue() == ""
+    with Progress("after", [("only", 100.0)], stream=quiet, interval=0.01):  # and loud again once that job ends
+        time.sleep(0.1)
+    assert "after: only" in quiet.getvalue()
 
 
 def test_a_note_printed_while_a_bar_is_shown_gets_a_line_of_its_own():
@@ -644,6 +649,29 @@ def test_the_command_reports_progress_when_stderr_is_not_a_terminal(tmp_path):
     assert any("design: " in line and "(stage " in line and "estimate" in line for line in lines)
     res = subprocess.run([*args, "--quiet"], capture_output=True, text=True, env=env, timeout=300)
     assert res.returncode == 0 and res.stderr == ""
+
+
+@pytest.mark.parametrize("command", ["discrepancy", "design several M"])
+def test_the_analysis_and_a_design_of_several_m_report_their_stages_over_the_whole_call(tmp_path, command):
+    """discrepancy said only 'discrepancy, N s elapsed' (no stage, no estimate), and a design of M = 2-12 restarted
+    its elapsed time with each plan: now the stages of the whole call with an estimate; --quiet: nothing."""
+    env = {**os.environ, "STIFFCAL_PROGRESS_S": "0.02"}
+    if command == "discrepancy":
+        args = [str(STIFFCAL), "discrepancy", "--robot", PAPER, "--data", DATA, "--out", str(tmp_path / "o")]
+        stages = ("reading the data (stage 1/5)", "figures and files (stage 5/5)")
+    else:
+        args = [str(STIFFCAL), "design", "--robot", PAPER, "--test-pose-deg", "60,30", "--force-N", "0,-1",
+                "--experiments", "2-4", "--no-cache"]
+        stages = ("plan of 2 poses (1 of 3 plans) (stage 1/3)", "plan of 4 poses (3 of 3 plans) (stage 3/3)")
+    res = subprocess.run(args, capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    lines = [x for x in res.stderr.splitlines() if x.startswith("[stiffcal ")]
+    assert all(s in res.stderr for s in stages) and all("elapsed" in x for x in lines)
+    assert any("left (estimate)" in x for x in lines)
+    seconds = [float(x.split(", ")[1].split(" s elapsed")[0]) for x in lines if " s elapsed" in x and " min " not in x]
+    assert seconds == sorted(seconds)  # one clock for the whole call
+    res = subprocess.run([*args, "--quiet"], capture_output=True, text=True, env=env, timeout=300)
+    assert res.returncode == 0 and "[stiffcal " not in res.stderr
 
 
 def test_a_workflow_job_writes_progress_lines_into_its_log_and_runs_under_the_memory_cap(tmp_path):

@@ -115,15 +115,39 @@ def design(args) -> dict | list:
         return next_round(args, ms[0])
     cache = _cache_dir(args)
     with tempfile.TemporaryDirectory(prefix="stiffcal-design-") if cache is None and len(ms) > 1 else \
-            contextlib.nullcontext(cache) as folder:  # several M share one approximate design, even with --no-cache
-        out = [run(args.robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=m,
-                   criterion=args.criterion, sigma=1.0 if args.sigma is None else args.sigma, targets=args.targets,
-                   orientation=args.orientation, sigma_rad=args.sigma_rad, test_target=args.test_target,
-                   orientation_length_m=args.orientation_length_m,
-                   joint_limits_deg=joint_limits(args.joint_limits_deg), loads=args.loads, cell=args.cell,
-                   candidates=args.candidates, seed=args.seed, progress=False if args.quiet else None,
-                   cache_dir=folder).to_dict() for m in ms]
+            contextlib.nullcontext(cache) as folder, _plans_progress(args, ms) as progress:
+        out = []  # several M share one approximate design, even with --no-cache
+        for m in ms:
+            out.append(run(args.robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=m,
+                           criterion=args.criterion, sigma=1.0 if args.sigma is None else args.sigma,
+                           targets=args.targets, orientation=args.orientation, sigma_rad=args.sigma_rad,
+                           test_target=args.test_target, orientation_length_m=args.orientation_length_m,
+                           joint_limits_deg=joint_limits(args.joint_limits_deg), loads=args.loads, cell=args.cell,
+                           candidates=args.candidates, seed=args.seed,
+                           progress=False if args.quiet or len(ms) > 1 else None, cache_dir=folder).to_dict())
+            if progress is not None:
+                progress.advance()
     return out[0] if len(ms) == 1 else out
+
+
+def _plans_progress(args, ms):
+    """The progress of a design of several M (one stage a plan, the first with the approximate design they share,
+    :func:`stiffcal.api.design_estimate_s`; the elapsed time and the estimate over the whole call), or None for one
+    M (its own progress reports it)."""
+    from .progress import Progress
+
+    if len(ms) == 1:
+        return contextlib.nullcontext(None)
+    from .api import design_estimate_s
+    from .robot import load_robot
+
+    robot = load_robot(args.robot)
+    stages = []
+    for k, m in enumerate(ms):
+        est = design_estimate_s(robot, m, single=False)
+        stages.append((f"plan of {m} poses ({k + 1} of {len(ms)} plans)",
+                       sum(w for name, w in est if k == 0 or name.startswith("plan"))))
+    return Progress("design", stages, enabled=False if args.quiet else None)
 
 
 def _cache_dir(args):

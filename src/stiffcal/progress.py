@@ -12,7 +12,7 @@ Lines look like ``[stiffcal 14:03:12] design: plan of 17 poses (stage 3/3), 1 mi
 left (estimate)``. The first comes after :func:`interval_s` seconds (default 5; ``STIFFCAL_PROGRESS_S``
 changes it), so a short job prints nothing; a job whose estimate is a minute or more says so at once. Only the
 innermost running Progress prints (a command-wide heartbeat stays silent while a step reports its own).
-``enabled=False`` (``--quiet``) turns it off.
+``enabled=False`` (``--quiet``) turns it off, and every Progress inside it left to its default.
 """
 
 from __future__ import annotations
@@ -28,6 +28,8 @@ DEFAULT_INTERVAL_S = 5.0
 ANNOUNCE_S = 60.0
 
 _ACTIVE: list["Progress"] = []
+#: progresses entered disabled (``--quiet``): while one runs, a progress inside it left to its default is silent too
+_SILENT: list["Progress"] = []
 _LOCK = threading.Lock()
 
 
@@ -65,7 +67,8 @@ class Progress:
         self.clock = clock
         self.stages = [(str(n), max(float(w), 1e-3)) for n, w in (stages or [])]
         self.stream = sys.stderr if stream is None else stream
-        self.enabled = enabled is not False
+        with _LOCK:  # inside a quiet job (a command run with --quiet) a step's own progress is quiet too
+            self.enabled = enabled is True or (enabled is None and not _SILENT)
         self.interval = interval_s() if interval is None else float(interval)
         self.index = 0  # the stage running
         self.steps_done = self.steps_total = 0
@@ -205,8 +208,12 @@ class Progress:
 
     def __enter__(self) -> "Progress":
         if not self.enabled:
+            with _LOCK:
+                _SILENT.append(self)
             return self
         with _LOCK:
+            if _ACTIVE:  # a step inside a command: its elapsed time is the command's
+                self.t0 = min(self.t0, _ACTIVE[0].t0)
             _ACTIVE.append(self)
         if self._is_tty():
             _tqdm()  # imported here, not by the reporting thread (see _tqdm)
@@ -232,6 +239,8 @@ class Progress:
         with _LOCK:
             if self in _ACTIVE:
                 _ACTIVE.remove(self)
+            if self in _SILENT:
+                _SILENT.remove(self)
         if self._bar is not None:
             self._bar.close()
             self._bar = None
