@@ -70,7 +70,7 @@ def test_out_naming_a_file_is_refused_before_any_work(root, tmp_path, monkeypatc
     code, out, err = cli(["discrepancy", "--robot", str(root / "config/robots/paper_2r.yaml"), "--data",
                           str(root / "data/synthetic_paper_2r.csv"), "--out", "outfile"])
     assert time.process_time() - t0 < 0.5  # refused before reading the data
-    assert_clean_refusal(code, out, err, "outfile", "a file of that name exists")
+    assert_clean_refusal(code, out, err, "outfile", "expected a directory to write into, but it is a file")
     assert Path("outfile").read_text() == ""
 
 

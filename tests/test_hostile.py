@@ -998,3 +998,9 @@ def test_a_measured_log_beyond_the_row_limit_is_refused_before_it_is_parsed(tmp_
     with pytest.raises(InputError, match=r"big.csv.*more than 10 data rows \(MAX_MEASURED_ROWS"):
         read_measurements(path, load_robot(PAPER))
     assert calls == []
+    monkeypatch.undo()
+    monkeypatch.setattr(limits, "MAX_MEASURED_ROWS", 10)
+    padded = tmp_path / "padded.csv"  # 10 rows and blank lines after them: blank lines are not rows
+    padded.write_text("\n".join(Path(DATA).read_text().splitlines()[:11]) + "\n" * 50)
+    assert read_measurements(padded, load_robot(PAPER)).n_rows + len(read_measurements(padded, load_robot(PAPER))
+                                                                     .zero_rows) == 10

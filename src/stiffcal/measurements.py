@@ -733,10 +733,11 @@ def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HIN
                          f"({line.strip()[:80]!r}), but the file must be comma-separated; save it as CSV with commas "
                          "(and a decimal point)", source=source)
     with open(path, newline="", encoding="utf-8-sig") as fh:
-        at = [1]
+        at, data_rows = [1], 0
         for line_no, row in enumerate(split(csv.reader(fh), at), start=1):
             at[0] = line_no + 1
-            if max_rows is not None and line_no > max_rows + 1:
+            data_rows += line_no > 1 and any(c.strip() for c in row)  # blank lines are not rows
+            if max_rows is not None and data_rows > max_rows:
                 raise InputError(f"more than {max_rows:,} data rows {hint}", source=source)
             if line_no > 1 and row and any(c.strip() for c in row) and len(row) != len(names):
                 r = line_no - 2

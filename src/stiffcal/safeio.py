@@ -86,8 +86,8 @@ def check_out_dir(out: str | os.PathLike, field: str | None = None) -> Path:
     out = Path(out)
     try:
         if out.exists() and not out.is_dir():
-            raise InputError("expected a directory to write into, but a file of that name exists", source=str(out),
-                             field=field)
+            what = file_kind(out.stat().st_mode) or "a file"
+            raise InputError(f"expected a directory to write into, but it is {what}", source=str(out), field=field)
         probe = out
         while not probe.exists():
             if probe.is_symlink():
