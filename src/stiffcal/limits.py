@@ -45,9 +45,9 @@ MAX_FORCE_N = 1e7
 MAX_MOMENT_NM = 1e7
 #: smallest load (the norm of the force and moment components together) of a design [N, N m]
 MIN_LOAD = 1e-6
-#: measured data: the most rows of a measured-data CSV (its analysis grows linearly with the rows: 10^5 rows of a
-#: 6-axis arm take about a minute and 1.3 GB, benchmarks/bench_rows.py; a day's tracker log of 10^6 rows would
-#: take ten times that): average the replicates of a configuration and load, or analyse the log in parts
+#: measured data: the most rows of a measured-data CSV (its analysis grows linearly with the rows: 2 x 10^5 rows of
+#: a 6-axis arm take about two minutes and 2.7 GB, benchmarks/bench_rows.py; a day's tracker log of 10^6 rows would
+#: need more than the memory cap): average the replicates of a configuration and load, or analyse the log in parts
 MAX_MEASURED_ROWS = 200_000
 #: measured data: the most columns of a measured-data CSV (its own are a dozen or two; other columns are ignored)
 MAX_MEASURED_COLUMNS = 1000

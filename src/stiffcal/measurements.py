@@ -697,9 +697,9 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
 
 
 #: what a measured-data file beyond MAX_MEASURED_ROWS should do instead
-ROWS_HINT = ("(MAX_MEASURED_ROWS: the analysis grows linearly with the rows, 10^5 rows of a 6-axis arm take about a "
-             "minute and 1.3 GB; docs/contracts.md, 'Limits'): average the replicates of each configuration and load, "
-             "or analyse the log in parts")
+ROWS_HINT = ("(MAX_MEASURED_ROWS: the analysis grows linearly with the rows, 2 x 10^5 rows of a 6-axis arm take "
+             "about two minutes and 2.7 GB; docs/contracts.md, 'Limits'): average the replicates of each configuration "
+             "and load, or analyse the log in parts")
 
 
 def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HINT) -> list[str]:
