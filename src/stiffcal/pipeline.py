@@ -513,14 +513,14 @@ def report_inputs(named: dict[str, str]) -> tuple[dict, dict, dict, dict]:
     return tables, figures, prefixed("verdict"), studies
 
 
-def report_html_from_inputs(config: dict, named: dict[str, str], out_html: str,
-                            config_source: str | None = None) -> None:
-    """The report rule: :func:`report_html` from the rule's named inputs (see :func:`report_inputs`);
-    ``config_source``: the config file the run read (its git status is shown)."""
+def report_html_from_inputs(config: dict, named: dict[str, str], out_html: str) -> None:
+    """The report rule: :func:`report_html` from the rule's named inputs (see :func:`report_inputs`). The config
+    file is named by its hash, not its path: the same config given back as another file (a reviewer's
+    ``--configfile results/config.effective.yaml``) reruns nothing."""
     tables, figures, verdicts, studies = report_inputs(named)
     plans = {k.split("__", 1)[1]: v for k, v in named.items() if k.startswith("plan__")}
     report_html(config, tables, figures, named["printed"], REPORT_RULES, str(Path(named["template"]).parent),
-                out_html, verdicts, studies, plans, config_source)
+                out_html, verdicts, studies, plans)
 
 
 def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: str, rules: dict,

@@ -9,7 +9,6 @@ rule report_html:
         html="paper/build/report.html",
     params:
         config=config,
-        config_source=CONFIG_SOURCE,
         code=code_version("report_html_from_inputs"),
     log:
         f"{LOGS}/report_html.log",

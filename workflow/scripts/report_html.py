@@ -2,4 +2,4 @@
 from stiffcal import pipeline
 
 pipeline.run(snakemake, pipeline.report_html_from_inputs, snakemake.params.config, dict(snakemake.input.items()),
-             snakemake.output.html, snakemake.params.config_source)
+             snakemake.output.html)
