@@ -337,6 +337,51 @@ def test_a_cell_lists_the_collision_meshes_pinocchio_reads(tmp_path):
     assert robot_inputs(without_cell) == [urdf]
 
 
+@pytest.mark.parametrize("arm, flange", [("ur10", "wrist_3_link"), ("panda", "panda_link7"),
+                                         ("jaco2", "j2s6s200_link_6")])
+def test_load_robot_takes_a_urdf_path_and_guesses_the_base_and_the_flange(tmp_path, arm, flange):
+    """load_robot('x.urdf') failed with 'not valid YAML': now the arm from the root link to the end of its longest
+    chain of revolute joints (the flange that the tool frames and the gripper's fingers hang from), the same
+    kinematics and masses as a robot file naming those frames; the frames can be named instead."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).parent))
+    import real_arms
+
+    if real_arms.robots_dir() is None:
+        pytest.skip("example-robot-data is not installed (requirements-test.lock pins it)")
+    urdf = real_arms.robots_dir() / real_arms.ARMS[arm][0]
+    guessed = load_robot(urdf)
+    assert guessed.urdf_info["tip_frame"] == flange
+    named = tmp_path / "named.yaml"
+    named.write_text(f"name: n\nkind: urdf\nurdf: {urdf}\nbase_frame: {guessed.urdf_info['base_frame']}\n"
+                     f"tip_frame: {flange}\n")
+    by_file = load_robot(named)
+    q = np.random.default_rng(1).uniform(-1, 1, (5, guessed.n_joints))
+    np.testing.assert_allclose(guessed.fk(q), by_file.fk(q), atol=1e-12)
+    np.testing.assert_allclose(guessed.gravity_torques(q), by_file.gravity_torques(q), atol=1e-9)
+    tool = real_arms.ARMS[arm][3]
+    assert load_robot(urdf, tip_frame=tool).urdf_info["tip_frame"] == tool
+
+
+def test_a_urdf_whose_longest_chains_end_apart_asks_for_the_tip(tmp_path):
+    """Two branches of three revolute joints from one root (a two-armed robot): no tip is guessed, the message lists
+    both ends and names tip_frame; naming one loads that arm; frames given for a robot file are refused."""
+    joint = ('<joint name="{n}" type="revolute"><parent link="{a}"/><child link="{b}"/><origin xyz="0.1 0 0.2"/>'
+             '<axis xyz="0 0 1"/><limit lower="-3" upper="3" effort="0" velocity="1"/></joint>')
+    links = ["base", "a1", "a2", "a3", "b1", "b2", "b3"]
+    chain = [("ja1", "base", "a1"), ("ja2", "a1", "a2"), ("ja3", "a2", "a3"),
+             ("jb1", "base", "b1"), ("jb2", "b1", "b2"), ("jb3", "b2", "b3")]
+    path = tmp_path / "two_arms.urdf"
+    path.write_text('<robot name="two">' + "".join(f'<link name="{x}"/>' for x in links)
+                    + "".join(joint.format(n=n, a=a, b=b) for n, a, b in chain) + "</robot>")
+    with pytest.raises(InputError, match=r"field 'tip_frame'.*end in .*a3.*b3"):
+        load_robot(path)
+    assert load_robot(path, tip_frame="b3").joint_names == ("jb1", "jb2", "jb3")
+    with pytest.raises(InputError, match="field 'tip_frame'"):
+        load_robot(Path(__file__).resolve().parents[1] / "config/robots/paper_2r.yaml", tip_frame="x")
+
+
 def test_a_continuous_joint_has_no_limits(root):
     """The UR5 of example-robot-data with its shoulder pan (and wrist 3) made continuous: those joints take any
     angle (a test pose of 200 deg is accepted; it was refused as outside [-180, 180]), a revolute joint keeps

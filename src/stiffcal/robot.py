@@ -617,8 +617,11 @@ def load_config_robot(root: str | Path, path: str, source: str, field: str) -> R
     return load_robot(full)
 
 
-def load_robot(path: str | Path) -> Robot:
-    """Read and validate a robot file (planar, spatial or urdf; schema ``workflow/schemas/robot.schema.yaml``).
+def load_robot(path: str | Path, base_frame: str | None = None, tip_frame: str | None = None) -> Robot:
+    """Read and validate a robot file (planar, spatial or urdf; schema ``workflow/schemas/robot.schema.yaml``), or a
+    URDF itself (a path ending in ``.urdf``: the arm from ``base_frame`` to ``tip_frame``, each guessed when not
+    given, :func:`stiffcal.urdf.chain_frames`: the root link, and the end of the longest chain of revolute joints
+    or the flange its tool frames hang from; no tool offset, masses from the URDF's inertias).
 
     Raises :class:`InputError` naming the file and the field for a missing or negative link length,
     an unknown ``kind``, a non-numeric value, joint limits, names or compliances that do not match the
@@ -629,6 +632,15 @@ def load_robot(path: str | Path) -> Robot:
         raise InputError(f"expected the path of a robot file (a str or a path), got {type(path).__name__} "
                          f"{short_repr(path)}", field="path")
     src = str(path)
+    if src.lower().endswith(".urdf"):
+        from .urdf import chain_frames
+
+        base, tip = chain_frames(path, base_frame, tip_frame, src)
+        return _load_urdf({"name": Path(src).stem, "kind": "urdf", "urdf": Path(src).name, "base_frame": base,
+                           "tip_frame": tip}, src)
+    if base_frame is not None or tip_frame is not None:
+        raise InputError("base_frame and tip_frame are for a URDF path; a robot file names its own frames",
+                         source=src, field="tip_frame" if tip_frame is not None else "base_frame")
     doc = read_yaml(path)
     if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
         raise InputError("missing required field 'kind' (planar, spatial or urdf)", source=src, field="kind")

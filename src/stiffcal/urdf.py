@@ -303,6 +303,53 @@ def _mimic_joints(root) -> set[str]:
     return {j.get("name") for j in root.iter("joint") if j.find("mimic") is not None}
 
 
+def chain_frames(urdf_path: str | Path, base_frame: str | None = None, tip_frame: str | None = None,
+                 source: str = "<memory>") -> tuple[str, str]:
+    """(base_frame, tip_frame) of the arm of a URDF: the given ones, else guessed from its tree of links. The base:
+    the root link (the one no joint has as its child). The tip: of the leaf links, those reached through the most
+    revolute (or continuous) joints; a single one is the tip; several that hang by fixed joints from the same
+    last moving link (a flange's tool frames, a gripper's fingers) give that link, the flange. Raises
+    :class:`InputError` naming ``tip_frame`` (or ``base_frame``) when the URDF has no single root or its longest
+    chains end in different links, listing them."""
+    root = _check_text(Path(urdf_path), source)
+    joints = [(j.get("type"), j.find("parent"), j.find("child")) for j in root.findall("joint")]
+    edges = [(t, pa.get("link"), ch.get("link")) for t, pa, ch in joints if pa is not None and ch is not None]
+    parent_of = {child: (t, parent) for t, parent, child in edges}
+    links = [link.get("name") for link in root.findall("link")]
+    if base_frame is None:
+        roots = [name for name in links if name not in parent_of]
+        if len(roots) != 1:
+            raise InputError(f"expected one root link (the arm's base), got {len(roots)}: {_listing(roots)}; name "
+                             "the base frame", source=source, field="base_frame")
+        base_frame = roots[0]
+    if tip_frame is not None:
+        return base_frame, tip_frame
+    moving = ("revolute", "continuous")
+
+    def last_moving(link):  # (revolute joints from the base to link, the link after the last of them)
+        count, flange = 0, None
+        while link in parent_of and link != base_frame:
+            kind, parent = parent_of[link]
+            if kind in moving:
+                count += 1
+                flange = flange or link
+            link = parent
+        return count, flange
+
+    leaves = [name for name in links if name not in {parent for _, parent, _ in edges}]
+    counted = {leaf: last_moving(leaf) for leaf in leaves}
+    most = max((c for c, _ in counted.values()), default=0)
+    tips = [leaf for leaf, (c, _) in counted.items() if c == most and c > 0]
+    flanges = {counted[leaf][1] for leaf in tips}
+    if len(tips) == 1:
+        return base_frame, tips[0]
+    if len(flanges) == 1 and tips:
+        return base_frame, flanges.pop()
+    raise InputError(f"the URDF's longest chains ({most} revolute joints) end in {_listing(tips)}: name the tip frame "
+                     "(load_robot(path, tip_frame=...), or a robot file's tip_frame)", source=source,
+                     field="tip_frame")
+
+
 def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=None, fixed_joints_deg=None,
                source: str = "<memory>") -> UrdfArm:
     """The serial chain of a URDF from ``base_frame`` to ``tip_frame`` (module docstring).
