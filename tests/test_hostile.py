@@ -359,7 +359,7 @@ def test_hostile_candidate_files_are_refused_at_once(tmp_path, monkeypatch, what
                   "--quiet", "--candidates", str(path)]), "cand.csv", needle)
 
 
-@pytest.mark.parametrize("what", ["huge field", "huge header", "wide"])
+@pytest.mark.parametrize("what", ["huge field", "huge header", "wide", "long label"])
 def test_hostile_measured_data_shapes_are_refused_by_row(tmp_path, what):
     """A field over csv's 128 KiB limit was an internal error; 300,000 extra columns ran for minutes (a quadratic
     check of repeated names): one line naming the file and the row, exit 2, nothing written."""
@@ -369,11 +369,14 @@ def test_hostile_measured_data_shapes_are_refused_by_row(tmp_path, what):
     elif what == "huge header":
         lines[0] = lines[0] + "," + "h" * 200_000
         lines[1:] = [x + ",0" for x in lines[1:]]
-    else:
+    elif what == "wide":
         lines = [x + ",0" * (limits.MAX_MEASURED_COLUMNS + 5) for x in lines]
+    else:  # a pose_id of 100,000 characters filled the memory cap through the figures' axes
+        lines[1:] = ["L" * 100_000 + x[x.index(","):] for x in lines[1:]]
     path = tmp_path / "d.csv"
     path.write_text("\n".join(lines) + "\n")
-    row = {"huge field": "row 4", "huge header": "row 1", "wide": "row 1"}[what]
+    row = {"huge field": "row 4", "huge header": "row 1", "wide": "row 1",
+           "long label": "row 2 (data row 0), column pose_id"}[what]
     refused(*cli(["discrepancy", "--robot", PAPER, "--data", str(path), "--out", str(tmp_path / "o"), "--quiet"]),
             "d.csv", f"field '{row}'")
     assert not (tmp_path / "o").exists()
@@ -443,18 +446,21 @@ def test_a_link_member_in_place_of_a_listed_file_is_named(tmp_path):
     assert A.verify_archive(bad)[1] == ["missing: t.csv (not a regular file in the archive)"]
 
 
-def _with_members(tmp_path, extra, sums_edit=None) -> Path:
-    """The small valid archive with members added: ``extra`` [(TarInfo, data)]; ``sums_edit(text) -> text`` rewrites
-    its SHA256SUMS (its checksums stay true to the files)."""
+def _with_members(tmp_path, extra, sums_edit=None, first=False) -> Path:
+    """The small valid archive with members added (``first``: before its own): ``extra`` [(TarInfo, data)];
+    ``sums_edit(text) -> text`` rewrites its SHA256SUMS (its checksums stay true to the files)."""
     good, bad = _archive(tmp_path), tmp_path / "extra.tar.gz"
     with tarfile.open(good) as tin, tarfile.open(bad, "w:gz", format=tarfile.GNU_FORMAT) as tout:
+        for info, data in extra if first else []:
+            info.size = len(data)
+            tout.addfile(info, io.BytesIO(data))
         for m in tin.getmembers():
             data = tin.extractfile(m).read()
             if sums_edit and m.name.endswith("SHA256SUMS"):
                 data = sums_edit(data.decode()).encode()
                 m.size = len(data)
             tout.addfile(m, io.BytesIO(data))
-        for info, data in extra:
+        for info, data in [] if first else extra:
             info.size = len(data)
             tout.addfile(info, io.BytesIO(data))
     return bad
@@ -469,8 +475,10 @@ def _sum_line(name: str, data: bytes) -> str:
     ("stiffcal-x/../../evil.sh", None, "unsafe member name (absolute, or with '..', '.' or an empty part): "
                                        "stiffcal-x/../../evil.sh"),
     ("/tmp/evil.sh", None, "unsafe member name"),
-    ("evil_toplevel.sh", None, "outside the archive's top directory: evil_toplevel.sh"),
-    ("othertop/t.csv", None, "outside the archive's top directory (othertop): othertop/t.csv"),
+    ("evil_toplevel.sh", None, "outside the archive's top directory (stiffcal-x): evil_toplevel.sh"),
+    ("othertop/t.csv", None, "outside the archive's top directory (stiffcal-x): othertop/t.csv"),
+    ("stiffcal-x/t.csv", None, "in the archive twice (extraction keeps one copy, maybe not the one checked): "
+                               "stiffcal-x/t.csv"),
     ("stiffcal-x/x\nstiffcal verify-archive: all good", None, "not listed in SHA256SUMS: x\\nstiffcal verify-archive"),
 ])
 def test_members_outside_the_top_directory_or_with_unsafe_names_are_named(tmp_path, member, listed, problem):
@@ -486,6 +494,26 @@ def test_members_outside_the_top_directory_or_with_unsafe_names_are_named(tmp_pa
     code, out, err = cli(["verify-archive", str(bad)])
     assert code == 1 and "Traceback" not in err and json.loads(out)["ok"] is False
     assert not any(line.startswith("stiffcal verify-archive: all good") for line in (out + err).splitlines())
+
+
+@pytest.mark.parametrize("member", ["evil.sh", "othertop/t.csv", "stiffcal-x/t.csv"])
+def test_members_before_the_archive_s_own_tree_are_named_too(tmp_path, member):
+    """A loose file or a second tree before the archive's own members made every later member, its SHA256SUMS too,
+    count as outside ('no SHA256SUMS', exit 2); a tampered copy of a listed file before the good one verified as
+    'ok' (extraction may keep the tampered copy)."""
+    bad = _with_members(tmp_path, [(tarfile.TarInfo(member), b"tampered\n")], first=True)
+    ok, problems = A.verify_archive(bad)
+    assert problems and (ok == 2 if member != "stiffcal-x/t.csv" else ok <= 2), problems
+    assert any(member in p and ("outside" in p or "twice" in p) for p in problems), problems
+    assert cli(["verify-archive", str(bad)])[0] == 1
+
+
+def test_a_sha256sums_that_lists_a_file_twice_is_damaged(tmp_path):
+    """The same name listed twice, a wrong checksum then the right one, verified (the last line counted)."""
+    bad = _archive(tmp_path, lambda name, data: (b"0" * 64 + b"  t.csv\n" + data) if name.endswith("SUMS") else data)
+    ok, problems = A.verify_archive(bad)
+    assert ok == 0 and problems == ["damaged: SHA256SUMS line 3 lists t.csv a second time; no file in the archive can "
+                                    "be trusted"]
 
 
 def test_an_archive_that_lists_nothing_is_not_ok(tmp_path):
@@ -861,7 +889,7 @@ def _fuzz_archives(rng: random.Random, tmp: Path):
                 info.size = 3
                 tar.addfile(info, io.BytesIO(b"a,b"))
             p.write_bytes(buf.getvalue())
-            cases.append((p, 2, "no SHA256SUMS in the archive"))
+            cases.append((p, 2, "no top directory holds a SHA256SUMS"))
     return cases
 
 

@@ -734,10 +734,17 @@ def _calibration_causes(robot: Robot) -> tuple:
 
 
 def _out_file(out, field: str) -> Path:
-    """An output file path whose folder can be written (checked before any work)."""
+    """An output file path whose folder can be written (checked before any work); an existing target that is not a
+    regular file (a folder, a FIFO, a device such as /dev/full) is refused: the write would replace it."""
+    from .safeio import file_kind
+
     path = Path(_path(out, field, "an output file"))
     if path.is_dir():
         raise InputError(f"expected a file to write, got the folder {path}", field=field)
+    if os.path.lexists(path):
+        what = file_kind(path.stat().st_mode) if path.exists() else "a broken symbolic link"
+        if what:
+            raise InputError(f"expected a file to write, but {path} is {what}: it would be replaced", field=field)
     check_out_dir(path.parent if str(path.parent) else Path("."))
     return path
 

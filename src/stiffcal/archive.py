@@ -247,6 +247,9 @@ def _read_sums(data: bytes) -> tuple[dict[str, str], str | None]:
         if not sep or not name or not re.fullmatch(r"[0-9a-f]{64}", digest):
             return listed, (f"damaged: {SUMS} line {k} is not '<SHA-256>  <file>' ({short_repr(text, 60)}); no file in "
                             "the archive can be trusted")
+        if name in listed:
+            return listed, (f"damaged: {SUMS} line {k} lists {printable(name)} a second time; no file in the archive "
+                            "can be trusted")
         listed[name] = digest
     return listed, None
 
@@ -281,12 +284,13 @@ def _unsafe(name: str) -> bool:
     return name.startswith("/") or "\\" in name or any(p in ("", ".", "..") for p in parts)
 
 
-def _hash_members(tar, path: Path) -> tuple[dict[str, str], bytes | None, list[str], list[str], set[str]]:
-    """Read the members of the open stream ``tar`` once: ({name below the top directory: SHA-256}, the bytes of
-    SHA256SUMS, names that are not regular files, problems of the layout, top directories seen). Bounds the
-    members' count and their total size as recorded in the headers (a sparse member expands beyond its bytes)."""
-    digests, sums, odd, layout, tops = {}, None, [], [], set()
-    total = 0
+def _hash_members(tar, path: Path) -> dict:
+    """Read the members of the open stream ``tar`` once: {"digests": {(top, name): SHA-256}, "sums": {top: the bytes
+    of its SHA256SUMS}, "odd": {(top, name)} not regular files, "loose": member names outside any top directory,
+    "unsafe": unsafe member names, "twice": member names met more than once}. Bounds the members' count and their
+    total size as recorded in the headers (a sparse member expands beyond its bytes)."""
+    out = {"digests": {}, "sums": {}, "odd": set(), "loose": [], "unsafe": [], "twice": []}
+    seen, total = set(), 0
     for count, m in enumerate(tar, start=1):
         if count > MAX_MEMBERS:
             raise InputError(f"more than {MAX_MEMBERS:,} members: not a stiffcal archive (docs/contracts.md, "
@@ -296,47 +300,49 @@ def _hash_members(tar, path: Path) -> tuple[dict[str, str], bytes | None, list[s
             raise InputError(f"its members add up to more than {MAX_UNPACKED_BYTES // 1024**3} GiB (as their headers "
                              "record, sparse members included): not a stiffcal archive (docs/contracts.md, 'Limits')",
                              source=str(path))
-        if _unsafe(m.name.rstrip("/") if m.isdir() else m.name):
-            layout.append(f"unsafe member name (absolute, or with '..', '.' or an empty part): {printable(m.name)}")
+        full = m.name.rstrip("/") if m.isdir() else m.name
+        if _unsafe(full):
+            out["unsafe"].append(m.name)
             continue
-        top, sep, name = m.name.partition("/")
-        tops.add(top)
-        if not sep or not name:
+        if full in seen and not m.isdir():
+            out["twice"].append(full)
+        seen.add(full)
+        top, sep, name = full.partition("/")
+        if not sep:
             if not m.isdir():
-                layout.append(f"outside the archive's top directory: {printable(m.name)}")
-            continue
-        if len(tops) > 1:
-            layout.append(f"outside the archive's top directory ({printable(sorted(tops)[0])}): {printable(m.name)}")
+                out["loose"].append(full)
             continue
         if not m.isfile():
             if not m.isdir():
-                odd.append(name)
+                out["odd"].add((top, name))
             continue
         fh = tar.extractfile(m)
         if name == SUMS:
             if m.size > MAX_SUMS_BYTES:
                 raise InputError(f"its {SUMS} has {m.size:,} bytes (at most {MAX_SUMS_BYTES:,}): not a "
                                  "stiffcal archive", source=str(path))
-            sums = fh.read()
+            out["sums"][top] = fh.read()
             continue
         h = hashlib.sha256()
         while block := fh.read(_CHUNK):
             h.update(block)
-        digests[name] = h.hexdigest()
-    return digests, sums, odd, layout, tops
+        out["digests"][(top, name)] = h.hexdigest()
+    return out
 
 
 def verify_archive(path: str | Path) -> tuple[int, list[str]]:
     """Check every member against SHA256SUMS. Returns (files verified, problems): one line per changed,
-    missing or unlisted file, a member that is not a regular file, one outside the archive's one top directory or
-    with an unsafe name (absolute, '..'), a SHA256SUMS that lists nothing or not provenance.json, or one line
-    saying that the compressed stream itself is damaged (gzip's own CRC-32 and length, checked over the whole
+    missing or unlisted file, a member that is not a regular file, one outside the archive's one top directory (the
+    one that holds SHA256SUMS) or with an unsafe name (absolute, '..'), a member met twice (extraction keeps one
+    copy, maybe not the one checked), a SHA256SUMS that lists a name twice, nothing, or not provenance.json, or one
+    line saying that the compressed stream itself is damaged (gzip's own CRC-32 and length, checked over the whole
     stream first: a flipped byte or a damaged trailer) or that SHA256SUMS is unreadable. Names are printed with
     control characters escaped. Raises :class:`InputError` when the file cannot be read (a FIFO, a device or a
     directory is refused at once), is not a gzip stream, expands beyond :data:`MAX_UNPACKED_BYTES` (counted while
     decompressing, and as the members' headers record: a sparse member), holds more than :data:`MAX_MEMBERS`
-    members or an extended header beyond :data:`MAX_HEADER_BYTES` (a gzip or tar bomb), or is not a stiffcal
-    archive. Members are read one at a time and hashed in blocks: memory stays small whatever the archive holds."""
+    members or an extended header beyond :data:`MAX_HEADER_BYTES` (a gzip or tar bomb), or has no top directory
+    with a SHA256SUMS (not a stiffcal archive). Members are read one at a time and hashed in blocks: memory stays
+    small whatever the archive holds."""
     from .safeio import regular_file
 
     path = regular_file(path, expected="a results archive (.tar.gz)")
@@ -347,17 +353,28 @@ def verify_archive(path: str | Path) -> tuple[int, list[str]]:
         return 0, [damaged]
     try:
         with tarfile.open(path, mode="r|gz", tarinfo=_BoundedInfo) as tar:
-            digests, sums, odd, layout, tops = _hash_members(tar, path)
+            found = _hash_members(tar, path)
     except InputError as err:
         raise InputError(err.message, source=str(path)) from None
     except (OSError, tarfile.TarError, EOFError) as err:
         return 0, [f"damaged: the tar stream inside cannot be read ({err}); no file in it can be trusted"]
-    if sums is None:
-        raise InputError(f"no {SUMS} in the archive's top directory: not a stiffcal archive", source=str(path))
-    listed, bad_sums = _read_sums(sums)
+    if not found["sums"]:
+        raise InputError(f"no top directory holds a {SUMS}: not a stiffcal archive", source=str(path))
+    tops = sorted(found["sums"])
+    top = tops[0]
+    problems = [f"several top directories hold a {SUMS} ({', '.join(map(printable, tops))}): which one is the "
+                "archive cannot be told"] if len(tops) > 1 else []
+    listed, bad_sums = _read_sums(found["sums"][top])
     if bad_sums:
-        return 0, [bad_sums]
-    problems = list(layout)
+        return 0, problems + [bad_sums]
+    digests = {name: d for (t, name), d in found["digests"].items() if t == top}
+    odd = {name for t, name in found["odd"] if t == top}
+    outside = sorted({*found["loose"], *(f"{t}/{name}" for t, name in [*found["digests"], *found["odd"]] if t != top)})
+    problems += [f"unsafe member name (absolute, or with '..', '.' or an empty part): {printable(n)}"
+                 for n in found["unsafe"]]
+    problems += [f"outside the archive's top directory ({printable(top)}): {printable(n)}" for n in outside]
+    problems += [f"in the archive twice (extraction keeps one copy, maybe not the one checked): {printable(n)}"
+                 for n in sorted(set(found["twice"]))]
     if PROVENANCE not in listed:
         problems.append(f"{SUMS} does not list {PROVENANCE}" + (" (it lists no file)" if not listed else "") +
                         ": not a complete stiffcal archive")
@@ -371,7 +388,7 @@ def verify_archive(path: str | Path) -> tuple[int, list[str]]:
             problems.append(f"changed: {printable(name)}")
     problems += [f"not listed in {SUMS}: {printable(name)}" for name in sorted(set(digests) - set(listed))]
     problems += [f"not a regular file (a link or a device) in the archive: {printable(name)}"
-                 for name in sorted(set(odd) - set(listed))]
+                 for name in sorted(odd - set(listed))]
     return sum(1 for name in listed if digests.get(name) == listed[name]), problems
 
 

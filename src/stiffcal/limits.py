@@ -51,6 +51,9 @@ MIN_LOAD = 1e-6
 MAX_MEASURED_ROWS = 200_000
 #: measured data: the most columns of a measured-data CSV (its own are a dozen or two; other columns are ignored)
 MAX_MEASURED_COLUMNS = 1000
+#: measured data: the longest pose_id [characters], a configuration's name (labels of megabytes only fill the memory
+#: and the figures' axes)
+MAX_LABEL_CHARS = 200
 #: measured data: the RMS displacement [m] of the loaded rows below which the loads move nothing measurable (a
 #: picometre, far below any tracker's resolution: zeros written for blanks, or a wrong unit)
 MIN_DISPLACEMENT_M = 1e-12

@@ -550,6 +550,13 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     labels = None
     if "pose_id" in df.columns:
         raw = df["pose_id"].str.strip().to_numpy()
+        from .limits import MAX_LABEL_CHARS
+
+        long = np.flatnonzero(df["pose_id"].str.strip().str.len().to_numpy() > MAX_LABEL_CHARS)
+        if long.size:
+            r = int(long[0])
+            raise InputError(f"expected a label of at most {MAX_LABEL_CHARS} characters (a configuration's name), got "
+                             f"{len(raw[r]):,}", source=source, field=f"row {r + 2} (data row {r}), column pose_id")
         blank = np.flatnonzero(raw == "")
         if blank.size == len(raw):
             notes.append("column pose_id is blank in every row: configurations come from the joint angles")
