@@ -59,10 +59,8 @@ class Calibration:
                           "error_model": self.error_model, "source": self.source})
 
 
-#: the largest standard deviation of a calibration's parameter accepted (SI units: rad/(N m), rad, m, 1/(N m^2)),
-#: and the range of its noise s.d. [m] (the config's and the command line's sigma_m)
+#: the largest standard deviation of a calibration's parameter accepted (SI units: rad/(N m), rad, m, 1/(N m^2))
 MAX_PARAMETER_SD = 1e3
-MIN_SIGMA_M, MAX_SIGMA_M = 1e-15, 1e6
 
 
 def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
@@ -107,9 +105,6 @@ def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
         raise bad(f"expected standard deviations of at most {MAX_PARAMETER_SD:g} in the parameters' SI units (no "
                   f"compliance, angle, offset or bending compliance is that uncertain), got {np.sqrt(variance[i]):.3g} "
                   f"for {names[i]}", "covariance")
-    if not MIN_SIGMA_M <= float(doc["sigma_m"]) <= MAX_SIGMA_M:
-        raise bad(f"expected a noise s.d. in [{MIN_SIGMA_M:g}, {MAX_SIGMA_M:g}] m (as sigma_m everywhere), got "
-                  f"{doc['sigma_m']}", "sigma_m")
     expected = len(joints) + _extension_size(robot, causes, int(doc["n_offsets"]))
     if theta.size != expected:
         raise bad(f"expected {expected} parameters (the compliances of joints {doc['k_joints']} and those of "

@@ -60,7 +60,7 @@ from scipy import stats
 from .catalogue import CAUSES, MEASUREMENT_CAUSES  # noqa: F401  (the catalogue, by name; part of this module)
 from .design import is_sampled, sample_joint_space
 from .errors import InputError
-from .measurements import Measurements, rows_by_label
+from .measurements import Measurements, rows_by_label, rows_by_value
 from .observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
                           tool_twists)
 from .observation import torques as observation_torques
@@ -363,8 +363,7 @@ def pure_error(y: np.ndarray, groups: np.ndarray) -> tuple[float, int]:
     """(SS, df) of the replicates: the spread of each coordinate about its group mean (Draper & Smith 2.1).
     y: (N, d) [m]; groups: (N,) int."""
     ss, df = 0.0, 0
-    values, index = np.unique(groups, return_inverse=True)
-    for mine in rows_by_label(index, len(values)):
+    for mine in rows_by_value(groups)[1]:
         rows = y[mine]
         if len(rows) > 1:
             ss += float(((rows - rows.mean(axis=0)) ** 2).sum())
@@ -603,8 +602,7 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
     ``resid``'s group means when given), or None when the data have too few replicates to tell (fewer than
     8 groups with replicates) or a constant variance is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`."""
     y = meas.dp if resid is None else resid
-    values, index = np.unique(meas.group, return_inverse=True)
-    groups = [r for r in rows_by_label(index, len(values)) if len(r) > 1]
+    groups = [r for r in rows_by_value(meas.group)[1] if len(r) > 1]
     if len(groups) < 8:
         return None
     s2 = np.array([((y[r] - y[r].mean(0)) ** 2).sum() for r in groups])
@@ -706,8 +704,8 @@ def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test:
     Q = _span(X / np.where(norm > 0, norm, 1.0), np.arange(X.shape[1]))  # the rank rule of fit()
     r = (y - Q @ (Q.T @ y)).reshape(-1, gls.d)
     h = (Q**2).sum(1).reshape(-1, gls.d).sum(1)
-    configs, first, index = np.unique(meas.config, return_index=True, return_inverse=True)
-    rows = rows_by_label(index, len(configs))
+    rows = rows_by_value(meas.config)[1]
+    first = [mine[0] for mine in rows]
     rss = np.array([(r[mine] ** 2).sum() for mine in rows])
     dof = np.array([gls.d * len(mine) - h[mine].sum() for mine in rows])
     use = (dof > 0.5) & (rss > 0)
@@ -716,10 +714,8 @@ def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test:
         return None
     s2 = rss[use] / dof[use]
     s2 = s2 / np.median(s2)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("error")
-            full, null = _gamma_fit(s2, Z, dof[use]), _gamma_fit(s2, Z[:, :1], dof[use])
+    try:  # a fit that warns raises (_gamma_fit)
+        full, null = _gamma_fit(s2, Z, dof[use]), _gamma_fit(s2, Z[:, :1], dof[use])
     except (ValueError, np.linalg.LinAlgError, Warning):
         return None
     p = _constant_variance_p(full, null, Z.shape[1])
@@ -2123,7 +2119,7 @@ def _leave_one_group_out(X: np.ndarray, y: np.ndarray, groups: list[np.ndarray])
     c = U.T @ y2
     safe = (10 * RANK_RTOL * s[0] / s[-1]) ** 2 if s.size else 1.0  # the least eigenvalue of I - U_g^T U_g
     for rows in groups:
-        mine = (rows[:, None] * w + np.arange(w)).ravel()  # the group's flattened rows
+        mine = flat_index(rows, w)  # the group's flattened rows
         Ug = U[mine]
         M = np.eye(len(s)) - Ug.T @ Ug
         if s.size and np.linalg.eigvalsh(M)[0] > safe:
@@ -2161,11 +2157,10 @@ class HeldOut:
         def rms(pred, rows=slice(None)):
             return float(np.sqrt(np.mean((self.measured[rows] - pred[rows]) ** 2)))
 
-        values, index = np.unique(self.config, return_inverse=True)
         table = [{"configuration": str(self.labels[g]) if g < len(self.labels) else str(g),
                   "rows": len(mine), "rms_nominal_m": rms(self.nominal, mine),
                   "rms_calibrated_m": rms(self.calibrated, mine)}
-                 for g, mine in zip(values, rows_by_label(index, len(values)))]
+                 for g, mine in zip(*rows_by_value(self.config))]
         return {"method": "leave-one-configuration-out", "calibrated_causes": list(self.causes),
                 "rms_nominal_m": rms(self.nominal), "rms_calibrated_m": rms(self.calibrated),
                 "per_configuration": table}

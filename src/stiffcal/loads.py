@@ -102,14 +102,13 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
     outside the physical range: below ``resolution_N`` (the load-cell resolution: such a load cannot be told from
     no load; None for a design's loads, which have no load cell: :data:`~stiffcal.limits.MIN_LOAD`) or above
     :data:`~stiffcal.limits.MAX_FORCE_N` (:func:`check_lab_loads`)."""
-    floor = MIN_LOAD if resolution_N is None else resolution_N
     text = "data" if spec is None else spec.strip()
     kind, _, rest = text.partition(":")
     if kind == "data":
         if data_forces is None or len(data_forces) == 0 or cluster is None:
             raise InputError("expected loads (the data have none)", field=field_name)
         width = data_forces.shape[1]
-        labels = cluster(data_forces, np.r_[np.full(d, floor), np.full(width - d, moment_resolution_Nm)])
+        labels = cluster(data_forces, np.r_[np.full(d, resolution_N), np.full(width - d, moment_resolution_Nm)])
         if labels.max() + 1 > MAX_DATA_LOADS:
             raise InputError(f"expected the loads the lab can apply: the data have {labels.max() + 1} distinct loads "
                              f"(more than {MAX_DATA_LOADS} to plan over); give them as 'hanging:M1,M2', "
@@ -119,7 +118,7 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
         mags = _numbers(rest, "the hanging weights [N]", field_name)
         if np.any(mags <= 0):
             raise InputError(f"expected weights > 0 N, got {rest!r}", field=field_name)
-        check_lab_loads(mags, len(mags), floor, field_name, "weight")
+        check_lab_loads(mags, len(mags), resolution_N, field_name, "weight")
         forces = mags[:, None] * (_gravity(d) if gravity is None else np.asarray(gravity, float))
     elif kind == "bar":
         arm_text, _, mtext = rest.partition(":")
@@ -130,7 +129,7 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
         mags = _numbers(mtext, "the weights [N]", field_name)
         if np.any(mags <= 0):
             raise InputError(f"expected weights > 0 N, got {mtext!r}", field=field_name)
-        check_lab_loads(mags, len(mags), floor, field_name, "weight")
+        check_lab_loads(mags, len(mags), resolution_N, field_name, "weight")
         g = _gravity(d) if gravity is None else np.asarray(gravity, float)
         return LoadSet(mags[:, None] * g, kind, text, d, np.r_[arm, 0.0] if d == 2 else arm)
     elif kind == "wrenches":
@@ -141,12 +140,13 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
             raise InputError(f"expected wrenches of {w} components ({names}) separated by ';', got {rest!r}",
                              field=field_name)
         if len(rows) > MAX_LOADS:
-            check_lab_loads(np.ones(1), len(rows), floor, field_name, "wrench")
+            check_lab_loads(np.ones(1), len(rows), resolution_N, field_name, "wrench")
         forces = np.array(rows)
         if np.any(np.linalg.norm(forces, axis=1) == 0):
             raise InputError(f"expected nonzero wrenches, got {rest!r}", field=field_name)
-        check_lab_loads(np.linalg.norm(forces[:, :d], axis=1).clip(min=floor), len(rows), floor,
-                        field_name, "wrench's force")
+        floor = MIN_LOAD if resolution_N is None else resolution_N  # a wrench may be a moment with no force
+        check_lab_loads(np.linalg.norm(forces[:, :d], axis=1).clip(min=floor), len(rows), resolution_N, field_name,
+                        "wrench's force")
     elif kind == "directions":
         count, _, mtext = rest.partition(":")
         try:
@@ -158,7 +158,7 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
         mags = _numbers(mtext, "the push magnitudes [N]", field_name)
         if np.any(mags <= 0):
             raise InputError(f"expected magnitudes > 0 N, got {mtext!r}", field=field_name)
-        check_lab_loads(mags, k * len(mags), floor, field_name, "magnitude")
+        check_lab_loads(mags, k * len(mags), resolution_N, field_name, "magnitude")
         if d == 2:
             ang = 2 * np.pi * np.arange(k) / k
             u = np.stack([np.cos(ang), np.sin(ang)], -1)
@@ -170,12 +170,12 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
         if not rows or any(len(r) != d for r in rows):
             raise InputError(f"expected forces of {d} components separated by ';', got {rest!r}", field=field_name)
         if len(rows) > MAX_LOADS:
-            check_lab_loads(np.ones(1), len(rows), floor, field_name, "force")
+            check_lab_loads(np.ones(1), len(rows), resolution_N, field_name, "force")
         forces = np.array(rows)
         if np.any(np.linalg.norm(forces, axis=1) == 0):
             raise InputError(f"expected nonzero forces, got {rest!r}", field=field_name)
         big = np.abs(forces).max(axis=1)
-        check_lab_loads(np.where(big > MAX_FORCE_N, big, np.hypot.reduce(forces, axis=1)), len(rows), floor,
+        check_lab_loads(np.where(big > MAX_FORCE_N, big, np.hypot.reduce(forces, axis=1)), len(rows), resolution_N,
                         field_name, "force")
     else:
         raise InputError(f"expected 'hanging:M1,M2', 'directions:K:M1,M2', 'forces:FX,FY;...', "
@@ -183,10 +183,12 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
     return LoadSet(np.asarray(forces, float), kind, text, d)
 
 
-def check_lab_loads(magnitudes: np.ndarray, count: int, resolution_N: float, field_name: str, what: str) -> None:
+def check_lab_loads(magnitudes: np.ndarray, count: int, resolution_N: float | None, field_name: str,
+                    what: str) -> None:
     """The loads of a load set within the bounds of :mod:`stiffcal.limits`: at most
     :data:`~stiffcal.limits.MAX_LOADS` of them (``count``: directions times magnitudes), each magnitude [N] at
-    least the load-cell resolution ``resolution_N`` and at most :data:`~stiffcal.limits.MAX_FORCE_N`."""
+    least the load-cell resolution ``resolution_N`` (None: a design's loads, at least
+    :data:`~stiffcal.limits.MIN_LOAD`) and at most :data:`~stiffcal.limits.MAX_FORCE_N`."""
     if count > MAX_LOADS:
         raise InputError(f"{count} loads: expected at most {MAX_LOADS} (each load is a candidate at every pose of the "
                          "pool; docs/contracts.md, 'Limits')", field=field_name)
@@ -194,8 +196,8 @@ def check_lab_loads(magnitudes: np.ndarray, count: int, resolution_N: float, fie
     if high > MAX_FORCE_N:
         raise InputError(f"expected each {what} at most {MAX_FORCE_N:g} N (the physical range of loads), got {high:g}",
                          field=field_name)
-    if low < resolution_N:
+    if low < (MIN_LOAD if resolution_N is None else resolution_N):
         floor = (f"the smallest load of a design, {MIN_LOAD:g} (MIN_LOAD; docs/contracts.md, 'Limits')"
-                 if resolution_N == MIN_LOAD else f"the load-cell resolution {resolution_N:g} N "
+                 if resolution_N is None else f"the load-cell resolution {resolution_N:g} N "
                  "(force_resolution_N, --force-resolution-N): a smaller load cannot be told from no load")
         raise InputError(f"expected each {what} at least {floor}, got {low:g}", field=field_name)

@@ -65,6 +65,12 @@ def rows_by_label(labels, n: int | None = None) -> list[np.ndarray]:
     return [order[bounds[g]: bounds[g + 1]] for g in range(n)]
 
 
+def rows_by_value(values) -> tuple[np.ndarray, list[np.ndarray]]:
+    """(the distinct values, sorted; the rows (ascending) of each): :func:`rows_by_label` of any labels."""
+    distinct, index = np.unique(values, return_inverse=True)
+    return distinct, rows_by_label(index, len(distinct))
+
+
 def cluster(values: np.ndarray, resolution: np.ndarray, period: np.ndarray | None = None) -> np.ndarray:
     """Labels (N,) int of the connected groups of rows that agree within ``resolution`` on every column.
 
@@ -450,8 +456,8 @@ def _configurations(labels, q_deg: np.ndarray, angle_res: float, source: str) ->
     first = [int(r[0]) for r in in_config]
     if labels is None:
         return config, tuple(_angle_label(q_deg[i]) for i in first), []
-    names, index = np.unique(labels, return_inverse=True)
-    for c, rows in enumerate(rows_by_label(index, len(names))):
+    names, by_name = rows_by_value(labels)
+    for c, rows in enumerate(by_name):
         if len(np.unique(config[rows])) > 1:
             other = rows[config[rows] != config[rows[0]]]
             diff = np.abs((q_deg[other[0]] - q_deg[rows[0]] + 180.0) % 360.0 - 180.0)
@@ -549,10 +555,11 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
 
     labels = None
     if "pose_id" in df.columns:
-        raw = df["pose_id"].str.strip().to_numpy()
         from .limits import MAX_LABEL_CHARS
 
-        long = np.flatnonzero(df["pose_id"].str.strip().str.len().to_numpy() > MAX_LABEL_CHARS)
+        stripped = df["pose_id"].str.strip()
+        raw = stripped.to_numpy()
+        long = np.flatnonzero(stripped.str.len().to_numpy() > MAX_LABEL_CHARS)
         if long.size:
             r = int(long[0])
             raise InputError(f"expected a label of at most {MAX_LABEL_CHARS} characters (a configuration's name), got "
@@ -720,18 +727,18 @@ def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HIN
 
     from .limits import MAX_MEASURED_COLUMNS
 
-    def split(rows, at):  # csv's own errors (a field over its 128 KiB limit) named by the row at[0]
-        try:
-            yield from rows
-        except csv.Error as err:
-            raise InputError(f"not a CSV row a reader can split ({err})", source=source, field=f"row {at[0]}") from None
+    def unsplittable(err, row: int) -> InputError:  # csv's own errors (a field over its 128 KiB limit)
+        return InputError(f"not a CSV row a reader can split ({err})", source=source, field=f"row {row}")
 
     with open(path, newline="", encoding="utf-8-sig") as fh:
         line = fh.readline()
     if line.count(",") >= MAX_MEASURED_COLUMNS:
         raise InputError(f"more than {MAX_MEASURED_COLUMNS:,} columns in the header (the most read; a measured-data "
                          "file has a dozen or two): not a measured-data table", source=source, field="row 1")
-    names = [c.strip() for c in next(split(csv.reader([line]), [1]), [])]
+    try:
+        names = [c.strip() for c in next(csv.reader([line]), [])]
+    except csv.Error as err:
+        raise unsplittable(err, 1) from None
     seps = {";": "';' (semicolons)", "\t": "tabs"}
     seen = [sep for sep in seps if sep in line]
     if len(names) <= 1 and seen:
@@ -739,14 +746,22 @@ def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HIN
         raise InputError(f"missing columns: the header is one column separated by {seps[sep]} "
                          f"({line.strip()[:80]!r}), but the file must be comma-separated; save it as CSV with commas "
                          "(and a decimal point)", source=source)
+    line_no, data_rows = 0, 0
     with open(path, newline="", encoding="utf-8-sig") as fh:
-        at, data_rows = [1], 0
-        for line_no, row in enumerate(split(csv.reader(fh), at), start=1):
-            at[0] = line_no + 1
-            data_rows += line_no > 1 and any(c.strip() for c in row)  # blank lines are not rows
+        rows = csv.reader(fh)
+        while True:
+            try:
+                row = next(rows, None)
+            except csv.Error as err:
+                raise unsplittable(err, line_no + 1) from None
+            if row is None:
+                break
+            line_no += 1
+            filled = line_no > 1 and any(c.strip() for c in row)  # blank lines are not rows
+            data_rows += filled
             if max_rows is not None and data_rows > max_rows:
                 raise InputError(f"more than {max_rows:,} data rows {hint}", source=source)
-            if line_no > 1 and row and any(c.strip() for c in row) and len(row) != len(names):
+            if filled and len(row) != len(names):
                 r = line_no - 2
                 raise InputError(f"expected {len(names)} fields as in the header, got {len(row)}: a comma too "
                                  f"{'many' if len(row) > len(names) else 'few'} (a trailing comma, a decimal comma, "

@@ -525,18 +525,18 @@ def report_html_from_inputs(config: dict, named: dict[str, str], out_html: str) 
 
 def report_html(config: dict, tables_in: dict, figures_in: dict, printed_yaml: str, rules: dict,
                 template_dir: str, out_html: str, verdicts: dict | None = None, studies: dict | None = None,
-                plans: dict | None = None, config_source: str | None = None) -> None:
+                plans: dict | None = None) -> None:
     """Render the HTML report from the generated tables, figures, discrepancy verdicts, design studies
     (name -> paths of 'studycert', 'studyplans', 'studyfigplan', 'studyfigm') and next experiments (data set
-    name -> plan.json). Its provenance (:func:`stiffcal.archive.run_status`): the commit, '-dirty' when an input
-    (``config_source``, the files the config names) is untracked or modified, those inputs, and the libraries."""
+    name -> plan.json). Its provenance (:func:`stiffcal.archive.run_status`): the commit, '-dirty' when a file the
+    config names is untracked or modified, those files, and the libraries."""
     import json
 
     from . import report
     from .archive import run_status
     from .study import design_studies
 
-    prov = {**run_status(config, ".", config_source), "config_hash": report.config_hash(config), **rules}
+    prov = {**run_status(config, "."), "config_hash": report.config_hash(config), **rules}
     ctx = report.build_context(config, tables_in, figures_in, printed_yaml, prov)
     ctx["verdicts"] = {k: json.loads(Path(v).read_text(encoding="utf-8")) for k, v in (verdicts or {}).items()}
     ctx["measured"] = {m["name"]: m for m in config.get("measured_data", [])}

@@ -79,6 +79,8 @@ def collision_meshes(urdf_path: str | Path) -> list[str]:
     (``package://name/...`` looked for in every directory above the URDF, :func:`stiffcal.workcell._package_dirs`;
     ``file://`` and relative names against the URDF's folder), sorted, as absolute paths. Nothing for a URDF that
     cannot be read (loading it reports why). The workflow lists them as inputs of a robot in a cell."""
+    from .workcell import _package_dirs
+
     path = Path(urdf_path)
     try:
         root = _check_text(path, str(path))
@@ -90,7 +92,7 @@ def collision_meshes(urdf_path: str | Path) -> list[str]:
             name = mesh.get("filename", "")
             if name.startswith("package://"):
                 rest = name[len("package://"):]
-                candidates = [parent / rest for parent in path.resolve().parents]
+                candidates = [Path(parent) / rest for parent in _package_dirs(path)]
             else:
                 name = name[len("file://"):] if name.startswith("file://") else name
                 candidates = [path.resolve().parent / name] if name else []
