@@ -2271,7 +2271,7 @@ def run_estimate_s(robot: Robot, data_path: str) -> list[tuple[str, float]]:
     w = 1.0 + 0.15 * robot.n_joints  # spatial arms: more columns per row
     return [("reading the data", 0.2 + 2e-5 * rows), ("the noise and the rows' error model", w * (0.5 + 1e-4 * rows)),
             ("closed testing of the catalogue", w * (0.7 + 4e-5 * rows)),
-            ("extended model, held-out check and gain", w * (0.5 + 2e-5 * rows)),
+            ("extended model with held-out check and gain", w * (0.5 + 2e-5 * rows)),
             ("figures and files", 2.0 + 6e-5 * rows)]
 
 
