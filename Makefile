@@ -57,6 +57,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_maps.py
 	$(BIN)/python benchmarks/bench_spatial.py
 	$(BIN)/python benchmarks/bench_urdf.py
+	$(BIN)/python benchmarks/bench_analysis.py
 	$(BIN)/python benchmarks/bench_pipeline.py --baseline $(PIPELINE_BASELINE)
 
 # Regenerate src/stiffcal/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.

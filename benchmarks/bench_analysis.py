@@ -7,6 +7,11 @@ runs in its own process (the baseline's src/ first on PYTHONPATH: ``git archive`
 seconds of that process after its imports (the median of REPEATS runs), with ``gain=False`` (as the rate matrix
 and ``stiffcal discriminate`` call it) and with the gain (as ``stiffcal discrepancy`` does).
 
+Then the whole ``stiffcal discrepancy`` process (interpreter, imports, reading, analysis, files; issue 27, item 3:
+a 200-row 6-axis data set at most 1/3 of the baseline's CPU) on 200 rows of hanging masses with a reference per
+visit: with its figures, and with ``--no-figures`` (the baseline always draws its one figure), CPU of the child
+process (user + system), median of REPEATS.
+
 Run: .venv/bin/python benchmarks/bench_analysis.py [--baseline 0fbeb92] [--repeats 3]
 """
 
@@ -65,6 +70,43 @@ def run(src: Path, robot: Path, data: Path, gain: bool, repeats: int) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def cli_cpu(src: Path, args: list[str], repeats: int) -> float:
+    """Median CPU seconds (user + system of the child) of ``python -c 'stiffcal.cli.main()' ARGS`` with src first
+    on the path."""
+    env = {**os.environ, "PYTHONPATH": str(src), "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
+           "MKL_NUM_THREADS": "1"}
+    times = []
+    for _ in range(repeats):
+        before = os.times()
+        out = subprocess.run([sys.executable, "-c", "import sys; from stiffcal.cli import main; sys.exit(main())",
+                              *args], capture_output=True, text=True, env=env)
+        after = os.times()
+        if out.returncode != 0:
+            sys.exit(out.stderr[-2000:])
+        times.append((after.children_user - before.children_user) + (after.children_system - before.children_system))
+    return sorted(times)[len(times) // 2]
+
+
+def whole_process(base: Path, robot_file: Path, tmp: Path, repeats: int, baseline: str) -> None:
+    """The CLI's CPU on a 200-row 6-axis data set, now (with and without figures) against the baseline."""
+    arm = R.robots(ROOT)["6-axis"]
+    rng = np.random.default_rng(7)
+    log = T.lab_log(arm, R.PROTOCOLS["hanging x3, reference per visit, 2 passes"], rng, 20)
+    dp = T.measure(arm, T.Truth(R.compliances(arm)), log, rng)
+    data = tmp / "cli200.csv"
+    data.write_text(T.lab_csv(arm, log, dp), encoding="utf-8")
+    common = ["discrepancy", "--robot", str(robot_file), "--data", str(data)]
+    old = cli_cpu(base / "src", common + ["--out", str(tmp / "b")], repeats)
+    print(f"\nthe whole `stiffcal discrepancy` process, {len(log.q)} rows of the 6-axis arm "
+          f"(CPU s, median of {repeats})")
+    print(f"{'call':40s} {'CPU s':>7s} {'/ ' + baseline:>10s}")
+    print(f"{baseline + ' (one figure)':40s} {old:7.2f} {1.0:10.2f}")
+    for name, extra in (("now, three figures", []), ("now, --no-figures", ["--no-figures"])):
+        now = cli_cpu(ROOT / "src", common + ["--out", str(tmp / "n"), "--quiet", *extra], repeats)
+        print(f"{name:40s} {now:7.2f} {now / old:10.2f}")
+    print("(goal: at most 1/3 of the baseline)")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--baseline", default="0fbeb92")
@@ -93,6 +135,7 @@ def main() -> None:
                 print(f"{protocol:58s} {len(log.q):5d} {str(gain):>5s} {now['cpu']:7.2f} {old['cpu']:8.2f} "
                       f"{ratios[-1]:9.2f}  {now['cause']} / {old['cause']}")
         print(f"geometric mean now/base {np.exp(np.mean(np.log(ratios))):.2f}, largest {max(ratios):.2f} (goal <= 1.5)")
+        whole_process(base, robot_file, tmp, args.repeats, args.baseline)
 
 
 if __name__ == "__main__":

@@ -537,6 +537,20 @@ def test_bad_csv_gets_one_clear_error(tmp_path, paper_robot, text, message):
     assert str(err.value).startswith(str(p)) and message in str(err.value)
 
 
+def test_no_figures_writes_the_same_verdict_and_model_without_figures(tmp_path, root, capsys):
+    """`--no-figures` (batch runs): verdict.json and calibrated.yaml byte for byte those of the full run, and no
+    figure file."""
+    args = ["discrepancy", "--robot", str(root / "config/robots/paper_2r.yaml"), "--data",
+            str(root / "data/synthetic_paper_2r.csv"), "--test-pose-deg", "60,30", "--force-N", "0,-300", "--quiet"]
+    assert main([*args, "--out", str(tmp_path / "full")]) == 0
+    assert main([*args, "--out", str(tmp_path / "bare"), "--no-figures"]) == 0
+    assert sorted(p.name for p in (tmp_path / "bare").iterdir()) == ["calibrated.yaml", "verdict.json"]
+    for name in ("calibrated.yaml", "verdict.json"):
+        assert (tmp_path / "bare" / name).read_bytes() == (tmp_path / "full" / name).read_bytes()
+    assert {p.suffix for p in (tmp_path / "full").iterdir()} == {".yaml", ".json", ".png", ".svg"}
+    capsys.readouterr()
+
+
 def test_cli_writes_the_verdict_and_nothing_on_bad_data(tmp_path, root, capsys):
     out = tmp_path / "out"
     rc = main(["discrepancy", "--robot", str(root / "config/robots/paper_2r.yaml"), "--data",

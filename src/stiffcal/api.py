@@ -531,14 +531,15 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
                          out=None, label: str | None = None, angle_resolution_deg: float | None = None,
                          force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
                          sigma_m: float | None = None, sigma_rad: float | None = None, joint_limits_deg=None,
-                         cell=None) -> dict:
+                         cell=None, figures: bool = True) -> dict:
     """What the stiffness model gets wrong in measured deflections (``stiffcal discrepancy``).
 
     robot: a Robot or a robot file; data: the measured-data CSV (docs/measured-data.md); alpha: family-wise
     false-alarm rate, in (0, 1); test_pose_deg (n,) [deg] and force_N (d,) [N] or wrench (d + d_m,) [N, N m]:
     the test pose and its load for the predicted compensation error (give the pose and one load, or neither);
-    out: a directory for ``verdict.json`` and ``residuals.png``/``.svg`` (None: nothing is written). The files
-    are written to a temporary directory and moved into ``out`` only when everything succeeded.
+    out: a directory for ``verdict.json``, ``calibrated.yaml`` and the figures (:func:`stiffcal.discrepancy.run`;
+    None: nothing is written); figures: False writes the two files without the figures. The files are written to
+    a temporary directory and moved into ``out`` only when everything succeeded.
     angle_resolution_deg [deg], force_resolution_N [N], moment_resolution_Nm [N m]: joint angles and loads
     that agree within these are one configuration and one load (encoder and load-cell resolution; defaults
     0.01 deg, 0.5 N and 0.05 N m, docs/measured-data.md). sigma_m [m] and sigma_rad [rad]: the noise levels
@@ -566,7 +567,8 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     if out is None:
         return discrepancy.analyse(robot, M.read_measurements(data, robot, *res), alpha, qt, ft, sigma_m=sig[0],
                                    sigma_rad=sig[1])
-    return _written_whole(out, lambda tmp: discrepancy.run(robot, str(data), tmp, alpha, qt, ft, label, *res, *sig))
+    return _written_whole(out, lambda tmp: discrepancy.run(robot, str(data), tmp, alpha, qt, ft, label, *res, *sig,
+                                                           figures=bool(figures)))
 
 
 def _placed(robot: Robot, joint_limits_deg=None, cell=None) -> Robot:

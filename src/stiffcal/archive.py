@@ -26,9 +26,9 @@ from .errors import InputError, short_repr
 
 #: every library that reads, computes or writes the data (their versions go into provenance.json): the numerics,
 #: Pinocchio (``pin``, with the C++ library and urdfdom, its URDF parser: every URDF robot file is read by them),
-#: python-flint (exact root isolation in the maps), statsmodels (the discrepancy analysis), the readers of robot
+#: python-flint (exact root isolation in the maps), the readers of robot
 #: files, configs and URDFs, the figures, the report and the PDF
-PACKAGES = ("stiffcal", "numpy", "scipy", "pandas", "statsmodels", "matplotlib", "pillow", "pin", "libpinocchio",
+PACKAGES = ("stiffcal", "numpy", "scipy", "pandas", "matplotlib", "pillow", "pin", "libpinocchio",
             "eigenpy", "coal", "libcoal", "cmeel-assimp", "cmeel-urdfdom", "cmeel-tinyxml2", "python-flint", "Jinja2",
             "PyYAML", "jsonschema", "defusedxml", "snakemake", "weasyprint", "fonttools", "pydyf", "tqdm")
 SUMS = "SHA256SUMS"

@@ -270,10 +270,10 @@ def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = 
 def band95(cov: np.ndarray) -> np.ndarray:
     """(N,) [m]: the radius of the sphere bounding the 95 % ellipsoid of a position error of covariance cov
     (N, d, d): sqrt(chi2_0.95(d) lambda_max); the error is within it with probability >= 95 %."""
-    from scipy.stats import chi2
+    from .distributions import chi2_ppf
 
     lam = np.linalg.eigvalsh(cov)[:, -1]
-    return np.sqrt(chi2.ppf(0.95, cov.shape[-1]) * np.clip(lam, 0.0, None))
+    return np.sqrt(chi2_ppf(0.95, cov.shape[-1]) * np.clip(lam, 0.0, None))
 
 
 # --- files of poses and loads ------------------------------------------------------------------------------

@@ -204,7 +204,7 @@ def discrepancy(args) -> dict:
                              angle_resolution_deg=args.angle_resolution_deg, force_resolution_N=args.force_resolution_N,
                              moment_resolution_Nm=args.moment_resolution_Nm, sigma_m=args.sigma_m,
                              sigma_rad=args.sigma_rad, joint_limits_deg=joint_limits(args.joint_limits_deg),
-                             cell=args.cell)
+                             cell=args.cell, figures=not args.no_figures)
     for note in v["notes"]:
         write(f"stiffcal discrepancy: note: {note}")
     return {k: v[k] for k in ("cause", "causes", "indistinguishable_from", "p_value", "outlier_rows")} | {
@@ -332,7 +332,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="what the stiffness model gets wrong in measured data (writes DIR/verdict.json)")
     x.add_argument("--robot", required=True, help="robot YAML file")
     x.add_argument("--data", required=True, help="measured-data CSV (docs/measured-data.md)")
-    x.add_argument("--out", required=True, help="output directory (verdict.json, residuals.png/svg)")
+    x.add_argument("--out", required=True, help="output directory (verdict.json, calibrated.yaml, the figures "
+                                                "residuals, heldout and machining as .png and .svg)")
     x.add_argument("--alpha", default=0.01, help="family-wise false-alarm rate (default 0.01)")
     x.add_argument("--test-pose-deg", help="test pose for the predicted compensation error (optional)")
     x.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")
@@ -347,6 +348,9 @@ def build_parser() -> argparse.ArgumentParser:
     x.add_argument("--sigma-m", default=None, help="position noise [m] (with --sigma-rad: weights the rotation rows)")
     x.add_argument("--sigma-rad", default=None, help="rotation noise [rad] (default: the ratio is estimated)")
     _cell_options(x)
+    x.add_argument("--no-figures", action="store_true",
+                   help="write verdict.json and calibrated.yaml without the figures (batch runs over many data sets: "
+                        "the figures are about half of a small data set's CPU)")
     x.add_argument("--quiet", action="store_true", help="no progress on stderr")
     x.set_defaults(func=discrepancy)
     t = sub.add_parser("discriminate", help="the next experiment that tells rival causes apart (writes DIR/plan.json)")

@@ -55,10 +55,10 @@ from dataclasses import dataclass, replace
 from itertools import combinations
 
 import numpy as np
-from scipy import stats
 
 from .catalogue import CAUSES, MEASUREMENT_CAUSES  # noqa: F401  (the catalogue, by name; part of this module)
 from .design import is_sampled, sample_joint_space
+from . import distributions as dist
 from .errors import InputError
 from .measurements import Measurements, rows_by_label, rows_by_value
 from .observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
@@ -378,7 +378,7 @@ def f_test(rss0: float, df0: int, rss1: float, df1: int, s2: float, df_s2: int) 
     if extra <= 0 or not s2 > 0 or df_s2 <= 0:
         return 1.0
     F = max(rss0 - rss1, 0.0) / extra / s2
-    return float(stats.f.sf(F, extra, df_s2))
+    return float(dist.f_sf(F, extra, df_s2))
 
 
 # --- the stacked regressors of a data set ----------------------------------------------------------------
@@ -458,7 +458,7 @@ def find_blunders(des: Design, n_rows: int, alpha: float, max_fraction: float = 
         if not scale > 0:
             break
         per_row = np.abs(resid).reshape(-1, des.d).max(axis=1) / scale
-        threshold = stats.t.isf(alpha / (2 * len(resid)), f.df) + 2.0  # the scale is estimated on f.df
+        threshold = dist.t_isf(alpha / (2 * len(resid)), f.df) + 2.0  # the scale is estimated on f.df
         worst = int(np.argmax(per_row))
         if per_row[worst] <= threshold:
             break
@@ -630,7 +630,7 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
                     trial = use.copy()
                     trial[g] = False
                     loo = s2[g] / np.exp(Z[g] @ glm(trial).params)
-                    p_loo[g] = stats.chi2.sf(loo * df[g], df[g])
+                    p_loo[g] = dist.chi2_sf(loo * df[g], df[g])
                 worst = min(p_loo, key=p_loo.get)
                 if p_loo[worst] >= 1e-3 / len(s2):
                     break
@@ -644,20 +644,68 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
     return _fitted_variance(robot, meas.q, full.params, p)
 
 
-def _gamma_fit(s2: np.ndarray, Z: np.ndarray, df: np.ndarray):
-    """The Gamma GLM (log link) of relative variances s2 (k,) on covariates Z (k, c), each on df (k,) degrees of
-    freedom, with the dispersion 2 of chi-square variances (:class:`VarianceModel`)."""
-    import statsmodels.api as sm  # its first import sets its own warning filters, ahead of a caller's: hence
+@dataclass(frozen=True)
+class GammaFit:
+    """A Gamma GLM fit (:func:`_gamma_fit`): coefficients params (c,) of the log link, and the deviance (scale 1)."""
+    params: np.ndarray
+    deviance: float
 
-    with warnings.catch_warnings():  # the filter here, after it (a fit that warns is an error for every caller)
+
+#: the IRLS of :func:`_gamma_fit`: most iterations, and the change of the scaled deviance at which it stops
+GAMMA_MAXITER = 100
+GAMMA_TOL = 1e-8
+
+
+def _gamma_fit(s2: np.ndarray, Z: np.ndarray, df: np.ndarray) -> GammaFit:
+    """The Gamma GLM (log link) of relative variances s2 (k,) on covariates Z (k, c), each on df (k,) degrees of
+    freedom (variance weights), with the dispersion 2 of chi-square variances (:class:`VarianceModel`): iteratively
+    reweighted least squares (McCullagh & Nelder, *Generalized Linear Models*, 2nd ed., 1989, sec. 2.5 and 8.3),
+    step for step the algorithm of statsmodels' ``GLM(s2, Z, family=Gamma(Log()), var_weights=df).fit(scale=2)``
+    (its start mu = (s2 + mean) / 2, a least-squares step per iteration, convergence when the deviance over the
+    dispersion changes by at most 1e-8, the last step's coefficients by the pseudo-inverse): equal to it to the
+    bit (tests/test_distributions.py), without the 0.8 s of importing statsmodels for a fit of a few milliseconds.
+    Raises ValueError on values that are not finite, RuntimeWarning (as an error) on a fit that predicts s2
+    exactly or a numpy warning on the way; like statsmodels, it returns the last iterate after
+    GAMMA_MAXITER iterations without a word (a Gamma fit with a log link has constant IRLS weights, and its
+    iterations have always converged within a few on these data)."""
+    with warnings.catch_warnings():  # a fit that warns (numpy's overflow too) is an error for every caller
         warnings.simplefilter("error")
-        family = sm.families.Gamma(sm.families.links.Log())
-        return sm.GLM(s2, Z, family=family, var_weights=df).fit(scale=2.0)
+        return _gamma_irls(*(np.asarray(a, float) for a in (s2, Z, df)))
+
+
+def _gamma_irls(s2: np.ndarray, Z: np.ndarray, w_var: np.ndarray) -> GammaFit:
+    """:func:`_gamma_fit`'s iterations."""
+    eps = np.finfo(float).eps
+
+    def deviance(mu, scale):
+        return float(np.sum(2 * (-np.log(np.clip(s2 / mu, eps, np.inf)) + (s2 - mu) / mu) * w_var / scale))
+
+    mu = (s2 + s2.mean()) / 2.0
+    eta = np.log(np.clip(mu, eps, np.inf))
+    history = [np.inf, deviance(mu, 2.0)]
+    if np.isnan(history[-1]):
+        raise ValueError("the Gamma GLM's first deviance is NaN")
+    for _ in range(GAMMA_MAXITER):
+        w = w_var * (1.0 / ((1.0 / mu) ** 2 * np.power(np.fabs(mu), 2.0)))  # IRLS weights: df / (g'(mu)^2 V(mu))
+        z = eta + (1.0 / mu) * (s2 - mu)  # the working response
+        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(z))):
+            raise ValueError("the Gamma GLM's working response or weights are not finite")
+        sw = np.sqrt(w)
+        beta = np.linalg.lstsq(sw[:, None] * Z, sw * z, rcond=-1)[0]
+        eta = np.dot(Z, beta)
+        mu = np.exp(eta)
+        history.append(deviance(mu, 2.0))
+        if np.allclose(mu - s2, 0):
+            warnings.warn("the Gamma GLM predicts the variances exactly", RuntimeWarning, stacklevel=2)
+        if np.allclose(history[-2], history[-1], atol=GAMMA_TOL, rtol=0.0):
+            break
+    params = np.linalg.pinv(sw[:, None] * Z).dot(sw * z)
+    return GammaFit(params, deviance(np.exp(np.dot(Z, params)), 1.0))
 
 
 def _constant_variance_p(full, null, n_covariates: int) -> float:
     """The likelihood-ratio p-value of a constant variance (``null``) against the fit on every covariate."""
-    return float(stats.chi2.sf(max(null.deviance - full.deviance, 0.0) / 2.0, n_covariates - 1))
+    return float(dist.chi2_sf(max(null.deviance - full.deviance, 0.0) / 2.0, n_covariates - 1))
 
 
 def _fitted_variance(robot: Robot, q: np.ndarray, params: np.ndarray, p: float) -> VarianceModel:
@@ -803,10 +851,10 @@ def min_p_value(p_min: float, spaces: list[np.ndarray], df: int, draws: int = MI
         return float(min(1.0, level.sum()))
     rng = np.random.default_rng(MIN_P_SEED) if rng is None else rng
     r = np.array([W.shape[1] for W in spaces])
-    f_crit = stats.f.isf(level, r, df)
+    f_crit = dist.f_isf(level, r, df)
     pick = rng.choice(k, size=draws, p=level / level.sum())
     z = rng.standard_normal((draws, spaces[0].shape[0]))
-    C = stats.beta.ppf(level[pick] * rng.uniform(size=draws), df / 2, r[pick] / 2)
+    C = dist.beta_ppf(level[pick] * rng.uniform(size=draws), df / 2, r[pick] / 2)
     total = rng.chisquare(r[pick] + df)
     u, v = (1.0 - C) * total, C * total
     for c, W in enumerate(spaces):
@@ -919,7 +967,7 @@ def _varying(features: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def _rank_standardised(A: np.ndarray) -> np.ndarray:
     """Columns of A (N, k) replaced by their ranks (ties averaged), centred and scaled to unit norm."""
-    R = stats.rankdata(A, axis=0)
+    R = dist.rankdata(A)
     R = R - R.mean(axis=0)
     norm = np.linalg.norm(R, axis=0)
     return R / np.where(norm > 0, norm, 1.0)
@@ -955,7 +1003,7 @@ class Structure:
             r = self.ranks.T @ _rank_standardised(resid[:, [axis]])[:, 0]
             r = np.clip(r, -1.0, 1.0)
             t = r * np.sqrt((n - 2) / np.maximum(1.0 - r**2, 1e-300))
-            p = 2 * stats.t.sf(np.abs(t), n - 2)
+            p = 2 * dist.t_sf(np.abs(t), n - 2)
             for name, rho, pv in zip(self.names, r, p):
                 out[f"{self.components[axis]} vs {name}"] = {"spearman": float(rho), "p_value": float(pv)}
         return out
@@ -1545,7 +1593,7 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
         cause, p_value, p_of = "none", (sel.adjusted_p(testable) if testable else 1.0), list(testable)
 
     sigma = float(np.sqrt(noise.s2))
-    t = stats.t.isf(0.025, noise.df)
+    t = dist.t_isf(0.025, noise.df)
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
     lof_nominal = lof(frozenset(), sel.fits[frozenset()])
     notes += plausibility(robot, m, f0.beta, k_ci, ob)
@@ -2035,7 +2083,7 @@ def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives
     the likely cause: the data's signs or frames, which every extension inherits)."""
     if not chosen:
         return chosen, alternatives, notes
-    sigma, t = float(np.sqrt(noise.s2)), float(stats.t.isf(0.025, noise.df))
+    sigma, t = float(np.sqrt(noise.s2)), float(dist.t_isf(0.025, noise.df))
     n = des.X0.shape[1]
     candidates = [chosen, *alternatives]
     tables = {S: _parameters(des, sel.fits[S], sorted(S, key=CAUSES.index), sigma, t, robot, observed)
@@ -2240,25 +2288,27 @@ def nominal_residuals(robot: Robot, meas: Measurements, keep: np.ndarray, observ
 def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_pose=None, test_force=None,
         label: str | None = None, angle_resolution_deg: float | None = None,
         force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
-        sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
+        sigma_m: float | None = None, sigma_rad: float | None = None, figures: bool = True) -> dict:
     """Read, analyse, and write ``out_dir/verdict.json``, ``out_dir/residuals.{png,svg}``,
     ``out_dir/heldout.{png,svg}`` (:func:`stiffcal.plots.fig_held_out`), ``out_dir/machining.{png,svg}``
     (:func:`stiffcal.plots.fig_machining`) and, for a robot given
     as a file, ``out_dir/calibrated.yaml`` (:mod:`stiffcal.calibrated`: the robot file with the identified model;
-    the verdict's ``calibrated_model`` names it); everything is computed before anything is written, so bad data
-    leave no partial output. Resolutions default to
+    the verdict's ``calibrated_model`` names it); ``figures`` False leaves the three figures out (and matplotlib
+    unloaded). Everything is computed before anything is written, so bad data leave no partial output.
+    Resolutions default to
     :data:`stiffcal.measurements.ANGLE_RESOLUTION_DEG`, :data:`~stiffcal.measurements.FORCE_RESOLUTION_N` and
     :data:`~stiffcal.measurements.MOMENT_RESOLUTION_NM`; sigma_m, sigma_rad: :func:`analyse`."""
     from .progress import Progress
 
     if not 0 < alpha < 1:
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="--alpha")
-    with Progress("discrepancy", run_estimate_s(robot, data_path)) as progress:
+    with Progress("discrepancy", run_estimate_s(robot, data_path, figures)) as progress:
         return _run(robot, data_path, out_dir, alpha, test_pose, test_force, label,
-                    (angle_resolution_deg, force_resolution_N, moment_resolution_Nm), sigma_m, sigma_rad, progress)
+                    (angle_resolution_deg, force_resolution_N, moment_resolution_Nm), sigma_m, sigma_rad, progress,
+                    figures)
 
 
-def run_estimate_s(robot: Robot, data_path: str) -> list[tuple[str, float]]:
+def run_estimate_s(robot: Robot, data_path: str, figures: bool = True) -> list[tuple[str, float]]:
     """The stages of :func:`run` with a rough estimate of their seconds on one core (fitted to 2-link and 6-axis
     logs of 400 to 200,000 rows, whose count is taken from the file's size at about 70 bytes a row; the progress
     lines scale what is left by how the stages so far compared with their estimates)."""
@@ -2272,18 +2322,17 @@ def run_estimate_s(robot: Robot, data_path: str) -> list[tuple[str, float]]:
     return [("reading the data", 0.2 + 2e-5 * rows), ("the noise and the rows' error model", w * (0.5 + 1e-4 * rows)),
             ("closed testing of the catalogue", w * (0.7 + 4e-5 * rows)),
             ("extended model with held-out check and gain", w * (0.5 + 2e-5 * rows)),
-            ("figures and files", 2.0 + 6e-5 * rows)]
+            ("figures and files", 2.0 + 6e-5 * rows) if figures else ("files", 0.05)]
 
 
 def _run(robot: Robot, data_path: str, out_dir: str, alpha: float, test_pose, test_force, label, resolutions,
-         sigma_m, sigma_rad, progress) -> dict:
+         sigma_m, sigma_rad, progress, figures: bool = True) -> dict:
     """:func:`run`, its stages reported to ``progress`` (:class:`stiffcal.progress.Progress`)."""
     import json
     from pathlib import Path
 
     from . import calibrated
     from . import measurements as M
-    from . import plots
 
     angle_res, force_res, moment_res = resolutions
     meas = M.read_measurements(data_path, robot,
@@ -2308,24 +2357,32 @@ def _run(robot: Robot, data_path: str, out_dir: str, alpha: float, test_pose, te
     calibrated_doc = calibrated.calibrated_document(robot, cal, out_dir) if Path(robot.source).is_file() else None
     verdict["calibrated_model"] = calibrated.CALIBRATED_FILE if calibrated_doc is not None else None
     text = json.dumps(verdict, indent=2, allow_nan=False)
-    keep = np.ones(meas.n_rows, bool)
-    keep[np.isin(meas.rows, verdict["outlier_rows"])] = False
-    weight = verdict["nominal"]["rotation_weight_m_per_rad"]
-    resid = nominal_residuals(robot, meas, keep, Observed.of(robot, meas, 1.0 if weight is None else weight))
-    fig = plots.fig_residuals(meas, residual_features(robot, meas), resid, verdict["nominal"]["sigma_m"],
-                              f"Nominal-model residuals: {label or Path(data_path).name}",
-                              outlier_rows=verdict["outlier_rows"])
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    plots.save(fig, out / "residuals")
-    plots.save(plots.fig_held_out(verdict.get("held_out"), verdict["nominal"]["sigma_m"],
-                                  f"Held-out configurations: {label or Path(data_path).name}"), out / "heldout")
-    plots.save(plots.fig_machining(verdict["machining_path"], cal.causes,
-                                   f"Simulated machining path: {label or Path(data_path).name}"), out / "machining")
+    if figures:
+        _write_figures(robot, meas, verdict, cal, label or Path(data_path).name, out)
     if calibrated_doc is not None:
         calibrated.write_calibrated(robot, cal, out)
     (out / "verdict.json").write_text(text + "\n", encoding="utf-8")
     return verdict
+
+
+def _write_figures(robot: Robot, meas: Measurements, verdict: dict, cal, label: str, out) -> None:
+    """:func:`run`'s three figures into the folder ``out``: the nominal model's residuals, the held-out
+    configurations and the simulated machining path."""
+    from . import plots
+
+    keep = np.ones(meas.n_rows, bool)
+    keep[np.isin(meas.rows, verdict["outlier_rows"])] = False
+    weight = verdict["nominal"]["rotation_weight_m_per_rad"]
+    resid = nominal_residuals(robot, meas, keep, Observed.of(robot, meas, 1.0 if weight is None else weight))
+    plots.save(plots.fig_residuals(meas, residual_features(robot, meas), resid, verdict["nominal"]["sigma_m"],
+                                   f"Nominal-model residuals: {label}", outlier_rows=verdict["outlier_rows"]),
+               out / "residuals")
+    plots.save(plots.fig_held_out(verdict.get("held_out"), verdict["nominal"]["sigma_m"],
+                                  f"Held-out configurations: {label}"), out / "heldout")
+    plots.save(plots.fig_machining(verdict["machining_path"], cal.causes, f"Simulated machining path: {label}"),
+               out / "machining")
 
 
 # --- the paper's method applied to the model that fits --------------------------------------------------

@@ -73,8 +73,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy import stats
 
+from . import distributions as dist
 from .errors import InputError
 from .measurements import rows_by_label
 
@@ -794,7 +794,7 @@ def _lrt(lik: _Likelihood, lam: np.ndarray, ll: float, i: int, sigma2, fixed: di
         return 1.0
     _, ll0 = _maximise(lik, len(lam), sigma2, {**(fixed or {}), i: 0.0}, start=lam)
     stat = max(2.0 * (ll - ll0), 0.0)
-    return float(0.5 * stats.chi2.sf(stat, 1)) if stat > 0 else 1.0
+    return float(0.5 * dist.chi2_sf(stat, 1)) if stat > 0 else 1.0
 
 
 def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, source, w, notes,
@@ -967,13 +967,13 @@ def unloaded_tests(em: ErrorModel, Y: np.ndarray, groups: np.ndarray, X_union: n
     p_rows = np.ones(st.n_rows - N)
     for i, ss in stats_rows.items():
         F = (ss / w) / (max(total - ss, 1e-300) / max(df - w, 1))
-        p_rows[i] = float(stats.f.sf(F, w, max(df - w, 1)))
+        p_rows[i] = float(dist.f_sf(F, w, max(df - w, 1)))
     p_shift = None
     if st.n_rows > N:
         V = shift_AA if local else shift_AA - shift_G.T @ shift_G
         ss = _quadratic(shift_num, V)
         F = (ss / w) / (max(total - ss, 1e-300) / max(df - w, 1))
-        p_shift = float(stats.f.sf(F, w, max(df - w, 1)))
+        p_shift = float(dist.f_sf(F, w, max(df - w, 1)))
     return p_rows, p_shift, (w, max(df - w, 1))
 
 

@@ -670,7 +670,7 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
     estimate, at least 5 % of the loaded rows' median displacement. Genuine
     reference rows (zero force, or a load cell's reading below the resolution with a displacement within the
     noise) pass. q_deg (N, n) [deg]; force, dp (N, d); moment (N, d_m) or None; target (N,) int."""
-    from scipy import stats
+    from . import distributions as dist
 
     fmag, dmag = np.linalg.norm(force, axis=1), np.linalg.norm(dp, axis=1)
     small = np.flatnonzero(unloaded & (fmag > 0))
@@ -695,8 +695,8 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
     if df > 0 and ss > 0:
         sigma2 = ss / df
         k = (small.size + 1) // 2  # the median's order statistic: F(X_(k)) ~ Beta(k, m - k + 1) under the noise
-        median = stats.chi2.ppf(stats.beta.ppf(0.995, k, small.size - k + 1), d) / d  # of ||dp||^2 / (d sigma^2)
-        if np.sort(dmag[small] ** 2)[k - 1] / (d * sigma2) <= median / (stats.chi2.ppf(0.005, df) / df):
+        median = dist.chi2_ppf(dist.beta_ppf(0.995, k, small.size - k + 1), d) / d  # of ||dp||^2 / (d sigma^2)
+        if np.sort(dmag[small] ** 2)[k - 1] / (d * sigma2) <= median / (dist.chi2_ppf(0.005, df) / df):
             return
         noise = f", beyond the noise of {np.sqrt(sigma2) * 1e6:.3g} um"
     elif np.median(dmag[small]) < 0.05 * np.median(dmag[big]):

@@ -30,15 +30,25 @@ PNG_DPI = 200
 
 def save(fig, stem: str | Path) -> list[Path]:
     """Write ``<stem>.png`` and ``<stem>.svg`` without timestamps (reproducible bytes), each atomically (a
-    temporary file moved into place when complete)."""
+    temporary file moved into place when complete), cropped to the figure's drawn extent as
+    ``bbox_inches="tight"`` does. The layout (constrained, or tight_layout's) and the extent are computed by one
+    draw and then kept for both files: each file is drawn once (``bbox_inches="tight"`` draws twice a file and
+    redoes the layout at every draw: four draws and layouts, against three draws and one)."""
+    from matplotlib.transforms import Bbox
+
     from .integrity import atomic_path
 
     stem = Path(stem)
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
+    fig.canvas.draw()
+    extent = fig.get_tightbbox(fig.canvas.get_renderer())
+    pad = plt.rcParams["savefig.pad_inches"]
+    box = Bbox(extent.padded(pad).get_points())
+    fig.set_layout_engine("none")  # the positions the draw computed, kept
     with atomic_path(paths[0]) as tmp:
-        fig.savefig(tmp, format="png", dpi=PNG_DPI, metadata={"Software": None}, bbox_inches="tight")
+        fig.savefig(tmp, format="png", dpi=PNG_DPI, metadata={"Software": None}, bbox_inches=box)
     with plt.rc_context({"svg.hashsalt": STYLE["svg.hashsalt"]}), atomic_path(paths[1]) as tmp:
-        fig.savefig(tmp, format="svg", metadata={"Date": None, "Creator": None}, bbox_inches="tight")
+        fig.savefig(tmp, format="svg", metadata={"Date": None, "Creator": None}, bbox_inches=box)
     plt.close(fig)
     return paths
 
