@@ -39,14 +39,16 @@ archive: $(STAMP)
 	$(BIN)/python tools/unlock_if_idle.py
 	$(BIN)/snakemake --cores $(CORES) --workflow-profile workflow/profiles/default archive
 
+# the suite on $(CORES) processes (pytest-xdist), a file per process so that a module's fixtures (the small
+# workflow run above all) are built once; `.venv/bin/python -m pytest` alone runs it in one process
 test: $(TSTAMP)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest -n $(CORES) --dist loadfile
 
 # Snakemake's own lint of the workflow, and ruff (pinned in requirements-test.lock; rules and the documented
 # exceptions in pyproject.toml) on the Python sources
 lint: $(TSTAMP)
 	$(BIN)/snakemake --lint
-	$(BIN)/ruff check src tests benchmarks tools workflow/scripts
+	$(BIN)/ruff check src tests benchmarks tools workflow/scripts examples
 
 # the whole pipeline beside the commit before issue 16's cuts of its CPU (both run from scratch: about 3 minutes)
 PIPELINE_BASELINE ?= 863eed4

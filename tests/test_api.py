@@ -91,11 +91,26 @@ def test_bad_arguments_name_the_argument(root, kwargs, field):
     assert err.value.field == field
 
 
-def test_analyse_measurements_writes_nothing_without_out(root, tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    v = stiffcal.analyse_measurements(root / PAPER_ROBOT, root / "data/synthetic_paper_2r.csv")
+def test_analyse_measurements_writes_nothing_without_out_and_returns_the_file_s_verdict(root, tmp_path, monkeypatch):
+    """Without ``out`` nothing is written; with it, verdict.json holds the same fields in the same order and the
+    same values (issue 26: 19 keys in memory and 21 in the file before), but ``calibrated_model``, the file
+    written beside it."""
+    import json
+
+    work = tmp_path / "work"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    args = (root / PAPER_ROBOT, root / "data/synthetic_paper_2r.csv")
+    kw = {"test_pose_deg": [60, 30], "force_N": [0, -300]}
+    v = stiffcal.analyse_measurements(*args, **kw)
     assert v["cause"] == "backlash" and v["outlier_rows"] == [17]  # the hidden effect and blunder of data/README.md
-    assert list(tmp_path.iterdir()) == []
+    assert list(work.iterdir()) == []
+    assert isinstance(v, stiffcal.Verdict) and v.next_round is not None and v.machining_path is not None
+    written = stiffcal.analyse_measurements(*args, **kw, out=tmp_path / "out", figures=False)
+    on_disk = json.loads((tmp_path / "out/verdict.json").read_text())
+    assert list(on_disk) == list(v.to_dict()) == list(written)
+    assert on_disk["calibrated_model"] == "calibrated.yaml" and v["calibrated_model"] is None
+    assert json.loads(json.dumps({**v.to_dict(), "calibrated_model": "calibrated.yaml"})) == on_disk
 
 
 def test_wheel_installs_into_a_clean_venv_and_designs_from_a_robot_file(root, tmp_path):

@@ -409,7 +409,7 @@ def test_degenerate_protocols_give_a_verdict_without_nan_or_a_clear_refusal(pape
     except InputError as err:
         assert "cannot" in str(err) or "expected" in str(err)
         return
-    json.dumps(v, allow_nan=False)  # raises on NaN or inf
+    json.dumps(v.to_dict(), allow_nan=False)  # raises on NaN or inf
 
 
 def test_too_few_equations_and_singular_plans_are_refused(tmp_path):
@@ -444,7 +444,7 @@ def test_a_joint_the_loads_never_turn_is_left_out_with_a_note(root):
     k_ext = np.array(v["extended"]["k"])
     assert np.all(np.abs(k_ext - robot.compliances[1:]) <= 2 * np.array(v["extended"]["k_ci95"]))
     assert v["gain"]["loco_ratio"] > 1 and v["gain"]["test_pose_rms_extended_m"] > 0
-    json.dumps(v, allow_nan=False)
+    json.dumps(v.to_dict(), allow_nan=False)
 
 
 def _hanging_rows_of_ur10_bar(tmp_path) -> Path:

@@ -93,3 +93,16 @@ def test_cell_keys_in_the_docs_are_the_schemas(root):
     section = section[:section.index("\n## ", 10)]
     documented = set(re.findall(r"^\| `([^`]+)` \|", section, flags=re.M))
     assert documented == set(load_schema("cell")["properties"])
+
+
+def test_verdict_fields_in_the_docs_are_the_type_s(root):
+    """The table "The verdict" of docs/measured-data.md names exactly the fields of stiffcal.verdict.Verdict (the
+    type the analysis returns and verdict.json is written from; issue 26: nothing checked them before)."""
+    from stiffcal.verdict import documented_fields
+
+    text = (root / "docs/measured-data.md").read_text(encoding="utf-8")
+    table = text.split("## The verdict", 1)[1].split("\n## ", 1)[0]
+    named = [name for line in table.splitlines() if line.startswith("| `")
+             for name in re.findall(r"`([a-z_0-9]+)`", line.split(" | ", 1)[0])]
+    assert sorted(named) == sorted(documented_fields())
+    assert len(named) == len(set(named))

@@ -26,6 +26,7 @@ import numpy as np
 
 from .errors import InputError, short_repr
 from .jsonsafe import _json_number, json_safe  # noqa: F401  (re-exported: part of this module's API)
+from .verdict import Verdict
 from .limits import (MAX_DESIGN_EXPERIMENTS, MAX_DISCRIMINATE_EXPERIMENTS, MAX_FORCE_N, MAX_MOMENT_NM, MIN_LOAD)
 from .robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
 
@@ -531,7 +532,7 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
                          out=None, label: str | None = None, angle_resolution_deg: float | None = None,
                          force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
                          sigma_m: float | None = None, sigma_rad: float | None = None, joint_limits_deg=None,
-                         cell=None, figures: bool = True) -> dict:
+                         cell=None, figures: bool = True) -> Verdict:
     """What the stiffness model gets wrong in measured deflections (``stiffcal discrepancy``).
 
     robot: a Robot or a robot file; data: the measured-data CSV (docs/measured-data.md); alpha: family-wise
@@ -547,11 +548,12 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     from the data). joint_limits_deg (n, 2) [deg] and cell (as :func:`design`): where the robot stands, for the
     verdict's O_t-optimal plan of the extended model (``optimal_plan_extended_deg``: every pose feasible).
 
-    Returns the verdict (docs/measured-data.md: cause, causes, indistinguishable_from, p_value, structure,
-    nominal, extended, gain, outlier_rows, notes, ...). Raises :class:`InputError` for bad arguments or data.
+    Returns the :class:`stiffcal.verdict.Verdict` (docs/measured-data.md: cause, causes, indistinguishable_from,
+    p_value, structure, nominal, extended, gain, outlier_rows, notes, ...; a read-only mapping, and
+    ``to_dict()`` the JSON of ``verdict.json``), with the same fields whether or not ``out`` is given
+    (``calibrated_model`` None when nothing is written). Raises :class:`InputError` for bad arguments or data.
     """
     from . import discrepancy
-    from . import measurements as M
 
     robot = _placed(_robot(robot), joint_limits_deg, cell)
     data = _input_file(_path(data, "data", "a measured-data CSV"))
@@ -565,8 +567,7 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
                                                  positive_number(sigma_rad, "sigma_rad"))
     qt, ft = _test_pose(robot, test_pose_deg, force_N, wrench)
     if out is None:
-        return discrepancy.analyse(robot, M.read_measurements(data, robot, *res), alpha, qt, ft, sigma_m=sig[0],
-                                   sigma_rad=sig[1])
+        return discrepancy.analysed(robot, str(data), alpha, qt, ft, res, *sig)[0]
     return _written_whole(out, lambda tmp: discrepancy.run(robot, str(data), tmp, alpha, qt, ft, label, *res, *sig,
                                                            figures=bool(figures)))
 

@@ -68,6 +68,7 @@ from .robot import TOOL_TARGET, Robot, as_xyz
 from .errormodel import INFLATION_NOTE
 from .errormodel import KINDS as EMKINDS
 from .errormodel import flat_index
+from .verdict import Verdict
 from .stiffness import observation_matrix, random_directions
 
 #: relative singular value below which a direction of a design matrix counts as absent
@@ -878,24 +879,29 @@ def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float)
     subsets = _subsets(causes)
     fits = {S: red.fit(des.columns(S)) for S in subsets}
     lof = {S: lack_of_fit(S, fits[S]) for S in fits}
-    spans = {S: _span(red.R, des.columns(S)) for S in subsets}
+    spans: dict = {}
+
+    def span(S):  # the orthonormal bases are needed only by a min-P test (rarely): computed when first asked for
+        if S not in spans:
+            spans[S] = _span(red.R, des.columns(S))
+        return spans[S]
 
     def p_add(c, S):
         f0, f1 = fits[S], fits[S | {c}]
         return f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df) if f1.rank > f0.rank else 1.0
 
-    def statistics(c, S):  # (p, space, weight): the block of c added to S, and each parameter of c alone
-        f0 = fits[S]
-        block = (p_add(c, S), _beyond(spans[S], spans[S | {c}]))
+    def statistics(c, S):  # (p, space, weight): the block of c added to S, and each parameter of c alone; each
+        f0 = fits[S]       # space a function that computes it (its dimension is the fits' rank difference)
+        block = (p_add(c, S), lambda: _beyond(span(S), span(S | {c})))
         extra = np.setdiff1d(des.columns([c]), des.columns())
         singles = []
-        if block[1].shape[1] > 1:
+        if fits[S | {c}].rank - f0.rank > 1:
             for j in extra:
                 cols = np.append(des.columns(S), j)
                 f1 = red.fit(cols)
                 if f1.rank > f0.rank:
                     singles.append((f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df),
-                                    _beyond(spans[S], _span(red.R, cols))))
+                                    lambda cols=cols: _beyond(span(S), _span(red.R, cols))))
         if len(singles) < 2:
             return [(*block, 1.0)]
         return [(*block, 0.5)] + [(p, W, 0.5 / len(singles)) for p, W in singles]
@@ -914,7 +920,8 @@ def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float)
             p_causes = min(1.0, t)
             low = max(weights) * t
             if low <= alpha and p_causes > alpha * (1.0 - (1.0 / (len(U) + 1) if lof[rest] is not None else 0.0)):
-                p_causes = min_p_value(t, spaces, noise.df, rng=np.random.default_rng([MIN_P_SEED, i]),
+                p_causes = min_p_value(t, [space() for space in spaces], noise.df,
+                                       rng=np.random.default_rng([MIN_P_SEED, i]),
                                        weights=weights)
         elif U:
             p_causes = 1.0
@@ -1540,8 +1547,10 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
 
 
 def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=None, test_force=None,
-            gain: bool = True, sigma_m: float | None = None, sigma_rad: float | None = None) -> dict:
-    """The verdict for one data set (module docstring; fields in docs/measured-data.md).
+            gain: bool = True, sigma_m: float | None = None, sigma_rad: float | None = None) -> Verdict:
+    """The :class:`~stiffcal.verdict.Verdict` for one data set (module docstring; fields in
+    docs/measured-data.md): the analysis's fields; those of the files and the calibrated model are None
+    (:func:`complete` fills them in).
 
     robot: the robot; meas: its measurements; alpha: family-wise false-alarm rate; test_pose (n,) [rad] and
     test_force (d,) [N] or wrench (d + d_m,) [N, N m] (optional): the compensation error of the tool point at
@@ -1556,7 +1565,7 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
 
 
 def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None, test_force=None,
-               gain: bool = True, progress=None) -> dict:
+               gain: bool = True, progress=None) -> Verdict:
     """The verdict of :func:`analyse` from the analysis prepared by :func:`prepare` (the same arguments);
     ``progress`` (a :class:`stiffcal.progress.Progress`, or None) is advanced when the closed test is done."""
     meas = pre.meas
@@ -1661,7 +1670,7 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
         f = sel.fits[chosen]
         resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
         out["residual_structure"] = residual_structure(robot, m, resid)
-    return out
+    return Verdict(**out, robot=robot.source)
 
 
 def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: float) -> tuple[dict, list[str]]:
@@ -2288,7 +2297,7 @@ def nominal_residuals(robot: Robot, meas: Measurements, keep: np.ndarray, observ
 def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_pose=None, test_force=None,
         label: str | None = None, angle_resolution_deg: float | None = None,
         force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
-        sigma_m: float | None = None, sigma_rad: float | None = None, figures: bool = True) -> dict:
+        sigma_m: float | None = None, sigma_rad: float | None = None, figures: bool = True) -> Verdict:
     """Read, analyse, and write ``out_dir/verdict.json``, ``out_dir/residuals.{png,svg}``,
     ``out_dir/heldout.{png,svg}`` (:func:`stiffcal.plots.fig_held_out`), ``out_dir/machining.{png,svg}``
     (:func:`stiffcal.plots.fig_machining`) and, for a robot given
@@ -2326,37 +2335,18 @@ def run_estimate_s(robot: Robot, data_path: str, figures: bool = True) -> list[t
 
 
 def _run(robot: Robot, data_path: str, out_dir: str, alpha: float, test_pose, test_force, label, resolutions,
-         sigma_m, sigma_rad, progress, figures: bool = True) -> dict:
+         sigma_m, sigma_rad, progress, figures: bool = True) -> Verdict:
     """:func:`run`, its stages reported to ``progress`` (:class:`stiffcal.progress.Progress`)."""
     import json
     from pathlib import Path
 
     from . import calibrated
-    from . import measurements as M
 
-    angle_res, force_res, moment_res = resolutions
-    meas = M.read_measurements(data_path, robot,
-                               M.ANGLE_RESOLUTION_DEG if angle_res is None else angle_res,
-                               M.FORCE_RESOLUTION_N if force_res is None else force_res,
-                               M.MOMENT_RESOLUTION_NM if moment_res is None else moment_res)
-    progress.advance()
-    pre = prepare(robot, meas, alpha, sigma_m, sigma_rad)
-    progress.advance()
-    verdict = verdict_of(robot, pre, alpha, test_pose, test_force, progress=progress)
-    verdict = {"data": str(data_path), "robot": robot.source, **verdict}
-    cal = calibrated.from_analysis(robot, pre, verdict, data_path)
-    verdict["next_round"] = verdict["machining_path"] = None
-    if test_pose is not None and test_force is not None:
-        model = replace(robot, calibration=cal)
-        verdict["next_round"] = calibrated.next_round_summary(model, test_pose, test_force)
-        nominal = replace(robot, calibration=calibrated.from_analysis(robot, pre, {**verdict, "extended": None}))
-        verdict["machining_path"] = {
-            "test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
-            **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
-    progress.advance()
+    verdict, cal, meas = analysed(robot, data_path, alpha, test_pose, test_force, resolutions, sigma_m, sigma_rad,
+                                  progress)
     calibrated_doc = calibrated.calibrated_document(robot, cal, out_dir) if Path(robot.source).is_file() else None
-    verdict["calibrated_model"] = calibrated.CALIBRATED_FILE if calibrated_doc is not None else None
-    text = json.dumps(verdict, indent=2, allow_nan=False)
+    verdict = replace(verdict, calibrated_model=calibrated.CALIBRATED_FILE if calibrated_doc is not None else None)
+    text = json.dumps(verdict.to_dict(), indent=2, allow_nan=False)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if figures:
@@ -2365,6 +2355,52 @@ def _run(robot: Robot, data_path: str, out_dir: str, alpha: float, test_pose, te
         calibrated.write_calibrated(robot, cal, out)
     (out / "verdict.json").write_text(text + "\n", encoding="utf-8")
     return verdict
+
+
+def analysed(robot: Robot, data_path: str, alpha: float = 0.01, test_pose=None, test_force=None,
+             resolutions=(None, None, None), sigma_m: float | None = None, sigma_rad: float | None = None,
+             progress=None):
+    """(the :class:`~stiffcal.verdict.Verdict` of the data file, its calibrated model
+    (:class:`stiffcal.calibrated.Calibration`), the :class:`Measurements`) without writing anything: read,
+    analyse and :func:`complete` (``calibrated_model`` None: no file written). resolutions: (angle [deg], force
+    [N], moment [N m]) or None for the defaults of :mod:`stiffcal.measurements`; ``progress`` (or None) is
+    advanced after each stage. Raises :class:`InputError` for bad data."""
+    from . import measurements as M
+
+    angle_res, force_res, moment_res = resolutions
+    meas = M.read_measurements(data_path, robot,
+                               M.ANGLE_RESOLUTION_DEG if angle_res is None else angle_res,
+                               M.FORCE_RESOLUTION_N if force_res is None else force_res,
+                               M.MOMENT_RESOLUTION_NM if moment_res is None else moment_res)
+    if progress is not None:
+        progress.advance()
+    pre = prepare(robot, meas, alpha, sigma_m, sigma_rad)
+    if progress is not None:
+        progress.advance()
+    verdict, cal = complete(robot, pre, verdict_of(robot, pre, alpha, test_pose, test_force, progress=progress),
+                            data_path, test_pose, test_force)
+    if progress is not None:
+        progress.advance()
+    return verdict, cal, meas
+
+
+def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose=None, test_force=None):
+    """(``verdict`` with the files analysed (``data``, ``robot``) and what the calibrated model gives with a test
+    pose (``next_round``, ``machining_path``: docs/measured-data.md), its
+    :class:`stiffcal.calibrated.Calibration`): the calibrated model of the analysis prepared by :func:`prepare`
+    with the verdict :func:`verdict_of` gave."""
+    from . import calibrated
+
+    verdict = replace(verdict, data=str(data_path), robot=robot.source)
+    cal = calibrated.from_analysis(robot, pre, verdict, data_path)
+    if test_pose is None or test_force is None:
+        return verdict, cal
+    model = replace(robot, calibration=cal)
+    nominal = replace(robot, calibration=calibrated.from_analysis(robot, pre, {**verdict, "extended": None}))
+    machining = {"test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
+                 **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
+    return replace(verdict, next_round=calibrated.next_round_summary(model, test_pose, test_force),
+                   machining_path=machining), cal
 
 
 def _write_figures(robot: Robot, meas: Measurements, verdict: dict, cal, label: str, out) -> None:
