@@ -113,6 +113,20 @@ def test_analyse_measurements_writes_nothing_without_out_and_returns_the_file_s_
     assert json.loads(json.dumps({**v.to_dict(), "calibrated_model": "calibrated.yaml"})) == on_disk
 
 
+def test_plan_discrimination_returns_the_file_s_plan_with_and_without_out(root, tmp_path):
+    """The typed plan (stiffcal.DiscriminationPlan) is plan.json, field for field and in its order, whether or not
+    ``out`` is given (before, the in-memory path read the loads another way than the written one)."""
+    import json
+
+    args = (root / PAPER_ROBOT, root / "data/synthetic_paper_2r_hanging.csv", 6)
+    plan = stiffcal.plan_discrimination(*args)
+    assert isinstance(plan, stiffcal.DiscriminationPlan) and plan["models"][0]["role"] == "truth"
+    written = stiffcal.plan_discrimination(*args, out=tmp_path / "out")
+    on_disk = json.loads((tmp_path / "out/plan.json").read_text())
+    assert list(on_disk) == list(plan) == list(written)
+    assert plan.to_dict() == on_disk == written.to_dict()
+
+
 def test_wheel_installs_into_a_clean_venv_and_designs_from_a_robot_file(root, tmp_path):
     """``pip wheel .`` -> a fresh venv; its stiffcal (not the source tree) loads a robot file (schemas are
     package data) and designs, and reads a URDF robot (Pinocchio, a runtime dependency). The fresh venv sees

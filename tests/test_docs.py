@@ -5,6 +5,7 @@ licence and citation files agree with pyproject.toml."""
 import re
 import subprocess
 
+import pytest
 import yaml
 
 from stiffcal.validation import load_schema
@@ -95,14 +96,18 @@ def test_cell_keys_in_the_docs_are_the_schemas(root):
     assert documented == set(load_schema("cell")["properties"])
 
 
-def test_verdict_fields_in_the_docs_are_the_type_s(root):
-    """The table "The verdict" of docs/measured-data.md names exactly the fields of stiffcal.verdict.Verdict (the
-    type the analysis returns and verdict.json is written from; issue 26: nothing checked them before)."""
-    from stiffcal.verdict import documented_fields
+@pytest.mark.parametrize("kind, heading, first_column", [
+    ("Verdict", "## The verdict", "field"), ("DiscriminationPlan", "## The next experiment", "field of `plan.json`")])
+def test_result_fields_in_the_docs_are_the_type_s(root, kind, heading, first_column):
+    """The tables of verdict.json and plan.json in docs/measured-data.md name exactly the fields of
+    stiffcal.results.Verdict and DiscriminationPlan (the types the API returns and the files are written from;
+    issue 26: nothing checked them before, and plan.json's robot and data were not documented)."""
+    from stiffcal import results
 
     text = (root / "docs/measured-data.md").read_text(encoding="utf-8")
-    table = text.split("## The verdict", 1)[1].split("\n## ", 1)[0]
+    section = text.split(heading, 1)[1].split("\n## ", 1)[0]
+    table = section.split(f"| {first_column} | meaning |", 1)[1].split("\n\n", 1)[0]
     named = [name for line in table.splitlines() if line.startswith("| `")
              for name in re.findall(r"`([a-z_0-9]+)`", line.split(" | ", 1)[0])]
-    assert sorted(named) == sorted(documented_fields())
+    assert sorted(named) == sorted(results.documented_fields(getattr(results, kind)))
     assert len(named) == len(set(named))

@@ -19,7 +19,8 @@ __version__ = "0.1.0"
 
 _LAZY = {"load_robot": "robot", "Robot": "robot", "design": "api", "DesignResult": "api",
          "analyse_measurements": "api", "plan_discrimination": "api", "predict_deflection": "api",
-         "compensate_path": "api", "plan_next_round": "api", "InputError": "errors", "Verdict": "verdict"}
+         "compensate_path": "api", "plan_next_round": "api", "InputError": "errors", "Verdict": "results",
+         "DiscriminationPlan": "results"}
 __all__ = ["__version__", *_LAZY]
 
 

@@ -26,7 +26,7 @@ import numpy as np
 
 from .errors import InputError, short_repr
 from .jsonsafe import _json_number, json_safe  # noqa: F401  (re-exported: part of this module's API)
-from .verdict import Verdict
+from .results import DiscriminationPlan, Verdict
 from .limits import (MAX_DESIGN_EXPERIMENTS, MAX_DISCRIMINATE_EXPERIMENTS, MAX_FORCE_N, MAX_MOMENT_NM, MIN_LOAD)
 from .robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
 
@@ -548,7 +548,7 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     from the data). joint_limits_deg (n, 2) [deg] and cell (as :func:`design`): where the robot stands, for the
     verdict's O_t-optimal plan of the extended model (``optimal_plan_extended_deg``: every pose feasible).
 
-    Returns the :class:`stiffcal.verdict.Verdict` (docs/measured-data.md: cause, causes, indistinguishable_from,
+    Returns the :class:`stiffcal.results.Verdict` (docs/measured-data.md: cause, causes, indistinguishable_from,
     p_value, structure, nominal, extended, gain, outlier_rows, notes, ...; a read-only mapping, and
     ``to_dict()`` the JSON of ``verdict.json``), with the same fields whether or not ``out`` is given
     (``calibrated_model`` None when nothing is written). Raises :class:`InputError` for bad arguments or data.
@@ -631,7 +631,7 @@ def _written_whole(out, write) -> dict:
 def plan_discrimination(robot, data, experiments, *, loads: str | None = None, repeats=1, weight=0.5,
                         truth: str = "best", alpha=0.01, test_pose_deg=None, force_N=None, out=None,
                         angle_resolution_deg=None, force_resolution_N=None, seed=0, joint_limits_deg=None,
-                        cell=None) -> dict:
+                        cell=None) -> DiscriminationPlan:
     """The next experiment that tells a verdict's rival causes apart (``stiffcal discriminate``; issue 18,
     :mod:`stiffcal.discrimination`): the M-point plan (poses within the joint limits, loads from ``loads``)
     that maximises the T-criterion of the rivals (Atkinson & Fedorov 1975), its predicted power, its
@@ -645,12 +645,11 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     (None: nothing written; files moved in only on success); resolutions as :func:`analyse_measurements`;
     joint_limits_deg and cell (as :func:`design`): every measurement of every plan is feasible in the cell, with
     a hanging mass's cable free.
-    Returns the plan.json dict (docs/measured-data.md). Raises :class:`InputError` for bad arguments or data.
+    Returns the :class:`stiffcal.results.DiscriminationPlan` (plan.json's fields, docs/measured-data.md; a
+    read-only mapping, ``to_dict()`` the JSON), the same whether or not ``out`` is given (the data's own loads,
+    with a loading bar's moments, in both). Raises :class:`InputError` for bad arguments or data.
     """
-    import json
-
     from . import discrimination
-    from . import measurements as M
 
     robot = _placed(_robot(robot), joint_limits_deg, cell)
     data = _input_file(_path(data, "data", "a measured-data CSV"))
@@ -674,11 +673,8 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
 
     if out is not None:
         return _written_whole(out, write)
-    meas = M.read_measurements(data, robot, *res[:2])
-    ls = discrimination.load_set(loads, robot.task_dim, meas.force, meas.resolutions[1], gravity=robot.gravity)
-    result = discrimination.discriminate(robot, meas, experiments, ls, repeats=repeats, weight=weight, truth=truth,
-                                         test_pose=qt, test_force=ft, alpha=alpha, seed=seed)
-    return json.loads(json.dumps(discrimination.to_json(result, str(data)), allow_nan=False))
+    return discrimination.planned(robot, str(data), experiments, loads, repeats, weight, truth, alpha, qt, ft,
+                                  *res[:2], seed)
 
 
 def predict_deflection(robot, poses, *, out=None, orientation: bool = False) -> dict:

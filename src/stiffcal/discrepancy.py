@@ -68,7 +68,7 @@ from .robot import TOOL_TARGET, Robot, as_xyz
 from .errormodel import INFLATION_NOTE
 from .errormodel import KINDS as EMKINDS
 from .errormodel import flat_index
-from .verdict import Verdict
+from .results import Verdict
 from .stiffness import observation_matrix, random_directions
 
 #: relative singular value below which a direction of a design matrix counts as absent
@@ -1548,7 +1548,7 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
 
 def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=None, test_force=None,
             gain: bool = True, sigma_m: float | None = None, sigma_rad: float | None = None) -> Verdict:
-    """The :class:`~stiffcal.verdict.Verdict` for one data set (module docstring; fields in
+    """The :class:`~stiffcal.results.Verdict` for one data set (module docstring; fields in
     docs/measured-data.md): the analysis's fields; those of the files and the calibrated model are None
     (:func:`complete` fills them in).
 
@@ -2360,7 +2360,7 @@ def _run(robot: Robot, data_path: str, out_dir: str, alpha: float, test_pose, te
 def analysed(robot: Robot, data_path: str, alpha: float = 0.01, test_pose=None, test_force=None,
              resolutions=(None, None, None), sigma_m: float | None = None, sigma_rad: float | None = None,
              progress=None):
-    """(the :class:`~stiffcal.verdict.Verdict` of the data file, its calibrated model
+    """(the :class:`~stiffcal.results.Verdict` of the data file, its calibrated model
     (:class:`stiffcal.calibrated.Calibration`), the :class:`Measurements`) without writing anything: read,
     analyse and :func:`complete` (``calibrated_model`` None: no file written). resolutions: (angle [deg], force
     [N], moment [N m]) or None for the defaults of :mod:`stiffcal.measurements`; ``progress`` (or None) is

@@ -79,6 +79,7 @@ from . import discrepancy as D
 from .design import grid_size, is_sampled, joint_grids, sample_joint_space, sampled_minimise
 from .errors import InputError
 from .measurements import Measurements
+from .results import DiscriminationPlan
 from .robot import Robot
 from .threads import single_threaded
 from .loads import MAX_DATA_LOADS, LoadSet, _numbers, check_lab_loads, sphere_directions  # noqa: F401 (re-exported)
@@ -1307,19 +1308,17 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
     return D._finite(out, out["notes"])
 
 
-def run(robot: Robot, data_path: str, out_dir: str, experiments: int, loads: str | None = None, repeats: int = 1,
-        weight: float = COMPOUND_WEIGHT, truth: str = "best", alpha: float = 0.01, test_pose=None, test_force=None,
-        angle_resolution_deg: float | None = None, force_resolution_N: float | None = None, seed: int = 0,
-        label: str | None = None, effort: Effort = Effort()) -> dict:
-    """Read the measured data, run the analysis and :func:`discriminate`, and write ``out_dir/plan.json`` and
-    ``out_dir/plan.{png,svg}`` (the Python API of ``stiffcal discriminate``). Everything is computed before
-    anything is written. loads: a :func:`load_set` spec (default: the loads of the data); test_pose (n,) [rad]
-    and test_force (d,) [N]: for the compound plan. Raises :class:`InputError` for bad input."""
+def planned(robot: Robot, data_path: str, experiments: int, loads: str | None = None, repeats: int = 1,
+            weight: float = COMPOUND_WEIGHT, truth: str = "best", alpha: float = 0.01, test_pose=None,
+            test_force=None, angle_resolution_deg: float | None = None, force_resolution_N: float | None = None,
+            seed: int = 0, effort: Effort = Effort()) -> DiscriminationPlan:
+    """Read the measured data, run the analysis and :func:`discriminate`: the
+    :class:`~stiffcal.results.DiscriminationPlan` (``plan.json``'s fields, JSON types), nothing written. loads: a
+    :func:`load_set` spec (default: the loads of the data, with their moments for a loading bar); test_pose (n,)
+    [rad] and test_force (d,) [N]: for the compound plan. Raises :class:`InputError` for bad input."""
     import json
-    from pathlib import Path
 
     from . import measurements as M
-    from . import plots
 
     if not 0 < alpha < 1:
         raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="--alpha")
@@ -1330,11 +1329,27 @@ def run(robot: Robot, data_path: str, out_dir: str, experiments: int, loads: str
                   moment_resolution_Nm=meas.resolutions[2], gravity=robot.gravity)
     res = discriminate(robot, meas, experiments, ls, repeats=repeats, weight=weight, truth=truth, test_pose=test_pose,
                        test_force=test_force, alpha=alpha, effort=effort, seed=seed)
-    out = to_json(res, str(data_path))
+    return DiscriminationPlan(**json.loads(json.dumps(to_json(res, str(data_path)), allow_nan=False)))
+
+
+def run(robot: Robot, data_path: str, out_dir: str, experiments: int, loads: str | None = None, repeats: int = 1,
+        weight: float = COMPOUND_WEIGHT, truth: str = "best", alpha: float = 0.01, test_pose=None, test_force=None,
+        angle_resolution_deg: float | None = None, force_resolution_N: float | None = None, seed: int = 0,
+        label: str | None = None, effort: Effort = Effort()) -> DiscriminationPlan:
+    """:func:`planned`, and write ``out_dir/plan.json`` and ``out_dir/plan.{png,svg}`` (the Python API of
+    ``stiffcal discriminate``). Everything is computed before anything is written."""
+    import json
+    from pathlib import Path
+
+    from . import plots
+
+    plan = planned(robot, data_path, experiments, loads, repeats, weight, truth, alpha, test_pose, test_force,
+                   angle_resolution_deg, force_resolution_N, seed, effort)
+    out = plan.to_dict()
     text = json.dumps(out, indent=2, allow_nan=False)
     fig = plots.fig_discrimination(robot, out, label or Path(data_path).name)
     d = Path(out_dir)
     d.mkdir(parents=True, exist_ok=True)
     plots.save(fig, d / "plan")
     (d / "plan.json").write_text(text + "\n", encoding="utf-8")
-    return out
+    return plan
