@@ -4,7 +4,8 @@ calibrated model it writes, its predictions and compensation of a path, and the 
 The data: data/synthetic_paper_2r.csv, SYNTHETIC deflections of the paper's arm with a hidden backlash of 5e-5 rad
 per joint and one blunder (data/README.md). Run from the repository:
     .venv/bin/python examples/measured_data.py [OUT_DIR]
-(OUT_DIR: where verdict.json, calibrated.yaml and the CSVs go; default a new temporary folder).
+(OUT_DIR: where verdict.json, calibrated.yaml and the CSVs go; default a new temporary folder, left there for
+you to read: the last line names it).
 """
 import sys
 import tempfile
@@ -21,8 +22,9 @@ verdict = stiffcal.analyse_measurements(ROOT / "config/robots/paper_2r.yaml", RO
 print(f"cause: {verdict.cause}; blunders at data rows {verdict.outlier_rows}")
 print(verdict.p_value_statement)
 ext = verdict.extended
+print("the extended model's parameters (backlash b_i: the joint's jump either way, half the gap of data/README.md):")
 for name, value, half in zip(ext["parameter_names"], ext["parameters"], ext["parameters_ci95"]):
-    print(f"  {name} = {value:.4g} +- {half:.2g} (95 %)")  # backlash b: the joint's jump either way, half the gap
+    print(f"  {name} = {value:.4g} +- {half:.2g} (95 %)")
 gain = verdict.gain
 print(f"held-out configurations, RMS error: nominal model {gain['loco_rms_nominal_m'] * 1e6:.3g} um, "
       f"calibrated {gain['loco_rms_extended_m'] * 1e6:.3g} um")

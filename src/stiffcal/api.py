@@ -539,7 +539,8 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     false-alarm rate, in (0, 1); test_pose_deg (n,) [deg] and force_N (d,) [N] or wrench (d + d_m,) [N, N m]:
     the test pose and its load for the predicted compensation error (give the pose and one load, or neither);
     out: a directory for ``verdict.json``, ``calibrated.yaml`` and the figures (:func:`stiffcal.discrepancy.run`;
-    None: nothing is written); figures: False writes the two files without the figures. The files are written to
+    None: nothing is written); figures: False writes the two files without the figures; label: the data set's name
+    in the figures' titles (default the file's name). The files are written to
     a temporary directory and moved into ``out`` only when everything succeeded.
     angle_resolution_deg [deg], force_resolution_N [N], moment_resolution_Nm [N m]: joint angles and loads
     that agree within these are one configuration and one load (encoder and load-cell resolution; defaults

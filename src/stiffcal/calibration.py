@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .catalogue import CAUSES, parameter_names
+from .catalogue import CAUSES, extension_size, parameter_names
 from .errors import InputError
 from .jsonsafe import json_safe
 
@@ -131,7 +131,4 @@ def _names_of(cause: str, robot: Robot, n_offsets: int) -> list[str]:
 
 
 def _extension_size(robot: Robot, causes, n_offsets: int) -> int:
-    n = robot.n_joints
-    size = {"link_compliance": robot.n_segments, "joint_coupling": n * (n - 1) // 2,
-            "nonlinear_joint_stiffness": n, "backlash": n, "measurement_offset": n_offsets}
-    return sum(size[c] for c in sorted(causes, key=CAUSES.index))
+    return sum(extension_size(c, robot, n_offsets) for c in causes)

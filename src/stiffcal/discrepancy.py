@@ -56,7 +56,8 @@ from itertools import combinations
 
 import numpy as np
 
-from .catalogue import CAUSES, MEASUREMENT_CAUSES  # noqa: F401  (the catalogue, by name; part of this module)
+from .catalogue import CATALOGUE, CAUSES, MEASUREMENT_CAUSES  # noqa: F401  (the catalogue; part of this module)
+from .catalogue import joint_columns
 from .design import is_sampled, sample_joint_space
 from . import distributions as dist
 from .errors import InputError
@@ -162,43 +163,18 @@ def _twists(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray) -> np.nda
     robot cause (the nominal model as cause ``"nominal"``), under the wrench ``load`` (N, d + d_m)."""
     if cause == "link_compliance":
         return _link_twists(robot, q, load)
-    return _joint_columns(cause, tool_twists(robot, q)[0], observation_torques(robot, q, load),
-                          _preload(cause, robot, q))
+    return joint_columns(cause, tool_twists(robot, q)[0], observation_torques(robot, q, load),
+                         _preload(cause, robot, q))
 
 
 def _preload(cause: str, robot: Robot, q: np.ndarray) -> np.ndarray | None:
-    """The self-weight torques (N, n) [N m] that preload a cause acting on the total torque (backlash, a
-    nonlinear stiffness; :meth:`Robot.gravity_torques`), None for the others or a robot without masses."""
-    if cause not in ("nonlinear_joint_stiffness", "backlash") or robot.masses is None:
+    """The self-weight torques (N, n) [N m] that preload a cause acting on the total torque
+    (:attr:`stiffcal.catalogue.Cause.preloaded`: backlash, a nonlinear stiffness; :meth:`Robot.gravity_torques`),
+    None for the others or a robot without masses."""
+    entry = CATALOGUE.get(cause)
+    if entry is None or not entry.preloaded or robot.masses is None:
         return None
     return robot.gravity_torques(q)
-
-
-def _signs(tau: np.ndarray, scale: np.ndarray) -> np.ndarray:
-    """sign(tau) with a torque within round-off of zero (relative to ``scale``, (N, 1)) taken as zero."""
-    return np.sign(tau) * (np.abs(tau) > 1e-12 * scale)
-
-
-def _joint_columns(cause: str, J: np.ndarray, tau: np.ndarray, preload: np.ndarray | None = None) -> np.ndarray:
-    """(N, k, p): the columns of a joint cause (``"nominal"``: the compliances) from the joints' Jacobian columns
-    J (N, k, n) (positions of the tool point, or 6-D twists) and the load's torques tau (N, n) (module
-    docstring). With the arm's own weight, ``preload`` (N, n) [N m], backlash and the nonlinear stiffness act on
-    the total torque and a row sees the loaded state less the unloaded one: J ((t0 + tau)^3 - t0^3) and
-    J (sign(t0 + tau) - sign(t0)) (a gap preloaded by the weight jumps only where the load reverses the total
-    torque)."""
-    n = J.shape[-1]
-    if cause == "nominal":
-        return J * tau[:, None, :]
-    if cause == "joint_coupling":
-        pairs = [(i, j) for i in range(n) for j in range(i + 1, n)]
-        return np.stack([J[:, :, i] * tau[:, j, None] + J[:, :, j] * tau[:, i, None] for i, j in pairs], axis=-1)
-    t0 = np.zeros_like(tau) if preload is None else preload
-    if cause == "nonlinear_joint_stiffness":
-        return J * ((t0 + tau) ** 3 - t0**3)[:, None, :]
-    if cause == "backlash":  # a torque within round-off of zero (the arm along the force) has no sign
-        scale = np.maximum(np.abs(tau), np.abs(t0)).max(axis=-1, keepdims=True)
-        return J * (_signs(t0 + tau, scale) - _signs(t0, scale))[:, None, :]
-    raise ValueError(f"unknown cause {cause!r}")
 
 
 def _general_columns(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray, observed: Observed) -> np.ndarray:
@@ -273,7 +249,7 @@ def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray,
         return np.broadcast_to(np.eye(d), (len(q), d, d)).copy()
     if cause == "nominal":
         raise ValueError(f"unknown cause {cause!r}")
-    return _joint_columns(cause, robot.jacobian(q), torques(robot, q, force), _preload(cause, robot, q))
+    return joint_columns(cause, robot.jacobian(q), torques(robot, q, force), _preload(cause, robot, q))
 
 
 def model_columns(robot: Robot, q: np.ndarray, force: np.ndarray, causes=(), predict: bool = False,
