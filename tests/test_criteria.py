@@ -83,3 +83,26 @@ def test_o_t_star_is_o_t_with_every_measurement_at_the_test_pose_for_a_six_axis_
     assert prob.ot_star(2) == pytest.approx(direct, rel=1e-9) == pytest.approx(3 * 1e-10 / 2)
     arm = load_robot(root / "config/robots/paper_2r.yaml")
     assert Problem(arm, np.array([0.0, 1.0]), "ot", 1, np.radians([60, 20])).ot_star(3) == 2 / 3
+
+
+def test_every_list_of_criteria_is_the_registry_s(root):
+    """The config schema's enum and default, the CLI's help and the docs' lists of criteria name exactly the
+    registered criteria (stiffcal.criteria.CRITERIA), and the registry's flags are what its formulas say: those
+    that invert the information matrix are +inf on a singular plan, the others finite."""
+    import re
+
+    from stiffcal.cli import build_parser
+    from stiffcal.validation import load_schema
+
+    keys = set(criteria.CRITERIA_KEYS)
+    crit = load_schema("config")["properties"]["study"]["properties"]["criteria"]
+    assert set(crit["items"]["enum"]) == keys and set(crit["default"]) == keys
+    design = build_parser()._subparsers._group_actions[0].choices["design"]
+    (help_text,) = [a.help for a in design._actions if "--criterion" in a.option_strings]
+    assert set(help_text.split(" (")[0].split()) == keys
+    contracts = (root / "docs/contracts.md").read_text(encoding="utf-8")
+    assert set(re.search(r"\[--criterion ([a-z0-9|]+)\]", contracts).group(1).split("|")) == keys
+    singular = np.array([[1.0, 0.0], [2.0, 0.0]])  # the second compliance unidentified
+    At = np.eye(2)
+    for key, c in criteria.CRITERIA.items():
+        assert np.isinf(criteria.loss(key, singular, 1, At)) == c.needs_inverse, key

@@ -290,6 +290,8 @@ def _cell_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from .criteria import CRITERIA_KEYS  # the registry (stiffcal.criteria.CRITERIA)
+
     p = _Parser(prog="stiffcal", description=__doc__.split("\n")[0])
     p.add_argument("--version", action="version", version=f"stiffcal {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
@@ -301,7 +303,7 @@ def build_parser() -> argparse.ArgumentParser:
                                     "FX,FY,FZ,MX,MY,MZ (spatial), instead of --force-N")
     d.add_argument("--experiments", default="1", help="number of measurement poses M (default 1); a range A-B or a "
                                                       "list 2,4,6 prints one plan per M (a JSON array)")
-    d.add_argument("--criterion", default="ot", help="ot a t d g mdc o1 o2 o3 o4 (default ot)")
+    d.add_argument("--criterion", default="ot", help=f"{' '.join(CRITERIA_KEYS)} (default ot)")
     d.add_argument("--sigma", default=None, help="position noise s.t.d. [m] (default 1; with --prior the "
                                                  "calibration's)")
     d.add_argument("--prior", help="a calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy): plan the "

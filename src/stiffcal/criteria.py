@@ -12,6 +12,7 @@ the SVD-based observability indices O1-O4 are computed from the same eigen-decom
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,40 +22,77 @@ from .stiffness import functional_variance, spectral
 
 @dataclass(frozen=True)
 class Criterion:
-    """One optimality criterion: ``key`` (CLI name), ``label`` (as in the paper), ``sense`` ('min' or
-    'max') and the paper's formula (documentation)."""
+    """One optimality criterion, an entry of the registry :data:`CRITERIA`: ``key`` (the CLI's and the config's
+    name), ``label`` (as in the paper), ``sense`` ('min' or 'max'), ``formula`` (the paper's, for the docs);
+    ``value(M, m, s, smax, At, sigma, A, spec)`` its natural value from information matrices M (..., n, n) of
+    m-pose plans, their singular values s (..., n) ascending (the square roots of M's eigenvalues; smax the
+    largest, 1 where zero), the test pose's rows At, the noise sigma, the stacked rows A and M's
+    eigen-decomposition ``spec`` (:func:`stiffcal.stiffness.spectral`); ``needs_inverse``: built on M^-1 (+inf
+    for a singular plan when optimising); ``nonsmooth``: a max over poses or eigenvalues (polished by
+    Nelder-Mead); ``exchange``: the fast exchange's form for it in :mod:`stiffcal.plans` (``"linear"``: a
+    linear functional tr(C M^-1), L-optimality; ``"closed"``: det or trace in closed form; None: the generic
+    exchange)."""
 
     key: str
     label: str
     sense: str
     formula: str
+    value: Callable
+    needs_inverse: bool = False
+    nonsmooth: bool = False
+    exchange: str | None = None
 
 
-#: Table 1, in the paper's order. O1 is the geometric mean of the singular values over sqrt(m) (the
-#: paper's sqrt(sigma_1 sigma_2)/sqrt(m) for two parameters). O2 is the inverse condition number
-#: sigma_s / sigma_1, as Table 1 names it; the formula Table 1 prints, sigma_s^2 / sigma_1^3, is not scale
-#: invariant (it changes with the units of A), so we keep the name's form. For the paper's arm both forms
-#: have the same global maximisers, the isotropic poses (sigma_s = sigma_1) of Table 2, so either gives
-#: the pose and accuracies printed there (tests/test_paper.py compares both with a brute force).
-TABLE1: dict[str, Criterion] = {
+def _eye_variance(M, spec):
+    return functional_variance(M, np.eye(M.shape[-1]), 1.0, spec)
+
+
+def _g(M, m, s, smax, At, sigma, A, spec):
+    if A is None:
+        raise ValueError("G-optimality needs the stacked observation rows A")
+    return np.max(functional_variance(M, A, 1.0, spec), axis=-1)
+
+
+#: Every criterion: the test-pose criterion O_t (eq. 16) and Table 1, in the paper's order. O1 is the geometric
+#: mean of the singular values over sqrt(m) (the paper's sqrt(sigma_1 sigma_2)/sqrt(m) for two parameters). O2 is
+#: the inverse condition number sigma_s / sigma_1, as Table 1 names it; the formula Table 1 prints,
+#: sigma_s^2 / sigma_1^3, is not scale invariant (it changes with the units of A), so we keep the name's form. For
+#: the paper's arm both forms have the same global maximisers, the isotropic poses (sigma_s = sigma_1) of Table 2,
+#: so either gives the pose and accuracies printed there (tests/test_paper.py compares both with a brute force).
+CRITERIA: dict[str, Criterion] = {
     c.key: c
     for c in [
-        Criterion("a", "A-optimality", "min", "trace((A^T A)^-1) -> min"),
-        Criterion("t", "T-optimality", "max", "trace(A^T A) -> max"),
-        Criterion("d", "D-optimality", "max", "det(A^T A) -> max"),
-        Criterion("g", "G-optimality", "min", "max d[H], H = A (A^T A)^-1 A^T -> min"),
-        Criterion("mdc", "MDC", "min", "max d[(A^T A)^-1] -> min"),
-        Criterion("o1", "O1", "max", "(sigma_1 ... sigma_s)^(1/s) / sqrt(m) -> max"),
-        Criterion("o2", "O2", "max", "sigma_s / sigma_1 -> max"),
-        Criterion("o3", "O3", "max", "sigma_s -> max"),
-        Criterion("o4", "O4", "max", "sigma_s^2 / sigma_1 -> max"),
+        Criterion("ot", "O_t", "min", "sigma^2 trace(A_t (A^T A)^-1 A_t^T) -> min (eq. 16)",
+                  lambda M, m, s, smax, At, sigma, A, spec: o_t(M, At, sigma, spec), needs_inverse=True,
+                  exchange="linear"),
+        Criterion("a", "A-optimality", "min", "trace((A^T A)^-1) -> min",
+                  lambda M, m, s, smax, At, sigma, A, spec: np.sum(_eye_variance(M, spec), axis=-1),
+                  needs_inverse=True, exchange="linear"),
+        Criterion("t", "T-optimality", "max", "trace(A^T A) -> max",
+                  lambda M, m, s, smax, At, sigma, A, spec: np.trace(M, axis1=-2, axis2=-1), exchange="closed"),
+        Criterion("d", "D-optimality", "max", "det(A^T A) -> max",
+                  lambda M, m, s, smax, At, sigma, A, spec: np.linalg.det(M), exchange="closed"),
+        Criterion("g", "G-optimality", "min", "max d[H], H = A (A^T A)^-1 A^T -> min", _g,
+                  needs_inverse=True, nonsmooth=True),
+        Criterion("mdc", "MDC", "min", "max d[(A^T A)^-1] -> min",
+                  lambda M, m, s, smax, At, sigma, A, spec: np.max(_eye_variance(M, spec), axis=-1),
+                  needs_inverse=True, nonsmooth=True),
+        Criterion("o1", "O1", "max", "(sigma_1 ... sigma_s)^(1/s) / sqrt(m) -> max",
+                  lambda M, m, s, smax, At, sigma, A, spec: np.prod(s, axis=-1) ** (1.0 / M.shape[-1]) / np.sqrt(m)),
+        Criterion("o2", "O2", "max", "sigma_s / sigma_1 -> max",
+                  lambda M, m, s, smax, At, sigma, A, spec: s[..., 0] / smax),
+        Criterion("o3", "O3", "max", "sigma_s -> max", lambda M, m, s, smax, At, sigma, A, spec: s[..., 0]),
+        Criterion("o4", "O4", "max", "sigma_s^2 / sigma_1 -> max",
+                  lambda M, m, s, smax, At, sigma, A, spec: s[..., 0] ** 2 / smax),
     ]
 }
+#: Table 1 of the paper (every criterion but O_t), in its order
+TABLE1: dict[str, Criterion] = {k: c for k, c in CRITERIA.items() if k != "ot"}
 
-CRITERIA_KEYS = ("ot",) + tuple(TABLE1)
+CRITERIA_KEYS = tuple(CRITERIA)
 
 #: criteria built on the inverse of the information matrix: +inf for a singular plan when optimising
-NEEDS_INVERSE = frozenset({"a", "g", "mdc", "ot"})
+NEEDS_INVERSE = frozenset(k for k, c in CRITERIA.items() if c.needs_inverse)
 
 
 def o_t(M: np.ndarray, At: np.ndarray, sigma: float = 1.0, spec=None) -> np.ndarray:
@@ -90,32 +128,11 @@ def from_info(key: str, M: np.ndarray, m: int, At: np.ndarray | None = None, sig
     """
     spec = spectral(M) if spec is None else spec
     w, _, null = spec
-    n = M.shape[-1]
     s = np.sqrt(np.where(null, 0.0, np.maximum(w, 0.0)))  # ascending
     smax = np.where(s[..., -1] > 0, s[..., -1], 1.0)
-    if key == "ot":
-        return o_t(M, At, sigma, spec)
-    if key == "a":
-        return np.sum(functional_variance(M, np.eye(n), 1.0, spec), axis=-1)
-    if key == "mdc":
-        return np.max(functional_variance(M, np.eye(n), 1.0, spec), axis=-1)
-    if key == "g":
-        if A is None:
-            raise ValueError("G-optimality needs the stacked observation rows A")
-        return np.max(functional_variance(M, A, 1.0, spec), axis=-1)
-    if key == "t":
-        return np.trace(M, axis1=-2, axis2=-1)
-    if key == "d":
-        return np.linalg.det(M)
-    if key == "o1":
-        return np.prod(s, axis=-1) ** (1.0 / n) / np.sqrt(m)
-    if key == "o2":
-        return s[..., 0] / smax
-    if key == "o3":
-        return s[..., 0]
-    if key == "o4":
-        return s[..., 0] ** 2 / smax
-    raise KeyError(key)
+    if key not in CRITERIA:
+        raise KeyError(key)
+    return CRITERIA[key].value(M, m, s, smax, At, sigma, A, spec)
 
 
 def evaluate(key: str, A: np.ndarray, m: int, At: np.ndarray | None = None, sigma: float = 1.0):
@@ -125,11 +142,11 @@ def evaluate(key: str, A: np.ndarray, m: int, At: np.ndarray | None = None, sigm
 
 def sense(key: str) -> str:
     """'min' or 'max'."""
-    return "min" if key == "ot" else TABLE1[key].sense
+    return CRITERIA[key].sense
 
 
 def label(key: str) -> str:
-    return "O_t" if key == "ot" else TABLE1[key].label
+    return CRITERIA[key].label
 
 
 def loss_from_info(key: str, M: np.ndarray, m: int, At: np.ndarray | None = None, sigma: float = 1.0,

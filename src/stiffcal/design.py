@@ -559,7 +559,7 @@ def global_minimise(fun, robot: Robot, step_deg: float, n_refine: int = 8):
 
 
 #: criteria with kinks (a max over poses or eigenvalues): polished by Nelder-Mead even in a cell
-NONSMOOTH = ("mdc", "g")
+NONSMOOTH = tuple(k for k, c in criteria.CRITERIA.items() if c.nonsmooth)  # registered as such
 
 
 @single_threaded

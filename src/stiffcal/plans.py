@@ -376,7 +376,7 @@ def _symmetric_det(S: np.ndarray, dim: int) -> np.ndarray:
 
 #: criteria whose exchange step has a closed form other than the L-optimal ones': D (the determinant lemma)
 #: and T (a sum of traces)
-CLOSED_FORM = ("d", "t")
+CLOSED_FORM = tuple(k for k, c in criteria.CRITERIA.items() if c.exchange == "closed")  # registered as such
 
 
 def closed_form_scores(key: str, forms: PoolForms, M_rest: np.ndarray) -> np.ndarray:
@@ -508,7 +508,7 @@ def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: b
 
 
 #: criteria whose exchange step is scored by :func:`exchange_scores` (L-optimality: W = A_t^T A_t or I)
-L_OPTIMAL = ("ot", "a")
+L_OPTIMAL = tuple(k for k, c in criteria.CRITERIA.items() if c.exchange == "linear")  # registered as such
 
 
 def exchange_plans(problem: Problem, plans: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
