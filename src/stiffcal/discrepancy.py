@@ -1543,13 +1543,13 @@ def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=Non
 def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None, test_force=None,
                gain: bool = True, progress=None) -> Verdict:
     """The verdict of :func:`analyse` from the analysis prepared by :func:`prepare` (the same arguments);
-    ``progress`` (a :class:`stiffcal.progress.Progress`, or None) is advanced when the closed test is done."""
-    meas = pre.meas
-    m, ob, ob_full, des, noise, w, keep = pre.m, pre.ob, pre.ob_full, pre.des, pre.noise, pre.w, pre.keep
-    blunders, dropped, rw, vm, zp, notes = pre.blunders, pre.dropped, pre.rw, pre.vm, pre.zero_point, list(pre.notes)
-
+    ``progress`` (a :class:`stiffcal.progress.Progress`, or None) is advanced when the closed test is done. Its
+    stages: the closed test and the causes it names (:func:`_named_causes`), the nominal model
+    (:func:`_nominal_summary`), the diagnostics, the extended model, the held-out check and the gain with their
+    notes (:func:`_gain_notes`)."""
+    meas, m, ob, des, noise, notes = pre.meas, pre.m, pre.ob, pre.des, pre.noise, list(pre.notes)
     f0 = fit(des.X0, des.y)
-    lof = lack_of_fit_test(robot, m, des, noise, w, pre.error)
+    lof = lack_of_fit_test(robot, m, des, noise, pre.w, pre.error)
     sel = closed_testing(des, CAUSES, noise, lof, alpha)
     testable = sel.causes
     alone = {c: f_test(f0.rss, f0.df, sel.fits[frozenset([c])].rss, sel.fits[frozenset([c])].df, noise.s2, noise.df)
@@ -1557,11 +1557,53 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     chosen = sel.explanations[0] if sel.explanations else frozenset(testable)
     alternatives = [S for S in sel.explanations[1:] if len(S) == len(chosen)]
     chosen, alternatives, notes = physical_choice(des, sel, chosen, alternatives, noise, robot, ob, notes)
+    cause, ranked, indistinct, p_value, p_of = _named_causes(sel, chosen, alternatives, alone, noise, alpha)
+    sigma = float(np.sqrt(noise.s2))
+    t = dist.t_isf(0.025, noise.df)
+    nominal, more = _nominal_summary(robot, pre, f0, sigma, t, lof(frozenset(), sel.fits[frozenset()]))
+    notes += more
+    tests = {c: {"extra_parameters": int(sel.fits[frozenset([c])].rank - f0.rank) if c in testable else 0,
+                 "p_value": alone[c],
+                 "adjusted_p_value": sel.adjusted.get(c), "significant": c in sel.declared} for c in CAUSES}
+    out = {"cause": cause, "causes": ranked, "indistinguishable_from": indistinct,
+           "equivalent_combinations": [sorted(S, key=CAUSES.index) for S in alternatives],
+           "p_value": p_value, "p_value_of": p_of,
+           "p_value_statement": p_value_statement(cause, p_of, p_value, sel.adjusted, alpha),
+           "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
+           "nominal": nominal, "tests": tests,
+           "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
+           "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
+           "outlier_rows": [int(meas.rows[r]) for r in pre.blunders],
+           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas,
+                                               observed=pre.ob_full.take(pre.keep)) for c in indistinct},
+           "zero_point": pre.zero_point, "error_model": pre.error.as_dict(), "notes": notes}
+    ext = sorted(chosen, key=CAUSES.index) if ranked else []
+    if progress is not None:
+        progress.advance()
+    out["diagnostics"], more = diagnostics(robot, pre, chosen, sel.fits[chosen], alpha)
+    notes += more
+    out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
+    held = held_out(robot, pre, ext) if gain else None
+    out["held_out"] = None if held is None else held.as_dict()
+    out["gain"] = _gain(robot, des, ext, noise.s2, test_pose, test_force, ob, out["held_out"]) if ext and gain else None
+    notes += _gain_notes(robot, out["gain"], out["diagnostics"], ext, pre.dropped, test_pose, test_force)
+    out = _finite(out, out["notes"])
+    if sel.unexplained:
+        f = sel.fits[chosen]
+        resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
+        out["residual_structure"] = residual_structure(robot, m, resid)
+    return Verdict(**out, robot=robot.source)
 
+
+def _named_causes(sel: Selection, chosen: frozenset, alternatives: list, alone: dict, noise: Noise, alpha: float):
+    """(cause, causes ranked by how much the chosen model needs each, indistinguishable_from, p_value,
+    p_value_of) of the verdict (docs/measured-data.md) from the closed test ``sel``, the chosen combination and
+    its equally good alternatives, and each cause's p-value alone against the nominal model."""
     def drop_p(c):  # how much the chosen model needs c
         a, b = sel.fits[chosen - {c}], sel.fits[chosen]
         return f_test(a.rss, a.df, b.rss, b.df, noise.s2, noise.df)
 
+    testable = sel.causes
     ranked = sorted(chosen, key=lambda c: (drop_p(c), CAUSES.index(c)))
     indistinct = sorted({c for S in alternatives for c in S} - set(chosen), key=CAUSES.index)
     if sel.unexplained:
@@ -1576,77 +1618,59 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
         p_value = sel.adjusted_p(p_of)
     else:
         cause, p_value, p_of = "none", (sel.adjusted_p(testable) if testable else 1.0), list(testable)
+    return cause, ranked, indistinct, p_value, p_of
 
-    sigma = float(np.sqrt(noise.s2))
-    t = dist.t_isf(0.025, noise.df)
+
+def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: float, lof_nominal) -> tuple[dict, list]:
+    """(the verdict's ``nominal``, the plausibility notes on its compliances): the paper's model fitted by the
+    analysis (f0), its noise sigma [m], the t quantile of its 95 % intervals, its lack-of-fit p-value."""
+    m, ob, noise, vm = pre.m, pre.ob, pre.noise, pre.vm
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
-    lof_nominal = lof(frozenset(), sel.fits[frozenset()])
-    notes += plausibility(robot, m, f0.beta, k_ci, ob)
+    notes = plausibility(robot, m, f0.beta, k_ci, ob)
     params = ob.model_params(robot)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
                "k_names": [robot.joint_columns("k")[int(j)] for j in params],
                "not_identifiable_joints": [j + 1 for j in range(robot.n_joints) if j not in params],
-               "sigma_m": sigma, "rotation_weight_m_per_rad": rw if m.rot is not None else None,
+               "sigma_m": sigma, "rotation_weight_m_per_rad": pre.rw if m.rot is not None else None,
                "sigma_source": noise.source, "sigma_df": int(noise.df),
                "noise_varies": None if vm is None else {"p_value": vm.p_value, "sigma_ratio": vm.sigma_ratio},
                "rss": f0.rss, "df": f0.df,
                "lack_of_fit_p": lof_nominal, "n_rows": int(m.n_rows), "n_poses": int(m.n_configurations)}
-    tests = {c: {"extra_parameters": int(sel.fits[frozenset([c])].rank - f0.rank) if c in testable else 0,
-                 "p_value": alone[c],
-                 "adjusted_p_value": sel.adjusted.get(c), "significant": c in sel.declared} for c in CAUSES}
-    out = {"cause": cause, "causes": ranked, "indistinguishable_from": indistinct,
-           "equivalent_combinations": [sorted(S, key=CAUSES.index) for S in alternatives],
-           "p_value": p_value, "p_value_of": p_of,
-           "p_value_statement": p_value_statement(cause, p_of, p_value, sel.adjusted, alpha),
-           "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
-           "nominal": nominal, "tests": tests,
-           "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
-           "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
-           "outlier_rows": [int(meas.rows[r]) for r in blunders],
-           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas, observed=ob_full.take(keep))
-                          for c in indistinct},
-           "zero_point": zp, "error_model": pre.error.as_dict(), "notes": notes}
-    ext = sorted(chosen, key=CAUSES.index) if ranked else []
-    if progress is not None:
-        progress.advance()
-    out["diagnostics"], more = diagnostics(robot, pre, chosen, sel.fits[chosen], alpha)
-    notes += more
-    out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
-    held = held_out(robot, pre, ext) if gain else None
-    out["held_out"] = None if held is None else held.as_dict()
-    out["gain"] = _gain(robot, des, ext, noise.s2, test_pose, test_force, ob, out["held_out"]) if ext and gain else None
-    if out["gain"] is not None and out["gain"]["loco_ratio"] is None:
+    return nominal, notes
+
+
+def _gain_notes(robot: Robot, gain: dict | None, diagnostics: dict, ext: list, dropped, test_pose,
+                test_force) -> list[str]:
+    """The notes on the verdict's ``gain`` (a held-out error that cannot be computed; an extended model no better
+    held out, which also sets ``diagnostics["extended_not_better_held_out"]``; plan figures left out, set to None
+    in ``gain``; a test load that turns a joint the data cannot identify)."""
+    notes = []
+    if gain is not None and gain["loco_ratio"] is None:
         notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
                      "configurations (and a nonzero error of the extended model); it is left out")
-    elif out["gain"] is not None and out["gain"]["loco_ratio"] <= 1.0:
-        g = out["gain"]
-        out["diagnostics"]["extended_not_better_held_out"] = True
+    elif gain is not None and gain["loco_ratio"] <= 1.0:
+        diagnostics["extended_not_better_held_out"] = True
         notes.append(f"the extended model ({', '.join(ext)}) predicts held-out configurations no better than the "
-                     f"nominal one (leave-one-configuration-out RMS {g['loco_rms_extended_m'] * 1e6:.3g} um against "
-                     f"{g['loco_rms_nominal_m'] * 1e6:.3g} um, loco_ratio {g['loco_ratio']:.3g}): its extra parameters "
-                     "fit these configurations but do not carry to others, so its gain at the test pose rests on the "
-                     "extension being right there; prefer the nominal model for prediction, or measure more "
-                     "configurations")
+                     f"nominal one (leave-one-configuration-out RMS {gain['loco_rms_extended_m'] * 1e6:.3g} um "
+                     f"against {gain['loco_rms_nominal_m'] * 1e6:.3g} um, loco_ratio {gain['loco_ratio']:.3g}): its "
+                     "extra parameters fit these configurations but do not carry to others, so its gain at the test "
+                     "pose rests on the extension being right there; prefer the nominal model for prediction, or "
+                     "measure more configurations")
     for key, what in (("optimal_plan_extended_rms_m", "the O_t-optimal plan for the extended model"),
                       ("nominal_plan_under_extended_rms_m", "the nominal model's optimal plan")):
-        if out["gain"] is not None and key in out["gain"] and not np.isfinite(out["gain"][key]):
-            out["gain"][key] = None
-            notes.append(f"gain.{key} is left out: {what} ({len(out['gain']['nominal_plan_deg'])} poses under the "
+        if gain is not None and key in gain and not np.isfinite(gain[key]):
+            gain[key] = None
+            notes.append(f"gain.{key} is left out: {what} ({len(gain['nominal_plan_deg'])} poses under the "
                          "test load, measuring what the data measured) does not identify every parameter of the "
                          f"extended model ({', '.join(ext)}): its information matrix is singular, so its O_t is "
                          "infinite")
-    if len(dropped) and out["gain"] is not None and "test_pose_rms_nominal_m" in out["gain"]:
+    if len(dropped) and gain is not None and "test_pose_rms_nominal_m" in gain:
         tau = torques(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force))[0]
         turned = [robot.joint_names[int(j)] for j in dropped if abs(tau[j]) > RANK_RTOL * np.abs(tau).max()]
         if turned:
             notes.append(f"the test load turns joint(s) {', '.join(turned)}, whose compliance these data cannot "
                          "identify: the test-pose figures of gain leave its deflection out")
-    out = _finite(out, out["notes"])
-    if sel.unexplained:
-        f = sel.fits[chosen]
-        resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
-        out["residual_structure"] = residual_structure(robot, m, resid)
-    return Verdict(**out, robot=robot.source)
+    return notes
 
 
 def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: float) -> tuple[dict, list[str]]:
