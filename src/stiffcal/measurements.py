@@ -494,13 +494,57 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     named in ``notes`` (one that looks like ``pose_id``, 'pose id', with a suggestion), and so are ``pose_id``
     labels merged into one configuration.
     """
-    import pandas as pd
-
     source = str(path)
     for name, v in (("angle resolution", angle_resolution_deg), ("force resolution", force_resolution_N),
                     ("moment resolution", moment_resolution_Nm)):
         if not (np.isfinite(v) and v > 0):
             raise InputError(f"expected a {name} > 0, got {v}", field=name.replace(" ", "_"))
+    df = _read_table(path, source)
+    cols, groups, notes = _data_columns(df, robot, source)
+    used = cols + groups["moment"] + groups["orientation"]
+    values = _numbers(df, used, source)
+    n, d, dm = robot.n_joints, force_dim(robot), moment_dim(robot)
+    q_deg, force, dp = values[:, :n], values[:, n:n + d], values[:, n + d:n + 2 * d]
+    at = n + 2 * d
+    moment = values[:, at:at + dm] if groups["moment"] else np.zeros((len(df), dm))
+    at += len(groups["moment"])
+    rot = values[:, at:at + dm] if groups["orientation"] else None
+    target, target_names = _targets(df, robot, source)
+
+    labels, more = _pose_labels(df, source)
+    notes += more
+    config, names, config_notes = _configurations(labels, q_deg, angle_resolution_deg, source)
+    notes += config_notes
+
+    unloaded = _unloaded_rows(force, moment, force_resolution_N, moment_resolution_Nm, bool(groups["moment"]),
+                              source)
+    _check_loads_below_resolution(q_deg, force, moment if groups["moment"] else None, dp, target, unloaded,
+                                  angle_resolution_deg, force_resolution_N, moment_resolution_Nm, cols[n:n + d], source)
+    loaded = np.flatnonzero(~unloaded)
+    zero = np.flatnonzero(unloaded)
+    notes += _angle_notes(q_deg, cols[:n], robot) + _duplicate_notes(df, loaded)
+    if zero.size:
+        notes.append(f"{zero.size} unloaded row(s) ({_rows_text(zero)}) taken as the zero point, not as "
+                     "measurements")
+    cfg_loaded, cfg_index = np.unique(config[loaded], return_inverse=True)
+    lookup = {int(c): i for i, c in enumerate(cfg_loaded)}
+    zero_config = np.array([lookup.get(int(c), -1) for c in config[zero]], int)
+    res = (float(angle_resolution_deg), float(force_resolution_N), float(moment_resolution_Nm))
+    has_m = bool(groups["moment"])
+    group = replicate_groups(q_deg[loaded], force[loaded], *res[:2], moment[loaded] if has_m else None, res[2],
+                             target[loaded])
+    log, log_notes = _row_log(df, source, labels, target, config, unloaded, dp, rot, group, loaded)
+    return Measurements(np.radians(q_deg[loaded]), force[loaded], dp[loaded], group, source, cfg_index.ravel(),
+                        tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config,
+                        tuple(notes + log_notes), res, moment[loaded], None if rot is None else rot[loaded],
+                        target[loaded], target_names, None if rot is None else rot[zero], labels is not None, log,
+                        printed_step(df.loc[loaded, used[n + d:n + 2 * d]].to_numpy().ravel()))
+
+
+def _read_table(path, source: str):
+    """The CSV as a table of strings (pandas), its column names stripped and their units checked."""
+    import pandas as pd
+
     from .limits import MAX_MEASURED_ROWS
 
     try:
@@ -510,6 +554,13 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
         raise InputError(f"cannot read a CSV table ({err})", source=source) from None
     df.columns = [c.strip() for c in df.columns]
     _check_units(df.columns, source)
+    return df
+
+
+def _data_columns(df, robot: Robot, source: str) -> tuple[list[str], dict, list[str]]:
+    """(the columns the analysis reads: the joint angles, the force, the displacement; the optional groups
+    {"moment": [...], "orientation": [...]} present (each all or none); notes on the columns it ignores) of the
+    table ``df``. Raises :class:`InputError` for a misspelled, missing or incomplete column or an empty table."""
     cols = angle_columns(list(df.columns), robot, source) + expected_columns(robot)[robot.n_joints:]
     misspelled = _misspelled(df.columns, cols + sum(optional_columns(robot).values(), []) + ["target", "pose_id",
                                                                                             *LOG_COLUMNS])
@@ -544,38 +595,37 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
         notes.append(f"column(s) {', '.join(unused)} not used by the analysis"
                      + "".join(f"; {c!r} looks like {name} (a misspelling?): rename it {name} to "
                                + _LOG_USE[name] for c, name in misspelled.items()))
-    values = _numbers(df, used, source)
-    n, d, dm = robot.n_joints, force_dim(robot), moment_dim(robot)
-    q_deg, force, dp = values[:, :n], values[:, n:n + d], values[:, n + d:n + 2 * d]
-    at = n + 2 * d
-    moment = values[:, at:at + dm] if groups["moment"] else np.zeros((len(df), dm))
-    at += len(groups["moment"])
-    rot = values[:, at:at + dm] if groups["orientation"] else None
-    target, target_names = _targets(df, robot, source)
+    return cols, groups, notes
 
-    labels = None
-    if "pose_id" in df.columns:
-        from .limits import MAX_LABEL_CHARS
 
-        stripped = df["pose_id"].str.strip()
-        raw = stripped.to_numpy()
-        long = np.flatnonzero(stripped.str.len().to_numpy() > MAX_LABEL_CHARS)
-        if long.size:
-            r = int(long[0])
-            raise InputError(f"expected a label of at most {MAX_LABEL_CHARS} characters (a configuration's name), got "
-                             f"{len(raw[r]):,}", source=source, field=f"row {r + 2} (data row {r}), column pose_id")
-        blank = np.flatnonzero(raw == "")
-        if blank.size == len(raw):
-            notes.append("column pose_id is blank in every row: configurations come from the joint angles")
-        elif blank.size:
-            raise InputError(f"pose_id is blank in {_rows_text(blank)} but filled in the other rows; give every "
-                             "row the label of its robot configuration, or drop the column (configurations are "
-                             "then found from the joint angles)", source=source, field="column pose_id")
-        else:
-            labels = raw
-    config, names, config_notes = _configurations(labels, q_deg, angle_resolution_deg, source)
-    notes += config_notes
+def _pose_labels(df, source: str) -> tuple[np.ndarray | None, list[str]]:
+    """(the ``pose_id`` labels (N,), None without the column or with it blank in every row; notes). Raises
+    :class:`InputError` for a label too long or blank cells beside filled ones."""
+    if "pose_id" not in df.columns:
+        return None, []
+    from .limits import MAX_LABEL_CHARS
 
+    stripped = df["pose_id"].str.strip()
+    raw = stripped.to_numpy()
+    long = np.flatnonzero(stripped.str.len().to_numpy() > MAX_LABEL_CHARS)
+    if long.size:
+        r = int(long[0])
+        raise InputError(f"expected a label of at most {MAX_LABEL_CHARS} characters (a configuration's name), got "
+                         f"{len(raw[r]):,}", source=source, field=f"row {r + 2} (data row {r}), column pose_id")
+    blank = np.flatnonzero(raw == "")
+    if blank.size == len(raw):
+        return None, ["column pose_id is blank in every row: configurations come from the joint angles"]
+    if blank.size:
+        raise InputError(f"pose_id is blank in {_rows_text(blank)} but filled in the other rows; give every "
+                         "row the label of its robot configuration, or drop the column (configurations are "
+                         "then found from the joint angles)", source=source, field="column pose_id")
+    return raw, []
+
+
+def _unloaded_rows(force: np.ndarray, moment: np.ndarray, force_resolution_N: float, moment_resolution_Nm: float,
+                   has_moment: bool, source: str) -> np.ndarray:
+    """(N,) bool: the rows whose every force component is within ``force_resolution_N`` of zero and every moment
+    within ``moment_resolution_Nm``. Raises :class:`InputError` when every row is (with a hint at kN)."""
     unloaded = np.all(np.abs(force) <= force_resolution_N, axis=1) & np.all(np.abs(moment) <= moment_resolution_Nm,
                                                                             axis=1)
     if unloaded.all():
@@ -584,29 +634,9 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
               "N: if the forces are in kN (labelled N), give them in newtons (x 1000), or lower the force resolution"
               if largest > 0 else "")
         raise InputError(f"every row is unloaded (all force components within {force_resolution_N:g} N of zero"
-                         f"{f' and moments within {moment_resolution_Nm:g} N m' if groups['moment'] else ''}); "
+                         f"{f' and moments within {moment_resolution_Nm:g} N m' if has_moment else ''}); "
                          f"expected measurements under load{kn}", source=source)
-    _check_loads_below_resolution(q_deg, force, moment if groups["moment"] else None, dp, target, unloaded,
-                                  angle_resolution_deg, force_resolution_N, moment_resolution_Nm, cols[n:n + d], source)
-    loaded = np.flatnonzero(~unloaded)
-    zero = np.flatnonzero(unloaded)
-    notes += _angle_notes(q_deg, cols[:n], robot) + _duplicate_notes(df, loaded)
-    if zero.size:
-        notes.append(f"{zero.size} unloaded row(s) ({_rows_text(zero)}) taken as the zero point, not as "
-                     "measurements")
-    cfg_loaded, cfg_index = np.unique(config[loaded], return_inverse=True)
-    lookup = {int(c): i for i, c in enumerate(cfg_loaded)}
-    zero_config = np.array([lookup.get(int(c), -1) for c in config[zero]], int)
-    res = (float(angle_resolution_deg), float(force_resolution_N), float(moment_resolution_Nm))
-    has_m = bool(groups["moment"])
-    group = replicate_groups(q_deg[loaded], force[loaded], *res[:2], moment[loaded] if has_m else None, res[2],
-                             target[loaded])
-    log, log_notes = _row_log(df, source, labels, target, config, unloaded, dp, rot, group, loaded)
-    return Measurements(np.radians(q_deg[loaded]), force[loaded], dp[loaded], group, source, cfg_index.ravel(),
-                        tuple(names[c] for c in cfg_loaded), loaded, zero, dp[zero], zero_config,
-                        tuple(notes + log_notes), res, moment[loaded], None if rot is None else rot[loaded],
-                        target[loaded], target_names, None if rot is None else rot[zero], labels is not None, log,
-                        printed_step(df.loc[loaded, used[n + d:n + 2 * d]].to_numpy().ravel()))
+    return unloaded
 
 
 def _row_log(df, source: str, labels, target, config, unloaded, dp, rot, group, loaded) -> tuple[RowLog, list[str]]:
