@@ -90,7 +90,8 @@ def dump(cases: Path, out: Path) -> None:
             v = {k: x for k, x in (v.to_dict() if hasattr(v, "to_dict") else v).items() if k not in FILE_FIELDS}
         except Exception as err:  # a refusal is an output too
             v = {"error": f"{type(err).__name__}: {err}"}
-        (out / f"case-{csv.stem}.json").write_text(json.dumps(v, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+        text = json.dumps(v, indent=1, sort_keys=True, allow_nan=False)
+        (out / f"case-{csv.stem}.json").write_text(text + "\n", encoding="utf-8")
     cli = [sys.executable, "-m", "stiffcal.cli"]
     env = {**os.environ, "STIFFCAL_CACHE_DIR": str(out / ".cache")}
     runs = [(f"discrepancy-{n}", ["discrepancy", *a, "--out", str(out / f"discrepancy-{n}"), "--no-figures"])
