@@ -53,7 +53,6 @@ DISCRIMINATE = {
 PAPER_DESIGN = ["--robot", "config/robots/paper_2r.yaml", "--test-pose-deg", "60,30", "--force-N", "0,-1"]
 KUKA_DESIGN = ["--robot", "config/robots/kuka_kr210_r2700.yaml", "--test-pose-deg", "20,-60,110,30,45,-20",
                "--force-N", "500,-300,-800", "--experiments", "3"]
-CRITERIA = ("ot", "a", "t", "d", "g", "mdc", "o1", "o2", "o3", "o4")
 
 
 def write_cases(folder: Path, limit: int | None) -> list[str]:
@@ -79,6 +78,7 @@ def dump(cases: Path, out: Path) -> None:
     """Every golden output of the stiffcal on sys.path into ``out`` (run in the child process)."""
     from stiffcal import discrepancy as D
     from stiffcal import rates as R
+    from stiffcal.criteria import CRITERIA_KEYS  # the registry of the tree on sys.path (the child's PYTHONPATH)
     from stiffcal.measurements import read_measurements
 
     arms = R.robots(ROOT)
@@ -99,7 +99,7 @@ def dump(cases: Path, out: Path) -> None:
     runs += [(f"discriminate-{n}", ["discriminate", *a, "--out", str(out / f"discriminate-{n}")])
              for n, a in DISCRIMINATE.items()]
     runs += [(f"design-2r-{c}-{m}", ["design", *PAPER_DESIGN, "--criterion", c, "--experiments", str(m)])
-             for c in CRITERIA for m in (1, 3)]
+             for c in CRITERIA_KEYS for m in (1, 3)]
     runs += [(f"design-kuka-{c}", ["design", *KUKA_DESIGN, "--criterion", c]) for c in ("ot", "d", "a", "mdc")]
     for name, args in runs:
         res = subprocess.run(cli + args, cwd=ROOT, capture_output=True, text=True, env=env)
@@ -132,12 +132,14 @@ def main() -> int:
     if args.dump:
         dump(Path(args.dump[0]), Path(args.dump[1]))
         return 0
+    from stiffcal.criteria import CRITERIA_KEYS
+
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         (tmp / "cases").mkdir()
         names = write_cases(tmp / "cases", args.cases)
         print(f"golden: {len(names)} simulated logs, {len(DISCREPANCY)} discrepancy, {len(DISCRIMINATE)} discriminate "
-              f"and {2 * len(CRITERIA) + 4} design runs, at {args.baseline} and in this tree", file=sys.stderr)
+              f"and {2 * len(CRITERIA_KEYS) + 4} design runs, at {args.baseline} and in this tree", file=sys.stderr)
         (tmp / "baseline").mkdir()
         trees = {"baseline": _tree(args.baseline, tmp / "baseline"), "this tree": ROOT / "src"}
         outs = {}
