@@ -62,10 +62,10 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_analysis.py
 	$(BIN)/python benchmarks/bench_pipeline.py --baseline $(PIPELINE_BASELINE)
 
-# Regenerate src/stiffcal/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.
+# Regenerate src/stiffcal/planning/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.
 derive: $(STAMP)
 	$(BIN)/python -m pip install --quiet --disable-pip-version-check sympy==1.14.0
-	$(BIN)/python tools/derive_map_polynomials.py src/stiffcal/_map_polynomials.py
+	$(BIN)/python tools/derive_map_polynomials.py src/stiffcal/planning/_map_polynomials.py
 
 clean:
 	rm -rf results figures paper/build logs .snakemake .stiffcal

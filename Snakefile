@@ -2,7 +2,7 @@
 #   snakemake --cores 2 --workflow-profile workflow/profiles/default     (what `make report` runs)
 # Config: config/config.yaml, or instead one complete `--configfile FILE` (never merged with it); `--config
 # KEY=VALUE` overrides either. Keys: docs/contracts.md; what reruns after an edit: docs/workflow.md.
-# Everything in the config is checked here, before any job runs (stiffcal.config).
+# Everything in the config is checked here, before any job runs (stiffcal.workflow.config).
 import os as _os
 import sys as _sys
 
@@ -11,7 +11,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):  # e
 
 from snakemake.utils import min_version
 
-from stiffcal.config import workflow_config as _workflow_config
+from stiffcal.workflow.config import workflow_config as _workflow_config
 from stiffcal.memo import WORKFLOW_MEMO_DIR as _MEMO_DIR
 from stiffcal.errors import InputError as _InputError
 

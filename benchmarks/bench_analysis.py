@@ -1,7 +1,7 @@
-"""CPU of the measured-data analysis (``stiffcal.discrepancy.analyse``) on the 6-axis arm, beside a baseline commit
-in the same run (issue 23: within 1.5x of the analysis before the error model of the rows' reference readings).
+"""CPU of the measured-data analysis (``stiffcal.measured.discrepancy.analyse``) on the 6-axis arm, beside a baseline
+commit in the same run (issue 23: within 1.5x of the analysis before the error model of the rows' reference readings).
 
-The data sets are simulated once by this tree's stiffcal.truth (the lab's protocols: references per load, per
+The data sets are simulated once by this tree's stiffcal.testing.truth (the lab's protocols: references per load, per
 visit and per configuration with revisits) and written as CSVs; both codes read the same files. Each analysis
 runs in its own process (the baseline's src/ first on PYTHONPATH: ``git archive``, no checkout), timed in CPU
 seconds of that process after its imports (the median of REPEATS runs), with ``gain=False`` (as the rate matrix
@@ -28,16 +28,17 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
-from stiffcal import rates as R  # noqa: E402
-from stiffcal import truth as T  # noqa: E402
+from stiffcal.testing import rates as R  # noqa: E402
+from stiffcal.testing import truth as T  # noqa: E402
 
 CASES = ("3-D pushes x 2, repeated", "hanging x3, reference per visit, 2 passes",
          "gauge +-axes, reference per visit, half revisited", "hanging x3, reference per configuration, half revisited")
 
 TIMER = """
 import json, sys, time, os
-from stiffcal.robot import load_robot
-from stiffcal import discrepancy as D, measurements as M
+from stiffcal.model.robot import load_robot
+from stiffcal.measured import discrepancy as D
+from stiffcal.measured import measurements as M
 robot = load_robot(sys.argv[1])
 gain = sys.argv[3] == "gain"
 qt = [20, -60, 110, 30, 45, -20]

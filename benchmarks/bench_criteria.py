@@ -32,8 +32,8 @@ t0 = time.process_time()
 r = api.design("config/robots/kuka_kr210_r2700.yaml", [20, -60, 110, 30, 45, -20], [500, -300, -800],
                experiments={m}, criterion="{criterion}", progress=False)
 cpu = time.process_time() - t0
-from stiffcal.robot import load_robot
-from stiffcal.stiffness import information_matrix, observation_matrix
+from stiffcal.model.robot import load_robot
+from stiffcal.model.stiffness import information_matrix, observation_matrix
 import numpy as np
 robot = load_robot("config/robots/kuka_kr210_r2700.yaml")
 A = observation_matrix(robot.model_jacobian(np.radians(r.poses_deg)), np.array([500.0, -300.0, -800.0]))
@@ -46,10 +46,10 @@ print(json.dumps(dict(cpu=cpu, O_t=[r.O_t], poses=[r.poses_deg.round(6).tolist()
 SCORING = """
 import json, time
 import numpy as np
-from stiffcal.certificate import candidate_pool, default_pool_step
-from stiffcal.plans import exchange_scores, pool_forms
-from stiffcal.robot import load_robot
-from stiffcal.stiffness import information_matrix, observation_matrix
+from stiffcal.planning.certificate import candidate_pool, default_pool_step
+from stiffcal.planning.plans import exchange_scores, pool_forms
+from stiffcal.model.robot import load_robot
+from stiffcal.model.stiffness import information_matrix, observation_matrix
 robot = load_robot("config/robots/kuka_kr210_r2700.yaml")
 F = np.array([500.0, -300.0, -800.0])
 rng = np.random.default_rng(0)

@@ -7,7 +7,7 @@ the machining test pose and load of config/config.yaml), as a whole process (imp
 
 * one call at M = 6: the baseline commit's (``BASELINE_COMMIT``, before the cache), ours with ``--no-cache``,
   and ours with the cache filled by an earlier call (the approximate design, its certificate and the candidate
-  pool read back: :mod:`stiffcal.designcache`);
+  pool read back: :mod:`stiffcal.planning.designcache`);
 * a study of M = 2..8 as a script runs it (seven calls, the cache empty at the first): the baseline's and ours,
   each beside one call of its own at M = 6; and ours in one call (``--experiments 2-8``).
 

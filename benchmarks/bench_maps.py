@@ -1,13 +1,13 @@
 """Benchmark: the maps over test poses (Figures 6-10), every figure beside its baseline in the same run.
 
-The baseline is the solver and hand-over of commit 8afcc70 (``stiffcal._map_baseline``): the exact method
+The baseline is the solver and hand-over of commit 8afcc70 (``stiffcal.testing._map_baseline``): the exact method
 on every class, symmetry classes recomputed over the whole grid by every tile, tiles and maps handed over as
 CSV. Times are CPU seconds of this process (``time.process_time``, single-threaded BLAS), printed as ratios.
 
 Targets (issue 16, item 4): a 1-degree map (129,600 cells) in at most 0.5 s of CPU per link ratio
 including table building; every cell within 1e-9 (relative) of the optimum, next to straight and folded
 test poses too; 0.5-degree maps practical. Accuracy is measured against an independent long-double brute
-force (``stiffcal.reference.brute_force_cell_ld``) on random cells, three quarters of them next to singular
+force (``stiffcal.testing.reference.brute_force_cell_ld``) on random cells, three quarters of them next to singular
 test poses (within 1e-3..3 deg of a straight or folded arm, within 2 deg of the force through joint 2 or
 joint 1). The 0.5-degree maps are timed per link ratio with their hand-over and figures, to judge them as a
 default.
@@ -30,11 +30,11 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from stiffcal import _map_baseline as base  # noqa: E402
-from stiffcal import _map_solver as solver  # noqa: E402
-from stiffcal import maps  # noqa: E402
-from stiffcal.reference import brute_force_cell_ld, brute_force_pair  # noqa: E402
-from stiffcal.tables import write_csv  # noqa: E402
+from stiffcal.testing import _map_baseline as base  # noqa: E402
+from stiffcal.planning import _map_solver as solver  # noqa: E402
+from stiffcal.planning import maps  # noqa: E402
+from stiffcal.testing.reference import brute_force_cell_ld, brute_force_pair  # noqa: E402
+from stiffcal.paper.tables import write_csv  # noqa: E402
 
 T_IMPORT = time.process_time() - T_START
 T0 = time.process_time()
@@ -93,7 +93,7 @@ def handover_baseline(df, tmp, n_reads):
 def figures_by_step(b):
     """CPU and bytes of the figures a map feeds (Figure 6 and its Figure 7-10 panel, PNG + SVG) at 1 and
     0.5 degrees (matplotlib imported beforehand, as the figure job does once)."""
-    from stiffcal import plots
+    from stiffcal.report import plots
 
     out = {}
     for step in (1.0, 0.5):
@@ -114,7 +114,7 @@ def line(label, ours, baseline, unit="s", target=""):
 
 def main(n_cells: int, skip_half: bool, n_pairs: int = 30) -> None:
     print("Maps over test poses: CPU seconds of this process, ours beside the baseline (commit 8afcc70)")
-    print(f"(importing numpy, pandas, stiffcal.maps and the baseline took {T_IMPORT:.2f} s once per process; "
+    print(f"(importing numpy, pandas, stiffcal.planning.maps and the baseline took {T_IMPORT:.2f} s once per process; "
           f"python-flint, imported by a map job on its first cell that needs the exact method, {T_FLINT:.3f} s)")
     # --- 1. a 1-degree map per link ratio, table building included --------------------------------------
     print("\n1-degree maps (129,600 cells), solving one cell per symmetry class; ours includes building the table")

@@ -5,7 +5,7 @@ Copies the workflow (Snakefile, workflow/, config/, paper/, data/) into a tempor
 
 * the CPU of every rule: the sum over its jobs of each job's own ``time.process_time()`` at its end
   (interpreter, Snakemake's script preamble, imports and the step; the last line of every job's log,
-  written by :func:`stiffcal.pipeline.run`), the number of jobs, and the mean CPU spent before the step
+  written by :func:`stiffcal.workflow.pipeline.run`), the number of jobs, and the mean CPU spent before the step
   began (start-up);
 * the whole run's CPU (``resource.getrusage(RUSAGE_CHILDREN)``: Snakemake itself, its job wrappers and
   every job; what ``/usr/bin/time`` reports for ``make clean report``), and what Snakemake and the wrappers

@@ -55,9 +55,9 @@ def run(src: Path, code: str) -> dict:
 OT_VERSUS_M = """
 import json, time
 import numpy as np
-from stiffcal import tables
-from stiffcal.certificate import approximate_design
-from stiffcal.study import load_config, study_from_config
+from stiffcal.paper import tables
+from stiffcal.planning.certificate import approximate_design
+from stiffcal.planning.study import load_config, study_from_config
 study = study_from_config(load_config("{config}"), ".")
 design = approximate_design(study.problem("ot", 1))
 t0 = time.process_time()
@@ -68,10 +68,10 @@ print(json.dumps(dict(cpu=time.process_time() - t0, O_t=df.O_t.tolist(), poses=d
 THREE_LINK = """
 import json, time
 import numpy as np
-from stiffcal.certificate import approximate_design
-from stiffcal.design import Problem
-from stiffcal.plans import optimise_plan, round_design
-from stiffcal.robot import planar_robot
+from stiffcal.planning.certificate import approximate_design
+from stiffcal.planning.problem import Problem
+from stiffcal.planning.plans import optimise_plan, round_design
+from stiffcal.model.robot import planar_robot
 robot = planar_robot([0.5, 0.35, 0.15])
 prob = Problem(robot, np.array([0.0, -1.0]), "ot", 10, np.radians([30.0, 40.0, -20.0]))
 design = approximate_design(Problem(robot, prob.force, "ot", 1, prob.test_pose))

@@ -1,10 +1,10 @@
 """How the measured-data analysis grows with the rows (issue 28): a lab log of hanging masses (4 loads, repeated:
-8 rows a configuration, so 10^5 rows are 12,500 configurations) simulated by stiffcal.truth for the 2-link and the
-6-axis arm at 400 .. 200,000 rows (stiffcal.limits.MAX_MEASURED_ROWS; beyond it a log is refused at the read),
-read and analysed in this process (one BLAS thread) as `stiffcal discrepancy` does (stiffcal.discrepancy.run: the
-verdict with the leave-one-configuration-out check, the figures and the calibrated model written); prints the CPU
-seconds of the read and the run, the peak memory, and the CPU per row against the smallest size in the same run
-(1.0: linear).
+8 rows a configuration, so 10^5 rows are 12,500 configurations) simulated by stiffcal.testing.truth for the 2-link
+and the 6-axis arm at 400 .. 200,000 rows (stiffcal.limits.MAX_MEASURED_ROWS; beyond it a log is refused at the read),
+read and analysed in this process (one BLAS thread) as `stiffcal discrepancy` does
+(stiffcal.measured.discrepancy.run: the verdict with the leave-one-configuration-out check, the figures and the
+calibrated model written); prints the CPU seconds of the read and the run, the peak memory, and the CPU per row
+against the smallest size in the same run (1.0: linear).
 
 Run: OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_rows.py [ARM ...]   (default 2-link 6-axis; about
 ten minutes)
@@ -18,10 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from stiffcal import discrepancy as D
-from stiffcal import rates as R
-from stiffcal import truth as T
-from stiffcal.measurements import read_measurements
+from stiffcal.measured import discrepancy as D
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
+from stiffcal.measured.measurements import read_measurements
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = (50, 1250, 12500, 25000)  # x 8 rows: 400, 10,000, 100,000, 200,000

@@ -12,7 +12,7 @@ subprocess; CPU seconds by ``time.process_time`` with one BLAS thread, printed b
 
 With ``--random-arms N`` it also designs for N random 6-axis arms with random joint limits, test poses and
 forces (seeds 0..N-1) and checks each certificate against an independent search (500,000 random poses,
-half of them on the limits, L-BFGS-B from the best 100: ``stiffcal.reference.max_phi_reference``).
+half of them on the limits, L-BFGS-B from the best 100: ``stiffcal.testing.reference.max_phi_reference``).
 
 Run: .venv/bin/python benchmarks/bench_spatial.py [--random-arms N]   (about a minute, plus ~10 s an arm)
 """
@@ -24,10 +24,10 @@ from bench_plans import ROOT, baseline_src, run
 KUKA = """
 import json, time
 import numpy as np
-from stiffcal.certificate import approximate_design
-from stiffcal.design import Problem
-from stiffcal.plans import optimise_plan, round_design
-from stiffcal.robot import load_robot
+from stiffcal.planning.certificate import approximate_design
+from stiffcal.planning.problem import Problem
+from stiffcal.planning.plans import optimise_plan, round_design
+from stiffcal.model.robot import load_robot
 robot = load_robot("config/robots/kuka_kr210_r2700.yaml")
 force, qt, sigma, m = np.array([500.0, -300.0, -800.0]), np.radians([20, -60, 110, 30, 45, -20]), 1e-5, 6
 t0 = time.process_time()
@@ -42,10 +42,10 @@ print(json.dumps(dict(cpu=t2 - t0, design=t1 - t0, plan=t2 - t1, O_t=plan.loss, 
 IRB140 = """
 import json, time
 import numpy as np
-from stiffcal.certificate import approximate_design
-from stiffcal.design import Problem
-from stiffcal.plans import optimise_plan, round_design
-from stiffcal.robot import load_robot
+from stiffcal.planning.certificate import approximate_design
+from stiffcal.planning.problem import Problem
+from stiffcal.planning.plans import optimise_plan, round_design
+from stiffcal.model.robot import load_robot
 robot = load_robot("tests/data/irb140_no_limits.yaml")
 force, qt, m = np.array([100.0, 0.0, -100.0]), np.radians([0, 20, -20, 0, 45, 0]), 6
 t0 = time.process_time()
@@ -58,10 +58,10 @@ print(json.dumps(dict(cpu=t1 - t0, O_t=plan.loss, bound=design.lower_bound(m), g
 RANDOM_ARM = """
 import json, time
 import numpy as np
-from stiffcal.certificate import approximate_design
-from stiffcal.design import Problem
-from stiffcal.reference import max_phi_reference
-from stiffcal.robot import spatial_robot
+from stiffcal.planning.certificate import approximate_design
+from stiffcal.planning.problem import Problem
+from stiffcal.testing.reference import max_phi_reference
+from stiffcal.model.robot import spatial_robot
 rng = np.random.default_rng({seed})
 rows = np.column_stack([rng.uniform(-0.5, 0.8, 6), rng.choice([-90, 0, 90, 37], 6), rng.uniform(-0.4, 0.6, 6),
                         rng.uniform(-60, 60, 6)])

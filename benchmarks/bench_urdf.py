@@ -1,9 +1,9 @@
 """Benchmark: the kinematics of a URDF arm (config/robots/kuka_kr210_r2700_urdf.yaml), batched in numpy from
-the chain that Pinocchio reads (stiffcal.urdf), against Pinocchio called once per pose from Python (the
+the chain that Pinocchio reads (stiffcal.model.urdf), against Pinocchio called once per pose from Python (the
 baseline), in the same run; and against the DH file of the same arm.
 
 What is timed: position and Jacobian of the measured point at 32768 random poses, the size of one call of the
-searches over one pose (stiffcal.design.sampled_minimise, the certificate), which need the Jacobian only.
+searches over one pose (stiffcal.planning.problem.sampled_minimise, the certificate), which need the Jacobian only.
 CPU seconds (time.process_time), reported as ratios.
 
 Run: .venv/bin/python benchmarks/bench_urdf.py   (single-threaded BLAS is forced below)
@@ -19,7 +19,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from stiffcal.robot import load_robot  # noqa: E402
+from stiffcal.model.robot import load_robot  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 POSES = 32768

@@ -1,4 +1,4 @@
-"""The cell (stiffcal.workcell, issue 24) on real arms nobody here wrote: the UR10, Panda and Kinova Jaco2 of the
+"""The cell (stiffcal.model.workcell, issue 24) on real arms nobody here wrote: the UR10, Panda and Kinova Jaco2 of the
 example-robot-data package (pinned in requirements-test.lock), on the floor with self-collision from their meshes.
 
 Prints, in one run (CPU seconds, one BLAS thread):
@@ -9,7 +9,7 @@ Prints, in one run (CPU seconds, one BLAS thread):
 2. for M = 2..8 (Panda 3..8: 7 joints): the O_t of the plan in the cell beside the unconstrained optimum (the cost
    of feasibility), the bounds, and an independent check of every pose of both plans against the URDF's meshes
    (Pinocchio + coal; adjacent links and the SRDF's pairs left out) and the joints' heights above the floor:
-   ``stiffcal design`` (the API) and the workflow's design-study functions (stiffcal.pipeline), which give the
+   ``stiffcal design`` (the API) and the workflow's design-study functions (stiffcal.workflow.pipeline), which give the
    same plans;
 3. the next experiment (``discriminate``) on simulated hanging-mass data of each arm: every point of its plans
    by the same independent check;
@@ -39,9 +39,10 @@ import real_arms  # noqa: E402
 from test_workcell import MeshCheck  # noqa: E402
 
 import stiffcal  # noqa: E402
-from stiffcal import pipeline, workcell  # noqa: E402
-from stiffcal.design import sample_joint_space  # noqa: E402
-from stiffcal.robot import load_robot  # noqa: E402
+from stiffcal.workflow import pipeline  # noqa: E402
+from stiffcal.model import workcell  # noqa: E402
+from stiffcal.planning.problem import sample_joint_space  # noqa: E402
+from stiffcal.model.robot import load_robot  # noqa: E402
 
 
 def cpu():
@@ -78,12 +79,12 @@ def plans_and_costs(name, path, d, ms, seed=0):
     t_wf = cpu() - t
     import pandas as pd
 
-    from stiffcal.tables import parse_plan
+    from stiffcal.paper.tables import parse_plan
 
     wf = pd.read_csv(files["best.csv"])
-    from stiffcal.certificate import approximate_design
-    from stiffcal.plans import CELL_STARTS, design_starts, optimise_plan
-    from stiffcal.study import Study
+    from stiffcal.planning.certificate import approximate_design
+    from stiffcal.planning.plans import CELL_STARTS, design_starts, optimise_plan
+    from stiffcal.planning.study import Study
 
     st_free = Study(name, free_robot, np.radians(qt), np.array(force, float), 1e-5, ("ot",), 1.0, 1.0)
     d_free = approximate_design(st_free.problem("ot"))
@@ -123,10 +124,10 @@ def plans_and_costs(name, path, d, ms, seed=0):
 
 
 def next_experiment(name, robot):
-    from stiffcal import discrimination as X
-    from stiffcal import rates as R
-    from stiffcal import truth as T
-    from stiffcal.measurements import Measurements
+    from stiffcal.measured import discrimination as X
+    from stiffcal.testing import rates as R
+    from stiffcal.testing import truth as T
+    from stiffcal.measured.measurements import Measurements
 
     _, _, _, _, _, qt, force = real_arms.ARMS[name]
     rng = np.random.default_rng(1)
@@ -155,9 +156,9 @@ def next_experiment(name, robot):
 def seed_spread(name, path, ms, seeds):
     """How much the seed of the random starts moves O_t, in the cell (64 starts) and without it (16 starts, the
     issue's UR10 case): the design (the slow part, seed-free) once per M, the plan for every seed."""
-    from stiffcal.certificate import approximate_design
-    from stiffcal.plans import best_plan
-    from stiffcal.study import Study
+    from stiffcal.planning.certificate import approximate_design
+    from stiffcal.planning.plans import best_plan
+    from stiffcal.planning.study import Study
 
     _, _, _, _, _, qt, force = real_arms.ARMS[name]
     robot = load_robot(path)

@@ -1,12 +1,12 @@
-"""The next experiment (stiffcal.discrimination): predicted power against the simulated rate of separation,
+"""The next experiment (stiffcal.measured.discrimination): predicted power against the simulated rate of separation,
 the plans' efficiency, and the exchange against a naive random search given the same CPU time.
 
-Cases: old data in which the analysis cannot tell two causes apart (each simulated with stiffcal.truth, or
+Cases: old data in which the analysis cannot tell two causes apart (each simulated with stiffcal.testing.truth, or
 the repository's SYNTHETIC data set), in the paper's 2-link arm, a 3-link arm and the 6-axis KUKA. For every
 case the discriminating plan of 6 points (stiffcal discriminate's defaults), the best plans of 1, 2 and 3
 points, and random plans whose predicted power lies between 0.2 and 0.9 are measured on simulated truth:
 each rival in turn as the truth (its fitted model; link bending, coupled joints and an offset simulated by
-stiffcal.truth's physics), the analysis run on old and new data together, REPS repetitions. A row prints
+stiffcal.testing.truth's physics), the analysis run on old and new data together, REPS repetitions. A row prints
 the predicted power of the separating F-test, the simulated rate of separation (the verdict lists the truth's
 combination and not the rival's) and the difference in binomial standard errors.
 
@@ -19,12 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from stiffcal import discrepancy as D
-from stiffcal import discrimination as X
-from stiffcal import rates as R
-from stiffcal import truth as T
-from stiffcal.measurements import Measurements, read_measurements
-from stiffcal.robot import load_robot, planar_robot
+from stiffcal.measured import discrepancy as D
+from stiffcal.measured import discrimination as X
+from stiffcal.testing import separation as S
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
+from stiffcal.measured.measurements import Measurements, read_measurements
+from stiffcal.model.robot import load_robot, planar_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -100,7 +101,7 @@ def main(reps: int = 300) -> None:
                     break
         for name, q, F in plans:
             for t in range(len(rm.models)):
-                for s in X.simulate_separation(rm, q, F, 1, t, reps, seed=len(rows)):
+                for s in S.simulate_separation(rm, q, F, 1, t, reps, seed=len(rows)):
                     se = np.sqrt(max(s.predicted * (1 - s.predicted), 1.0 / reps) / reps)
                     z = (s.rate - s.predicted) / se
                     rows.append((s.predicted, s.rate, z))

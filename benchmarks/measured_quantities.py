@@ -1,5 +1,5 @@
 """Benchmark: what moments, orientation and several targets change (issue 15), on data simulated by
-stiffcal.truth and written as the CSVs a lab would write.
+stiffcal.testing.truth and written as the CSVs a lab would write.
 
 1. Moments: hanging weights on a loading bar 0.3 m from the tool point (a moment r x F about it), the 2-link
    arm and the 6-axis arm. Prints the relative error of the identified compliances with the moment columns,
@@ -26,12 +26,12 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from stiffcal import discrepancy as D  # noqa: E402
-from stiffcal import rates as R  # noqa: E402
-from stiffcal import truth as T  # noqa: E402
+from stiffcal.measured import discrepancy as D  # noqa: E402
+from stiffcal.testing import rates as R  # noqa: E402
+from stiffcal.testing import truth as T  # noqa: E402
 from stiffcal.api import design  # noqa: E402
-from stiffcal.measurements import read_measurements  # noqa: E402
-from stiffcal.robot import load_robot, with_targets  # noqa: E402
+from stiffcal.measured.measurements import read_measurements  # noqa: E402
+from stiffcal.model.robot import load_robot, with_targets  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,13 +1,15 @@
-"""Clean data of one lab protocol, analysed as a lab would (a CSV with pose_id through stiffcal.discrepancy.analyse)
-and by the oracle that knows the rows' true covariance (stiffcal.rates.oracle_global_p: the same closed test on
-the rows whitened by it, the noise scale known), seed by seed: how many false alarms each raises, how many they
-share, and the Spearman correlation of their global p-values. An oracle rate near alpha with the analysis above it
-says the estimated error model is at fault; both above alpha on the same seeds says the seeds are unlucky. An
-ablation beside them: the same analysis told the simulator's true noise weights (1 / sigma of each row's reading,
-relative to the median row) and without the blunder screen, which says how much of an excess the estimated
-noise weights (stiffcal.discrepancy.variance_model and residual_variance_model) bring.
+"""Clean data of one lab protocol, analysed as a lab would (a CSV with pose_id through
+stiffcal.measured.discrepancy.analyse) and by the oracle that knows the rows' true covariance
+(stiffcal.testing.rates.oracle_global_p: the same closed test on the rows whitened by it, the noise scale known),
+seed by seed: how many false alarms each raises, how many they share, and the Spearman correlation of their global
+p-values. An oracle rate near alpha with the analysis above it says the estimated error model is at fault; both above
+alpha on the same seeds says the seeds are unlucky. An ablation beside them: the same analysis told the simulator's
+true noise weights (1 / sigma of each row's reading, relative to the median row) and without the blunder screen,
+which says how much of an excess the estimated noise weights (stiffcal.measured.discrepancy.variance_model and
+residual_variance_model) bring.
 Run: .venv/bin/python benchmarks/oracle_false_alarms.py ARM "PROTOCOL" [SEEDS] [FIRST_SEED] [ALPHA]
-(ARM: 2-link, 3-link or 6-axis; PROTOCOL a name of stiffcal.rates.PROTOCOLS; defaults 300 seeds from 0, alpha 0.01).
+(ARM: 2-link, 3-link or 6-axis; PROTOCOL a name of stiffcal.testing.rates.PROTOCOLS; defaults 300 seeds from 0,
+alpha 0.01).
 """
 import sys
 import tempfile
@@ -18,10 +20,10 @@ from unittest import mock
 import numpy as np
 from scipy import stats
 
-from stiffcal import discrepancy as D
-from stiffcal import rates as R
-from stiffcal import truth as T
-from stiffcal.measurements import read_measurements
+from stiffcal.measured import discrepancy as D
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
+from stiffcal.measured.measurements import read_measurements
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -1,7 +1,7 @@
 """Where the powered catalogue causes that the analysis does not name are lost, under the lab's reference protocols.
 
-For every arm x lab protocol (the protocols with the lab's own reference readings, stiffcal.rates.PROTOCOLS) x
-catalogue cause, SEEDS cases are simulated and analysed as a lab would (stiffcal.rates.run_case, the CSV with
+For every arm x lab protocol (the protocols with the lab's own reference readings, stiffcal.testing.rates.PROTOCOLS) x
+catalogue cause, SEEDS cases are simulated and analysed as a lab would (stiffcal.testing.rates.run_case, the CSV with
 pose_id). A case is *powered* when the exact-shape oracle (a 1-degree-of-freedom test of the effect's noise-free
 displacement, the rows' true covariance known) has power >= 0.9; the cause-block oracle knows the cause but not its
 parameters (the F-test of its regressors, no multiplicity). Each powered case that the verdict does not name is put
@@ -9,7 +9,7 @@ in one of three classes:
 
 - *model*: the cause-block oracle has power < 0.5: the analysis's regressors of that cause cannot represent what the
   simulator's physics did (a catalogue blind spot);
-- *test*: the analysis's own closed test on the rows whitened by their true covariance (stiffcal.rates.
+- *test*: the analysis's own closed test on the rows whitened by their true covariance (stiffcal.testing.rates.
   oracle_global_p; the noise scale known, the lack-of-fit test left out) rejects nothing either: the loss is the
   price of not knowing the cause (five causes, their blocks and single parameters, the lack of fit) at this
   effect size, not of the estimated error model;
@@ -31,8 +31,8 @@ import zlib
 from collections import defaultdict
 from pathlib import Path
 
-from stiffcal import discrepancy as D
-from stiffcal import rates as R
+from stiffcal.measured import discrepancy as D
+from stiffcal.testing import rates as R
 
 ROOT = Path(__file__).resolve().parents[1]
 LAB = [p for p, pr in R.PROTOCOLS.items() if pr.reference in ("visit", "configuration") and pr.passes > 1]

@@ -4,9 +4,9 @@ Every catalogue cause, two effects outside the catalogue (a tracker drift; a com
 joint's turn) and clean data, hidden under every measurement protocol that suits the robot (hanging weights,
 pushes in four directions, 3-D pushes, one random load; repeated on the spot, interleaved, not repeated;
 unloaded reference rows; tracker noise growing with distance) in the 2-link, 3-link and 6-axis arms. Each
-case is written as a lab's CSV with and without pose_id and analysed both ways (stiffcal.rates). Effect
+case is written as a lab's CSV with and without pose_id and analysed both ways (stiffcal.testing.rates). Effect
 sizes are drawn log-uniformly; a case counts for an effect when the oracle test that knows the effect's
-exact shape has power >= 0.9 (stiffcal.rates); the rates are also printed against a weaker oracle that
+exact shape has power >= 0.9 (stiffcal.testing.rates); the rates are also printed against a weaker oracle that
 knows which cause is present but not its parameters (the F-test of that cause's regressors). Also printed,
 for two effects at once, the rate at which both are named.
 
@@ -32,8 +32,8 @@ from pathlib import Path
 
 from scipy import stats
 
-from stiffcal import discrepancy as D
-from stiffcal import rates as R
+from stiffcal.measured import discrepancy as D
+from stiffcal.testing import rates as R
 
 ROOT = Path(__file__).resolve().parents[1]
 PAIRS = {"2-link": ("backlash", "measurement_offset"), "3-link": ("joint_coupling", "nonlinear_joint_stiffness"),

@@ -1,7 +1,7 @@
 """Make data/synthetic_paper_2r.csv: SYNTHETIC measured deflections of the paper's arm with one hidden effect,
 logged the way calibration labs log them.
 
-The data are simulated, not measured: stiffcal.truth (written from the physics, independent of the
+The data are simulated, not measured: stiffcal.testing.truth (written from the physics, independent of the
 analysis) gives the deflections of the paper's arm (l1 = 0.6 m, l2 = 0.4 m) with joint compliances
 k = (1.5, 3.0) 1e-6 rad/(N m), plus a hidden backlash of 5e-5 rad in each joint (a smoothed gap whose sign
 follows the torque). Protocol: 30 random configurations within the joint limits, at each a push of 300 N
@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stiffcal.robot import load_robot
-from stiffcal.truth import Protocol, Truth, lab_csv, lab_log, measure
+from stiffcal.model.robot import load_robot
+from stiffcal.testing.truth import Protocol, Truth, lab_csv, lab_log, measure
 
 ROOT = Path(__file__).resolve().parents[1]
 SEED = 20261130

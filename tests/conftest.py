@@ -12,8 +12,8 @@ os.environ.setdefault("STIFFCAL_PROGRESS_S", "3600")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from stiffcal.robot import load_robot  # noqa: E402
-from stiffcal.study import load_config, study_from_config  # noqa: E402
+from stiffcal.model.robot import load_robot  # noqa: E402
+from stiffcal.planning.study import load_config, study_from_config  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,8 +40,8 @@ def paper_study(paper_config):
 
 @pytest.fixture(autouse=True)
 def _own_design_cache(tmp_path_factory, monkeypatch):
-    """Every test its own empty cache of approximate designs (stiffcal.designcache) for ``stiffcal design``: no test
-    reads another's entry (one that patches the certificate sees its patch), none writes to ~/.cache."""
+    """Every test its own empty cache of approximate designs (stiffcal.planning.designcache) for ``stiffcal design``:
+    no test reads another's entry (one that patches the certificate sees its patch), none writes to ~/.cache."""
     monkeypatch.setenv("STIFFCAL_CACHE_DIR", str(tmp_path_factory.mktemp("design-cache")))
 
 

@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from stiffcal import archive as A
+from stiffcal.workflow import archive as A
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.report import image_data_uri, print_images, write_pdf
+from stiffcal.report.html import image_data_uri, print_images, write_pdf
 
 
 def _tree(tmp_path):

@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from stiffcal.cli import main
-from stiffcal.config import workflow_config
+from stiffcal.workflow.config import workflow_config
 from stiffcal.errors import MAX_MESSAGE, InputError
 from stiffcal.validation import read_yaml
 

@@ -1,5 +1,5 @@
-"""The calibrated model in use (stiffcal.calibrated): the exported file reloads to the verdict's numbers, its
-predictions equal the simulator's deflection (stiffcal.truth, written apart from the regressors) for every
+"""The calibrated model in use (stiffcal.measured.calibrated): the exported file reloads to the verdict's numbers, its
+predictions equal the simulator's deflection (stiffcal.testing.truth, written apart from the regressors) for every
 catalogue extension, with wrenches, targets and rotations and the arm's own weight, and a finite difference of the
 kinematics; compensation with the true model leaves nothing, with a calibrated one an error whose distribution
 over seeds is the one its covariance predicts."""
@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from stiffcal import calibrated as C
-from stiffcal import discrepancy as D
-from stiffcal import rates as R
-from stiffcal import truth as T
-from stiffcal.measurements import read_measurements, rows_by_label
-from stiffcal.robot import load_robot
+from stiffcal.measured import calibrated as C
+from stiffcal.measured import discrepancy as D
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
+from stiffcal.measured.measurements import read_measurements, rows_by_label
+from stiffcal.model.robot import load_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 ARMS = R.robots(ROOT)
@@ -358,7 +358,7 @@ def test_next_round_with_no_prior_is_the_plan_without_old_data(tmp_path):
     cal = robot.calibration
     ob = D.Observed(robot.target_names, None, False, 1.0, np.asarray(cal.k_joints), cal.n_offsets)
     _, Xp, Xt, _ = D.plan_regressors(robot, ("backlash",), QT, FT, ob)
-    from stiffcal.plans import fedorov_exchange
+    from stiffcal.planning.plans import fedorov_exchange
     a = fedorov_exchange(Xp, Xt, 3, greedy=True, n_starts=4)
     b = fedorov_exchange(Xp, Xt, 3, greedy=True, n_starts=4, prior=np.zeros((4, 4)))
     assert np.array_equal(a.indices, b.indices) and a.value == b.value

@@ -1,13 +1,13 @@
-"""Conformance of every registered catalogue cause (stiffcal.catalogue.CATALOGUE), parametrised over the
+"""Conformance of every registered catalogue cause (stiffcal.model.catalogue.CATALOGUE), parametrised over the
 registry: a cause added there is checked here without a new test (docs/extending.md)."""
 
 import numpy as np
 import pytest
 
-from stiffcal import catalogue as C
-from stiffcal import discrepancy as D
-from stiffcal.calibration import _extension_size
-from stiffcal.robot import load_robot
+from stiffcal.model import catalogue as C
+from stiffcal.measured import discrepancy as D
+from stiffcal.model.calibration import _extension_size
+from stiffcal.model.robot import load_robot
 
 from conftest import ROOT
 

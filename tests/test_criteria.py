@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from stiffcal import criteria
+from stiffcal.model import criteria
 
 
 def _independent(key, A, m, At):
@@ -72,8 +72,8 @@ def test_o_t_star_is_o_t_with_every_measurement_at_the_test_pose_for_a_six_axis_
     n = 2."""
     from pathlib import Path
 
-    from stiffcal.design import Problem
-    from stiffcal.robot import load_robot
+    from stiffcal.planning.problem import Problem
+    from stiffcal.model.robot import load_robot
 
     root = Path(__file__).resolve().parents[1]
     kuka = load_robot(root / "config/robots/kuka_kr210_r2700.yaml")
@@ -87,7 +87,7 @@ def test_o_t_star_is_o_t_with_every_measurement_at_the_test_pose_for_a_six_axis_
 
 def test_every_list_of_criteria_is_the_registry_s(root):
     """The config schema's enum and default, the CLI's help and the docs' lists of criteria name exactly the
-    registered criteria (stiffcal.criteria.CRITERIA), and the registry's flags are what its formulas say: those
+    registered criteria (stiffcal.model.criteria.CRITERIA), and the registry's flags are what its formulas say: those
     that invert the information matrix are +inf on a singular plan, the others finite."""
     import re
 

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from scipy.optimize import brentq, minimize_scalar
 
-from stiffcal.design import Problem, optimal_single_pose, representative, wrap_deg
+from stiffcal.planning.problem import Problem, optimal_single_pose, representative, wrap_deg
 from stiffcal.errors import InputError
-from stiffcal.robot import planar_robot
+from stiffcal.model.robot import planar_robot
 
 F = np.array([0.0, -1.0])
 QT = np.radians([60.0, 30.0])

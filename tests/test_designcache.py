@@ -1,4 +1,4 @@
-"""The cache of approximate designs and candidate pools (stiffcal.designcache): a design read back is the one
+"""The cache of approximate designs and candidate pools (stiffcal.planning.designcache): a design read back is the one
 computed, every input that changes the design changes the key, a damaged entry is recomputed, and the CLI's
 options are checked before any work."""
 
@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 import stiffcal
-from stiffcal import certificate, designcache
+from stiffcal.planning import certificate
+from stiffcal.planning import designcache
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.robot import load_robot
-from stiffcal.study import Study
+from stiffcal.model.robot import load_robot
+from stiffcal.planning.study import Study
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "config/robots/paper_2r.yaml"
@@ -83,7 +84,7 @@ def test_every_input_of_the_design_changes_the_key(paper_robot):
     link length, a joint limit, a cell, a candidate set or the targets gives a new one (the design could differ)."""
     base = designcache.fingerprint(_problem(paper_robot))
     assert designcache.fingerprint(_problem(load_robot(PAPER))) == base
-    from stiffcal.workcell import with_cell
+    from stiffcal.model.workcell import with_cell
 
     changed = [_problem(paper_robot, test_pose=np.radians([60.0, 30.0]) + 1e-12),
                _problem(paper_robot, force=np.array([0.0, -2.0])),
@@ -276,7 +277,7 @@ def test_the_cells_srdf_is_part_of_the_key(tmp_path):
     """The SRDF names the body pairs a cell leaves unchecked: editing it gives a new key."""
     srdf = tmp_path / "arm.srdf"
     srdf.write_text('<robot name="a"><disable_collisions link1="l1" link2="l2" reason="Adjacent"/></robot>')
-    from stiffcal.workcell import WorkCell
+    from stiffcal.model.workcell import WorkCell
 
     robot = dataclasses.replace(load_robot(PAPER), cell=WorkCell(srdf=str(srdf)))
     key = designcache.fingerprint(_problem(robot))

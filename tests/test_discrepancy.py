@@ -1,5 +1,5 @@
 """The discrepancy analysis: measured data as labs record them (several loads per configuration, replicates,
-unloaded reference rows), hidden effects in simulated data (stiffcal.truth, written from the physics and
+unloaded reference rows), hidden effects in simulated data (stiffcal.testing.truth, written from the physics and
 independent of the analysis) found at the rates of an oracle, several effects at once, the handed-over
 cases, bad and degenerate data, the CLI."""
 
@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from stiffcal import discrepancy as D
-from stiffcal import rates as R
-from stiffcal import truth as T
+from stiffcal.measured import discrepancy as D
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.measurements import Measurements, cluster, read_measurements
-from stiffcal.robot import load_robot, planar_robot
+from stiffcal.measured.measurements import Measurements, cluster, read_measurements
+from stiffcal.model.robot import load_robot, planar_robot
 
 SIGMA = 1e-5  # laser-tracker noise [m]
 CASES = Path(__file__).parent / "data" / "discrepancy"
@@ -607,7 +607,7 @@ def _verdict_sentence(v: dict) -> str:
     """The report's verdict paragraph (its first template line) rendered with the report's filters."""
     import jinja2
 
-    from stiffcal import report
+    from stiffcal.report import html as report
 
     lines = (Path(report.TEMPLATE_DIR) / "report.html.j2").read_text().splitlines()
     line = next(t for t in lines if t.startswith("<p><b>Verdict:"))
@@ -776,7 +776,7 @@ def test_a_joint_whose_axis_passes_through_the_measured_point_is_left_out_with_a
     """The new user's UR10 (tool point on wrist 3's axis), positions only: the Jacobian's column of wrist 3 is
     zero at every pose of the file (checked directly), the verdict lists joint 6 as not identifiable and says
     why in a note (docs/measured-data.md: left out "with a note")."""
-    from stiffcal.measurements import read_measurements
+    from stiffcal.measured.measurements import read_measurements
 
     lab = LAB_DIR
     robot = load_robot(lab / "ur10.yaml")
@@ -959,7 +959,7 @@ def _coupling_case(robot):
 def test_an_extension_with_a_negative_joint_compliance_gives_way_to_an_equivalent_physical_one(paper_robot):
     """Joint coupling on a planar 2-link arm: link_compliance spans the same deflections and comes first in the
     catalogue, but it holds the coupling only with k1' = k1 - a k12 / g < 0, where J1 tau1 a + ... + (J1 tau2 +
-    J2 tau1) g is the truth's bending of link 1 (stiffcal.truth) regressed on the joint model's columns. The
+    J2 tau1) g is the truth's bending of link 1 (stiffcal.testing.truth) regressed on the joint model's columns. The
     extended model then holds joint_coupling, whose intervals cover the simulator's k1, k2, k12."""
     k, k12, meas = _coupling_case(paper_robot)
     v = D.analyse(paper_robot, meas, gain=False)
@@ -1003,7 +1003,7 @@ def test_an_extension_with_a_negative_joint_compliance_and_no_alternative_is_nam
 # --- forces in kN below the resolution in some rows, pose_id relabelled, misspelled columns (new user 21) ----
 
 def _hanging_log(robot, seed, magnitudes, k, n_configs=12, interleaved=False):
-    """A simulated lab log (stiffcal.truth): hanging loads, each load sequence measured twice, an unloaded
+    """A simulated lab log (stiffcal.testing.truth): hanging loads, each load sequence measured twice, an unloaded
     reference row before every loaded one (zero force, zero displacement), and the displacements."""
     rng = np.random.default_rng(seed)
     protocol = T.Protocol("hanging", magnitudes_N=magnitudes, repeats=2, unloaded_rows=True, interleaved=interleaved)
@@ -1112,7 +1112,7 @@ def test_the_residual_figure_labels_configurations_by_pose_id_and_marks_the_blun
     in the legend."""
     import matplotlib.pyplot as plt
 
-    from stiffcal import plots
+    from stiffcal.report import plots
 
     rng = np.random.default_rng(n_configs)
     log = T.lab_log(paper_robot, T.Protocol("directions", magnitudes_N=(200.0, 400.0), n_directions=3, repeats=2),

@@ -1,5 +1,5 @@
-"""The next experiment (stiffcal.discrimination): a plan that tells rival causes apart, its predicted power
-against the rate at which the analysis separates them on simulated truth (stiffcal.truth, written from the
+"""The next experiment (stiffcal.measured.discrimination): a plan that tells rival causes apart, its predicted power
+against the rate at which the analysis separates them on simulated truth (stiffcal.testing.truth, written from the
 physics), the T-criterion and its equivalence-theorem bound against independent least squares and a brute
 force, the compound plan, rivals that no plan of positions separates, a measurement model with more rows,
 the command line."""
@@ -10,14 +10,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stiffcal import discrepancy as D
-from stiffcal import discrimination as X
-from stiffcal import rates as R
-from stiffcal import truth as T
+from stiffcal.measured import discrepancy as D
+from stiffcal.measured import discrimination as X
+from stiffcal.testing import separation as S
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.measurements import Measurements, read_measurements
-from stiffcal.robot import as_xyz, load_robot, planar_robot
+from stiffcal.measured.measurements import Measurements, read_measurements
+from stiffcal.model.robot import as_xyz, load_robot, planar_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 #: a quick search for the tests (the command's defaults search finer)
@@ -26,7 +27,7 @@ HANG = T.Protocol("one hanging mass, twice", magnitudes_N=(400.0,), repeats=2)
 
 
 def _lab(robot, protocol, effect, seed, n_configs, size, k):
-    """Old data: the lab protocol with one hidden effect (stiffcal.truth) whose displacement, less what the
+    """Old data: the lab protocol with one hidden effect (stiffcal.testing.truth) whose displacement, less what the
     nominal model absorbs, is ``size`` times the noise (RMS)."""
     rng = np.random.default_rng(seed)
     log = T.lab_log(robot, protocol, rng, n_configs)
@@ -74,7 +75,7 @@ def test_six_poses_separate_causes_the_data_cannot_tell_apart(three_link, three_
     assert not robot.outside_limits(q).any()
     assert all(any(np.allclose(f, g) for g in res.loads.forces) for f in F)  # loads from the stated set
     assert res.power > 0.9
-    (sim,) = X.simulate_separation(rm, q, F, 1, truth=0, repetitions=60, seed=11)
+    (sim,) = S.simulate_separation(rm, q, F, 1, truth=0, repetitions=60, seed=11)
     assert sim.predicted == pytest.approx(res.power)
     assert sim.rate > 0.9 and _binomial_ok(sim.rate, sim.predicted, 60)
 
@@ -91,7 +92,7 @@ def test_simulated_rate_matches_the_predicted_power_of_any_plan(three_link):
         q = rng.uniform(-np.pi, np.pi, (2, 3))
         chosen += [(q, t) for t in (0, 1) if 0.3 < X.plan_power(rm, q, F, 1, t)[0].power < 0.8][:2 - len(chosen)]
     for i, (q, truth) in enumerate(chosen):
-        (sim,) = X.simulate_separation(rm, q, F, 1, truth, repetitions=100, seed=i)
+        (sim,) = S.simulate_separation(rm, q, F, 1, truth, repetitions=100, seed=i)
         assert _binomial_ok(sim.rate, sim.predicted, 100), sim
 
 
@@ -325,12 +326,12 @@ def test_six_axis_plan_within_limits_and_its_power_on_simulated_physics():
     assert res.certificate.bound >= res.certificate.delta
     # both rivals are physical truths of the simulator (link bending, coupled joints): each in turn
     for truth in (0, 1):
-        (sim,) = X.simulate_separation(res.rivals, q, F, 1, truth, repetitions=40, seed=truth)
+        (sim,) = S.simulate_separation(res.rivals, q, F, 1, truth, repetitions=40, seed=truth)
         assert _binomial_ok(sim.rate, sim.predicted, 40, extra=0.03), sim
 
 
 def test_fitted_link_coupling_and_offset_models_are_the_simulators_physics():
-    """:func:`model_mean` simulates link bending, coupled joints and an offset with stiffcal.truth; the
+    """:func:`model_mean` simulates link bending, coupled joints and an offset with stiffcal.testing.truth; the
     analysis's regressors must give the same displacement (an independent check of both)."""
     rng = np.random.default_rng(3)
     for robot in (planar_robot([0.5, 0.4, 0.3]), load_robot(ROOT / "config/robots/kuka_kr210_r2700.yaml")):
@@ -340,13 +341,13 @@ def test_fitted_link_coupling_and_offset_models_are_the_simulators_physics():
         p = D.model_columns(robot, q, F, causes).shape[-1]
         beta = rng.uniform(0.5, 2.0, p) * 1e-7
         model = X.Rival(causes, beta, 0.0, 1)
-        assert np.allclose(X.model_mean(robot, model, q, F), D.model_columns(robot, q, F, causes) @ beta,
+        assert np.allclose(S.model_mean(robot, model, q, F), D.model_columns(robot, q, F, causes) @ beta,
                            rtol=1e-9, atol=1e-9 * np.abs(D.model_columns(robot, q, F, causes) @ beta).max())
 
 
 def test_angles_a_round_off_below_zero_group_with_zero():
     """A simulated plan's angle of -1e-17 rad wraps (mod 360 deg) to the edge of the periodic box of the grouping;
-    it must be one configuration with the angle 0 (stiffcal.measurements.cluster)."""
+    it must be one configuration with the angle 0 (stiffcal.measured.measurements.cluster)."""
     q = np.array([[-1e-17, 0.5], [0.0, 0.5], [1.0, 0.5]])
     F = np.array([[0.0, -300.0]] * 3)
     m = Measurements.from_arrays(q, F, np.zeros((3, 2)))

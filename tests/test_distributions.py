@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from stiffcal import discrepancy as D
-from stiffcal import distributions as dist
+from stiffcal.measured import discrepancy as D
+from stiffcal.measured import distributions as dist
 
 
 def _args(seed: int, n: int = 20_000):
@@ -102,7 +102,7 @@ def test_the_analysis_imports_neither_scipy_stats_nor_statsmodels(case):
     robot = data.replace(".a.csv", ".robot.yaml") if case.startswith("discrepancy") else data.replace("data.csv",
                                                                                                         "robot.yaml")
     code = ("import sys, numpy as np\n"
-            "from stiffcal.robot import load_robot\n"
+            "from stiffcal.model.robot import load_robot\n"
             "from stiffcal import discrepancy as D, measurements as M, calibrated\n"
             f"robot = load_robot({robot!r})\n"
             f"meas = M.read_measurements({data!r}, robot)\n"

@@ -61,7 +61,9 @@ def test_licence_and_citation(root):
 def test_every_limit_is_documented_with_its_value(root):
     """docs/contracts.md, "Limits": a row for every bound of stiffcal.limits (and the archive's and robot's), with
     the value the code uses."""
-    from stiffcal import archive, limits, robot
+    from stiffcal import limits
+    from stiffcal.workflow import archive
+    from stiffcal.model import robot
 
     text = (root / "docs/contracts.md").read_text(encoding="utf-8")
     section = text[text.index("## Limits"):]
@@ -100,9 +102,9 @@ def test_cell_keys_in_the_docs_are_the_schemas(root):
     ("Verdict", "## The verdict", "field"), ("DiscriminationPlan", "## The next experiment", "field of `plan.json`")])
 def test_result_fields_in_the_docs_are_the_type_s(root, kind, heading, first_column):
     """The tables of verdict.json and plan.json in docs/measured-data.md name exactly the fields of
-    stiffcal.results.Verdict and DiscriminationPlan (the types the API returns and the files are written from;
+    stiffcal.measured.results.Verdict and DiscriminationPlan (the types the API returns and the files are written from;
     issue 26: nothing checked them before, and plan.json's robot and data were not documented)."""
-    from stiffcal import results
+    from stiffcal.measured import results
 
     text = (root / "docs/measured-data.md").read_text(encoding="utf-8")
     section = text.split(heading, 1)[1].split("\n## ", 1)[0]

@@ -1,7 +1,8 @@
-"""Measured rows that share reference readings (stiffcal.errormodel): the structure found from the rows against the
-simulator's own (stiffcal.truth), the REML variance components against statsmodels' MixedLM, the simulator's row
-covariance against a Monte Carlo of itself, the unloaded rows' blunder screen and zero-point test over seeds, the
-arm's own weight against Pinocchio and finite differences, the handed lab logs, and the analyst's warnings."""
+"""Measured rows that share reference readings (stiffcal.measured.errormodel): the structure found from the rows
+against the simulator's own (stiffcal.testing.truth), the REML variance components against statsmodels' MixedLM, the
+simulator's row covariance against a Monte Carlo of itself, the unloaded rows' blunder screen and zero-point test
+over seeds, the arm's own weight against Pinocchio and finite differences, the handed lab logs, and the analyst's
+warnings."""
 
 import csv
 from dataclasses import replace
@@ -11,12 +12,12 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from stiffcal import discrepancy as D
-from stiffcal import errormodel as EM
-from stiffcal import rates as R
-from stiffcal import truth as T
-from stiffcal.measurements import read_measurements
-from stiffcal.robot import load_robot, planar_robot, with_masses
+from stiffcal.measured import discrepancy as D
+from stiffcal.measured import errormodel as EM
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
+from stiffcal.measured.measurements import read_measurements
+from stiffcal.model.robot import load_robot, planar_robot, with_masses
 
 ROOT = Path(__file__).resolve().parents[1]
 LABREF = Path(__file__).parent / "data" / "lab-references"
@@ -151,12 +152,12 @@ def test_reml_equals_statsmodels_mixedlm(replicates):
 @pytest.mark.parametrize("arm, targets, orientation", [("3-link", ("tool",), False), ("6-axis", ("A", "B"), False),
                                                        ("6-axis", ("tool",), True)])
 def test_the_error_models_covariance_at_the_true_ratios_is_the_simulators(tmp_path, arm, targets, orientation):
-    """Every configuration's model covariance sigma^2 H (stiffcal.errormodel: the reference reading shared by the
-    configuration's rows, the return to it a joint error through the Jacobian of each row's target and rotation)
+    """Every configuration's model covariance sigma^2 H (stiffcal.measured.errormodel: the reference reading shared
+    by the configuration's rows, the return to it a joint error through the Jacobian of each row's target and rotation)
     at the ratios the simulator implies (lambda_reference = 1: the reference is a reading like the row's own;
     lambda_return = 2 r^2 / (d sigma^2): both visits' joint errors, the tool point's RMS r) equals the covariance
-    stiffcal.truth.row_covariance builds from the readings, for one target, two targets on the last link, and the
-    rotation logged; the isotropic return (no loading) does not."""
+    stiffcal.testing.truth.row_covariance builds from the readings, for one target, two targets on the last link, and
+    the rotation logged; the isotropic return (no loading) does not."""
     robot = R.robots(ROOT)[arm]
     sigma, rep, srad = 1e-5, 1.5e-5, 2e-5
     pr = T.Protocol("c", magnitudes_N=(150.0, 300.0), repeats=1, reference="configuration", passes=2,
@@ -249,7 +250,7 @@ def test_reml_with_a_loaded_component_equals_the_dense_likelihood():
 
 
 def test_the_simulators_row_covariance_equals_a_monte_carlo_of_itself():
-    """stiffcal.truth.row_covariance (rows = D readings, the returns' pose errors shared by a visit) against the
+    """stiffcal.testing.truth.row_covariance (rows = D readings, the returns' pose errors shared by a visit) against the
     sample covariance of 6000 simulated logs, for a configuration with two visits, two targets and a reference
     per configuration; and the oracle's whitening W^T W = Sigma^-1."""
     robot = R.robots(ROOT)["2-link"]
@@ -280,7 +281,7 @@ def test_the_noise_weights_follow_the_trackers_distance_on_a_protocol_with_revis
     the configurations revisited (the replicates then differ by the return error too): the analysis's row weights
     (the noise model refitted on the error model's residuals) against the simulator's 1 / sigma_i, relative to
     the median row, over 4 logs of 40 configurations: within 12 % RMS in every log, and closer than the replicates'
-    spread alone gives (stiffcal.discrepancy.variance_model, constant where it does not reject)."""
+    spread alone gives (stiffcal.measured.discrepancy.variance_model, constant where it does not reject)."""
     robot = R.robots(ROOT)["3-link"]
     pr = T.Protocol("c", magnitudes_N=(147.1, 294.2, 490.3), repeats=1, reference="configuration", passes=2,
                     revisit_fraction=0.5, shuffle=True, relabel=True, zero_rows=True, repeatability_m=1.5e-5,
@@ -312,7 +313,7 @@ def _zero_point(robot, seed, blunder=None):
         row = int(rng.choice(np.flatnonzero(~log.loaded)))
         bad = {row: blunder * VISITS.sigma_m * T.random_directions(rng, 1, 2)[0]}
     dp = T.measure(robot, T.Truth(R.compliances(robot)), log, rng, bad)
-    from stiffcal.measurements import Measurements
+    from stiffcal.measured.measurements import Measurements
     loaded, zero = np.flatnonzero(log.loaded), np.flatnonzero(~log.loaded)
     m = Measurements.from_arrays(log.q[loaded], log.force[loaded], dp[loaded], config=log.config[loaded])
     from dataclasses import replace
@@ -355,8 +356,8 @@ def test_a_common_shift_of_the_unloaded_rows_is_the_zero_point_that_moved(paper_
 def test_self_weight_torques_equal_pinocchio_and_finite_differences(rng):
     """The torques of the arm's own weight: for a URDF (its inertias) against Pinocchio's generalised gravity
     (-g(q), the torque the weight applies), for the DH arm of the rate matrix and a planar arm with masses against
-    central differences of the potential energy (stiffcal.truth), and for a planar 2-link arm against the textbook
-    closed form."""
+    central differences of the potential energy (stiffcal.testing.truth), and for a planar 2-link arm against the
+    textbook closed form."""
     import pinocchio as pin
 
     ur10 = load_robot(LAB / "ur10.yaml")
@@ -486,7 +487,7 @@ def test_the_next_experiments_rivals_are_fitted_as_the_analysis_fits(tmp_path):
     error model of the rows' shared reference readings; before, the rivals dropped it and their parameters
     differed by 2.4-5.9 % on hanging data with a shared reference): on such data with a hidden backlash the
     truth's parameters equal the verdict's extended model to round-off."""
-    from stiffcal import discrimination as X
+    from stiffcal.measured import discrimination as X
 
     arm = R.robots(ROOT)["2-link"]
     pr = R.PROTOCOLS["hanging x3, reference per configuration, half revisited"]
@@ -504,7 +505,7 @@ def test_the_next_experiments_rivals_are_fitted_as_the_analysis_fits(tmp_path):
 # --- the oracle with the rows' true covariance (benchmarks/oracle_false_alarms.py) ---------------------------------
 
 def test_oracle_global_p_is_the_closed_test_in_any_whitening_and_sees_a_strong_effect():
-    """stiffcal.rates.oracle_global_p against the same closed test on the rows whitened by an independent square
+    """stiffcal.testing.rates.oracle_global_p against the same closed test on the rows whitened by an independent square
     root of the true covariance (the symmetric inverse square root of the dense matrix, not the per-block
     Cholesky factor: F statistics do not depend on the choice), on clean data; and a backlash of 30 noise
     sigmas is seen (p below 1e-6) while the clean p is not."""

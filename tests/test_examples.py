@@ -37,7 +37,7 @@ def test_design_example_prints_the_paper_s_o_t_for_one_two_and_three_poses(tmp_p
 
 def test_measured_data_example_finds_the_hidden_backlash_and_writes_its_files(tmp_path):
     """data/README.md: backlash of 5e-5 rad per joint and a blunder at data row 17. The simulator's joint jumps
-    gap/2 tanh(tau / tau_gap) (stiffcal.truth), the catalogue's b sign(tau): each identified b's 95 % interval
+    gap/2 tanh(tau / tau_gap) (stiffcal.testing.truth), the catalogue's b sign(tau): each identified b's 95 % interval
     must hold gap/2, and the compensated path must be left with less than a tenth of its deflection."""
     out = _run("measured_data.py", str(tmp_path / "out"), cwd=tmp_path)
     assert "cause: backlash; blunders at data rows [17]" in out, out

@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stiffcal import archive as A
+from stiffcal.workflow import archive as A
 from stiffcal import limits
 from stiffcal.cli import main
 from stiffcal.errors import MAX_MESSAGE, InputError
-from stiffcal.robot import load_robot
+from stiffcal.model.robot import load_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = str(ROOT / "config/robots/paper_2r.yaml")
@@ -118,7 +118,7 @@ def test_a_fifo_is_refused_at_once_never_read(tmp_path, what):
     elif what == "archive":
         argv = ["verify-archive", str(fifo)]
     if what == "config":
-        code = ("from stiffcal.config import workflow_config; from stiffcal.errors import InputError\n"
+        code = ("from stiffcal.workflow.config import workflow_config; from stiffcal.errors import InputError\n"
                 f"try:\n    workflow_config([{str(fifo)!r}], root={str(ROOT)!r})\n"
                 "except InputError as e:\n    print(e)\n")
         res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
@@ -287,8 +287,8 @@ def test_a_discriminating_plan_is_bounded_in_its_measurements(tmp_path, monkeypa
 
 def test_output_folders_that_are_files_are_named(tmp_path):
     """Every folder of the workflow's outputs (one per data set, study and map too) and every folder above it must
-    be a folder or missing; a file, a FIFO or a broken link in its place is named (stiffcal.config)."""
-    from stiffcal.config import check_output_folders, output_folders
+    be a folder or missing; a file, a FIFO or a broken link in its place is named (stiffcal.workflow.config)."""
+    from stiffcal.workflow.config import check_output_folders, output_folders
 
     config = {"studies": [{"name": "s1"}], "maps": {"studies": [{"name": "m1"}]}, "measured_data": [{"name": "d1"}]}
     assert {"results/studies/s1", "figures/studies/s1", "results/maps/m1", "results/discrepancy/d1"} <= set(
@@ -318,7 +318,7 @@ def test_a_robot_file_that_does_not_exist_is_named_with_the_config_field(tmp_pat
     the field."""
     import yaml
 
-    from stiffcal.config import workflow_config
+    from stiffcal.workflow.config import workflow_config
 
     cfg = yaml.safe_load((ROOT / "config/config.yaml").read_text())
     entry = {"study": cfg["study"], "studies[0]": cfg["studies"][0], "measured_data[0]": cfg["measured_data"][0],
@@ -710,7 +710,7 @@ def test_a_workflow_job_writes_progress_lines_into_its_log_and_runs_under_the_me
     code = f"""
 import resource, time
 from types import SimpleNamespace
-from stiffcal import pipeline
+from stiffcal.workflow import pipeline
 
 def step(out):
     time.sleep(0.5)
@@ -932,7 +932,7 @@ def test_fuzz_every_command_with_hostile_inputs(tmp_path, monkeypatch):
     or the field, no traceback, nothing written."""
     import yaml
 
-    from stiffcal.config import workflow_config
+    from stiffcal.workflow.config import workflow_config
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "afile").write_text("")
@@ -978,7 +978,7 @@ def _degenerate(tmp_path, how):
     elif how == "copies":
         df[cols] = df.groupby(["q1_deg", "q2_deg", "fx_N", "fy_N"])[cols].transform("mean")
     elif how in ("exact", "rounded"):  # eq. 2 without noise (k = 1e-6, 2e-6), no replicates: full digits, or 4
-        from stiffcal.robot import load_robot
+        from stiffcal.model.robot import load_robot
 
         df = df.drop_duplicates(subset=["q1_deg", "q2_deg", "fx_N", "fy_N"]).reset_index(drop=True)
         J = load_robot(PAPER).jacobian(np.radians(df[["q1_deg", "q2_deg"]].to_numpy()))
@@ -1018,7 +1018,7 @@ def test_a_measured_log_beyond_the_row_limit_is_refused_before_it_is_parsed(tmp_
     reads the file."""
     import pandas as pd
 
-    from stiffcal.measurements import read_measurements
+    from stiffcal.measured.measurements import read_measurements
 
     monkeypatch.setattr(limits, "MAX_MEASURED_ROWS", 10)
     path = tmp_path / "big.csv"

@@ -11,9 +11,9 @@ import pytest
 import yaml
 
 import stiffcal
-from stiffcal.design import into_limits
+from stiffcal.planning.problem import into_limits
 from stiffcal.errors import InputError
-from stiffcal.robot import load_robot, planar_robot
+from stiffcal.model.robot import load_robot, planar_robot
 
 ROOT = Path(__file__).resolve().parents[1]
 #: every robot file of the repository, with a test pose inside its own limits and a force
@@ -83,9 +83,9 @@ def test_the_issues_cases_print_within_their_limits(tmp_path):
 
 def _small_plan(robot, test_deg, force, m: int) -> np.ndarray:
     """The O_t-optimal m-pose plan [deg] as stiffcal prints it, from a pool of 1024 quasi-random poses within
-    the limits and 3 random starts (the printing path of every plan: :func:`stiffcal.plans.canonical_plan`)."""
-    from stiffcal.design import Problem, sample_joint_space
-    from stiffcal.plans import optimise_plan
+    the limits and 3 random starts (the printing path of every plan: :func:`stiffcal.planning.plans.canonical_plan`)."""
+    from stiffcal.planning.problem import Problem, sample_joint_space
+    from stiffcal.planning.plans import optimise_plan
 
     prob = Problem(robot, np.asarray(force, float), "ot", m, np.radians(test_deg))
     return optimise_plan(prob, pool=sample_joint_space(robot, 10), n_starts=3, n_polish=2).poses_deg
@@ -108,8 +108,8 @@ def test_no_printed_pose_outside_random_limits_that_pass_180(path):
     joints: everything ``stiffcal design`` prints (plans of one and three poses, the optimal set, the
     approximate design). Arms of 3 or more joints: the plan of the fewest poses that identify every compliance
     from a small pool (:func:`_small_plan`), and for 3 joints the approximate design on coarse grids."""
-    from stiffcal.certificate import approximate_design
-    from stiffcal.design import Problem
+    from stiffcal.planning.certificate import approximate_design
+    from stiffcal.planning.problem import Problem
 
     rng = np.random.default_rng(sum(map(ord, path.name)))
     for _ in range(10):
@@ -136,9 +136,9 @@ def test_no_printed_pose_outside_random_limits_that_pass_180(path):
 def test_tables_and_plans_of_a_planar_arm_print_within_limits(rng):
     """The paper's tables (2, 4-5, the approximate design, the best plans) of a 2-link arm with random limits
     that pass +-180: every pose, every optimal set and the support within the limits as written."""
-    from stiffcal.certificate import approximate_design
-    from stiffcal.study import Study
-    from stiffcal.tables import best_plan_row, design_table, parse_plan, plans_table, table2
+    from stiffcal.planning.certificate import approximate_design
+    from stiffcal.planning.study import Study
+    from stiffcal.paper.tables import best_plan_row, design_table, parse_plan, plans_table, table2
 
     for _ in range(5):
         lim = _random_limits(rng, 2)

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 from scipy.optimize import minimize
 
-from stiffcal import _map_solver as solver
-from stiffcal import maps
-from stiffcal.criteria import o_t
+from stiffcal.planning import _map_solver as solver
+from stiffcal.planning import maps
+from stiffcal.model.criteria import o_t
 from stiffcal.errors import InputError
-from stiffcal.reference import brute_force_cell_ld, brute_force_pair, ot_long_double, ot_plain
-from stiffcal.robot import planar_robot
-from stiffcal.stiffness import observation_matrix
+from stiffcal.testing.reference import brute_force_cell_ld, brute_force_pair, ot_long_double, ot_plain
+from stiffcal.model.robot import planar_robot
+from stiffcal.model.stiffness import observation_matrix
 
 PHI = -90.0
 
@@ -294,7 +294,7 @@ def test_binary_map_round_trip_is_deterministic_and_bad_files_are_named(tmp_path
     assert list(df.columns) == maps.MAP_COLUMNS and len(df) == 30 * 30
     # map.csv is written without pandas: the bytes pandas writes
     from stiffcal.csvtext import write_numeric_csv
-    from stiffcal.tables import FLOAT_FORMAT
+    from stiffcal.paper.tables import FLOAT_FORMAT
 
     write_numeric_csv(maps.map_columns(back), tmp_path / "map.csv")
     assert (tmp_path / "map.csv").read_text() == df.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\n")
@@ -370,7 +370,7 @@ def test_pair_map_covers_the_grid_and_round_trips(tmp_path):
     assert np.array_equal(back.O_t2, pm.O_t2) and np.array_equal(back.poses_deg, pm.poses_deg)
     assert len(maps.pair_frame(back)) == 144
     from stiffcal.csvtext import numeric_csv
-    from stiffcal.tables import FLOAT_FORMAT
+    from stiffcal.paper.tables import FLOAT_FORMAT
 
     assert numeric_csv(maps.pair_columns(back)) == maps.pair_frame(back).to_csv(
         index=False, float_format=FLOAT_FORMAT, lineterminator="\n")  # pairs.csv, written without pandas
@@ -379,7 +379,7 @@ def test_pair_map_covers_the_grid_and_round_trips(tmp_path):
 def test_grid_statistics_handed_over_give_the_same_table(tmp_path):
     """map_grid_statistics solves the finer grids of the Figure-7 map once for map_statistics and
     paper_comparison: the table from the saved statistics is the table computed from the map, to the byte."""
-    from stiffcal.tables import FLOAT_FORMAT
+    from stiffcal.paper.tables import FLOAT_FORMAT
 
     st = maps.MapStudy("b", 0.9, 7, 12.0, PHI, 65536)
     other = maps.MapStudy("c", 0.5, 8, 12.0, PHI, 65536)

@@ -6,9 +6,9 @@ them; those very cells against an independent brute force (dense grid, local pol
 import numpy as np
 import pytest
 
-from stiffcal import _map_solver as solver
-from stiffcal import maps
-from stiffcal.reference import brute_force_cell_hp, ot_ball
+from stiffcal.planning import _map_solver as solver
+from stiffcal.planning import maps
+from stiffcal.testing.reference import brute_force_cell_hp, ot_ball
 
 PHI = -90.0
 DEFAULT_RATIOS = (0.2, 0.5, 0.4 / 0.6, 0.9)   # the studies of Figures 7-10

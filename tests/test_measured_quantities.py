@@ -1,5 +1,5 @@
 """Measured data with moments, orientation and several targets (issue 15, items 2-4): CSVs written by the truth
-simulator (stiffcal.truth, the physics integrated independently of the analysis's regressors) as a lab would
+simulator (stiffcal.testing.truth, the physics integrated independently of the analysis's regressors) as a lab would
 write them, read back and analysed. The identified compliances must be the simulated ones within their
 confidence intervals; dropping the moment columns, as the reader used to, must not pass unnoticed; and with
 two targets (or the orientation) a bending link of a planar 2-link arm is told from joint coupling."""
@@ -12,13 +12,13 @@ import pandas as pd
 import pytest
 
 import stiffcal
-from stiffcal import discrepancy as D
-from stiffcal import rates as R
-from stiffcal import truth as T
+from stiffcal.measured import discrepancy as D
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.measurements import read_measurements
-from stiffcal.robot import load_robot
+from stiffcal.measured.measurements import read_measurements
+from stiffcal.model.robot import load_robot
 
 PAPER = "config/robots/paper_2r.yaml"
 KUKA = "config/robots/kuka_kr210_r2700.yaml"

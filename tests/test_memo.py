@@ -7,7 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from stiffcal import codeversion, config, memo
+from stiffcal import memo
+from stiffcal.workflow import codeversion
+from stiffcal.workflow import config
 from stiffcal.errors import InputError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -79,7 +81,7 @@ def test_checked_data_are_not_read_again_until_their_bytes_change(tmp_path, monk
     good = (ROOT / "data/synthetic_paper_2r.csv").read_text(encoding="utf-8")
     cfg, data = _config_with_data(tmp_path, good)
     memo_dir = tmp_path / "memo"
-    from stiffcal import measurements
+    from stiffcal.measured import measurements
 
     reads = []
     real = measurements.read_measurements

@@ -11,7 +11,10 @@ import pandas as pd
 import pytest
 from scipy.optimize import minimize, minimize_scalar
 
-from stiffcal import criteria, maps, reproduction, tables
+from stiffcal.model import criteria
+from stiffcal.planning import maps
+from stiffcal.paper import reproduction
+from stiffcal.paper import tables
 
 L = np.array([0.6, 0.4])
 F = np.array([0.0, -1.0])

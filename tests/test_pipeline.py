@@ -2,7 +2,7 @@
 
 import pytest
 
-from stiffcal.pipeline import REPORT_RULES, report_inputs
+from stiffcal.workflow.pipeline import REPORT_RULES, report_inputs
 
 
 def test_report_inputs_are_sorted_by_their_names():
@@ -26,7 +26,7 @@ def test_numeric_tables_are_written_byte_for_byte_as_pandas_writes_them(tmp_path
     import pandas as pd
 
     from stiffcal.csvtext import write_numeric_csv
-    from stiffcal.tables import FLOAT_FORMAT, _numeric_csv, write_csv
+    from stiffcal.paper.tables import FLOAT_FORMAT, _numeric_csv, write_csv
 
     rng = np.random.default_rng(7)
     x = rng.normal(size=500) * 10.0 ** rng.integers(-300, 300, 500)
@@ -49,9 +49,9 @@ def test_numeric_tables_are_written_byte_for_byte_as_pandas_writes_them(tmp_path
 def test_code_versions_hash_each_definition_as_the_standard_library_cuts_it():
     import ast
 
-    from stiffcal.codeversion import _pipeline_definitions, _segment, _source
+    from stiffcal.workflow.codeversion import PIPELINE, _pipeline_definitions, _segment, _source
 
-    text = _source("pipeline")[0]
+    text = _source(PIPELINE)[0]
     defs = _pipeline_definitions()
     assert len(defs) >= 30
     assert all(_segment(name) == ast.get_source_segment(text, node) for name, node in defs.items())
@@ -60,8 +60,8 @@ def test_code_versions_hash_each_definition_as_the_standard_library_cuts_it():
 def test_a_map_of_one_tile_is_computed_by_its_merge_job_as_by_a_tile_job(tmp_path):
     """map_merge without tile files (a map of one tile) writes the same map.npz and map.csv as the tile job and
     the merge of its tile file."""
-    from stiffcal import pipeline
-    from stiffcal.maps import MapStudy
+    from stiffcal.workflow import pipeline
+    from stiffcal.planning.maps import MapStudy
 
     p = {"name": "b0.5", "link_ratio": 0.5, "figure": 9, "step_deg": 10.0, "force_deg": -90.0, "tile_cells": 100000}
     assert MapStudy(**p).n_tiles == 1
@@ -77,8 +77,8 @@ def test_the_candidate_pool_handed_over_is_the_one_the_plans_build(root, tmp_pat
     import numpy as np
     import pytest
 
-    from stiffcal import pipeline
-    from stiffcal.certificate import candidate_pool, default_pool_step
+    from stiffcal.workflow import pipeline
+    from stiffcal.planning.certificate import candidate_pool, default_pool_step
     from stiffcal.errors import InputError
 
     study = pipeline._study({"test_pose_deg": [20, -60, 110, 30, 45, -20], "force_N": [500, -300, -800],

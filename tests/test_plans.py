@@ -3,14 +3,15 @@
 import numpy as np
 import pytest
 
-from stiffcal import reproduction, tables
-from stiffcal.certificate import approximate_design, candidate_pool
-from stiffcal.design import Problem, plan_loss, sample_joint_space
-from stiffcal.plans import (canonical_plan, exchange, exchange_scores, fedorov_exchange, l_criterion_gradient,
+from stiffcal.paper import reproduction
+from stiffcal.paper import tables
+from stiffcal.planning.certificate import approximate_design, candidate_pool
+from stiffcal.planning.problem import Problem, plan_loss, sample_joint_space
+from stiffcal.planning.plans import (canonical_plan, exchange, exchange_scores, fedorov_exchange, l_criterion_gradient,
                             lbfgsb_lockstep, optimise_plan, polish, pool_forms, round_design, symmetric_copies)
-from stiffcal.reference import general_exchange_scores, reference_exchange
-from stiffcal.robot import load_robot, planar_robot
-from stiffcal.stiffness import information_matrix, observation_matrix, pose_information
+from stiffcal.testing.reference import general_exchange_scores, reference_exchange
+from stiffcal.model.robot import load_robot, planar_robot
+from stiffcal.model.stiffness import information_matrix, observation_matrix, pose_information
 
 F = np.array([0.0, -1.0])
 QT = np.radians([60.0, 30.0])
@@ -203,8 +204,8 @@ def test_scaled_cholesky_scores_are_exact_for_badly_scaled_information(rng):
     arithmetic, on 6 x 6 information matrices whose compliances' scales span 1e-8..1 (the wrist against the base):
     relative error below 1e-10; an exactly singular one and one of eigenvalue ratio ~1e-19 flagged for the general
     path, and the batch is not thrown off by them."""
-    from stiffcal.certificate import vech
-    from stiffcal.plans import _scaled_inverse_traces
+    from stiffcal.planning.certificate import vech
+    from stiffcal.planning.plans import _scaled_inverse_traces
 
     p = 6
     X = rng.normal(size=(6, 8, p)) * np.logspace(0, -4, p)  # columns scaled: information 1 .. 1e-8
@@ -232,8 +233,8 @@ def test_d_and_t_exchange_scores_match_the_eigen_decomposition(arm, paper_robot,
     eigen-decomposition of every candidate's information matrix, for an empty, a rank-deficient and a
     well-conditioned information of the other poses, with one load (rows <= parameters) and with three
     (the pool's forms factored from its information matrices)."""
-    from stiffcal import criteria
-    from stiffcal.plans import _compact, closed_form_scores
+    from stiffcal.model import criteria
+    from stiffcal.planning.plans import _compact, closed_form_scores
 
     forces = [F]
     if arm == "paper":

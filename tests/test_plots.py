@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 plt = pytest.importorskip("matplotlib.pyplot")
-from stiffcal import plots  # noqa: E402
+from stiffcal.report import plots  # noqa: E402
 
 
 def _render(draw) -> np.ndarray:

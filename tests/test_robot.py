@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from stiffcal.errors import InputError
-from stiffcal.robot import cross_columns, load_robot, planar_fk, planar_jacobian, planar_robot
+from stiffcal.model.robot import cross_columns, load_robot, planar_fk, planar_jacobian, planar_robot
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 5])

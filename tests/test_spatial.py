@@ -6,18 +6,18 @@ import json
 import numpy as np
 import pytest
 
-from stiffcal import discrepancy as D
-from stiffcal import truth as T
-from stiffcal.certificate import _info, approximate_design
+from stiffcal.measured import discrepancy as D
+from stiffcal.testing import truth as T
+from stiffcal.planning.certificate import _info, approximate_design
 from stiffcal.cli import main
-from stiffcal.design import Problem
+from stiffcal.planning.problem import Problem
 from stiffcal.errors import InputError
-from stiffcal.measurements import Measurements
-from stiffcal.plans import optimise_plan, round_design
-from stiffcal.reference import certified_bound_reference, max_phi_reference
-from stiffcal.robot import load_robot, spatial_robot
-from stiffcal.tables import certificate_table
-from stiffcal.stiffness import observation_matrix
+from stiffcal.measured.measurements import Measurements
+from stiffcal.planning.plans import optimise_plan, round_design
+from stiffcal.testing.reference import certified_bound_reference, max_phi_reference
+from stiffcal.model.robot import load_robot, spatial_robot
+from stiffcal.paper.tables import certificate_table
+from stiffcal.model.stiffness import observation_matrix
 
 KUKA = "config/robots/kuka_kr210_r2700.yaml"
 # Universal Robots UR5e, standard DH as published by the manufacturer (written here, not a file in config/)
@@ -197,7 +197,7 @@ def test_hidden_cause_is_found_on_a_6_axis_arm(root, cause, truth_kw):
 
 
 def test_angles_of_a_joint_with_a_full_turn_of_range_are_reported_within_its_limits(rng):
-    from stiffcal.design import into_limits
+    from stiffcal.planning.problem import into_limits
 
     robot = spatial_robot([[0, 0, 1, 0], [1, 0, 0, 0]], joint_limits_deg=[[-200, 170], [-90, 90]])
     q = np.column_stack([rng.uniform(-720, 720, 1000), rng.uniform(-90, 90, 1000)])

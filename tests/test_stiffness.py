@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from stiffcal import criteria
+from stiffcal.model import criteria
 from stiffcal.errors import InputError
-from stiffcal.robot import planar_robot
-from stiffcal.stiffness import (covariance, covariance_diagonal, deflection, identify, identify_batch,
+from stiffcal.model.robot import planar_robot
+from stiffcal.model.stiffness import (covariance, covariance_diagonal, deflection, identify, identify_batch,
                                 information_matrix, observation_matrix, pose_information)
 
 

@@ -1,4 +1,4 @@
-"""Robot files of kind urdf (src/stiffcal/urdf.py): the kinematics against the DH file of the same arm and
+"""Robot files of kind urdf (src/stiffcal/model/urdf.py): the kinematics against the DH file of the same arm and
 against Pinocchio's own forward kinematics and frame Jacobian, the same plans from both files of the KUKA
 KR 210 R2700, joint names in tables, JSON and measured data, and every bad URDF robot file refused with one
 message naming the file and the field."""
@@ -12,8 +12,8 @@ import pytest
 
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.measurements import read_measurements
-from stiffcal.robot import load_robot, planar_robot
+from stiffcal.measured.measurements import read_measurements
+from stiffcal.model.robot import load_robot, planar_robot
 
 KUKA_DH = "config/robots/kuka_kr210_r2700.yaml"
 KUKA_URDF = "config/robots/kuka_kr210_r2700_urdf.yaml"
@@ -163,8 +163,8 @@ def test_kuka_urdf_and_dh_files_give_the_same_plans(root, kuka, capsys):
     plan evaluated on the other file's robot too, to 1e-9) and the same certified bound (1e-5). The two
     files' Jacobians differ by round-off (1e-16), which the approximate design's support and the exchange
     follow; the rounding of information classes, the converged polish and the symmetry copies remove it."""
-    from stiffcal.study import Study
-    from stiffcal.tables import plan_summary
+    from stiffcal.planning.study import Study
+    from stiffcal.paper.tables import plan_summary
 
     studies = [Study("s", r, np.radians([20, -60, 110, 30, 45, -20]), np.array([500.0, -300, -800]), 1e-5, ("ot",),
                      1.0, 1.0) for r in kuka]
@@ -185,8 +185,8 @@ def test_kuka_urdf_and_dh_files_give_the_same_plans(root, kuka, capsys):
 def test_named_joints_name_every_column(tmp_path, capsys):
     """joint_names of a planar file: the tables' columns, the long-form plans and the JSON name the joints;
     without joint_names the columns stay q1_deg ..."""
-    from stiffcal.study import Study
-    from stiffcal.tables import plans_long, table2
+    from stiffcal.planning.study import Study
+    from stiffcal.paper.tables import plans_long, table2
 
     (tmp_path / "arm.yaml").write_text("name: arm\nkind: planar\nlinks_m: [0.6, 0.4]\njoint_names: [shoulder, elbow]\n")
     robot = load_robot(tmp_path / "arm.yaml")
@@ -300,7 +300,7 @@ def test_a_joint_subset_of_the_urdf_is_the_dh_arm_with_that_joint_held(root, tmp
 
 def test_the_workflow_lists_the_urdf_as_an_input_of_its_robot(root):
     """robot_inputs (the rules' ``urdf`` input): a URDF robot file reads its URDF, other kinds nothing."""
-    from stiffcal.robot import robot_inputs
+    from stiffcal.model.robot import robot_inputs
 
     assert robot_inputs(KUKA_URDF) == ["config/robots/kuka_kr210_r2700.urdf"]
     assert robot_inputs(KUKA_DH) == [] and robot_inputs("no/such/robot.yaml") == []
@@ -316,8 +316,8 @@ def test_a_cell_lists_the_collision_meshes_pinocchio_reads(tmp_path):
 
     import pinocchio as pin
 
-    from stiffcal.robot import robot_inputs
-    from stiffcal.workcell import _package_dirs
+    from stiffcal.model.robot import robot_inputs
+    from stiffcal.model.workcell import _package_dirs
 
     sys.path.insert(0, str(Path(__file__).parent))
     import real_arms
@@ -389,7 +389,7 @@ def test_a_continuous_joint_has_no_limits(root):
     import xml.etree.ElementTree as ET
 
     from stiffcal.api import design
-    from stiffcal.study import check_test_inputs
+    from stiffcal.planning.study import check_test_inputs
 
     robot = load_robot(root / "tests/data/urdf/ur5_cont.yaml")
     kinds = {j.get("name"): j.get("type") for j in ET.parse(root / "tests/data/urdf/ur5_cont.urdf").iter("joint")
@@ -432,8 +432,8 @@ def test_the_report_counts_the_identifiable_compliances(root, tmp_path):
     import jinja2
 
     import stiffcal
-    from stiffcal.report import TEMPLATE_DIR, fmt, robot_summary
-    from stiffcal.study import study_from_entry
+    from stiffcal.report.html import TEMPLATE_DIR, fmt, robot_summary
+    from stiffcal.planning.study import study_from_entry
 
     entry = {"name": "panda", "robot": "tests/data/urdf/franka_panda.yaml", "force_N": [20, 0, -30], "sigma_m": 1e-5,
              "test_pose_deg": [0, -30, 0, -120, 0, 90, 45]}

@@ -1,5 +1,5 @@
-"""The cell a robot stands in (stiffcal.workcell, issue 24): every pose of every plan feasible, checked by code that
-is not the code under test.
+"""The cell a robot stands in (stiffcal.model.workcell, issue 24): every pose of every plan feasible, checked by code
+that is not the code under test.
 
 * Real arms nobody here wrote (UR10, Panda, Kinova Jaco2 of example-robot-data, pinned in requirements-test.lock):
   every pose of the plans of ``stiffcal design``, of a design study (the workflow's functions) and of
@@ -25,7 +25,7 @@ import pytest
 import stiffcal
 from stiffcal.cli import main
 from stiffcal.errors import InputError
-from stiffcal.robot import load_robot
+from stiffcal.model.robot import load_robot
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import real_arms  # noqa: E402
@@ -138,12 +138,12 @@ def test_every_design_pose_of_a_real_arm_is_feasible_by_an_independent_check(arm
 
 @needs_arms
 def test_a_design_study_of_a_real_arm_through_the_workflow_functions(arms, tmp_path):
-    """The workflow's jobs (stiffcal.pipeline: the design job, one job for every M, the summary): every pose of
+    """The workflow's jobs (stiffcal.workflow.pipeline: the design job, one job for every M, the summary): every pose of
     every plan feasible by the independent check, plans.csv with each pose's clearance, the certificate with both
     regions, the figure drawn."""
     import pandas as pd
 
-    from stiffcal import pipeline
+    from stiffcal.workflow import pipeline
 
     name = "jaco2"
     _, _, _, _, _, qt, force = real_arms.ARMS[name]
@@ -200,9 +200,9 @@ def test_the_hanging_mass_experiment_on_a_ur10_is_planned_with_its_cable_free(ar
             hit = coal.collide(g.geometry, coal.Transform3s(M.rotation, M.translation), cable, where,
                                coal.CollisionRequest(), coal.CollisionResult())
             assert not hit, (g.name, np.degrees(q))
-    from stiffcal.study import Study
-    from stiffcal.observation import measurement_loads
-    from stiffcal.tables import plan_summary
+    from stiffcal.planning.study import Study
+    from stiffcal.model.observation import measurement_loads
+    from stiffcal.paper.tables import plan_summary
 
     # the same plan under loads twice as heavy: O_t a quarter (the measurement rows scale with |F|)
     st = Study("x", robot, np.radians(qt), np.array([0, 0, -98.1]), 1e-5, ("ot",), 1, 1, None, None, "tool", 0.0,
@@ -214,7 +214,7 @@ def test_the_hanging_mass_experiment_on_a_ur10_is_planned_with_its_cable_free(ar
 
 def _points_along(robot, q_deg, per_link=400):
     """(links, per_link, 3) points along every segment of the drawn arm (as_xyz of link_points), sampled here."""
-    from stiffcal.robot import as_xyz
+    from stiffcal.model.robot import as_xyz
 
     P = as_xyz(robot.link_points(np.radians(q_deg)))
     t = np.linspace(0, 1, per_link)[:, None]
@@ -278,8 +278,8 @@ def test_the_cell_costs_o_t_and_the_certificate_holds_against_a_brute_force(tmp_
     ok = np.array([_planar_violations(_points_along(robot, q, 60), clearance=0.02 + 4e-3, floor=-0.03) ==
                    (False, False) for q in Q])
     Q = Q[ok]
-    from stiffcal.study import Study
-    from stiffcal.stiffness import pose_information
+    from stiffcal.planning.study import Study
+    from stiffcal.model.stiffness import pose_information
 
     st = Study("x", load_robot(PAPER), np.radians([60, 30]), np.array([0.0, -1.0]), 1.0, ("ot",), 1, 1)
     prob = st.problem("ot", 2)
@@ -321,7 +321,7 @@ def test_a_dh_arm_in_a_cell_with_capsules(root):
 # --- the geometry against coal and brute force ----------------------------------------------------------------
 
 def test_segment_distances_against_a_brute_force(rng):
-    from stiffcal.workcell import segment_distance
+    from stiffcal.model.workcell import segment_distance
 
     a, b, c, d = (rng.normal(size=(300, 3)) for _ in range(4))
     b[:20] = a[:20]  # degenerate segments (points)
@@ -339,14 +339,14 @@ def test_distances_to_boxes_and_cylinders_against_coal(rng):
     against a dense sampling of the segment (inside)."""
     import coal
 
-    from stiffcal.workcell import Obstacle, rpy_matrix
+    from stiffcal.model.workcell import Obstacle, rpy_matrix
 
     R = rpy_matrix([0.3, -0.5, 1.1])
     box = Obstacle("b", "box", center=np.array([0.2, -0.1, 0.4]), rotation=R, half=np.array([0.3, 0.2, 0.1]))
     axis = np.array([0.2, 0.3, 0.93])
     axis /= np.linalg.norm(axis)
     cyl = Obstacle("c", "cylinder", center=np.array([-0.3, 0.2, 0.1]), axis=axis, radius=0.15, half_length=0.4)
-    from stiffcal.workcell import _rotation_to
+    from stiffcal.model.workcell import _rotation_to
 
     shapes = {"b": (coal.Box(0.6, 0.4, 0.2), coal.Transform3s(R, box.center)),
               "c": (coal.Cylinder(0.15, 0.8), coal.Transform3s(_rotation_to(np.array([0.0, 0, 1]), axis), cyl.center))}
@@ -382,8 +382,8 @@ def test_candidate_poses_from_a_csv_are_filtered_and_the_bound_is_exact_over_the
     ok = np.array([_planar_violations(_points_along(robot, q)) == (False, False) for q in Q])
     feasible = {tuple(q) for q in Q[ok]}
     assert {tuple(np.round(p, 2)) for p in res.poses_deg} <= feasible and "candidate poses" in res.lower_bound_over
-    from stiffcal.study import Study
-    from stiffcal.tables import plan_summary
+    from stiffcal.planning.study import Study
+    from stiffcal.paper.tables import plan_summary
 
     st = Study("x", robot, np.radians([60, 30]), np.array([0.0, -1.0]), 1.0, ("ot",), 1, 1)
     F = Q[ok]
@@ -456,9 +456,9 @@ def test_discriminate_and_the_verdict_s_plan_keep_their_poses_in_the_cell(root, 
     path.write_text(PLANAR_CELL)
     robot = load_robot(path)
     data = str(root / "data/synthetic_paper_2r_hanging.csv")
-    from stiffcal import discrimination as X
+    from stiffcal.measured import discrimination as X
     from stiffcal.api import _placed
-    from stiffcal.measurements import read_measurements
+    from stiffcal.measured.measurements import read_measurements
 
     placed = _placed(load_robot(PAPER), cell=str(cell))
     meas = read_measurements(data, placed)
@@ -524,14 +524,14 @@ def test_api_cli_and_workflow_give_one_plan_under_one_and_two_blas_threads(arms,
     assert np.array_equal(np.round(outs[0]["poses"], 6), np.array(cli["poses_deg"])) and cli["O_t"] == outs[0]["O_t"]
     import pandas as pd
 
-    from stiffcal import pipeline
+    from stiffcal.workflow import pipeline
 
     p = {"name": name, "test_pose_deg": qt, "force_N": force, "sigma_m": 1e-5}
     files = [str(tmp_path / f) for f in ("d.json", "s.csv", "c.csv", "pool.npy", "best.csv")]
     pipeline.approximate_design(p, robot, files[0], files[1], files[2], None, name, files[3])
     pipeline.study_plans(p, robot, [3], 0, files[0], files[3], files[4])
     row = pd.read_csv(files[4]).iloc[0]
-    from stiffcal.tables import parse_plan
+    from stiffcal.paper.tables import parse_plan
 
     assert np.allclose(parse_plan(row.poses_deg), np.array(outs[0]["poses"]), atol=5e-5)  # 4 decimals in the file
     assert row.O_t == pytest.approx(outs[0]["O_t"], rel=1e-9)
@@ -560,8 +560,8 @@ def test_the_documented_example_of_a_real_arm_loads_and_leaves_poses(tmp_path):
     path = tmp_path / "ur10_cell.yaml"
     path.write_text(block.replace("/path/to/example-robot-data/robots", str(real_arms.robots_dir())))
     robot = load_robot(path)
-    from stiffcal.design import sample_joint_space
-    from stiffcal.workcell import feasible
+    from stiffcal.planning.problem import sample_joint_space
+    from stiffcal.model.workcell import feasible
 
     ok = feasible(robot, sample_joint_space(robot, 8, seed=4))
     assert 0 < ok.mean() < 1 and {o.name for o in robot.cell.obstacles} == {"floor", "table", "wall"}
@@ -575,8 +575,8 @@ def test_a_single_pose_from_a_candidate_file_is_its_best_feasible_pose(tmp_path,
     csv = tmp_path / "c.csv"
     csv.write_text("q1_deg,q2_deg\n" + "\n".join(f"{a},{b}" for a, b in Q) + "\n")
     res = stiffcal.design(path, [60, 30], [0, -1], experiments=1, candidates=csv)
-    from stiffcal.study import Study
-    from stiffcal.tables import plan_summary
+    from stiffcal.planning.study import Study
+    from stiffcal.paper.tables import plan_summary
 
     st = Study("x", robot, np.radians([60, 30]), np.array([0.0, -1.0]), 1.0, ("ot",), 1, 1)
     ok = np.array([_planar_violations(_points_along(robot, q)) == (False, False) for q in Q])
@@ -587,16 +587,16 @@ def test_a_single_pose_from_a_candidate_file_is_its_best_feasible_pose(tmp_path,
 @needs_arms
 def test_discriminate_and_the_next_round_on_a_real_arm_keep_their_poses_feasible(arms, tmp_path):
     """A UR10 in its cell (the floor, self-collision from its meshes) measured in a lab (3-D pushes, backlash,
-    stiffcal.truth with the URDF's inertias): every pose of discriminate's plans and of the next round planned
-    from the calibrated model (stiffcal.calibrated.next_round) passes the independent mesh check."""
+    stiffcal.testing.truth with the URDF's inertias): every pose of discriminate's plans and of the next round planned
+    from the calibrated model (stiffcal.measured.calibrated.next_round) passes the independent mesh check."""
     from dataclasses import replace
 
-    from stiffcal import calibrated as C
-    from stiffcal import discrepancy as D
-    from stiffcal import discrimination as X
-    from stiffcal import rates as R
-    from stiffcal import truth as T
-    from stiffcal.measurements import read_measurements
+    from stiffcal.measured import calibrated as C
+    from stiffcal.measured import discrepancy as D
+    from stiffcal.measured import discrimination as X
+    from stiffcal.testing import rates as R
+    from stiffcal.testing import truth as T
+    from stiffcal.measured.measurements import read_measurements
 
     robot = load_robot(arms["ur10"])
     rng = np.random.default_rng(0)
@@ -623,8 +623,8 @@ def test_discriminate_and_the_next_round_on_a_real_arm_keep_their_poses_feasible
 def test_a_calibrated_file_keeps_its_urdf_and_srdf_from_another_folder(tmp_path):
     """A Panda robot file naming its URDF and SRDF by relative paths; its calibrated.yaml written two folders
     away refers to the same two files (rewritten from its own folder), and reloads with the same cell."""
-    from stiffcal import calibrated as C
-    from stiffcal import rates as R
+    from stiffcal.measured import calibrated as C
+    from stiffcal.testing import rates as R
 
     urdf, srdf, base, tip, tool, _, _ = real_arms.ARMS["panda"]
     root = real_arms.robots_dir()
@@ -646,6 +646,6 @@ def test_a_calibrated_file_keeps_its_urdf_and_srdf_from_another_folder(tmp_path)
     assert back.cell.srdf == robot.cell.srdf and Path(back.cell.srdf).is_file()
     q = np.radians([[10, 20, 0, -120, 0, 140, 45]])
     np.testing.assert_allclose(back.fk(q), robot.fk(q), atol=1e-12)
-    from stiffcal.workcell import feasible
+    from stiffcal.model.workcell import feasible
     poses = np.radians(np.random.default_rng(0).uniform(-150, 150, (50, 7)))
     assert np.array_equal(feasible(back, poses), feasible(robot, poses))

@@ -132,7 +132,7 @@ def test_a_study_in_a_cell_keeps_every_pose_feasible_and_is_the_api_s_plan(built
     import pandas as pd
 
     import stiffcal
-    from stiffcal.robot import load_robot
+    from stiffcal.model.robot import load_robot
     from test_workcell import _planar_violations, _points_along
 
     long = pd.read_csv(built / "results/studies/paper-cell/plans.csv")
@@ -251,7 +251,7 @@ def test_dry_run_after_a_library_edit_reruns_the_jobs_that_use_it(built, root, t
     report rerun; no table or map job."""
     pkg = tmp_path / "pkg"
     shutil.copytree(root / "src/stiffcal", pkg / "stiffcal")
-    plots = pkg / "stiffcal/plots.py"
+    plots = pkg / "stiffcal/report/plots.py"
     plots.write_text(plots.read_text() + "\n# an edit\n")
     jobs = _dry_run_jobs(built, {"PYTHONPATH": str(pkg)})
     assert jobs == {"paper_figures": 1, "map_figures": 1, "study_summary": 3, "discrepancy": 2, "discriminate": 2,
@@ -389,8 +389,8 @@ def test_archive_of_a_second_config_holds_its_config_inputs_and_no_stale_output(
     first config's run left behind (results, figures, logs of its studies and data sets)."""
     import tarfile
 
-    from stiffcal.config import workflow_config
-    from stiffcal.report import config_hash
+    from stiffcal.workflow.config import workflow_config
+    from stiffcal.report.html import config_hash
 
     wd = tmp_path / "wf"
     shutil.copytree(built, wd, symlinks=True, ignore=shutil.ignore_patterns("locks", "archive"))

@@ -10,13 +10,13 @@ import pytest
 
 import stiffcal
 from stiffcal.cli import main
-from stiffcal.design import Problem, plan_observations
+from stiffcal.planning.problem import Problem, plan_observations
 from stiffcal.errors import InputError
-from stiffcal.observation import Sensing, observation_rows, sensed_params
-from stiffcal.robot import load_robot, spatial_robot, with_targets
-from stiffcal.stiffness import identify_batch, observation_matrix
-from stiffcal.study import study_from_entry
-from stiffcal.tables import plan_summary
+from stiffcal.model.observation import Sensing, observation_rows, sensed_params
+from stiffcal.model.robot import load_robot, spatial_robot, with_targets
+from stiffcal.model.stiffness import identify_batch, observation_matrix
+from stiffcal.planning.study import study_from_entry
+from stiffcal.paper.tables import plan_summary
 
 PAPER = "config/robots/paper_2r.yaml"
 KUKA = "config/robots/kuka_kr210_r2700.yaml"
@@ -113,7 +113,7 @@ def test_o_t_with_orientation_targets_and_a_length_scale_is_the_monte_carlo_mean
 
 
 def plan_summary_study(robot, prob, plan):
-    from stiffcal.study import Study
+    from stiffcal.planning.study import Study
 
     st = Study("t", robot, prob.test_pose, prob.force, prob.sigma, ("ot",), 1.0, 1.0, prob.moment, prob.sensing,
                prob.test_target, prob.length_m)
@@ -121,7 +121,7 @@ def plan_summary_study(robot, prob, plan):
 
 
 def test_the_length_scale_is_the_rms_over_a_sphere(rng):
-    """Module docstring of stiffcal.observation: L^2 |w|^2 is the mean of |w x r|^2 over points r at distance
+    """Module docstring of stiffcal.model.observation: L^2 |w|^2 is the mean of |w x r|^2 over points r at distance
     L sqrt(3/2) in every direction."""
     w, L = rng.normal(size=3), 0.4
     r = rng.normal(size=(400000, 3))
@@ -164,7 +164,7 @@ def test_design_with_a_wrench_reports_the_o_t_of_its_poses(root):
     prob = Problem(robot, np.array([0.0, -1.0]), "ot", 1, np.radians([60, 30]), moment=np.array([0.3]))
     assert not prob.symmetric
     grid = np.radians(np.stack(np.meshgrid(np.arange(-180, 180, 2.0), np.arange(-180, 180, 2.0)), -1).reshape(-1, 2))
-    from stiffcal import criteria
+    from stiffcal.model import criteria
 
     brute = criteria.loss("ot", plan_observations(prob, grid[:, None, :]), 1, prob.At).min()
     single = stiffcal.design(robot, [60, 30], wrench=[0.0, -1.0, 0.3])

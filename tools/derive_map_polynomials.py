@@ -1,10 +1,10 @@
 """Derive the polynomials whose real roots hold every stationary point of the single-pose O_t (issue 4).
 
 Run ``make derive`` (installs sympy, pinned in the Makefile, into .venv) to regenerate
-``src/stiffcal/_map_polynomials.py``; the generated file is committed, and ``tests/test_maps.py`` checks it
+``src/stiffcal/planning/_map_polynomials.py``; the generated file is committed, and ``tests/test_maps.py`` checks it
 numerically against stationary points found by an independent local optimiser.
 
-Derivation (see the docstring of ``stiffcal.maps``). For a planar 2R arm with l1 = 1, l2 = b and a unit
+Derivation (see the docstring of ``stiffcal.planning.maps``). For a planar 2R arm with l1 = 1, l2 = b and a unit
 force, a single measurement pose is described by c = cos q2 and x = tau1 / tau2 (the ratio of the joint
 torques that the force produces), and
 
@@ -78,4 +78,4 @@ def main(path: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "src/stiffcal/_map_polynomials.py")
+    main(sys.argv[1] if len(sys.argv) > 1 else "src/stiffcal/planning/_map_polynomials.py")

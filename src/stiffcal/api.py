@@ -26,9 +26,9 @@ import numpy as np
 
 from .errors import InputError, short_repr
 from .jsonsafe import _json_number, json_safe  # noqa: F401  (re-exported: part of this module's API)
-from .results import DiscriminationPlan, Verdict
+from .measured.results import DiscriminationPlan, Verdict
 from .limits import (MAX_DESIGN_EXPERIMENTS, MAX_DISCRIMINATE_EXPERIMENTS, MAX_FORCE_N, MAX_MOMENT_NM, MIN_LOAD)
-from .robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
+from .model.robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
 
 __all__ = ["DesignResult", "design", "analyse_measurements", "load_robot", "float_list"]
 
@@ -266,11 +266,11 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
            cache_dir=None) -> DesignResult:
     """Optimal measurement poses for stiffness calibration at a test pose (the paper's method).
 
-    robot: a :class:`~stiffcal.robot.Robot` or the path of a robot file (docs/contracts.md); test_pose_deg:
+    robot: a :class:`~stiffcal.model.robot.Robot` or the path of a robot file (docs/contracts.md); test_pose_deg:
     (n,) the test pose q* [deg], within the joint limits; force_N: (d,) the force [N] at the tool point in every
     measurement and at the test pose (d = 2 for a planar arm, 3 for a spatial one); or instead wrench: the
     force followed by the moment [N m] about the tool point, ``(fx, fy, mz)`` for a planar arm, ``(fx, fy, fz,
-    mx, my, mz)`` for a spatial one (eqs. 2-4 on the 6-D Jacobian, :mod:`stiffcal.observation`); not zero;
+    mx, my, mz)`` for a spatial one (eqs. 2-4 on the 6-D Jacobian, :mod:`stiffcal.model.observation`); not zero;
     experiments: the number of measurement poses M (enough equations for the compliances); criterion: one of
     ``ot a t d g mdc o1 o2 o3 o4`` (Table 1; 'ot' is the paper's test-pose criterion, eq. 16); sigma: the
     position noise standard deviation [m]; targets: the targets whose positions are measured at every pose
@@ -282,7 +282,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     [N] along the robot file's gravity, 'directions:K:M1,M2', 'forces:FX,FY,FZ;...', 'wrenches:FX,..,MZ;...',
     'bar:AX,AY,AZ:M1,M2'), force_N or wrench being then the test pose's load only (default: that load in every
     measurement too); cell: where the robot stands (a mapping of the cell's keys, a
-    :class:`~stiffcal.workcell.WorkCell` or the path of a YAML file; replaces the robot file's ``cell``): every
+    :class:`~stiffcal.model.workcell.WorkCell` or the path of a YAML file; replaces the robot file's ``cell``): every
     pose of the plan is feasible in it; candidates: the path of a CSV of candidate poses (columns q1_deg.. or
     the joint names in radians): the plan is chosen among those the cell allows, and the bound is exact over
     them; seed: seed of the random starts of M-pose plans (results are deterministic for a seed, whatever the
@@ -290,21 +290,21 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     elsewhere, with an estimate of the time left (None or True; False: none; :mod:`stiffcal.progress`);
     cache_dir: a folder where the optimal approximate design and its certificate (the same for every M,
     criterion and seed) are kept and read back by later calls with the same inputs (None: computed afresh;
-    :mod:`stiffcal.designcache`; the result is the same either way, bit for bit).
+    :mod:`stiffcal.planning.designcache`; the result is the same either way, bit for bit).
 
     M = 1 is an exhaustive global search over one pose; M > 1 a Fedorov exchange over a candidate pool
     started from the rounded optimal approximate design, polished in the continuum. For 'ot', the
     equivalence theorem bounds O_t of any M-pose plan from below (``lower_bound``, ``gap``).
     Raises :class:`InputError` for bad arguments or a file that does not hold a valid robot.
     """
-    from . import criteria
-    from .certificate import unconstrained
-    from .design import optimal_single_pose, plan_summary
-    from .designcache import cached_design, cached_pool
-    from .plans import best_plan
-    from .study import Study, check_sensing, check_test_inputs
+    from .model import criteria
+    from .planning.certificate import unconstrained
+    from .planning.problem import optimal_single_pose, plan_summary
+    from .planning.designcache import cached_design, cached_pool
+    from .planning.plans import best_plan
+    from .planning.study import Study, check_sensing, check_test_inputs
     from .threads import one_blas_thread
-    from .workcell import cell_notes, clearance, read_candidates
+    from .model.workcell import cell_notes, clearance, read_candidates
 
     robot = _placed(_robot(robot), joint_limits_deg, cell)
     if criterion not in criteria.CRITERIA_KEYS:
@@ -327,7 +327,7 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     sensing, test_target, length = check_sensing(
         robot, [TOOL_TARGET] if targets is None else _names(targets, "targets"), _flag(orientation, "orientation"),
         sigma, sigma_rad, test_target, positive_number(orientation_length_m, "orientation_length_m", 0.0), "", None)
-    from .observation import measurement_loads
+    from .model.observation import measurement_loads
 
     meas_loads = None if loads is None else measurement_loads(robot, loads, "loads")
     pool = None if candidates is None else read_candidates(_path(candidates, "candidates", "a CSV of candidate poses"),
@@ -428,7 +428,7 @@ def _load_words(problem) -> str:
 
 def _cell_value(cell):
     """The ``cell`` argument: a mapping, a WorkCell, or the path of a YAML file (str or path)."""
-    from .workcell import WorkCell
+    from .model.workcell import WorkCell
 
     if isinstance(cell, (dict, WorkCell)):
         return cell
@@ -443,7 +443,7 @@ def _check_single_pose_identifies(problem, samples: int = 256) -> None:
     identifies every compliance: at 256 random poses within the limits the rows of a pose never reach full rank
     (e.g. every joint axis through one point: the measured point then moves on a sphere, two directions for three
     compliances). The single-pose search would find no finite value anywhere."""
-    from . import criteria
+    from .model import criteria
 
     if problem.criterion not in criteria.NEEDS_INVERSE or problem.rows_per_pose < problem.n_params:
         return  # the search says so itself (too few equations), or the criterion is finite without an inverse
@@ -474,7 +474,7 @@ def _names(value, field: str) -> list[str]:
 def load_arguments(robot: Robot, force_N, wrench, required: bool = True):
     """``(force (d,), moment (d_m,) or None, field)`` from ``force_N`` (d,) or ``wrench`` (d + d_m,) [N, N m], one
     of them (or neither when not ``required``: (None, None, 'force_N')); InputError naming the argument."""
-    from .observation import force_dim, wrench_dim
+    from .model.observation import force_dim, wrench_dim
 
     if force_N is not None and wrench is not None:
         raise InputError("expected the force or the wrench, not both", field="wrench")
@@ -538,10 +538,10 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     robot: a Robot or a robot file; data: the measured-data CSV (docs/measured-data.md); alpha: family-wise
     false-alarm rate, in (0, 1); test_pose_deg (n,) [deg] and force_N (d,) [N] or wrench (d + d_m,) [N, N m]:
     the test pose and its load for the predicted compensation error (give the pose and one load, or neither);
-    out: a directory for ``verdict.json``, ``calibrated.yaml`` and the figures (:func:`stiffcal.discrepancy.run`;
-    None: nothing is written); figures: False writes the two files without the figures; label: the data set's name
-    in the figures' titles (default the file's name). The files are written to
-    a temporary directory and moved into ``out`` only when everything succeeded.
+    out: a directory for ``verdict.json``, ``calibrated.yaml`` and the figures
+    (:func:`stiffcal.measured.discrepancy.run`; None: nothing is written); figures: False writes the two files
+    without the figures; label: the data set's name in the figures' titles (default the file's name). The files are
+    written to a temporary directory and moved into ``out`` only when everything succeeded.
     angle_resolution_deg [deg], force_resolution_N [N], moment_resolution_Nm [N m]: joint angles and loads
     that agree within these are one configuration and one load (encoder and load-cell resolution; defaults
     0.01 deg, 0.5 N and 0.05 N m, docs/measured-data.md). sigma_m [m] and sigma_rad [rad]: the noise levels
@@ -549,12 +549,12 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     from the data). joint_limits_deg (n, 2) [deg] and cell (as :func:`design`): where the robot stands, for the
     verdict's O_t-optimal plan of the extended model (``optimal_plan_extended_deg``: every pose feasible).
 
-    Returns the :class:`stiffcal.results.Verdict` (docs/measured-data.md: cause, causes, indistinguishable_from,
-    p_value, structure, nominal, extended, gain, outlier_rows, notes, ...; a read-only mapping, and
-    ``to_dict()`` the JSON of ``verdict.json``), with the same fields whether or not ``out`` is given
+    Returns the :class:`stiffcal.measured.results.Verdict` (docs/measured-data.md: cause, causes,
+    indistinguishable_from, p_value, structure, nominal, extended, gain, outlier_rows, notes, ...; a read-only
+    mapping, and ``to_dict()`` the JSON of ``verdict.json``), with the same fields whether or not ``out`` is given
     (``calibrated_model`` None when nothing is written). Raises :class:`InputError` for bad arguments or data.
     """
-    from . import discrepancy
+    from .measured import discrepancy
 
     robot = _placed(_robot(robot), joint_limits_deg, cell)
     data = _input_file(_path(data, "data", "a measured-data CSV"))
@@ -575,8 +575,8 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
 
 def _placed(robot: Robot, joint_limits_deg=None, cell=None) -> Robot:
     """``robot`` with the joint limits and the cell given as arguments (None keeps the robot file's)."""
-    from .robot import narrowed_limits
-    from .workcell import with_cell
+    from .model.robot import narrowed_limits
+    from .model.workcell import with_cell
 
     if joint_limits_deg is not None:
         robot = narrowed_limits(robot, joint_limits_deg, None, "joint_limits_deg")
@@ -588,7 +588,7 @@ def _placed(robot: Robot, joint_limits_deg=None, cell=None) -> Robot:
 def _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm=None) -> tuple[float, float, float]:
     """The encoder, load-cell and moment resolutions [deg, N, N m] (docs/measured-data.md), defaults filled in,
     checked."""
-    from . import measurements as M
+    from .measured import measurements as M
 
     return (M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None
             else positive_number(angle_resolution_deg, "angle_resolution_deg", 1e-12, 360.0),
@@ -601,7 +601,7 @@ def _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm=
 def _test_pose(robot: Robot, test_pose_deg, force_N, wrench=None):
     """(test pose (n,) [rad], its load: the force (d,) [N] or the wrench (d + d_m,) [N, N m]) from degrees,
     newtons and newton metres; the pose and a load both or neither; checked."""
-    from .study import check_test_inputs
+    from .planning.study import check_test_inputs
 
     force, moment, field_ = load_arguments(robot, force_N, wrench, required=False)
     if (test_pose_deg is None) != (force is None):
@@ -634,7 +634,7 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
                         angle_resolution_deg=None, force_resolution_N=None, seed=0, joint_limits_deg=None,
                         cell=None) -> DiscriminationPlan:
     """The next experiment that tells a verdict's rival causes apart (``stiffcal discriminate``; issue 18,
-    :mod:`stiffcal.discrimination`): the M-point plan (poses within the joint limits, loads from ``loads``)
+    :mod:`stiffcal.measured.discrimination`): the M-point plan (poses within the joint limits, loads from ``loads``)
     that maximises the T-criterion of the rivals (Atkinson & Fedorov 1975), its predicted power, its
     efficiency against the equivalence-theorem bound, and a compound plan with the extended model's O_t.
 
@@ -646,11 +646,11 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     (None: nothing written; files moved in only on success); resolutions as :func:`analyse_measurements`;
     joint_limits_deg and cell (as :func:`design`): every measurement of every plan is feasible in the cell, with
     a hanging mass's cable free.
-    Returns the :class:`stiffcal.results.DiscriminationPlan` (plan.json's fields, docs/measured-data.md; a
+    Returns the :class:`stiffcal.measured.results.DiscriminationPlan` (plan.json's fields, docs/measured-data.md; a
     read-only mapping, ``to_dict()`` the JSON), the same whether or not ``out`` is given (the data's own loads,
     with a loading bar's moments, in both). Raises :class:`InputError` for bad arguments or data.
     """
-    from . import discrimination
+    from .measured import discrimination
 
     robot = _placed(_robot(robot), joint_limits_deg, cell)
     data = _input_file(_path(data, "data", "a measured-data CSV"))
@@ -680,14 +680,14 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
 
 def predict_deflection(robot, poses, *, out=None, orientation: bool = False) -> dict:
     """The calibrated model's deflection at given poses under given loads (``stiffcal predict``;
-    :func:`stiffcal.calibrated.predict`).
+    :func:`stiffcal.measured.calibrated.predict`).
 
     robot: a calibrated robot file (``calibrated.yaml`` of ``stiffcal discrepancy``) or Robot (one with only
     ``compliances_rad_per_Nm`` predicts with those, no extension, no interval); poses: a CSV of poses and loads
-    (:func:`stiffcal.calibrated.read_poses`); out: a CSV to write (the poses with ``dx_m`` .. and their standard
-    deviations ``sd_dx_m`` ..; None: nothing written); orientation: predict the tool's rotation too.
+    (:func:`stiffcal.measured.calibrated.read_poses`); out: a CSV to write (the poses with ``dx_m`` .. and their
+    standard deviations ``sd_dx_m`` ..; None: nothing written); orientation: predict the tool's rotation too.
     Returns ``{"rows", "causes", "max_deflection_m", "max_sd_m", "out", "notes"}``; raises :class:`InputError`."""
-    from . import calibrated as C
+    from .measured import calibrated as C
 
     robot = _robot(robot)
     pf = C.read_poses(_input_file(_path(poses, "poses", "a CSV of poses and loads")), robot)
@@ -702,13 +702,13 @@ def predict_deflection(robot, poses, *, out=None, orientation: bool = False) -> 
 
 
 def compensate_path(robot, path, *, out=None) -> dict:
-    """Compensate a path with the calibrated model (``stiffcal compensate``; :func:`stiffcal.calibrated.compensate`):
-    for every row of ``path`` (a CSV of poses and loads) the predicted deflection of the tool point, the corrected
-    target and the corrected joint angles (iterated, and first order), and the predicted residual error.
-    out: a CSV to write (None: nothing written). Returns ``{"rows", "causes", "max_deflection_m",
-    "max_residual_m", "max_first_order_residual_m", "max_band95_m", "converged", "out", "notes"}``; raises
-    :class:`InputError`."""
-    from . import calibrated as C
+    """Compensate a path with the calibrated model (``stiffcal compensate``;
+    :func:`stiffcal.measured.calibrated.compensate`): for every row of ``path`` (a CSV of poses and loads) the
+    predicted deflection of the tool point, the corrected target and the corrected joint angles (iterated, and first
+    order), and the predicted residual error. out: a CSV to write (None: nothing written). Returns ``{"rows",
+    "causes", "max_deflection_m", "max_residual_m", "max_first_order_residual_m", "max_band95_m", "converged",
+    "out", "notes"}``; raises :class:`InputError`."""
+    from .measured import calibrated as C
 
     robot = _robot(robot)
     pf = C.read_poses(_input_file(_path(path, "path", "a CSV of poses and loads")), robot)
@@ -760,8 +760,8 @@ def _write_whole(path: Path, text: str) -> None:
 def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1,
                     sigma_m: float | None = None, joint_limits_deg=None, cell=None, seed: int = 0,
                     robot=None) -> dict:
-    """The next round's plan (``stiffcal design --prior``; :func:`stiffcal.calibrated.next_round`): M more poses
-    of the tool point's position under the test load, O_t-optimal for the calibrated model with the information
+    """The next round's plan (``stiffcal design --prior``; :func:`stiffcal.measured.calibrated.next_round`): M more
+    poses of the tool point's position under the test load, O_t-optimal for the calibrated model with the information
     its data already hold added, with the certified lower bound over every M-pose plan of the candidate poses.
 
     prior: a calibrated robot file (``calibrated.yaml`` of ``stiffcal discrepancy``) or a Robot with a
@@ -774,8 +774,8 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     :class:`InputError` for bad arguments or a robot without a calibration."""
     from dataclasses import replace
 
-    from . import calibrated as C
-    from .study import check_test_inputs
+    from .measured import calibrated as C
+    from .planning.study import check_test_inputs
     from .threads import one_blas_thread
 
     prior = _robot(prior)

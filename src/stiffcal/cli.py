@@ -139,7 +139,7 @@ def _plans_progress(args, ms):
     if len(ms) == 1:
         return contextlib.nullcontext(None)
     from .api import design_estimate_s
-    from .robot import load_robot
+    from .model.robot import load_robot
 
     robot = load_robot(args.robot)
     stages = []
@@ -151,9 +151,9 @@ def _plans_progress(args, ms):
 
 
 def _cache_dir(args):
-    """The folder of the approximate-design cache (:mod:`stiffcal.designcache`): ``--cache-dir``, None with
+    """The folder of the approximate-design cache (:mod:`stiffcal.planning.designcache`): ``--cache-dir``, None with
     ``--no-cache``, else the default folder when it can be written (else None: computed afresh)."""
-    from .designcache import default_cache_dir
+    from .planning.designcache import default_cache_dir
     from .safeio import check_out_dir
 
     if args.no_cache:
@@ -177,7 +177,7 @@ def next_round(args, m: int) -> dict:
     """``stiffcal design --prior CALIBRATED``: the next round's plan of m poses given the calibration's
     information."""
     from .api import plan_next_round, positive_number
-    from .robot import load_robot
+    from .model.robot import load_robot
 
     given = [k for k, default in _NOT_WITH_PRIOR.items() if getattr(args, k) not in (default, str(default))]
     if given:
@@ -258,7 +258,7 @@ def compensate(args) -> dict:
 
 def verify_archive(args) -> dict:
     """``stiffcal verify-archive FILE``: every file of the archive against its SHA256SUMS."""
-    from .archive import verify_archive as verify
+    from .workflow.archive import verify_archive as verify
 
     ok, problems = verify(args.file)
     for p in problems:
@@ -290,7 +290,7 @@ def _cell_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .criteria import CRITERIA_KEYS  # the registry (stiffcal.criteria.CRITERIA)
+    from .model.criteria import CRITERIA_KEYS  # the registry (stiffcal.model.criteria.CRITERIA)
 
     p = _Parser(prog="stiffcal", description=__doc__.split("\n")[0])
     p.add_argument("--version", action="version", version=f"stiffcal {__version__}")

@@ -1,7 +1,7 @@
 """CSV text of numeric columns without pandas: the map jobs write tables of 10^5 rows and more and need
 nothing else of pandas (importing it costs a job about 0.3 s of CPU). The bytes are what
 ``pandas.DataFrame.to_csv(index=False, float_format=FLOAT_FORMAT, lineterminator="\\n")`` writes
-(:func:`stiffcal.tables.write_csv`; tested against pandas)."""
+(:func:`stiffcal.paper.tables.write_csv`; tested against pandas)."""
 
 from __future__ import annotations
 

@@ -4,9 +4,9 @@
 containers; :func:`package_fingerprint` the source of the ``stiffcal`` package and the numerical libraries'
 versions. :class:`JsonMemo` keeps a JSON mapping in one file, written whole (a temporary file renamed), read as
 empty when it is missing or damaged. Users: the approximate-design cache of ``stiffcal design``
-(:mod:`stiffcal.designcache`) and the workflow's memo in ``.snakemake/stiffcal/`` (the code versions of the
-rules, :func:`stiffcal.codeversion.remember_code_versions`, and the measured-data files its config check has
-read, :func:`stiffcal.config.workflow_config`), so that ``snakemake -n`` with nothing to do does not parse the
+(:mod:`stiffcal.planning.designcache`) and the workflow's memo in ``.snakemake/stiffcal/`` (the code versions of the
+rules, :func:`stiffcal.workflow.codeversion.remember_code_versions`, and the measured-data files its config check has
+read, :func:`stiffcal.workflow.config.workflow_config`), so that ``snakemake -n`` with nothing to do does not parse the
 package's source or reread every data file.
 """
 

@@ -3,8 +3,8 @@
 # provenance.json and SHA256SUMS; `stiffcal verify-archive FILE` checks it. Not part of `all`.
 import datetime as _dt
 
-from stiffcal.archive import config_files as _config_files
-from stiffcal.archive import run_status as _run_status
+from stiffcal.workflow.archive import config_files as _config_files
+from stiffcal.workflow.archive import run_status as _run_status
 
 RUN_STARTED = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 # named for its commit, with '-dirty' when the tree or an input (the config, a file it names) is not as committed

@@ -4,19 +4,19 @@
 import dataclasses as _dc
 import sys as _sys
 
-from stiffcal.codeversion import code_version, remember_code_versions as _remember_code_versions
+from stiffcal.workflow.codeversion import code_version, remember_code_versions as _remember_code_versions
 from stiffcal.errors import InputError as _InputError
-from stiffcal.maps import MAP_DEFAULTS as _MAP_DEFAULTS
-from stiffcal.maps import map_studies as _map_studies
-from stiffcal.measurements import ANGLE_RESOLUTION_DEG as _ANGLE_RESOLUTION_DEG
-from stiffcal.measurements import FORCE_RESOLUTION_N as _FORCE_RESOLUTION_N
-from stiffcal.measurements import MOMENT_RESOLUTION_NM as _MOMENT_RESOLUTION_NM
-from stiffcal.robot import robot_inputs
-from stiffcal.study import DEFAULTS as _STUDY_DEFAULTS
-from stiffcal.study import DESIGN_KEYS as _DESIGN_KEYS
-from stiffcal.study import PROBLEM_KEYS as _PROBLEM_KEYS
-from stiffcal.workcell import cell_inputs as _cell_inputs
-from stiffcal.study import design_studies as _design_studies
+from stiffcal.planning.maps import MAP_DEFAULTS as _MAP_DEFAULTS
+from stiffcal.planning.maps import map_studies as _map_studies
+from stiffcal.measured.measurements import ANGLE_RESOLUTION_DEG as _ANGLE_RESOLUTION_DEG
+from stiffcal.measured.measurements import FORCE_RESOLUTION_N as _FORCE_RESOLUTION_N
+from stiffcal.measured.measurements import MOMENT_RESOLUTION_NM as _MOMENT_RESOLUTION_NM
+from stiffcal.model.robot import robot_inputs
+from stiffcal.planning.study import DEFAULTS as _STUDY_DEFAULTS
+from stiffcal.planning.study import DESIGN_KEYS as _DESIGN_KEYS
+from stiffcal.planning.study import PROBLEM_KEYS as _PROBLEM_KEYS
+from stiffcal.model.workcell import cell_inputs as _cell_inputs
+from stiffcal.planning.study import design_studies as _design_studies
 
 # code versions kept between runs (.snakemake/stiffcal/code-versions.json): no parsing of the package's source
 # when it did not change (stiffcal.memo)

@@ -1,6 +1,6 @@
 # Maps over test poses (Figures 6-10). Each map is split into tiles of `maps.tile_cells` symmetry classes,
 # one job each, so that `--cores N` or the SLURM profile (workflow/profiles/slurm) runs them in parallel.
-# Tiles and maps are handed over as binary .npz files (layout in src/stiffcal/maps.py); map.csv is for users.
+# Tiles and maps are handed over as binary .npz files (layout in src/stiffcal/planning/maps.py); map.csv is for users.
 
 
 wildcard_constraints:

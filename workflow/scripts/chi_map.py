@@ -1,4 +1,4 @@
 """Rule chi_map: chi over the measurement-pose plane (data of Figure 5)."""
-from stiffcal import pipeline
+from stiffcal.workflow import pipeline
 
 pipeline.run(snakemake, pipeline.chi_map, snakemake.params.study, snakemake.input.robot, snakemake.output.csv)

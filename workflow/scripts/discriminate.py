@@ -1,4 +1,4 @@
 """Rule discriminate: plan.json and the plan figure of one measured data set."""
-from stiffcal import pipeline
+from stiffcal.workflow import pipeline
 
 pipeline.run(snakemake, pipeline.discriminate, snakemake.params.entry, str(snakemake.output.plan))

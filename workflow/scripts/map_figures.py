@@ -1,6 +1,6 @@
 """Rule map_figures: Figure 6 (1/chi), Figures 7-10 (optimal poses over the test-pose plane) and the map of the
 best two-pose plans."""
-from stiffcal import pipeline
+from stiffcal.workflow import pipeline
 
 maps = {k.removeprefix("fig"): v for k, v in snakemake.input.items() if k.startswith("fig")}
 pairs = list(snakemake.input.pairs)

@@ -1,7 +1,7 @@
 """Rule map_statistics: the statistics the paper quotes for Figure 6, ours beside theirs."""
 from pathlib import Path
 
-from stiffcal import pipeline
+from stiffcal.workflow import pipeline
 
 maps = {Path(p).parent.name: p for p in snakemake.input.maps}
 grid = list(snakemake.input.grid)  # [] when the config has no map of the paper's arm (Figure 7)

@@ -1,5 +1,5 @@
 """Rule paper_comparison: every result number the paper prints (Tables 2-5, text) beside ours, with a status."""
-from stiffcal import pipeline
+from stiffcal.workflow import pipeline
 
 i = snakemake.input
 stats = list(i.figure6_stats)  # [] when the config has no map of the paper's arm (Figure 7)

@@ -1,5 +1,5 @@
 """Rule paper_figures: Figures 3-5, the approximate design and O_t against m (PNG and SVG each)."""
-from stiffcal import pipeline
+from stiffcal.workflow import pipeline
 
 i, o = snakemake.input, snakemake.output
 pngs = {k.removesuffix("_png"): v for k, v in o.items() if k.endswith("_png")}

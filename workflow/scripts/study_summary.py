@@ -1,5 +1,5 @@
 """Rule study_summary: one design study's plans (versus_m.csv, plans.csv) and its two figures."""
-from stiffcal import pipeline
+from stiffcal.workflow import pipeline
 
 i, o = snakemake.input, snakemake.output
 pipeline.run(snakemake, pipeline.study_summary, snakemake.params.study, i.robot, i.plans, o.versus_m, o.plans,

@@ -1,0 +1,557 @@
+"""The calibrated model in use: written as a robot file, read back, used to predict deflections and to
+compensate a path, and handed to the next round.
+
+``stiffcal discrepancy`` writes ``DIR/calibrated.yaml``: the robot file it analysed, every key kept (a URDF arm
+keeps its URDF, referred to from the new file's folder), with ``compliances_rad_per_Nm`` replaced by the
+identified joint compliances and a ``calibration`` section holding the model the verdict chose
+(:class:`Calibration`: the extension's causes and parameters with their units, the covariance of every
+parameter, the noise, the rows' error model and where it all came from: the data file and its SHA-256, the
+robot file, the verdict). :func:`stiffcal.model.robot.load_robot` reads it back like any robot file (the section is
+:attr:`stiffcal.model.robot.Robot.calibration`), so ``design``, ``discriminate`` and the analysis take it as the
+nominal model of the next round.
+
+Predictions (:func:`predict`) use every part of the calibrated model that belongs to the robot: the joint
+compliances and every catalogue extension (link bending, coupling, the nonlinear stiffness and backlash on the
+total torque with the arm's own weight, :func:`stiffcal.measured.discrepancy.model_columns` with ``predict=True``); a
+measurement offset belongs to the tracker and is left out. Their standard deviation comes from the parameters'
+covariance, ``sd = sqrt(diag(X Cov X^T))`` (the model's own error, not the noise of a new reading).
+
+Compensation (:func:`compensate`) of a path (poses and the wrench at each): the predicted deflection of the
+tool point at each pose; the corrected tool target (first order: aim at the nominal point less the deflection);
+and the corrected joint angles q_c with fk(q_c) + dp(q_c) = fk(q), solved by Gauss-Newton iterations on the
+tool point's Jacobian (the minimum-norm step for a redundant arm) to a residual below ``tol_m``, beside the
+first-order step q - J^+ dp(q); the predicted residual error at each pose.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..model.calibration import Calibration, from_dict  # noqa: F401  (re-exported: part of this module's API)
+from ..errors import InputError
+from ..model.robot import Robot
+
+#: the file ``stiffcal discrepancy`` writes beside ``verdict.json``
+CALIBRATED_FILE = "calibrated.yaml"
+#: Gauss-Newton iterations and residual [m] of the joint-angle compensation
+COMPENSATE_ITERATIONS = 30
+COMPENSATE_TOL_M = 1e-10
+
+
+def sha256(path) -> str:
+    """The SHA-256 of a file (hex)."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibration:
+    """The :class:`Calibration` of an analysis (:func:`stiffcal.measured.discrepancy.prepare` and the verdict of it):
+    the verdict's extended model (its causes; the nominal model for ``none`` or ``unexplained``), refitted by the
+    analysis's generalised least squares (the same numbers as the verdict's), its covariance sigma^2 (X^T X)^+
+    in the whitened rows."""
+    from .. import __version__
+    from . import discrepancy as D
+
+    causes = tuple(verdict["extended"]["causes"]) if verdict.get("extended") else ()
+    f = D.fit(pre.des.model(frozenset(causes)), pre.des.y)
+    ok, _ = D.estimability(pre.des.model(frozenset(causes)))
+    params = pre.ob.model_params(robot)
+    names = [robot.joint_columns("k")[int(j)] for j in params]
+    names += [name for c in sorted(causes, key=D.CAUSES.index) for name in D.parameter_names(c, robot, pre.ob)]
+    src = {"data": None if data_path is None else str(data_path),
+           "data_sha256": None if data_path is None else sha256(data_path), "robot": robot.source,
+           "robot_sha256": sha256(robot.source) if Path(robot.source).is_file() else None,
+           "verdict_cause": verdict["cause"], "verdict_causes": list(verdict["causes"]),
+           "p_value": verdict["p_value"], "alpha": verdict["alpha"], "stiffcal": __version__}
+    return Calibration(causes, tuple(int(j) for j in params), tuple(names), np.asarray(f.beta, float),
+                       pre.noise.s2 * f.cov_unscaled, tuple(bool(e) for e in ok), pre.ob.rows_per(robot),
+                       float(np.sqrt(pre.noise.s2)), verdict["nominal"]["rotation_weight_m_per_rad"],
+                       verdict.get("error_model") or {}, src)
+
+
+def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
+    """The calibrated robot file (module docstring) as a YAML document for ``out_dir``: the robot file's own
+    keys (the paths of a URDF and of a cell's SRDF made relative to ``out_dir``), ``compliances_rad_per_Nm``
+    replaced when every joint's is identified and positive (else the file's own, or none), and the
+    ``calibration`` section."""
+    import os
+
+    from ..validation import read_yaml
+
+    if not Path(robot.source).is_file():
+        raise InputError("the calibrated model is written beside the robot file it came from: give the robot as a "
+                         "file", field="robot")
+    doc = dict(read_yaml(robot.source))
+    def moved(path):  # a file the robot file names, from the new file's folder
+        return os.path.relpath((Path(robot.source).parent / path).resolve(), Path(out_dir).resolve())
+
+    if doc.get("kind") == "urdf":
+        doc["urdf"] = moved(doc["urdf"])
+    if isinstance(doc.get("cell"), dict) and doc["cell"].get("srdf"):
+        doc["cell"] = {**doc["cell"], "srdf": moved(doc["cell"]["srdf"])}
+    doc.pop("calibration", None)
+    k = cal.compliances(robot.n_joints)
+    if np.all(np.isfinite(k)) and np.all(k > 0):
+        doc["compliances_rad_per_Nm"] = [float(v) for v in k]
+    doc["name"] = f"{doc['name']} (calibrated)" if not str(doc["name"]).endswith("(calibrated)") else doc["name"]
+    doc["calibration"] = cal.to_dict()
+    return doc
+
+
+def write_calibrated(robot: Robot, cal: Calibration, out_dir) -> Path:
+    """Write ``out_dir/calibrated.yaml`` (:func:`calibrated_document`); returns its path."""
+    import yaml
+
+    path = Path(out_dir) / CALIBRATED_FILE
+    text = ("# written by stiffcal discrepancy: the robot file with its identified compliances and the calibrated\n"
+            "# model (calibration); read it with stiffcal.load_robot, predict and compensate with it (docs)\n")
+    text += yaml.safe_dump(calibrated_document(robot, cal, out_dir), sort_keys=False, default_flow_style=None,
+                           width=120)
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+# --- predictions ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Prediction:
+    """Predicted deflections: q (N, n) [rad]; load (N, d (+ d_m)) [N (, N m)]; displacement (N, d) [m] of each
+    row's target and its standard deviation sd (N, d) [m] from the parameters' covariance; rotation (N, d_r)
+    [rad] and rotation_sd with the orientation (else None); cov (N, r, r): the covariance of each row's prediction
+    (positions, then rotations) [m^2, m rad, rad^2]; targets (N,) names; causes: the extension applied; notes."""
+    q: np.ndarray
+    load: np.ndarray
+    displacement: np.ndarray
+    sd: np.ndarray
+    rotation: np.ndarray | None
+    rotation_sd: np.ndarray | None
+    cov: np.ndarray
+    targets: tuple
+    causes: tuple
+    notes: tuple = ()
+
+
+def _calibration(robot: Robot) -> Calibration:
+    """The robot's calibration, or one of its file's compliances (no extension, no covariance)."""
+    cal = getattr(robot, "calibration", None)
+    if cal is not None:
+        return cal
+    if robot.compliances is None:
+        raise InputError("the robot file has neither a calibration nor compliances_rad_per_Nm: nothing to predict "
+                         "with; give the calibrated.yaml that stiffcal discrepancy writes", source=robot.source,
+                         field="compliances_rad_per_Nm")
+    n = robot.n_joints
+    return Calibration((), tuple(range(n)), tuple(robot.joint_columns("k")), np.asarray(robot.compliances, float),
+                       np.zeros((n, n)), (True,) * n, robot.task_dim, 0.0)
+
+
+def columns(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientation: bool = False) -> np.ndarray:
+    """(N, r, p): the calibrated model's regressors of a prediction (the measuring system's causes zero) at poses
+    q (N, n) [rad] under loads (N, d (+ d_m)), for the rows' targets (``target`` (N,) indices into the robot's
+    target names; None: the tool point) and, with ``orientation``, the tool's rotation (rows after the
+    positions, unweighted)."""
+    from . import discrepancy as D
+
+    cal = _calibration(robot)
+    ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,
+                    np.asarray(cal.k_joints, int), cal.n_offsets)
+    return D.model_columns(robot, np.asarray(q, float), np.asarray(load, float), cal.causes, predict=True,
+                           observed=ob)
+
+
+def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientation: bool = False) -> Prediction:
+    """The calibrated model's deflection of each row's target (and the tool's rotation) at poses q (N, n) [rad]
+    under loads (N, d) [N] or wrenches (N, d + d_m) [N, N m] at the tool point, with its standard deviation from
+    the parameters' covariance (module docstring). ``robot``: a robot with a calibration (its calibrated.yaml),
+    or with compliances only (then no extension and no covariance). Raises :class:`InputError` without either."""
+    cal = _calibration(robot)
+    q = np.atleast_2d(np.asarray(q, float))
+    load = np.atleast_2d(np.asarray(load, float))
+    X = columns(robot, q, load, target, orientation)
+    mean = np.einsum("nrp,p->nr", X, cal.theta)
+    cov = np.einsum("nrp,pq,nsq->nrs", X, cal.cov, X)
+    sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
+    d = robot.task_dim
+    notes = []
+    if getattr(robot, "calibration", None) is None:
+        notes.append("the robot file has no calibration section: the predictions use its compliances_rad_per_Nm "
+                     "alone, with no extension and no uncertainty (sd 0); give the calibrated.yaml that stiffcal "
+                     "discrepancy writes")
+    missing = [robot.joint_names[j] for j in range(robot.n_joints) if j not in cal.k_joints]
+    if missing:
+        notes.append(f"joint(s) {', '.join(missing)} were not identified by the calibration: their deflection is "
+                     "left out of the prediction")
+    if not all(cal.estimable):
+        notes.append("some parameters of the calibrated model were not determined by its data (their minimum-norm "
+                     "values are used): predictions far from the data's poses may carry an error the standard "
+                     "deviation does not show")
+    names = robot.target_names
+    tnames = tuple(names[t] for t in (np.zeros(len(q), int) if target is None else np.asarray(target, int)))
+    return Prediction(q, load, mean[:, :d], sd[:, :d], mean[:, d:] if orientation else None,
+                      sd[:, d:] if orientation else None, cov, tnames, cal.causes, tuple(notes))
+
+
+@dataclass(frozen=True)
+class Compensation:
+    """A path compensated (module docstring): q (N, n) [rad] the nominal poses; load; deflection (N, d) [m] the
+    predicted deflection of the tool point there and sd (N, d); band95_m (N,): the radius [m] of a sphere about
+    the nominal tool point that holds the compensated tool point with probability >= 95 % (the bounding sphere of
+    the prediction error's 95 % ellipsoid, sqrt(chi2_0.95(d) lambda_max(Cov)): the calibrated model's own
+    error, which compensation leaves; the noise of a reading is not in it); target_m (N, d): the nominal tool points;
+    corrected_target_m (N, d): the points to command (nominal less the deflection, first order); q_first
+    (N, n) [rad]: q - J^+ dp(q); q_corrected (N, n) [rad]: the joint angles whose deflected tool point is the
+    nominal one (iterated); residual_m (N,): the predicted error left at q_corrected (the iteration's);
+    first_order_residual_m (N,): that of q_first; iterations (N,) int; converged (N,) bool."""
+    q: np.ndarray
+    load: np.ndarray
+    deflection: np.ndarray
+    sd: np.ndarray
+    band95_m: np.ndarray
+    target_m: np.ndarray
+    corrected_target_m: np.ndarray
+    q_first: np.ndarray
+    q_corrected: np.ndarray
+    residual_m: np.ndarray
+    first_order_residual_m: np.ndarray
+    iterations: np.ndarray
+    converged: np.ndarray
+    notes: tuple = ()
+
+
+def _pinv_step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """(N, n): the minimum-norm solutions of J dq = e, J (N, d, n), e (N, d)."""
+    return np.einsum("nid,nd->ni", np.linalg.pinv(J), e)
+
+
+def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = COMPENSATE_ITERATIONS,
+               tol_m: float = COMPENSATE_TOL_M) -> Compensation:
+    """Compensate a path of poses q (N, n) [rad] under loads (N, d (+ d_m)) with the robot's calibrated model
+    (module docstring): the deflection of the tool point, the corrected targets and joint angles, the residual."""
+    q = np.atleast_2d(np.asarray(q, float))
+    load = np.atleast_2d(np.asarray(load, float))
+    pred = predict(robot, q, load)
+    x = np.asarray(robot.fk(q), float)
+    J = robot.jacobian(q)
+    q1 = q - _pinv_step(J, pred.displacement)
+
+    def error(qc):
+        return np.asarray(robot.fk(qc), float) + predict(robot, qc, load).displacement - x
+
+    e1 = np.linalg.norm(error(q1), axis=1)
+    qc = q1.copy()
+    its = np.zeros(len(q), int)
+    done = np.zeros(len(q), bool)
+    for it in range(iterations):
+        e = error(qc)
+        size = np.linalg.norm(e, axis=1)
+        done = size <= tol_m
+        if done.all():
+            break
+        step = _pinv_step(robot.jacobian(qc), e)  # the deflection's own change with the pose is second order
+        qc = np.where(done[:, None], qc, qc - step)
+        its += ~done
+    residual = np.linalg.norm(error(qc), axis=1)
+    done = residual <= tol_m
+    notes = list(pred.notes)
+    if not done.all():
+        notes.append(f"{int((~done).sum())} pose(s) did not converge to {tol_m:g} m in {iterations} iterations (a "
+                     "pose near a singularity?): their residual_m says how far they are")
+    return Compensation(q, load, pred.displacement, pred.sd, band95(pred.cov), x, x - pred.displacement, q1, qc,
+                        residual, e1, its, done, tuple(notes))
+
+
+def band95(cov: np.ndarray) -> np.ndarray:
+    """(N,) [m]: the radius of the sphere bounding the 95 % ellipsoid of a position error of covariance cov
+    (N, d, d): sqrt(chi2_0.95(d) lambda_max); the error is within it with probability >= 95 %."""
+    from .distributions import chi2_ppf
+
+    lam = np.linalg.eigvalsh(cov)[:, -1]
+    return np.sqrt(chi2_ppf(0.95, cov.shape[-1]) * np.clip(lam, 0.0, None))
+
+
+# --- files of poses and loads ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class PoseFile:
+    """Poses and loads read from a CSV (:func:`read_poses`): q (N, n) [rad]; load (N, d (+ d_m)); target (N,)
+    int or None; columns: the file's header; text (N, k): its cells, kept for the output; source: the file;
+    notes: load columns the robot does not use."""
+    q: np.ndarray
+    load: np.ndarray
+    target: np.ndarray | None
+    columns: list
+    text: list
+    source: str | None = None
+    notes: tuple = ()
+
+
+def read_poses(path, robot: Robot) -> PoseFile:
+    """A CSV of poses and loads for :func:`predict` or :func:`compensate`: the joint angles (``q<i>_deg`` or
+    ``q_<name>_deg``), the force at the tool point (``fx_N`` .., in the base frame), optionally the moment
+    (``mx_Nm`` .., planar ``mz_Nm``) and ``target`` (docs/contracts.md, "The calibrated model"). Other columns are
+    kept as they are. Raises :class:`InputError` naming the file, row and column, as the measured-data reader."""
+    import pandas as pd
+
+    from . import measurements as M
+    from ..limits import MAX_MEASURED_ROWS
+    from ..model.observation import force_dim, moment_dim
+    from ..safeio import regular_file
+
+    source = str(path)
+    regular_file(path, source=source)
+    try:
+        M._header(path, source, MAX_MEASURED_ROWS, "(the most poses read, as of measured data; docs/contracts.md, "
+                  "'Limits'): split the path")
+        df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as err:
+        raise InputError(f"cannot read a CSV table ({err})", source=source) from None
+    df.columns = [c.strip() for c in df.columns]
+    M._check_units(df.columns, source)
+    d, dm = force_dim(robot), moment_dim(robot)
+    qcols = M.angle_columns(list(df.columns), robot, source)
+    fcols = M._axes("f", "N", d)
+    for col, name in M._misspelled(df.columns, qcols + fcols + M._axes("m", "Nm", dm, True) + ["target"]).items():
+        raise InputError(f"the column {col!r} looks like {name} (a misspelling?); it is read only under that name: "
+                         f"rename the column {name}", source=source, field=f"column {col}")
+    missing = [c for c in qcols + fcols if c not in df.columns]
+    if missing:
+        raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(qcols + fcols)} (and "
+                         "optionally the moment and target)", source=source)
+    mcols = M._axes("m", "Nm", dm, True)
+    have = [c for c in mcols if c in df.columns]
+    if have and len(have) < len(mcols):
+        raise InputError(f"missing column(s) {', '.join(c for c in mcols if c not in have)}: give the whole moment or "
+                         "none", source=source, field=f"column {have[0]}")
+    if len(df) == 0:
+        raise InputError("no poses (the file has a header only)", source=source)
+    values = M._numbers(df, qcols + fcols + (mcols if have else []), source)
+    n = robot.n_joints
+    q = np.radians(values[:, :n])
+    load = values[:, n:] if have else values[:, n:n + d]
+    target = M._targets(df, robot, source)[0] if "target" in df.columns else None
+    used = set(qcols + fcols + (mcols if have else []) + ["target"])
+    surplus = [c for c in df.columns if c.startswith(("f", "m")) and M._PATTERN.match(c) and c not in used]
+    notes = (f"column(s) {', '.join(surplus)} do not belong to a {robot.kind} robot's load and are not used (copied "
+             "to the output as they are)",) if surplus else ()
+    return PoseFile(q, load, target, list(df.columns), df.to_numpy().tolist(), source, notes)
+
+
+def _check_new_columns(poses: PoseFile, head: list, source: str | None = None) -> None:
+    """Refuse an input column that the output would write again (a measured file's ``dx_m``)."""
+    clash = [c for c in head[len(poses.columns):] if c in poses.columns]
+    if clash:
+        raise InputError(f"the column(s) {', '.join(clash)} are written by the output: rename or remove them in the "
+                         "input", source=source, field=f"column {clash[0]}")
+
+
+def _cells(values: np.ndarray, fmt: str) -> list:
+    return [[format(float(v), fmt) for v in row] for row in np.atleast_2d(values)]
+
+
+def prediction_csv(robot: Robot, poses: PoseFile, pred: Prediction) -> str:
+    """The pose file with the prediction's columns appended: ``dx_m`` .. and ``sd_dx_m`` .. (and ``rx_rad`` ..,
+    ``sd_rx_rad`` .. with the orientation)."""
+    d = robot.task_dim
+    axes = "xyz"[:d]
+    head = list(poses.columns) + [f"d{a}_m" for a in axes] + [f"sd_d{a}_m" for a in axes]
+    parts = [_cells(pred.displacement, ".9e"), _cells(pred.sd, ".3e")]
+    if pred.rotation is not None:
+        rot = "z" if d == 2 else "xyz"
+        head += [f"r{a}_rad" for a in rot] + [f"sd_r{a}_rad" for a in rot]
+        parts += [_cells(pred.rotation, ".12e"), _cells(pred.rotation_sd, ".3e")]
+    _check_new_columns(poses, head, poses.source)
+    rows = [list(t) + sum((p[i] for p in parts), []) for i, t in enumerate(poses.text)]
+    return _csv(head, rows)
+
+
+def compensation_csv(robot: Robot, poses: PoseFile, comp: Compensation) -> str:
+    """The path with the compensation's columns appended: the predicted deflection ``dx_m`` .. and ``sd_dx_m``
+    .. and the 95 % error radius ``band95_m`` (:class:`Compensation`); the nominal tool point ``x_m`` ..; the
+    corrected target ``x_cmd_m`` ..; the corrected joint angles (``q1_cmd_deg`` .., iterated) and the first-order
+    ones (``q1_first_deg`` ..); ``residual_m``, ``first_order_residual_m``, ``iterations``, ``converged``."""
+    d = robot.task_dim
+    axes = "xyz"[:d]
+    qc = [c[:-4] + "_cmd_deg" for c in robot.joint_columns("q", "_deg")]
+    q1 = [c[:-4] + "_first_deg" for c in robot.joint_columns("q", "_deg")]
+    head = list(poses.columns) + [f"d{a}_m" for a in axes] + [f"sd_d{a}_m" for a in axes] + ["band95_m"] + \
+        [f"{a}_m" for a in axes] + [f"{a}_cmd_m" for a in axes] + qc + q1 + \
+        ["residual_m", "first_order_residual_m", "iterations", "converged"]
+    parts = [_cells(comp.deflection, ".9e"), _cells(comp.sd, ".3e"), _cells(comp.band95_m[:, None], ".3e"),
+             _cells(comp.target_m, ".9f"),
+             _cells(comp.corrected_target_m, ".9f"), _cells(np.degrees(comp.q_corrected), ".6f"),
+             _cells(np.degrees(comp.q_first), ".6f"), _cells(comp.residual_m[:, None], ".3e"),
+             _cells(comp.first_order_residual_m[:, None], ".3e")]
+    _check_new_columns(poses, head, poses.source)
+    rows = [list(t) + sum((p[i] for p in parts), []) + [str(int(comp.iterations[i])), str(bool(comp.converged[i]))]
+            for i, t in enumerate(poses.text)]
+    return _csv(head, rows)
+
+
+def _csv(head: list, rows: list) -> str:
+    import csv
+    import io
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(head)
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+# --- the next round ----------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class NextRound:
+    """The next round's plan given the information already collected (:func:`next_round`). poses (m, n) [rad];
+    O_t [m^2] of the plan with the old information added; O_t_prior [m^2]: the old data's alone (no new
+    measurement), ``tr(X_t Cov X_t^T)``; O_t_fresh [m^2]: the best m-pose plan of the same pool without the old
+    data; lower_bound [m^2]: certified lower bound of O_t over every m-pose plan of the candidate pool with the
+    old information added (:func:`prior_design_bound`); design: the approximate design behind it (support
+    (k, n) [rad], weights (k,)); names (p,): the parameters; cov_diag (p,) [SI^2]: their variances after the
+    next round; pool_size; causes; sigma_m [m]; notes."""
+    poses: np.ndarray
+    O_t: float
+    O_t_prior: float
+    O_t_fresh: float
+    lower_bound: float
+    support: np.ndarray
+    weights: np.ndarray
+    equivalence_gap: float
+    names: tuple
+    cov_diag: np.ndarray
+    pool_size: int
+    causes: tuple
+    sigma_m: float
+    notes: tuple = ()
+
+
+def prior_information(cal: Calibration, sigma_m: float) -> tuple[np.ndarray, int, tuple]:
+    """The information the calibration's data hold on the robot's parameters, in units of the new rows' noise:
+    ``sigma_m^2 Cov_rr^+`` (p_r, p_r) with Cov_rr the covariance of the compliances and the robot's extensions
+    (a measurement offset belongs to the old tracker set-up: marginalised out, which is the Schur complement of
+    the information matrix). Returns (information, p_r, the robot's causes)."""
+    causes = tuple(c for c in cal.causes if c != "measurement_offset")
+    p_r = len(cal.theta) - (cal.n_offsets if "measurement_offset" in cal.causes else 0)
+    cov = cal.cov[:p_r, :p_r]
+    return sigma_m**2 * np.linalg.pinv(0.5 * (cov + cov.T), hermitian=True), p_r, causes
+
+
+def prior_design_bound(P: np.ndarray, prior: np.ndarray, W: np.ndarray, m: int, iters: int = 3000,
+                       tol: float = 1e-6) -> tuple[float, np.ndarray, float]:
+    """A certified lower bound of ``f(xi) = tr(W (prior + m M(xi))^-1)`` over every design xi on a pool of
+    information matrices P (K, p, p) (W = X_t^T X_t; every exact m-point plan of the pool is such a design,
+    weights k/m). f is convex in the weights, so for any weights w, with ``B = M^-1 W M^-1`` and ``phi_c = tr(B
+    P_c)``, ``f* >= f(w) - m (max_c phi_c - sum_c w_c phi_c)`` (the equivalence theorem's gap; Pukelsheim,
+    *Optimal Design of Experiments*, 1993, ch. 7; Fedorov 1972, sec. 4.2 for the prior). The weights come from the
+    multiplicative algorithm ``w_c <- w_c phi_c / sum w phi`` until the relative gap is below ``tol``. Returns
+    (bound, w (K,), relative gap (f(w) - bound) / f(w))."""
+    K = len(P)
+    w = np.full(K, 1.0 / K)
+    best = (-np.inf, w, np.inf)
+    for _ in range(iters):
+        M = prior + m * np.einsum("k,kij->ij", w, P)
+        try:
+            Minv = np.linalg.inv(M)
+        except np.linalg.LinAlgError:
+            raise InputError("the prior's information with every candidate pose cannot identify every parameter of "
+                             "the calibrated model (the calibration's covariance is singular in a direction no pose "
+                             "measures)", field="prior") from None
+        f = float(np.trace(W @ Minv))
+        B = Minv @ W @ Minv
+        phi = np.einsum("ij,kji->k", B, P)
+        bound = f - m * (phi.max() - w @ phi)
+        if bound > best[0]:
+            best = (bound, w, (f - bound) / f)
+        if best[2] <= tol:
+            break
+        w = w * phi / (w @ phi)
+    return best
+
+
+def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: int, sigma_m: float | None = None,
+               step_deg: float = 10.0, seed: int = 0) -> NextRound:
+    """The O_t-optimal plan of m more poses given the information already collected: the robot's calibrated model
+    (its calibration's causes, less a measurement offset) with the old data's information
+    (:func:`prior_information`) added to the plan's, the test load in every new measurement of the tool point
+    (as :func:`stiffcal.measured.discrepancy.optimal_plan`, over its candidate poses, by the same exchange), with the
+    certified bound of :func:`prior_design_bound` and the plans with no new data and with no old data beside it.
+    test_pose (n,) [rad]; test_load (d,) [N] or (d + d_m,) [N, N m]; sigma_m [m]: the new readings' noise
+    (default the calibration's). Raises :class:`InputError` for a robot without a calibration."""
+    from . import discrepancy as D
+    from ..planning.plans import fedorov_exchange
+
+    cal = getattr(robot, "calibration", None)
+    if cal is None:
+        raise InputError("the prior is a calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy); this one "
+                         "has no calibration section", source=robot.source, field="prior")
+    sigma = float(cal.sigma_m if sigma_m is None else sigma_m)
+    prior, p_r, causes = prior_information(cal, sigma)
+    ob = D.Observed(robot.target_names, None, False, 1.0, np.asarray(cal.k_joints, int), cal.n_offsets)
+    pool, Xp, Xt, scale = D.plan_regressors(robot, causes, test_pose, test_load, ob, step_deg)
+    prior_s = prior / np.outer(scale, scale)
+    with_old = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=prior_s)
+    notes = []
+    fresh = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
+    if not np.isfinite(fresh.value):
+        notes.append(f"{m} new poses alone cannot identify the model's {Xp.shape[-1]} parameters: O_t_fresh is "
+                     "infinite")
+    P = np.einsum("kdi,kdj->kij", Xp, Xp)
+    W = Xt.T @ Xt
+    bound, w, gap = prior_design_bound(P, prior_s, W, m)
+    cov_rr = cal.cov[:p_r, :p_r]
+    post = sigma**2 * np.linalg.inv(prior_s + P[with_old.indices].sum(axis=0)) / np.outer(scale, scale)
+    keep = w > 1e-4 * w.max()
+    names = cal.names[:p_r]
+    Xt_raw = Xt * scale
+    return NextRound(pool[with_old.indices], sigma**2 * with_old.value, float(np.trace(Xt_raw @ cov_rr @ Xt_raw.T)),
+                     sigma**2 * fresh.value, sigma**2 * bound, pool[keep], w[keep] / w[keep].sum(), float(gap),
+                     tuple(names), np.diag(post), len(pool), causes, sigma, tuple(notes))
+
+
+def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: int | None = None) -> dict:
+    """The verdict's ``next_round``: :func:`next_round` of m poses (default: the fewest that identify the model's
+    parameters alone, plus one, as :func:`stiffcal.measured.discrepancy.optimal_plan`) as RMS errors [m] at the test
+    pose: ``rms_prior_m`` (the data's alone), ``rms_next_m`` (with the plan's m poses added), ``rms_fresh_m`` (the best
+    m poses without the data; null when m poses alone cannot identify the model), ``lower_bound_rms_m``;
+    ``experiments``, ``poses_deg``."""
+    cal = robot.calibration
+    _, p_r, _ = prior_information(cal, cal.sigma_m)
+    m = m or int(np.ceil(p_r / robot.task_dim)) + 1
+    nr = next_round(robot, test_pose, test_load, m)
+    return {"experiments": m, "poses_deg": np.degrees(nr.poses).round(3).tolist(),
+            "rms_prior_m": float(np.sqrt(nr.O_t_prior)), "rms_next_m": float(np.sqrt(nr.O_t)),
+            "rms_fresh_m": float(np.sqrt(nr.O_t_fresh)) if np.isfinite(nr.O_t_fresh) else None,
+            "lower_bound_rms_m": float(np.sqrt(max(nr.lower_bound, 0.0)))}
+
+
+def machining_path(robot: Robot, test_pose: np.ndarray, count: int = 41, span_deg: float = 20.0) -> np.ndarray:
+    """(count, n) [rad]: a simulated machining path through the test pose: every joint swept linearly from
+    ``-span_deg`` to ``+span_deg`` about it (clipped to the joint limits)."""
+    t = np.linspace(-1.0, 1.0, count)[:, None]
+    q = np.asarray(test_pose, float)[None] + np.radians(span_deg) * t
+    lim = robot.joint_limits_rad
+    return q if lim is None else np.clip(q, lim[:, 0], lim[:, 1])
+
+
+def path_check(calibrated_robot: Robot, nominal_robot: Robot, q: np.ndarray, load: np.ndarray) -> dict:
+    """A path compensated with the nominal and with the calibrated model, the calibrated one taken as the truth
+    (the best model of the data): per pose [m] ``before`` |dp| (no compensation), ``after_nominal`` (the error
+    left when the nominal model's corrected angles are commanded), ``after_calibrated`` (the iteration's residual)
+    and ``band95`` (the calibrated model's own 95 % error radius, :class:`Compensation`). Returns lists and their
+    maxima (``max_before_m`` ..)."""
+    load = np.broadcast_to(np.asarray(load, float), (len(q), np.shape(load)[-1]))
+    cal = compensate(calibrated_robot, q, load)
+    nom = compensate(nominal_robot, q, load)
+    left = np.asarray(calibrated_robot.fk(nom.q_corrected)) + predict(calibrated_robot, nom.q_corrected,
+                                                                       load).displacement - cal.target_m
+    out = {"before": np.linalg.norm(cal.deflection, axis=1), "after_nominal": np.linalg.norm(left, axis=1),
+           "after_calibrated": cal.residual_m, "band95": cal.band95_m}
+    return {**{k: [float(x) for x in v] for k, v in out.items()}, **{f"max_{k}_m": float(np.max(v))
+                                                                     for k, v in out.items()}}

@@ -1,0 +1,2484 @@
+"""From measured deflections: what the stiffness model (eq. 2) gets wrong, why, the extended model, the gain.
+
+The nominal model is linear in the joint compliances k: dp = A(q, F) k + e (eqs. 3-4), fitted by least
+squares (eq. 6). Each candidate cause is a physically derived extension, linear in its own parameters,
+so every question is a comparison of nested linear models:
+
+- ``link_compliance``: Euler-Bernoulli links loaded at their distal end by the force F and the moment
+  M it transmits; with P the force across link i, L its length, r the lever from its distal end to the end
+  effector, the end effector moves by c_i [(P L^3/3 + M L^2/2) n_i + (P L^2/2 + M L) z x r], c_i = 1/(E I_i).
+- ``joint_coupling``: off-diagonal joint compliances, dq_i = sum_j k_ij tau_j: columns J_i tau_j + J_j tau_i.
+- ``nonlinear_joint_stiffness``: a compliance that changes with the torque, dq_i = k_i tau_i + g_i tau_i^3
+  (the first odd term of any symmetric law): columns J_i tau_i^3.
+- ``backlash``: a deflection of fixed size whose sign follows the torque: columns J_i sign(tau_i).
+- Both act on the total torque: with the arm's own weight known (the robot file's masses or the URDF's
+  inertias, :meth:`stiffcal.model.robot.Robot.gravity_torques`, t0) a row is the loaded state less the unloaded one,
+  columns J_i ((t0_i + tau_i)^3 - t0_i^3) and J_i (sign(t0_i + tau_i) - sign(t0_i)): a gap preloaded by the
+  weight jumps only where the load reverses the total torque.
+- ``measurement_offset``: a constant bias of the measuring system: one column per axis (a property of the
+  tracker, not of the robot: it does not enter predictions at a test pose).
+
+Statistics (Draper & Smith, *Applied Regression Analysis*, 3rd ed., ch. 2.1 and 6 for pure error and
+lack of fit):
+
+- The noise variance s^2 comes from the replicates (pure error: rows whose joint angles and force agree
+  within the resolutions of :mod:`stiffcal.measured.measurements`), or, without replicates, from the residuals of the
+  union of all extensions. Unloaded reference rows are the zero point and never enter it.
+- Which causes the data need is decided by **closed testing** (Marcus, Peritz & Gabriel 1976, Biometrika
+  63(3), 655-660; Bretz, Hothorn & Westfall, *Multiple Comparisons Using R*, 2011, sec. 2.2.3) over the
+  elementary hypotheses H_c "cause c is absent" (c in the catalogue) and H_L "nothing outside the catalogue
+  is present". The local test of an intersection H_U (and H_L) tests its members against the largest model
+  the intersection allows, M_{C minus U}: for each c in U the F-test of adding its whole block (weight 1/2,
+  powerful when the effect spreads over its parameters: one gap on every joint) and the F-test of each of
+  its parameters alone (weight 1/2 shared, powerful when one parameter carries it: one coupled pair of joints,
+  one worn gearbox), the causes weighted alike, combined by the weighted min-P test over their joint null
+  distribution (Westfall & Young 1993; :func:`min_p_value`, which gains over Bonferroni where tests look
+  alike), and, for H_L, the lack-of-fit test of M_{C minus U} against pure
+  error (without replicates: rank correlations of its residuals with row order, force, pose and torque),
+  joined to the causes' test by a weighted Bonferroni test (weight 1/(|U| + 1) to H_L). A hypothesis is
+  rejected when every intersection containing it is rejected, so the family-wise false-alarm rate is at
+  most alpha whatever causes are present (strong control), and the adjusted p-value of H is the largest
+  local p-value over the intersections containing it.
+- A combination S of causes is *compatible* with the data when the intersection "every cause outside S is
+  absent" is not rejected. The verdict's ``causes`` is the smallest compatible combination (fewest causes,
+  then fewest parameters, then best fit); other minimal compatible combinations of the same size are
+  ``equivalent_combinations``: they explain the data equally well at this alpha. ``unexplained`` is H_L
+  rejected: something outside the catalogue (a drift, an effect of another shape) is left.
+- Gross blunders are found first, one at a time, by their residual from the union model against a robust
+  scale (Bonferroni threshold), and are left out of everything else.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass, replace
+from itertools import combinations
+
+import numpy as np
+
+from ..model.catalogue import CATALOGUE, CAUSES, MEASUREMENT_CAUSES  # noqa: F401  (the catalogue; part of this module)
+from ..model.catalogue import joint_columns
+from ..planning.problem import is_sampled, sample_joint_space
+from . import distributions as dist
+from ..errors import InputError
+from .measurements import Measurements, rows_by_label, rows_by_value
+from ..model.observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
+                          tool_twists)
+from ..model.observation import torques as observation_torques
+from ..model.robot import TOOL_TARGET, Robot, as_xyz
+from .errormodel import INFLATION_NOTE
+from .errormodel import KINDS as EMKINDS
+from .errormodel import flat_index
+from .results import Verdict
+from ..model.stiffness import observation_matrix, random_directions
+
+#: relative singular value below which a direction of a design matrix counts as absent
+RANK_RTOL = 1e-9
+#: plausible end-effector compliance of a serial robot [m/N]: industrial arms are of order 1e-6 m/N (about
+#: 1 N/um), collaborative and light arms up to about 1e-5; see the review of Appl. Sci. 2022, 12(17), 8719
+PLAUSIBLE_COMPLIANCE_M_PER_N = (1e-9, 1e-4)
+#: largest displacement, as a fraction of the reach, that an elasto-static (small-deflection) model describes
+MAX_DEFLECTION_OF_REACH = 0.02
+
+
+# --- regressors ----------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Observed:
+    """What each row of a data set measures (docs/measured-data.md): the position of one target (``target``
+    (N,) indices into ``names``; None: the tool point in every row) and, with ``orientation``, the tool's
+    small-angle rotation, its rows multiplied by ``rad_weight`` = sigma_m / sigma_rad [m/rad] (weighted least
+    squares, :mod:`stiffcal.model.observation`); ``params``: the joints whose compliances these quantities see
+    (:func:`stiffcal.model.observation.sensed_params`), None for the tool point's position (``Robot.params``);
+    n_offsets: the parameters of ``measurement_offset`` (default one per measured component of a row)."""
+    names: tuple[str, ...] = (TOOL_TARGET,)
+    target: np.ndarray | None = None
+    orientation: bool = False
+    rad_weight: float = 1.0
+    params: np.ndarray | None = None
+    n_offsets: int | None = None
+
+    @classmethod
+    def of(cls, robot: Robot, meas: Measurements, rad_weight: float = 1.0) -> "Observed":
+        """The quantities of ``meas`` (its targets, its orientation columns)."""
+        used = tuple(meas.target_names[t] for t in np.unique(meas.target))
+        ob = cls(meas.target_names, meas.target, meas.rot is not None, rad_weight)
+        if ob.default:
+            return ob
+        return replace(ob, params=sensed_params(robot, Sensing(used, ob.orientation)))
+
+    @property
+    def default(self) -> bool:
+        """Only the tool point's position, with its parameters: the paper's measurement (eq. 4)."""
+        return not self.orientation and self.params is None and (
+            self.target is None or all(self.names[t] == TOOL_TARGET for t in np.unique(self.target)))
+
+    def used(self) -> tuple[str, ...]:
+        """The targets the rows measure, in the order of ``names``."""
+        return (TOOL_TARGET,) if self.target is None else tuple(self.names[t] for t in np.unique(self.target))
+
+    def at_tool(self, robot: Robot) -> "Observed":
+        """The tool point's position with this model's parameters (a prediction at a test pose)."""
+        return replace(self, target=None, orientation=False, params=None if self.params is None
+                       else self.model_params(robot), n_offsets=self.rows_per(robot))
+
+    def take(self, rows) -> "Observed":
+        return self if self.target is None else replace(self, target=self.target[rows])
+
+    def rows_per(self, robot: Robot) -> int:
+        return force_dim(robot) + (moment_dim(robot) if self.orientation else 0)
+
+    def component_names(self, robot: Robot) -> list[str]:
+        """Names of a row's measured components: x, y (z), then rx, ry, rz (planar: rz)."""
+        rot = (["rz"] if robot.kind == "planar" else ["rx", "ry", "rz"]) if self.orientation else []
+        return list("xyz"[: force_dim(robot)]) + rot
+
+    def model_params(self, robot: Robot) -> np.ndarray:
+        return robot.params if self.params is None else self.params
+
+    def offsets(self, robot: Robot, n_rows: int) -> np.ndarray:
+        """(N, 1, 3) [m]: each row's target minus the tool point, in the tip frame."""
+        off = target_offsets(robot, self.names)
+        t = np.zeros(n_rows, int) if self.target is None else self.target
+        return off[t][:, None, :]
+
+
+def _plain(load: np.ndarray, robot: Robot, observed: Observed | None) -> bool:
+    """The paper's rows: a force (or a zero moment) and the tool point's position."""
+    d = force_dim(robot)
+    return (observed is None or observed.default) and (load.shape[-1] == d or not np.any(load[..., d:]))
+
+
+def torques(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """tau = J^T F (N, n) [N m]; with a wrench (N, d + d_m) (moment about the tool point) tau = J_W^T W
+    (:func:`stiffcal.model.observation.torques`)."""
+    force = np.asarray(force, float)
+    if force.shape[-1] == robot.task_dim:
+        return np.einsum("ndj,nd->nj", robot.jacobian(q), force)
+    return observation_torques(robot, q, force)
+
+
+def _twists(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray:
+    """(N, 6, p): the rigid motion of the tool at the tool point (v [m], w [rad]) per unit parameter of a
+    robot cause (the nominal model as cause ``"nominal"``), under the wrench ``load`` (N, d + d_m)."""
+    if cause == "link_compliance":
+        return _link_twists(robot, q, load)
+    return joint_columns(cause, tool_twists(robot, q)[0], observation_torques(robot, q, load),
+                         _preload(cause, robot, q))
+
+
+def _preload(cause: str, robot: Robot, q: np.ndarray) -> np.ndarray | None:
+    """The self-weight torques (N, n) [N m] that preload a cause acting on the total torque
+    (:attr:`stiffcal.model.catalogue.Cause.preloaded`: backlash, a nonlinear stiffness;
+    :meth:`Robot.gravity_torques`), None for the others or a robot without masses."""
+    entry = CATALOGUE.get(cause)
+    if entry is None or not entry.preloaded or robot.masses is None:
+        return None
+    return robot.gravity_torques(q)
+
+
+def _general_columns(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray, observed: Observed) -> np.ndarray:
+    """(N, r, p): a cause's regressors for any load and measured quantities (:class:`Observed`)."""
+    q = np.asarray(q, float)
+    load = as_wrench(robot, np.broadcast_to(load, (len(q), np.shape(load)[-1])))
+    d = force_dim(robot)
+    if cause == "measurement_offset":  # the tracker's bias: one per position axis (every target), one per rotation
+        k = observed.rows_per(robot)
+        eye = np.eye(k, observed.n_offsets or k)
+        eye[d:, d:] *= observed.rad_weight
+        return np.broadcast_to(eye, (len(q),) + eye.shape).copy()
+    R = robot.tool_frame(q)[0]
+    X = observe(robot, _twists(cause, robot, q, load), R, observed.offsets(robot, len(q)), observed.orientation,
+                observed.rad_weight)
+    return X[..., observed.model_params(robot)] if cause == "nominal" else X
+
+
+def nominal_columns(robot: Robot, q: np.ndarray, force: np.ndarray, observed: Observed | None = None) -> np.ndarray:
+    """(N, d, n): the observation matrices A of eq. 4, one per measurement (the model's parameters:
+    a joint that never moves the measured point is left out, see :attr:`Robot.params`). With a wrench
+    (N, d + d_m) or other measured quantities (``observed``): eqs. 3-4 on the 6-D Jacobian, (N, r, p)."""
+    force = np.asarray(force, float)
+    if _plain(force, robot, observed):
+        return observation_matrix(robot.model_jacobian(q), force[..., : robot.task_dim])
+    return _general_columns("nominal", robot, q, force, observed or Observed())
+
+
+def _link_twists(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray:
+    """(N, 6, segments): per link segment (consecutive ``robot.link_points``, the last ending at the tool point),
+    the rigid motion at the tool point per unit 1/(E I) of a cantilever loaded at its distal end by the force F
+    and the moment M = r x F + M_tool it transmits (bending only): tip deflection (L^3/3) F_perp +
+    (L^2/2) M_perp x u, tip rotation (L^2/2) u x F_perp + L M_perp, carried to the tool point by the lever r."""
+    pts = as_xyz(robot.link_points(q))
+    W = load if robot.kind != "planar" else np.column_stack([load[:, :2], np.zeros((len(load), 3)), load[:, 2:]])
+    F, M_tool = as_xyz(W[:, :3]), W[:, 3:]
+    pe = pts[:, -1, :]
+    cols = []
+    for i in range(pts.shape[1] - 1):
+        seg = pts[:, i + 1, :] - pts[:, i, :]
+        L = np.linalg.norm(seg, axis=-1)
+        u = seg / np.where(L > 0, L, 1.0)[:, None]
+        r = pe - pts[:, i + 1, :]
+        F_perp = F - np.einsum("nd,nd->n", F, u)[:, None] * u
+        M = np.cross(r, F) + M_tool
+        M_perp = M - np.einsum("nd,nd->n", M, u)[:, None] * u
+        tip = (L**3 / 3)[:, None] * F_perp + (L**2 / 2)[:, None] * np.cross(M_perp, u)
+        turn = (L**2 / 2)[:, None] * np.cross(u, F_perp) + L[:, None] * M_perp
+        cols.append(np.concatenate([tip + np.cross(turn, r), turn], axis=-1))
+    return np.stack(cols, axis=-1)
+
+
+def _link_columns(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """(N, d, segments): the tool point's displacement of :func:`_link_twists` under a force (N, d)."""
+    return _link_twists(robot, q, as_wrench(robot, force))[:, : robot.task_dim, :]
+
+
+def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray,
+                  observed: Observed | None = None) -> np.ndarray:
+    """(N, d, p_cause): the regressors of one extension (module docstring) [m per unit parameter]. With a
+    wrench (N, d + d_m) or other measured quantities (``observed``): (N, r, p_cause), every robot cause as a
+    rigid motion of the tool carried to each row's target and rotation (:func:`stiffcal.model.observation.observe`),
+    and ``measurement_offset`` one bias per position axis and per rotation axis."""
+    force = np.asarray(force, float)
+    if not _plain(force, robot, observed):
+        return _general_columns(cause, robot, q, force, observed or Observed())
+    force = force[..., : robot.task_dim]
+    d = robot.task_dim
+    if cause == "link_compliance":
+        return _link_columns(robot, q, force)
+    if cause == "measurement_offset":
+        return np.broadcast_to(np.eye(d), (len(q), d, d)).copy()
+    if cause == "nominal":
+        raise ValueError(f"unknown cause {cause!r}")
+    return joint_columns(cause, robot.jacobian(q), torques(robot, q, force), _preload(cause, robot, q))
+
+
+def model_columns(robot: Robot, q: np.ndarray, force: np.ndarray, causes=(), predict: bool = False,
+                  observed: Observed | None = None) -> np.ndarray:
+    """(N, d, n + sum p_c): the nominal columns followed by those of every cause in ``causes`` (catalogue
+    order). ``predict=True`` gives the regressors of a prediction of the robot's deflection: the columns of
+    the measuring system's causes (:data:`MEASUREMENT_CAUSES`) are zero. ``force`` (N, d) or a wrench
+    (N, d + d_m); ``observed``: the measured quantities of every row (default the tool point's position)."""
+    X = [nominal_columns(robot, q, force, observed)]
+    for c in sorted(causes, key=CAUSES.index):
+        block = cause_columns(c, robot, q, force, observed)
+        X.append(np.zeros_like(block) if predict and c in MEASUREMENT_CAUSES else block)
+    return np.concatenate(X, axis=-1)
+
+
+def _stack(X: np.ndarray) -> np.ndarray:
+    """(N, d, p) -> (N d, p), rows ordered measurement by measurement."""
+    return X.reshape(-1, X.shape[-1])
+
+
+# --- linear models -------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Fit:
+    """Least-squares fit: beta (p,), rss, rank, df (rows - rank), cov_unscaled (p, p) = (X^T X)^+."""
+    beta: np.ndarray
+    rss: float
+    rank: int
+    df: int
+    cov_unscaled: np.ndarray
+
+
+def fit(X: np.ndarray, y: np.ndarray) -> Fit:
+    """Least squares (eq. 6) with columns scaled to unit norm for a well-conditioned rank decision."""
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    Xs = X / scale
+    U, s, Vt = np.linalg.svd(Xs, full_matrices=False)
+    keep = s > RANK_RTOL * s[0] if s.size else np.zeros(0, bool)
+    inv = np.where(keep, 1.0 / np.where(keep, s, 1.0), 0.0)
+    beta_s = Vt.T @ (inv * (U.T @ y))
+    resid = y - Xs @ beta_s
+    cov_s = (Vt.T * inv**2) @ Vt
+    rank = int(keep.sum())
+    return Fit(beta_s / scale, float(resid @ resid), rank, len(y) - rank, cov_s / np.outer(scale, scale))
+
+
+@dataclass(frozen=True)
+class Reduced:
+    """Least squares on column subsets of one matrix X (N, P), reduced once by a QR decomposition of X with
+    its columns scaled to unit norm: X_s = Q R, z = Q^T y. A subset fit then needs only R[:, cols] (P x p):
+    its singular values, and so its rank decision, equal those of X_s[:, cols], and its residual sum of
+    squares is rss_out + |z - R[:, cols] b|^2 with rss_out = |y - Q z|^2 (Golub & Van Loan, *Matrix
+    Computations*, 4th ed., sec. 5.3). n_rows: N."""
+    R: np.ndarray
+    z: np.ndarray
+    rss_out: float
+    scale: np.ndarray
+    n_rows: int
+
+    @classmethod
+    def of(cls, X: np.ndarray, y: np.ndarray) -> "Reduced":
+        scale = np.linalg.norm(X, axis=0)
+        scale[scale == 0] = 1.0
+        Q, R = np.linalg.qr(X / scale)
+        z = Q.T @ y
+        r = y - Q @ z
+        return cls(R, z, float(r @ r), scale, len(y))
+
+    def fit(self, cols) -> Fit:
+        """The :class:`Fit` of the columns ``cols`` (indices into X), as :func:`fit` would give it."""
+        cols = np.asarray(cols, int)
+        Rs = self.R[:, cols]
+        if cols.size == 0:
+            return Fit(np.zeros(0), self.rss_out + float(self.z @ self.z), 0, self.n_rows, np.zeros((0, 0)))
+        U, sv, Vt = np.linalg.svd(Rs, full_matrices=False)
+        keep = sv > RANK_RTOL * sv[0]
+        inv = np.where(keep, 1.0 / np.where(keep, sv, 1.0), 0.0)
+        beta_s = Vt.T @ (inv * (U.T @ self.z))
+        r = self.z - Rs @ beta_s
+        sc = self.scale[cols]
+        cov = (Vt.T * inv**2) @ Vt / np.outer(sc, sc)
+        rank = int(keep.sum())
+        return Fit(beta_s / sc, self.rss_out + float(r @ r), rank, self.n_rows - rank, cov)
+
+
+def pure_error(y: np.ndarray, groups: np.ndarray) -> tuple[float, int]:
+    """(SS, df) of the replicates: the spread of each coordinate about its group mean (Draper & Smith 2.1).
+    y: (N, d) [m]; groups: (N,) int."""
+    ss, df = 0.0, 0
+    for mine in rows_by_value(groups)[1]:
+        rows = y[mine]
+        if len(rows) > 1:
+            ss += float(((rows - rows.mean(axis=0)) ** 2).sum())
+            df += rows.size - rows.shape[1]
+    return ss, df
+
+
+def f_test(rss0: float, df0: int, rss1: float, df1: int, s2: float, df_s2: int) -> float:
+    """p-value of the F-test of a nested extension (df0 - df1 extra parameters) against the error
+    variance estimate s2 on df_s2 degrees of freedom."""
+    extra = df0 - df1
+    if extra <= 0 or not s2 > 0 or df_s2 <= 0:
+        return 1.0
+    F = max(rss0 - rss1, 0.0) / extra / s2
+    return float(dist.f_sf(F, extra, df_s2))
+
+
+# --- the stacked regressors of a data set ----------------------------------------------------------------
+
+@dataclass
+class Design:
+    """The stacked regressors of one data set: X0 (N d, n), per-cause blocks (N d, p_c), y (N d,)."""
+    X0: np.ndarray
+    blocks: dict[str, np.ndarray]
+    y: np.ndarray
+    d: int
+
+    def rows(self, keep: np.ndarray) -> "Design":
+        r = np.repeat(keep, self.d)
+        return Design(self.X0[r], {k: v[r] for k, v in self.blocks.items()}, self.y[r], self.d)
+
+    def weighted(self, w: np.ndarray) -> "Design":
+        """The design with measurement i's rows multiplied by w_i (w: (N,)): weighted least squares."""
+        r = np.repeat(w, self.d)
+        return Design(self.X0 * r[:, None], {k: v * r[:, None] for k, v in self.blocks.items()}, self.y * r, self.d)
+
+    def model(self, causes=()) -> np.ndarray:
+        """(N d, n + sum p_c): the nominal columns and those of ``causes`` in catalogue order."""
+        return np.hstack([self.X0, *[self.blocks[c] for c in sorted(causes, key=CAUSES.index)]])
+
+    def union(self) -> np.ndarray:
+        return self.model(CAUSES)
+
+    def columns(self, causes=()) -> np.ndarray:
+        """Indices of the columns of :meth:`model` (causes) within :meth:`union`."""
+        starts, at = {}, self.X0.shape[1]
+        for c in CAUSES:
+            starts[c] = at
+            at += self.blocks[c].shape[1]
+        idx = [np.arange(self.X0.shape[1])]
+        idx += [starts[c] + np.arange(self.blocks[c].shape[1]) for c in sorted(causes, key=CAUSES.index)]
+        return np.concatenate(idx)
+
+
+def load_of(meas: Measurements) -> np.ndarray:
+    """The load of every row: the force (N, d), or the wrench (N, d + d_m) when the data have moments."""
+    return meas.wrench if meas.has_moment else meas.force
+
+
+def observations(meas: Measurements, observed: Observed) -> np.ndarray:
+    """(N, r): every row's measured quantities, the rotation [rad] times ``observed.rad_weight`` [m/rad]
+    (weighted least squares: every component then has the position noise)."""
+    return meas.dp if meas.rot is None else np.hstack([meas.dp, observed.rad_weight * meas.rot])
+
+
+def build_design(robot: Robot, meas: Measurements, observed: Observed | None = None) -> Design:
+    """The stacked regressors and observations of ``meas`` (every row its target's position and, when
+    measured, the tool's rotation weighted by ``observed.rad_weight``; default :meth:`Observed.of`)."""
+    ob = observed or Observed.of(robot, meas)
+    load = load_of(meas)
+    X0 = _stack(nominal_columns(robot, meas.q, load, ob))
+    blocks = {c: _stack(cause_columns(c, robot, meas.q, load, ob)) for c in CAUSES}
+    return Design(X0, blocks, observations(meas, ob).ravel(), ob.rows_per(robot))
+
+
+def find_blunders(des: Design, n_rows: int, alpha: float, max_fraction: float = 0.1) -> list[int]:
+    """Rows whose residual from the union model exceeds a Bonferroni threshold on a robust scale (Student's t on
+    the fit's degrees of freedom, plus a margin of 2), removed one at a time (largest first) and refitted.
+    Returns row indices (into the measurements)."""
+    keep = np.ones(n_rows, bool)
+    out = []
+    X = des.union()
+    if X.shape[0] <= 2 * X.shape[1]:
+        X = des.X0  # too few measurements for the union model: judge against the nominal one
+    for _ in range(int(max_fraction * n_rows)):
+        r = np.repeat(keep, des.d)
+        f = fit(X[r], des.y[r])
+        if f.df <= 0:
+            break
+        resid = des.y[r] - X[r] @ f.beta
+        scale = 1.4826 * np.median(np.abs(resid)) * np.sqrt(len(resid) / f.df)
+        if not scale > 0:
+            break
+        per_row = np.abs(resid).reshape(-1, des.d).max(axis=1) / scale
+        threshold = dist.t_isf(alpha / (2 * len(resid)), f.df) + 2.0  # the scale is estimated on f.df
+        worst = int(np.argmax(per_row))
+        if per_row[worst] <= threshold:
+            break
+        row = int(np.flatnonzero(keep)[worst])
+        keep[row] = False
+        out.append(row)
+    return sorted(out)
+
+
+def _spans_within(a: np.ndarray, b: np.ndarray) -> bool:
+    """True when every column of a lies in the span of b (to RANK_RTOL)."""
+    return fit(b, np.zeros(len(b))).rank == fit(np.hstack([b, a]), np.zeros(len(b))).rank
+
+
+def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | None = None) -> np.ndarray:
+    """The joints whose compliance these data cannot identify because they never deflect a measured quantity
+    under the data's loads (their column of the observation matrix, eq. 4, is zero in every row: a vertical
+    axis under hanging weights), as indices (k,) int into the robot's joints (empty when every compliance is
+    identifiable). The analysis leaves them out of the model (:func:`reduced`), as ``stiffcal design`` leaves
+    out a joint whose axis passes through the measured point.
+
+    Raises :class:`InputError` when there are fewer equations than compliances, when no compliance is left,
+    or when the information matrix of the remaining compliances is singular for another reason (joints whose
+    compliances act only in a fixed combination: they are named)."""
+    ob = observed or Observed.of(robot, meas)
+    params = ob.model_params(robot)
+    n, d, N = len(params), ob.rows_per(robot), meas.n_rows
+    if N * d < n:
+        raise InputError(f"expected at least {n} equations for the {n} joint compliances, got {N * d} "
+                         f"({N} loaded measurements of {d} coordinates)", source=meas.source)
+    X = _stack(nominal_columns(robot, meas.q, load_of(meas), ob))
+    f = fit(X, observations(meas, ob).ravel())
+    if f.rank == n:
+        return np.zeros(0, int)
+    scale = np.linalg.norm(X, axis=0)
+    zero = scale <= RANK_RTOL * scale.max() if scale.max() > 0 else np.ones(n, bool)
+    names = [robot.joint_names[int(j)] for j in params[zero]]
+    unloaded = (f"joint{'s' if len(names) > 1 else ''} {', '.join(map(str, names))} never "
+                "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
+    refuse = (f"the measurement plan cannot identify the {n} joint compliances: its information matrix has rank "
+              f"{f.rank}; ")
+    if zero.all():
+        raise InputError(f"{refuse}{unloaded}, so no compliance is left to identify; measure other poses or load "
+                         "directions", source=meas.source)
+    if f.rank < n - int(zero.sum()):
+        rest = np.flatnonzero(~zero)
+        Xr = X[:, rest] / scale[rest]
+        v = np.linalg.svd(Xr)[2][-1]
+        joints = [robot.joint_names[int(params[rest[j]])] for j in np.flatnonzero(np.abs(v) > 0.1)]
+        which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
+        raise InputError(f"{refuse}{which}{'; ' + unloaded if names else ''}; measure other poses or load "
+                         "directions", source=meas.source)
+    return params[zero]
+
+
+def reduced(robot: Robot, observed: Observed, dropped) -> Observed:
+    """``observed`` with the joints ``dropped`` (:func:`check_identifiable`) left out of the model's
+    parameters (the nominal columns and the verdict's ``k``; the catalogue's columns are unchanged)."""
+    dropped = np.asarray(dropped, int)
+    if dropped.size == 0:
+        return observed
+    return replace(observed, params=np.setdiff1d(observed.model_params(robot), dropped))
+
+
+def _joint_list(robot: Robot, joints) -> str:
+    """Joints (0-based indices) as the notes name them: "2, 3", or "elbow (joint 2)" for named joints."""
+    default = robot.joint_names == tuple(str(i + 1) for i in range(robot.n_joints))
+    return ", ".join(str(int(j) + 1) if default else f"{robot.joint_names[int(j)]} (joint {int(j) + 1})"
+                     for j in joints)
+
+
+def dropped_note(robot: Robot, dropped) -> str:
+    """The verdict's note on the joints left out (:func:`check_identifiable`)."""
+    names = _joint_list(robot, dropped)
+    one = len(dropped) == 1
+    return (f"joint{'' if one else 's'} {names} never deflect{'s' if one else ''} the measured point under these "
+            f"loads (e.g. a vertical axis under hanging weights): {'its' if one else 'their'} compliance cannot be "
+            "identified from these data and is left out of the analysis (nominal.not_identifiable_joints); "
+            "measure with loads that turn it to identify it")
+
+
+def unseen_note(robot: Robot, joints) -> str:
+    """The verdict's note on joints left out because no measured quantity shows them: an axis through every
+    measured point (the tool point on the flange axis), with the orientation not measured."""
+    return (f"joint axis through every measured point at every pose: {_joint_list(robot, joints)}; a deflection "
+            "about it moves no measured point, so its compliance cannot be identified from these data and is left "
+            "out of the analysis (nominal.not_identifiable_joints); measure a point off the axis (targets), or the "
+            "orientation with a moment in the loads, to identify it")
+
+
+def check_testable(robot: Robot, meas: Measurements, n_params: int | None = None) -> None:
+    """Raise :class:`InputError` when the distinct (configuration, load) pairs give no more equations than there
+    are compliances (``n_params``, default ``robot.n_params``): the data then identify the compliances at best,
+    and no cause and no lack of fit can be tested (e.g. every row repeats one configuration and one load)."""
+    groups = len(np.unique(meas.group))
+    n_params = robot.n_params if n_params is None else n_params
+    if groups * robot.task_dim <= n_params:
+        raise InputError(
+            f"these data cannot test any cause: their {meas.n_rows} loaded rows hold {groups} distinct "
+            f"configuration-and-load pair{'s' if groups > 1 else ''} ({groups * robot.task_dim} distinct equations "
+            f"for {n_params} compliances); measure more configurations or loads", source=meas.source)
+
+
+# --- the noise ---------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Noise:
+    """The error variance the tests use: s2 [m^2] on df degrees of freedom, from ``source``; ss_pe, df_pe: the
+    pure error (df_pe = 0 without replicates)."""
+    s2: float
+    df: int
+    source: str
+    ss_pe: float
+    df_pe: int
+
+
+@dataclass(frozen=True)
+class VarianceModel:
+    """Noise that changes from row to row, as a laser tracker's does (its error grows with the distance to
+    the target): sigma_i^2 = exp(z_i . gamma), z = [1, x, y (, z), |p|^2] of the measured point p (lengths
+    over the reach), fitted to the replicate groups' sample variances by a Gamma GLM with log link and the
+    dispersion 2 that chi-square variances have (McCullagh & Nelder, *Generalized Linear Models*, 2nd ed.,
+    1989, ch. 8; Carroll & Ruppert, *Transformation and Weighting in Regression*, 1988, ch. 3).
+
+    The same GLM, fitted per configuration to the residuals of generalised least squares, refines it
+    (:func:`residual_variance_model`).
+
+    weights: (N,) 1 / sigma_i relative to the median row; p_value: of the likelihood-ratio test against a
+    constant variance that decided to weight; sigma_ratio: largest over smallest sigma_i of the rows."""
+    weights: np.ndarray
+    p_value: float
+    sigma_ratio: float
+
+
+#: level of the test that decides to weight the fit (a constant variance is kept unless it is rejected)
+HETEROSCEDASTICITY_ALPHA = 0.01
+
+
+def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = None) -> VarianceModel | None:
+    """The :class:`VarianceModel` of the replicate groups (their spread about their means, or about
+    ``resid``'s group means when given), or None when the data have too few replicates to tell (fewer than
+    8 groups with replicates) or a constant variance is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`."""
+    y = meas.dp if resid is None else resid
+    groups = [r for r in rows_by_value(meas.group)[1] if len(r) > 1]
+    if len(groups) < 8:
+        return None
+    s2 = np.array([((y[r] - y[r].mean(0)) ** 2).sum() for r in groups])
+    df = np.array([(len(r) - 1) * y.shape[1] for r in groups], float)
+    if np.any(s2 <= 0):
+        return None
+    s2 = s2 / df
+    s2 = s2 / np.median(s2)  # metres squared are tiny; the log link's intercept absorbs the scale
+    Z = position_covariates(robot, meas.q[[r[0] for r in groups]])
+    use = np.ones(len(s2), bool)
+
+    def glm(rows, cols=slice(None)):
+        return _gamma_fit(s2[rows], Z[rows][:, cols], df[rows])
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # a fit that does not converge cleanly is no reason to weight
+            # a group with a blunder has a wild variance, which pulls the fit towards itself: test the most
+            # extreme groups (against the fit, and the largest variance) against the fit without them, leave
+            # the wildest out, and go on (at most a tenth of the groups)
+            for _ in range(max(1, len(s2) // 10)):
+                ratio = np.where(use, s2 / np.exp(Z @ glm(use).params), -np.inf)
+                p_loo = {}
+                for g in {int(np.argmax(ratio)), int(np.argmax(np.where(use, s2, -np.inf)))}:
+                    trial = use.copy()
+                    trial[g] = False
+                    loo = s2[g] / np.exp(Z[g] @ glm(trial).params)
+                    p_loo[g] = dist.chi2_sf(loo * df[g], df[g])
+                worst = min(p_loo, key=p_loo.get)
+                if p_loo[worst] >= 1e-3 / len(s2):
+                    break
+                use[worst] = False
+            full, null = glm(use), glm(use, slice(0, 1))
+    except (ValueError, np.linalg.LinAlgError, Warning):
+        return None
+    p = _constant_variance_p(full, null, Z.shape[1])
+    if not np.isfinite(p) or p >= HETEROSCEDASTICITY_ALPHA:
+        return None
+    return _fitted_variance(robot, meas.q, full.params, p)
+
+
+@dataclass(frozen=True)
+class GammaFit:
+    """A Gamma GLM fit (:func:`_gamma_fit`): coefficients params (c,) of the log link, and the deviance (scale 1)."""
+    params: np.ndarray
+    deviance: float
+
+
+#: the IRLS of :func:`_gamma_fit`: most iterations, and the change of the scaled deviance at which it stops
+GAMMA_MAXITER = 100
+GAMMA_TOL = 1e-8
+
+
+def _gamma_fit(s2: np.ndarray, Z: np.ndarray, df: np.ndarray) -> GammaFit:
+    """The Gamma GLM (log link) of relative variances s2 (k,) on covariates Z (k, c), each on df (k,) degrees of
+    freedom (variance weights), with the dispersion 2 of chi-square variances (:class:`VarianceModel`): iteratively
+    reweighted least squares (McCullagh & Nelder, *Generalized Linear Models*, 2nd ed., 1989, sec. 2.5 and 8.3),
+    step for step the algorithm of statsmodels' ``GLM(s2, Z, family=Gamma(Log()), var_weights=df).fit(scale=2)``
+    (its start mu = (s2 + mean) / 2, a least-squares step per iteration, convergence when the deviance over the
+    dispersion changes by at most 1e-8, the last step's coefficients by the pseudo-inverse): equal to it to the
+    bit (tests/test_distributions.py), without the 0.8 s of importing statsmodels for a fit of a few milliseconds.
+    Raises ValueError on values that are not finite, RuntimeWarning (as an error) on a fit that predicts s2
+    exactly or a numpy warning on the way; like statsmodels, it returns the last iterate after
+    GAMMA_MAXITER iterations without a word (a Gamma fit with a log link has constant IRLS weights, and its
+    iterations have always converged within a few on these data)."""
+    with warnings.catch_warnings():  # a fit that warns (numpy's overflow too) is an error for every caller
+        warnings.simplefilter("error")
+        return _gamma_irls(*(np.asarray(a, float) for a in (s2, Z, df)))
+
+
+def _gamma_irls(s2: np.ndarray, Z: np.ndarray, w_var: np.ndarray) -> GammaFit:
+    """:func:`_gamma_fit`'s iterations."""
+    eps = np.finfo(float).eps
+
+    def deviance(mu, scale):
+        return float(np.sum(2 * (-np.log(np.clip(s2 / mu, eps, np.inf)) + (s2 - mu) / mu) * w_var / scale))
+
+    mu = (s2 + s2.mean()) / 2.0
+    eta = np.log(np.clip(mu, eps, np.inf))
+    history = [np.inf, deviance(mu, 2.0)]
+    if np.isnan(history[-1]):
+        raise ValueError("the Gamma GLM's first deviance is NaN")
+    for _ in range(GAMMA_MAXITER):
+        w = w_var * (1.0 / ((1.0 / mu) ** 2 * np.power(np.fabs(mu), 2.0)))  # IRLS weights: df / (g'(mu)^2 V(mu))
+        z = eta + (1.0 / mu) * (s2 - mu)  # the working response
+        if not (np.all(np.isfinite(w)) and np.all(np.isfinite(z))):
+            raise ValueError("the Gamma GLM's working response or weights are not finite")
+        sw = np.sqrt(w)
+        beta = np.linalg.lstsq(sw[:, None] * Z, sw * z, rcond=-1)[0]
+        eta = np.dot(Z, beta)
+        mu = np.exp(eta)
+        history.append(deviance(mu, 2.0))
+        if np.allclose(mu - s2, 0):
+            warnings.warn("the Gamma GLM predicts the variances exactly", RuntimeWarning, stacklevel=2)
+        if np.allclose(history[-2], history[-1], atol=GAMMA_TOL, rtol=0.0):
+            break
+    params = np.linalg.pinv(sw[:, None] * Z).dot(sw * z)
+    return GammaFit(params, deviance(np.exp(np.dot(Z, params)), 1.0))
+
+
+def _constant_variance_p(full, null, n_covariates: int) -> float:
+    """The likelihood-ratio p-value of a constant variance (``null``) against the fit on every covariate."""
+    return float(dist.chi2_sf(max(null.deviance - full.deviance, 0.0) / 2.0, n_covariates - 1))
+
+
+def _fitted_variance(robot: Robot, q: np.ndarray, params: np.ndarray, p: float) -> VarianceModel:
+    """The :class:`VarianceModel` of the rows at poses q (N, n) [rad] with the GLM's coefficients ``params``."""
+    log_s2 = position_covariates(robot, q) @ params
+    sigma = np.exp(0.5 * (log_s2 - np.median(log_s2)))
+    return VarianceModel(1.0 / sigma, p, float(sigma.max() / sigma.min()))
+
+
+def position_covariates(robot: Robot, q: np.ndarray) -> np.ndarray:
+    """(N, d + 2): the covariates z = [1, x, y (, z), |p|^2] of :class:`VarianceModel` at poses q (N, n) [rad],
+    the tool point p over the reach."""
+    p = as_xyz(robot.fk(q))[:, : robot.task_dim] / max(robot.reach_m, 1e-9)
+    return np.column_stack([np.ones(len(p)), p, (p**2).sum(1)])
+
+
+#: most refits of the noise model on the error model's residuals (:func:`residual_variance_model`), and the
+#: largest change of a weight (relative) at which they stop
+VARIANCE_REFITS = 2
+VARIANCE_CONVERGED = 0.05
+#: configurations (with residual degrees of freedom) per covariate of the variance function that a refit needs:
+#: fewer fit their own residuals' scatter (12 configurations of a planar arm gave 3 points per parameter)
+VARIANCE_CONFIGS_PER_COVARIATE = 5
+
+
+def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test: bool = True) -> VarianceModel | None:
+    """The correction of the rows' noise weights that the residuals of the union of all extensions in
+    generalised least squares (``gls``: weighted and whitened by the error model) show, or None when the data
+    have fewer than :data:`VARIANCE_CONFIGS_PER_COVARIATE` configurations with residual degrees of freedom per
+    covariate, or (``test``: the rows are not weighted yet) a constant correction is not rejected at
+    :data:`HETEROSCEDASTICITY_ALPHA`; rows already weighted take the correction whatever its p-value (the
+    variance function refined, as iterated reweighting does).
+
+    Per configuration c its residual sum of squares RSS_c, on df_c = n_c w - h_c (h_c its share of the hat
+    matrix's trace), has the expectation kappa_c^2 sigma^2 df_c with kappa_c the factor by which its rows'
+    noise differs from the weights': RSS_c / df_c is fitted by the Gamma GLM of :class:`VarianceModel` on the
+    configuration's position (Carroll & Ruppert, *Transformation and Weighting in Regression*, 1988, sec. 3.3:
+    the variance function estimated from the residuals of a generalised least-squares fit). These residuals hold
+    every row, the shared errors whitened out, where the replicates' spread (:func:`variance_model`) holds few
+    rows and, on a protocol with revisits, the robot's return error too. Returns the factors 1 / kappa_i of
+    every row (N,) relative to the median row."""
+    X, y = gls.union(), gls.y
+    norm = np.linalg.norm(X, axis=0)
+    Q = _span(X / np.where(norm > 0, norm, 1.0), np.arange(X.shape[1]))  # the rank rule of fit()
+    r = (y - Q @ (Q.T @ y)).reshape(-1, gls.d)
+    h = (Q**2).sum(1).reshape(-1, gls.d).sum(1)
+    rows = rows_by_value(meas.config)[1]
+    first = [mine[0] for mine in rows]
+    rss = np.array([(r[mine] ** 2).sum() for mine in rows])
+    dof = np.array([gls.d * len(mine) - h[mine].sum() for mine in rows])
+    use = (dof > 0.5) & (rss > 0)
+    Z = position_covariates(robot, meas.q[first])[use]
+    if use.sum() < VARIANCE_CONFIGS_PER_COVARIATE * Z.shape[1]:
+        return None
+    s2 = rss[use] / dof[use]
+    s2 = s2 / np.median(s2)
+    try:  # a fit that warns raises (_gamma_fit)
+        full, null = _gamma_fit(s2, Z, dof[use]), _gamma_fit(s2, Z[:, :1], dof[use])
+    except (ValueError, np.linalg.LinAlgError, Warning):
+        return None
+    p = _constant_variance_p(full, null, Z.shape[1])
+    if not np.isfinite(p) or (test and p >= HETEROSCEDASTICITY_ALPHA):
+        return None
+    return _fitted_variance(robot, meas.q, full.params, p)
+
+
+# --- closed testing over the catalogue ---------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Selection:
+    """The outcome of closed testing (module docstring).
+
+    causes: the catalogue causes tested (extra rank > 0 on these data); fits: the fit of every combination
+    (frozenset of causes -> :class:`Fit`); local: local p-value of every intersection (frozenset U, with_L);
+    adjusted: closed-testing adjusted p-value of every elementary hypothesis (cause name, and
+    ``"lack_of_fit"`` when tested); declared: causes whose H_c is rejected; unexplained: H_L rejected;
+    explanations: the minimal compatible combinations, best first."""
+    causes: tuple[str, ...]
+    fits: dict
+    local: dict
+    adjusted: dict
+    declared: tuple[str, ...]
+    unexplained: bool
+    explanations: tuple[frozenset, ...]
+    alpha: float
+
+    def adjusted_p(self, U, with_lof: bool = False) -> float:
+        """Closed-testing adjusted p-value of the intersection H_U (and H_L): the largest local p-value over
+        the intersections that contain it."""
+        U = frozenset(U)
+        return max(p for (V, m), p in self.local.items() if V >= U and (m or not with_lof))
+
+
+def _subsets(causes):
+    return [frozenset(s) for k in range(len(causes) + 1) for s in combinations(causes, k)]
+
+
+#: draws of the importance sampler of :func:`min_p_value` (its relative error is below 1/sqrt(MIN_P_DRAWS)),
+#: and its fixed seed: the sampler is a numerical integration, so a verdict does not depend on a seed
+MIN_P_DRAWS = 4000
+MIN_P_SEED = 20121001
+
+
+def _span(R: np.ndarray, cols) -> np.ndarray:
+    """(P, r): an orthonormal basis of the span of R[:, cols], with the rank decision of :meth:`Reduced.fit`."""
+    if len(cols) == 0:
+        return np.zeros((R.shape[0], 0))
+    U, sv, _ = np.linalg.svd(R[:, cols], full_matrices=False)
+    return U[:, sv > RANK_RTOL * sv[0]]
+
+
+def _beyond(base: np.ndarray, bigger: np.ndarray) -> np.ndarray:
+    """(P, r1 - r0): an orthonormal basis of span(bigger) minus span(base) (both orthonormal bases, base's
+    span inside bigger's)."""
+    U = np.linalg.svd(bigger - base @ (base.T @ bigger), full_matrices=False)[0]
+    return U[:, : bigger.shape[1] - base.shape[1]]
+
+
+def min_p_value(p_min: float, spaces: list[np.ndarray], df: int, draws: int = MIN_P_DRAWS,
+                rng: np.random.Generator | None = None, weights=None) -> float:
+    """The p-value of the weighted min-P test of several nested F-tests that share their error variance: the
+    probability, under their joint null, that some test m has p_m <= w_m p_min (``weights`` w, default 1: the
+    smallest p-value is at most ``p_min``; with weights, p_min is the observed min_m p_m / w_m).
+
+    Test m adds the columns whose orthonormal basis beyond the common model is ``spaces[m]`` (P, r_m), all
+    in one P-dimensional coordinate system of the union's column space, in which the whitened noise is
+    N(0, I_P); the error variance is an independent chi^2_df / df. Each p-value is exactly uniform under the
+    null, so P(p_m <= w_m p_min) = w_m p_min, and the probability of the union of those events is estimated
+    by importance sampling (Naiman & Priebe, *J. Comput. Graph. Statist.* 10(2), 2001, 296-328): draw a test
+    m with probability proportional to w_m, the noise conditioned on p_m <= w_m p_min (the F ratio through its
+    Beta variable, truncated to that tail), count the tests N rejected; the estimate p_min sum(w) mean(1/N)
+    is unbiased and lies between p_min max(w) and the (weighted) Bonferroni bound p_min sum(w), with a
+    relative error below about 1/sqrt(draws) whatever p_min is (no floor at 1/draws, as a plain Monte Carlo
+    p-value has). Correlated tests (causes or parameters whose columns overlap) give less than Bonferroni
+    (Westfall & Young, *Resampling-Based Multiple Testing*, 1993, sec. 2.6). ``rng``: the draws (default a
+    fixed seed, :data:`MIN_P_SEED`)."""
+    k = len(spaces)
+    if k == 0:
+        return 1.0
+    w = np.ones(k) if weights is None else np.asarray(weights, float)
+    level = np.minimum(w * p_min, 1.0)  # with weights: P(some p_m <= w_m t), t = p_min
+    if k == 1 or not (1e-250 < level.min() and level.max() < 1.0):
+        return float(min(1.0, level.sum()))
+    rng = np.random.default_rng(MIN_P_SEED) if rng is None else rng
+    r = np.array([W.shape[1] for W in spaces])
+    f_crit = dist.f_isf(level, r, df)
+    pick = rng.choice(k, size=draws, p=level / level.sum())
+    z = rng.standard_normal((draws, spaces[0].shape[0]))
+    C = dist.beta_ppf(level[pick] * rng.uniform(size=draws), df / 2, r[pick] / 2)
+    total = rng.chisquare(r[pick] + df)
+    u, v = (1.0 - C) * total, C * total
+    for c, W in enumerate(spaces):
+        rows = pick == c
+        zc = z[rows] @ W
+        z[rows] += (zc * (np.sqrt(u[rows]) / np.linalg.norm(zc, axis=1) - 1.0)[:, None]) @ W.T
+    s2 = v / df
+    hits = np.stack([np.sum((z @ W) ** 2, axis=1) / r[c] / s2 >= f_crit[c] for c, W in enumerate(spaces)], -1)
+    hits[np.arange(draws), pick] = True
+    return float(min(1.0, level.sum() * np.mean(1.0 / hits.sum(axis=1))))
+
+
+def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float) -> Selection:
+    """Closed testing of the catalogue (module docstring) over ``causes`` (those that add no direction to
+    the nominal model on these data are left out). ``lack_of_fit(S, fit)`` gives the p-value of the
+    lack-of-fit of the model nominal + S, or None when it cannot be tested."""
+    red = Reduced.of(des.union(), des.y)
+    r0 = red.fit(des.columns()).rank
+    causes = tuple(c for c in causes if red.fit(des.columns([c])).rank > r0)  # the others are absorbed
+    everything = frozenset(causes)
+    subsets = _subsets(causes)
+    fits = {S: red.fit(des.columns(S)) for S in subsets}
+    lof = {S: lack_of_fit(S, fits[S]) for S in fits}
+    spans: dict = {}
+
+    def span(S):  # the orthonormal bases are needed only by a min-P test (rarely): computed when first asked for
+        if S not in spans:
+            spans[S] = _span(red.R, des.columns(S))
+        return spans[S]
+
+    def p_add(c, S):
+        f0, f1 = fits[S], fits[S | {c}]
+        return f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df) if f1.rank > f0.rank else 1.0
+
+    def statistics(c, S):  # (p, space, weight): the block of c added to S, and each parameter of c alone; each
+        f0 = fits[S]       # space a function that computes it (its dimension is the fits' rank difference)
+        block = (p_add(c, S), lambda: _beyond(span(S), span(S | {c})))
+        extra = np.setdiff1d(des.columns([c]), des.columns())
+        singles = []
+        if fits[S | {c}].rank - f0.rank > 1:
+            for j in extra:
+                cols = np.append(des.columns(S), j)
+                f1 = red.fit(cols)
+                if f1.rank > f0.rank:
+                    singles.append((f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df),
+                                    lambda cols=cols: _beyond(span(S), _span(red.R, cols))))
+        if len(singles) < 2:
+            return [(*block, 1.0)]
+        return [(*block, 0.5)] + [(p, W, 0.5 / len(singles)) for p, W in singles]
+
+    local = {}
+    for i, U in enumerate(subsets):
+        rest = everything - U
+        members = [c for c in sorted(U, key=CAUSES.index) if fits[rest | {c}].rank > fits[rest].rank]
+        p_causes = None
+        if members:  # the weighted min-P test of the causes in U, each added to the largest model H_U allows;
+            # where it cannot change a decision at alpha its weighted Bonferroni bound min p / w is kept: a valid
+            # p-value, never below the min-P one, with the same decisions at alpha
+            tests = [(p, W, wt / len(members)) for c in members for p, W, wt in statistics(c, rest)]
+            ps, spaces, weights = (list(x) for x in zip(*tests))
+            t = min(p / wt for p, wt in zip(ps, weights))
+            p_causes = min(1.0, t)
+            low = max(weights) * t
+            if low <= alpha and p_causes > alpha * (1.0 - (1.0 / (len(U) + 1) if lof[rest] is not None else 0.0)):
+                p_causes = min_p_value(t, [space() for space in spaces], noise.df,
+                                       rng=np.random.default_rng([MIN_P_SEED, i]),
+                                       weights=weights)
+        elif U:
+            p_causes = 1.0
+        if p_causes is not None:
+            local[(U, False)] = p_causes
+        if lof[rest] is not None:  # weighted Bonferroni: weight 1/(|U| + 1) to the lack of fit
+            w = 1.0 / (len(U) + 1)
+            local[(U, True)] = min(1.0, lof[rest] / w, p_causes / (1.0 - w) if U else 1.0)
+    if not local:  # no cause to test and no lack of fit: nothing can be rejected
+        local[(frozenset(), False)] = 1.0
+
+    def adjusted(U, with_lof=False):
+        return max(p for (V, m), p in local.items() if V >= U and (m or not with_lof))
+
+    adj = {c: adjusted(frozenset([c])) for c in causes}
+    if any(m for (_, m) in local):
+        adj["lack_of_fit"] = adjusted(frozenset(), True)
+    compatible = [S for S in fits if S == everything or adjusted(everything - S) > alpha]
+    minimal = [S for S in compatible if not any(T < S for T in compatible)]
+    minimal.sort(key=lambda S: (len(S), fits[S].rank, round(fits[S].rss / max(fits[everything].rss, 1e-300), 9),
+                                sorted(CAUSES.index(c) for c in S)))
+    return Selection(causes, fits, local, adj, tuple(c for c in causes if adj[c] <= alpha),
+                     adj.get("lack_of_fit", 1.0) <= alpha, tuple(minimal), alpha)
+
+
+# --- lack of fit -----------------------------------------------------------------------------------------
+
+def _features(robot: Robot, meas: Measurements) -> dict[str, np.ndarray]:
+    """Quantities residuals are correlated with: row order, force magnitude and direction, the moment's
+    components (when the data have moments), joint angles, joint torques."""
+    tau = torques(robot, meas.q, load_of(meas))
+    fmag = np.linalg.norm(meas.force, axis=1)
+    out = {"row order (drift?)": meas.rows.astype(float), "force magnitude": fmag}
+    if meas.force.shape[1] == 2:
+        out["force direction"] = np.arctan2(meas.force[:, 1], meas.force[:, 0])
+    else:
+        out |= {f"force direction {a}": meas.force[:, i] / np.where(fmag > 0, fmag, 1.0) for i, a in enumerate("xyz")}
+    if meas.has_moment:
+        axes = "z" if meas.moment.shape[1] == 1 else "xyz"
+        out |= {f"moment {a}": meas.moment[:, i] for i, a in enumerate(axes)}
+    out |= {name: meas.q[:, i] for i, name in enumerate(robot.joint_columns("q"))}
+    out |= {name: tau[:, i] for i, name in enumerate(robot.joint_columns("tau"))}
+    return out
+
+
+def _varying(features: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The features that vary (a rank correlation with a constant is undefined)."""
+    return {k: v for k, v in features.items() if np.ptp(v) > 1e-12 * max(1.0, np.abs(v).max())}
+
+
+def _rank_standardised(A: np.ndarray) -> np.ndarray:
+    """Columns of A (N, k) replaced by their ranks (ties averaged), centred and scaled to unit norm."""
+    R = dist.rankdata(A)
+    R = R - R.mean(axis=0)
+    norm = np.linalg.norm(R, axis=0)
+    return R / np.where(norm > 0, norm, 1.0)
+
+
+@dataclass(frozen=True)
+class Structure:
+    """The features residuals are correlated with (:func:`_features` that vary), ranked once: names, and
+    their standardised ranks (N, k); components: the names of a residual row's components (x, y (z), and the
+    rotation's rx, ry, rz or rz when the orientation is measured)."""
+    names: tuple[str, ...]
+    ranks: np.ndarray
+    components: tuple[str, ...] = ("x", "y", "z")
+
+    @classmethod
+    def of(cls, robot: Robot, meas: Measurements) -> "Structure":
+        feats = _varying(_features(robot, meas))
+        comps = tuple(Observed(orientation=meas.rot is not None).component_names(robot))
+        if not feats:
+            return cls((), np.zeros((meas.n_rows, 0)), comps)
+        return cls(tuple(feats), _rank_standardised(np.stack(list(feats.values()), -1)), comps)
+
+    def correlations(self, resid: np.ndarray) -> dict:
+        """Spearman's rho and its p-value (the t approximation scipy.stats.spearmanr uses) of every residual
+        component (N, d) with every feature; components or features that do not vary are left out."""
+        n = len(resid)
+        out = {}
+        if n < 4 or not self.names:
+            return out
+        for axis in range(resid.shape[1]):
+            if np.ptp(resid[:, axis]) == 0:
+                continue
+            r = self.ranks.T @ _rank_standardised(resid[:, [axis]])[:, 0]
+            r = np.clip(r, -1.0, 1.0)
+            t = r * np.sqrt((n - 2) / np.maximum(1.0 - r**2, 1e-300))
+            p = 2 * dist.t_sf(np.abs(t), n - 2)
+            for name, rho, pv in zip(self.names, r, p):
+                out[f"{self.components[axis]} vs {name}"] = {"spearman": float(rho), "p_value": float(pv)}
+        return out
+
+
+def residual_structure(robot: Robot, meas: Measurements, resid: np.ndarray, keep: int | None = 5,
+                       structure: Structure | None = None) -> dict:
+    """Rank correlations (Spearman) of the residual components resid (N, d) [m] with row order, force, pose
+    and torque, strongest first (the ``keep`` strongest; all with keep=None). Features that do not vary in
+    these data are left out."""
+    found = (structure or Structure.of(robot, meas)).correlations(resid)
+    ranked = sorted(found.items(), key=lambda kv: kv[1]["p_value"])
+    return dict(ranked if keep is None else ranked[:keep])
+
+
+def structure_p_value(robot: Robot, meas: Measurements, resid: np.ndarray,
+                      structure: Structure | None = None) -> float | None:
+    """Bonferroni-adjusted smallest p-value of :func:`residual_structure`: a lack-of-fit test that needs no
+    replicates (None when no correlation can be computed)."""
+    found = (structure or Structure.of(robot, meas)).correlations(resid)
+    return min(1.0, min(r["p_value"] for r in found.values()) * len(found)) if found else None
+
+
+@dataclass(frozen=True)
+class ConfigurationModel:
+    """The configuration-wise elastic model G: at every robot configuration c its own linear response to the
+    load and its own offset, dp = C_c F + o_c (C_c any d x d matrix). Every catalogue cause that is linear
+    in the load (joint and link compliances, coupling) and any pose-dependent compliance lies in it, and so
+    does a zero point that moves from one configuration to the next (a drift). It is the reference of a
+    lack-of-fit test that needs several loads per configuration, not replicates.
+
+    With several targets every target of a configuration has its own response, and with moments the load
+    is the wrench W: y = C_ct W + o_ct for the rows of target t at configuration c, y every measured component.
+
+    basis: per configuration (rows (L_c,), orthonormal basis (L_c d, r_c) of the span of [F, 1] (or [W, 1]) of
+    each target, for every measured component, over its rows flattened row by row, coordinate by coordinate,
+    whitened by the error model); rank: sum_c r_c, the number of parameters of G."""
+    basis: tuple
+    rank: int
+    d: int
+
+    @classmethod
+    def of(cls, meas: Measurements, weights: np.ndarray | None = None, d: int | None = None,
+           error=None) -> "ConfigurationModel":
+        """G for the measurements, its rows multiplied by ``weights`` (N,) when the fit is weighted and whitened
+        configuration by configuration by the error model ``error`` (:class:`stiffcal.measured.errormodel.ErrorModel`)
+        when rows share errors; d: the measured components per row (default the displacement's)."""
+        blocks, rank = [], 0
+        d = meas.dp.shape[1] if d is None else d
+        w = np.ones(meas.n_rows) if weights is None else weights
+        load = load_of(meas)
+        roots = {} if error is None else {int(meas.config[rows[0]]): (rows, W) for rows, _, W, _ in error.blocks}
+        for c, rows in enumerate(rows_by_label(meas.config, meas.n_configurations)):
+            cols = []
+            for t in np.unique(meas.target[rows]):
+                mine = meas.target[rows] == t
+                Z = np.zeros((len(rows), load.shape[1] + 1))
+                Z[mine] = np.hstack([load[rows[mine]], np.ones((int(mine.sum()), 1))]) * w[rows[mine], None]
+                cols.append(Z)
+            Z = np.kron(np.hstack(cols), np.eye(d))  # every measured component its own response (rows flattened)
+            if c in roots:
+                order, W = roots[c]
+                pos = {int(r): i for i, r in enumerate(rows)}
+                rows = order
+                Z = W @ Z[flat_index([pos[int(r)] for r in order], d)]
+            U, sv, _ = np.linalg.svd(Z, full_matrices=False)
+            r = int(np.sum(sv > RANK_RTOL * sv[0])) if sv.size and sv[0] > 0 else 0
+            blocks.append((rows, U[:, :r]))
+            rank += r
+        return cls(tuple(blocks), rank, d)
+
+    def residualise(self, A: np.ndarray) -> np.ndarray:
+        """(N d, ...) stacked rows -> the same with G's fit removed, configuration by configuration."""
+        B = A.reshape(-1, self.d, *A.shape[1:]).copy()
+        for rows, Q in self.basis:
+            block = B[rows].reshape(len(rows) * self.d, -1)
+            B[rows] = (block - Q @ (Q.T @ block)).reshape(B[rows].shape)
+        return B.reshape(A.shape)
+
+
+def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise, weights: np.ndarray | None = None,
+                     error=None):
+    """The test of H_L ("nothing outside the catalogue") for a model nominal + S, for :func:`closed_testing`:
+    a Bonferroni combination of the tests the data allow (Draper & Smith 2.1 for the first):
+
+    - against pure error, when the data have replicates: F = ((RSS - SS_pe) / (df - df_pe)) / s_pe^2;
+    - against the configuration-wise elastic model G (:class:`ConfigurationModel`), when the configurations
+      have loads to spare: the F-test of adding G;
+    - residual structure: rank correlations of the residuals with row order, force, pose and torque
+      (:func:`structure_p_value`), which sees a drift even where replicates repeat it.
+    ``des`` and ``noise`` are weighted by ``weights`` (N,) when the noise varies from row to row, and whitened by
+    the error model ``error`` when rows share errors. Returns None when no test is possible."""
+    G = ConfigurationModel.of(meas, weights, des.d, error)
+    redG = Reduced.of(G.residualise(des.union()), G.residualise(des.y))
+    Xu = des.union()
+    feats = Structure.of(robot, meas)
+    if noise.df_pe > 0:
+        s2G, dfG = noise.s2, noise.df
+    else:
+        fu = redG.fit(np.arange(Xu.shape[1]))
+        dfG = len(des.y) - G.rank - fu.rank
+        s2G = fu.rss / dfG if dfG > 0 else 0.0
+
+    def test(S, f: Fit):
+        ps = []
+        if noise.df_pe > 0 and f.df > noise.df_pe:
+            ps.append(f_test(f.rss, f.df, noise.ss_pe, noise.df_pe, noise.s2, noise.df))
+        cols = des.columns(S)
+        if dfG > 0 and s2G > 0:
+            fg = redG.fit(cols)
+            df_sg = len(des.y) - G.rank - fg.rank
+            if df_sg < f.df:
+                ps.append(f_test(f.rss, f.df, fg.rss, df_sg, s2G, dfG))
+        p = structure_p_value(robot, meas, (des.y - Xu[:, cols] @ f.beta).reshape(-1, des.d), feats)
+        if p is not None:
+            ps.append(p)
+        return min(1.0, len(ps) * min(ps)) if ps else None
+    return test
+
+
+# --- checks of the data against physics ----------------------------------------------------------------
+
+def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarray,
+                 observed: Observed | None = None) -> list[str]:
+    """Remarks on identified compliances that are not physical (negative, or far outside what serial robots
+    have) and on displacements too large for an elasto-static model, each with its likely cause."""
+    notes = []
+    ob = observed or Observed.of(robot, meas)
+    params = ob.model_params(robot)
+    neg = [i for i in range(len(k)) if k[i] + k_ci[i] < 0]
+    if neg:
+        names = ", ".join(f"{robot.joint_columns('k')[int(params[i])]} = {k[i]:.3g}" for i in neg)
+        notes.append(f"negative compliance ({names} rad/(N m), below zero beyond its 95 % interval): a joint "
+                     "cannot push back against the load; likely causes: absolute positions instead of "
+                     "displacements in the d*_m columns, unloaded minus loaded instead of loaded minus "
+                     "unloaded, or a tracker frame that does not match the robot's base frame")
+    reach = robot.reach_m
+    size = np.median(np.linalg.norm(meas.dp, axis=1))
+    if reach > 0 and size > MAX_DEFLECTION_OF_REACH * reach:
+        notes.append(f"the displacements are {100 * size / reach:.3g} % of the reach ({reach:.3g} m) in the median: "
+                     "far more than an elastic deflection; likely causes: absolute positions instead of "
+                     "displacements, or millimetres in columns labelled metres")
+    pred = np.einsum("ndp,p->nd", nominal_columns(robot, meas.q, load_of(meas), ob), k)[:, : robot.task_dim]
+    fmag = np.linalg.norm(meas.force, axis=1)
+    ok = fmag > 0
+    if ok.any() and np.all(k >= 0):
+        c = float(np.median(np.linalg.norm(pred[ok], axis=1) / fmag[ok]))
+        lo, hi = PLAUSIBLE_COMPLIANCE_M_PER_N
+        if c > hi:
+            notes.append(f"the end-effector compliance is {c:.3g} m/N in the median, far above serial robots "
+                         f"({lo:g}-{hi:g} m/N; industrial arms about 1e-6): millimetres in columns labelled "
+                         "metres, or forces in kN labelled N?")
+        elif 0 < c < lo:
+            notes.append(f"the end-effector compliance is {c:.3g} m/N in the median, far below serial robots "
+                         f"({lo:g}-{hi:g} m/N): micrometres in columns labelled metres, or forces in mN "
+                         "labelled N?")
+    return notes
+
+
+#: at most this fraction of the unloaded rows (and at least one) is named as standing out (a few blunders)
+ZERO_POINT_MAX_OUTLIERS = 0.2
+
+
+def zero_weights(meas: Measurements, keep: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(N0,): the weight of every unloaded row: that of the first kept loaded row at its configuration (w:
+    the weights of the kept rows ``keep`` (bool (N,)) of ``meas``), 1 where none is."""
+    full = np.ones(meas.n_rows)
+    full[keep] = w
+    first = {int(c): i for i, c in reversed(list(enumerate(meas.config))) if keep[i]}
+    return np.array([full[first[c]] if c in first else 1.0 for c in meas.zero_config.tolist()])
+
+
+def _check_noise_df(des: Design, group: np.ndarray, source: str) -> None:
+    """Raise :class:`InputError` when the rows (replicate groups ``group`` (N,)) leave no degree of freedom for the
+    noise: no replicates and no residual of the union of all extensions."""
+    if np.bincount(group).max(initial=0) >= 2:
+        return
+    fu = fit(des.union(), des.y)
+    if not (fu.df > 0 and fu.rss > 0):
+        N = len(des.y) // des.d
+        raise InputError(
+            f"these data cannot support the analysis: no replicates (rows repeating a joint configuration and a "
+            f"load) and {N} loaded measurements x {des.d} coordinates = {len(des.y)} equations for the {fu.rank} "
+            "parameters of the union of all extensions, so no degree of freedom is left to estimate the noise; "
+            "repeat some measurements or measure more configurations", source=source)
+
+
+def noise_variance(des: Design, meas: Measurements) -> Noise:
+    """The error variance of the rows of ``des`` (the measurements ``meas``) taken as independent, with no
+    shared reference reading (:func:`stiffcal.measured.errormodel.independent`): the pure error of the replicates, else
+    the residuals of the union of all extensions. Raises :class:`InputError` when no degree of freedom is left."""
+    from . import errormodel as EM
+
+    _check_noise_df(des, meas.group, meas.source)
+    N = len(des.y) // des.d
+    groups = np.unique(meas.group, return_inverse=True)[1].ravel()
+    em = EM.estimate(EM.independent(N), des.y.reshape(N, des.d), np.ones(N), groups,
+                     des.union().reshape(N, des.d, -1))
+    return Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
+
+
+def return_motion(robot: Robot, ob: Observed):
+    """``motion(q (R, n) [rad], target (R,)) -> (R, w, n)``: the loading of the robot's return error on rows of
+    the quantities ``ob`` (:func:`stiffcal.measured.errormodel.return_loading`: the Jacobian of the row's target, and of
+    the rotation weighted by ``ob.rad_weight``, normalised by the tool point's)."""
+    from . import errormodel as EM
+
+    offsets = target_offsets(robot, ob.names)
+
+    def motion(q: np.ndarray, target: np.ndarray) -> np.ndarray:
+        J6, R, _ = tool_twists(robot, q)
+        rows = observe(robot, J6, R, offsets[target][:, None, :], ob.orientation, ob.rad_weight)
+        return EM.return_loading(rows, observe(robot, J6, R, np.zeros((len(q), 1, 3)), False))
+    return motion
+
+
+def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.ndarray, w0: np.ndarray, rw: float,
+                    alpha: float, motion=None):
+    """The rows' error model (:func:`stiffcal.measured.errormodel.estimate`: which reference reading every row was taken
+    from, the errors they share, by REML) and the verdict's ``zero_point``, for the loaded rows ``keep`` (bool
+    (N,)) of ``meas`` whose weighted design is ``des`` (weights w (N_kept,)), the unloaded rows weighted by
+    w0 (N0,) and their rotation by rw [m/rad].
+
+    The unloaded rows that carry noise are screened for blunders first, one at a time: the row that stands out
+    most as if no row shared an error is tested against the others (a mean shift of that row,
+    :func:`stiffcal.measured.errormodel.unloaded_tests`, F(w, df - w)) in the error model fitted without it (its
+    deleted residual: a blunder must not be read as the shared error of its group), and named when its
+    Bonferroni-adjusted p (times the unloaded rows still in) is at most ``alpha``, up to
+    :data:`ZERO_POINT_MAX_OUTLIERS` of them (at least one); then whether the others as a whole moved from zero
+    (a drift, a disturbed target). motion: the return's loading (:func:`return_motion`; None: isotropic).
+    Returns ``(ErrorModel, zero_point)``."""
+    from . import errormodel as EM
+
+    N = int(keep.sum())
+    d = des.d
+    _check_noise_df(des, meas.group[keep], meas.source)
+    Yl = des.y.reshape(N, d)
+    Xu = des.union().reshape(N, d, -1)
+    groups = np.unique(meas.group[keep], return_inverse=True)[1].ravel()
+    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+    zw = z * w0[:, None] if len(z) else z.reshape(0, d)
+    out, p_out = [], []
+
+    def model(excluded, lrt=True):
+        st = EM.reading_structure(meas, keep, excluded, motion)
+        Y = np.vstack([Yl, zw[st.zero_index]]) if len(st.zero_index) else Yl
+        weights = np.concatenate([w, w0[st.zero_index]])
+        return st, Y, weights, EM.estimate(st, Y, weights, groups, Xu, lrt=lrt)
+
+    while True:
+        st, Y, weights, em = model(out)
+        n_u = len(st.zero_index)
+        if n_u == 0:
+            p_shift = None
+            break
+        # the candidate: the row that stands out most if no row shared an error; judged in the error model fitted
+        # without it (a blunder would otherwise be read as a shared error of its group)
+        naive = replace(em, ratios=np.zeros_like(em.ratios))
+        p0 = EM.unloaded_tests(naive, Y, groups, Xu, weights)[0]
+        cand = int(np.argmin(p0))
+        limit = max(1, int(ZERO_POINT_MAX_OUTLIERS * (n_u + len(out))))
+        if min(1.0, n_u * float(p0[cand])) <= alpha and len(out) < limit:
+            without = model(out + [int(st.zero_index[cand])], lrt=False)[3]
+            ratios = {c.name: lam for c, lam in zip(without.structure.components, without.ratios)}
+            deleted = replace(em, ratios=np.array([ratios.get(c.name, 0.0) for c in st.components]),
+                              sigma2=without.sigma2, df=without.df)
+            p_cand = EM.unloaded_tests(deleted, Y, groups, Xu, weights)[0][cand]
+            if min(1.0, n_u * float(p_cand)) <= alpha:
+                out.append(int(st.zero_index[cand]))
+                p_out.append(min(1.0, n_u * float(p_cand)))
+                continue
+        p_shift = EM.unloaded_tests(em, Y, groups, Xu, weights)[1]
+        break
+    return em, _zero_point_summary(meas, em, out, p_out, p_shift, alpha, rw)
+
+
+def _zero_point_summary(meas: Measurements, em, out: list, p_out: list, p_shift, alpha: float,
+                        rw: float) -> dict | None:
+    """The verdict's ``zero_point`` (docs/measured-data.md)."""
+    from .measurements import _rows_text
+
+    n0 = len(meas.zero_rows)
+    if n0 == 0:
+        return None
+    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+    exact = np.all(z == 0.0, axis=1)
+    used = em.structure.zero_index
+    noisy = np.setdiff1d(np.flatnonzero(~exact), out)
+    rms = float(np.sqrt(np.mean(z[noisy] ** 2))) if noisy.size else 0.0
+    zp = {"n_rows": int(n0), "n_exact_zero_rows": int(exact.sum()), "n_rows_used": int(len(used)), "rms_m": rms,
+          "outlier_rows": sorted(int(meas.zero_rows[i]) for i in out), "p_value": p_shift}
+    parts = []
+    if exact.any():
+        parts.append(f"{int(exact.sum())} unloaded row(s) hold exactly zero: the reference readings themselves, the "
+                     "rows after each measured from it (not noise samples)")
+    if out:
+        order = np.argsort(out)
+        rows = np.array(out)[order]
+        size = np.linalg.norm(z[rows], axis=1) * 1e6
+        parts.append(f"unloaded {_rows_text(meas.zero_rows[rows])} stand{'s' if len(rows) == 1 else ''} out from the "
+                     f"other unloaded rows ({', '.join(f'{v:.3g}' for v in size)} um from zero; adjusted p = "
+                     f"{', '.join(f'{p_out[i]:.2g}' for i in order)}): a blunder or a disturbed target in "
+                     f"{'that row' if len(rows) == 1 else 'those rows'}, left out")
+    if p_shift is not None:
+        moved = p_shift < alpha
+        how = (f", shifted from zero as a whole (p = {p_shift:.2g}): the zero point moved (a drift, or a disturbed "
+               "target)" if moved else f", as the error model expects (shift from zero: p = {p_shift:.2g})")
+        parts.append(f"the {'other ' if out else ''}{len(used)} unloaded row(s) with noise scatter by "
+                     f"{rms * 1e6:.3g} um RMS about zero" + how)
+    zp["note"] = "; ".join(parts) if parts else None
+    return zp
+
+
+def gls_design(des: Design, em) -> Design:
+    """``des`` (weighted by the noise model) in the coordinates of generalised least squares for the error model
+    ``em`` (:class:`stiffcal.measured.errormodel.ErrorModel`): every configuration's rows conditioned on its unloaded
+    rows and whitened (identity where no row shares an error)."""
+    if not em.blocks:
+        return des
+    N, d = len(des.y) // des.d, des.d
+
+    def white(A):
+        return em.whiten(A.reshape(N, d, -1)).reshape(N * d, -1)
+    return Design(white(des.X0), {c: white(v) for c, v in des.blocks.items()},
+                  em.whiten_observations(des.y.reshape(N, d)).ravel(), d)
+
+
+def error_model_notes(em) -> list[str]:
+    """The verdict's notes on the rows' reference readings and the errors they share."""
+    st = em.structure
+    notes = list(st.notes) + list(em.notes)
+    if not em.shared:
+        if st.components:
+            notes.append(f"the rows' reference readings ({st.kind}; found from {st.source}) give them no shared error "
+                         "beyond the noise (REML): they are fitted as independent")
+        return notes
+    comps = [f"per {EMKINDS[c.name]} {np.sqrt(lam * em.sigma2) * 1e6:.3g} um (p = {p:.2g})"
+             for c, lam, p in zip(st.components, em.ratios, em.p_values) if lam > 0 and p is not None]
+    notes.append(f"the rows share the errors of their reference readings ({st.kind}; found from {st.source}; "
+                 f"{st.n_visits} visits, {st.n_revisited} configurations visited more than once): "
+                 + "; ".join(comps) + " RMS, estimated by REML on " + em.stage
+                 + "; every fit, test and interval is generalised least squares for them (error_model)")
+    if em.inflation > INFLATION_NOTE:
+        notes.append(f"the shared errors are estimated from few groups: taking them as known (as every test and "
+                     f"interval does) understates a parameter's variance by up to {100 * em.inflation:.3g} % "
+                     "(Kenward-Roger; error_model.variance_inflation): read p-values near alpha with care")
+    return notes
+
+
+# --- the analysis --------------------------------------------------------------------------------------
+
+def rad_weight(robot: Robot, meas: Measurements, sigma_m: float | None = None,
+               sigma_rad: float | None = None) -> tuple[float, str | None]:
+    """``(sigma_m / sigma_rad [m/rad], note)``: the weight of the rotation rows (weighted least squares, eqs.
+    10-11), from the noise levels when both are given, else estimated: from the replicates (the pure error of
+    the displacements and of the rotations, Draper & Smith 2.1) or, without replicates, from the residuals of
+    the union of all extensions (two-step feasible weighted least squares, the residual degrees of freedom
+    shared in proportion to the rows). 1 without orientation columns."""
+    if meas.rot is None:
+        return 1.0, None
+    if sigma_m is not None and sigma_rad is not None:
+        w = float(sigma_m) / float(sigma_rad)
+        return w, (f"the rotation rows are weighted by sigma_m / sigma_rad = {w:.4g} m/rad (the noise levels "
+                   "given)")
+    ss_p, df_p = pure_error(meas.dp, meas.group)
+    ss_r, df_r = pure_error(meas.rot, meas.group)
+    how = "the replicates"
+    if df_p > 0 and df_r > 0 and ss_p > 0 and ss_r > 0:
+        w = float(np.sqrt((ss_p / df_p) / (ss_r / df_r)))
+    else:
+        how, w = "the residuals of the union of all extensions", 1.0
+        d = robot.task_dim
+        for _ in range(4):
+            des = build_design(robot, meas, Observed.of(robot, meas, w))
+            f = fit(des.union(), des.y)
+            r = (des.y - des.union() @ f.beta).reshape(-1, des.d)
+            share = f.df / len(des.y)
+            s2p, s2r = (np.sum(r[:, :d] ** 2) / (share * r[:, :d].size),
+                        np.sum((r[:, d:] / w) ** 2) / (share * r[:, d:].size))
+            if not (s2p > 0 and s2r > 0 and f.df > 0):
+                return 1.0, ("the rotation rows are weighted as the positions (1 m/rad): the data give no noise "
+                             "level of either; give sigma_m and sigma_rad")
+            w = float(np.sqrt(s2p / s2r))
+    return w, f"the rotation rows are weighted by sigma_m / sigma_rad = {w:.4g} m/rad, estimated from {how}"
+
+
+@dataclass(frozen=True)
+class Prepared:
+    """The analysis of one data set up to its tests (:func:`prepare`), shared by the verdict (:func:`analyse`) and
+    the next experiment's rivals (:func:`stiffcal.measured.discrimination.rivals_from_verdict`).
+
+    meas: every row; keep (N,) bool: the loaded rows used (blunders left out); m: those rows; blunders: their
+    indices; dropped: joints left out; ob_full, ob: what the rows measure (all joints; the model's); rw: the
+    rotation rows' weight [m/rad]; vm: the noise model (None: constant); w (N_kept,): its row weights;
+    error: the :class:`stiffcal.measured.errormodel.ErrorModel` (which reference reading every row was taken from, the
+    shared errors); des: the stacked regressors, weighted and whitened by it (generalised least squares);
+    noise: the error variance of the tests; zero_point: the verdict's ``zero_point``; notes; w0 (N0,): the
+    unloaded rows' weights."""
+    meas: Measurements
+    keep: np.ndarray
+    m: Measurements
+    blunders: list
+    dropped: np.ndarray
+    ob_full: Observed
+    ob: Observed
+    rw: float
+    vm: "VarianceModel | None"
+    w: np.ndarray
+    error: object
+    des: Design
+    noise: Noise
+    zero_point: dict | None
+    notes: list
+    weighted: Design | None = None
+    w0: np.ndarray | None = None
+
+
+def _rms_displacement(meas: Measurements) -> float:
+    """The RMS [m] of the rows' displacements, scaled first (no underflow for values of 1e-300)."""
+    top = float(np.max(np.abs(meas.dp))) if meas.n_rows else 0.0
+    return top * float(np.sqrt(np.mean(np.square(meas.dp / top)))) if top > 0 else 0.0
+
+
+def check_moves(meas: Measurements) -> None:
+    """Refuse data whose loads move nothing measurable: the loaded rows' RMS displacement below
+    :data:`stiffcal.limits.MIN_DISPLACEMENT_M` (all zeros, or values scaled by 1e-300), where the fit would report
+    compliances of 0 with intervals of 0 and a confident ``none``. Raises :class:`InputError`."""
+    from ..limits import MIN_DISPLACEMENT_M
+
+    rms = _rms_displacement(meas)
+    if not rms >= MIN_DISPLACEMENT_M:
+        raise InputError(f"the loaded rows' displacements have an RMS of {rms:.3g} m, below {MIN_DISPLACEMENT_M:g} m "
+                         "(a picometre, far below any instrument's resolution): the loads move nothing measurable; "
+                         "are the displacement cells zeros written for blanks, or in another unit than metres?",
+                         source=meas.source, field="column dx_m")
+
+
+#: the scatter about the model below which data read from a file carry no noise beyond their printed digits: this
+#: factor times the RMS rounding error of the printed displacements (Sheppard: step / sqrt(12)); at 1.5 the
+#: measurement noise would be under a third of a printed digit
+ROUNDING_NOISE_FACTOR = 1.5
+
+
+def check_noise(meas: Measurements, noise: "Noise") -> None:
+    """Refuse data that have no noise in fact: the noise estimate below :data:`stiffcal.limits.MIN_NOISE_RATIO`
+    times the RMS displacement (replicates that are exact copies of an average, or noise-free simulated data), or
+    (data read from a file) below :data:`ROUNDING_NOISE_FACTOR` times the RMS rounding of the printed
+    displacements and a thousandth of their RMS (noise-free simulated data written with a fixed number of digits),
+    where every interval would have zero width, or rest on rounding, and every test be infinitely confident.
+    Raises :class:`InputError`."""
+    from ..limits import MIN_NOISE_RATIO
+
+    sigma, rms = float(np.sqrt(max(noise.s2, 0.0))), _rms_displacement(meas)
+    if not sigma > MIN_NOISE_RATIO * rms:
+        what = ("the replicate groups' readings are exact copies of each other (averaged values written once per "
+                "replicate, or noise-free simulated data?)" if str(noise.source).startswith("replicates") else
+                "the model fits the rows exactly (noise-free simulated data?)")
+        raise InputError(f"the noise estimate ({noise.source}) is {sigma:.3g} m against an RMS displacement of "
+                         f"{rms:.3g} m, a ratio below {MIN_NOISE_RATIO:g}: {what}; with no noise in the data no "
+                         "interval or test can be made: give each reading as it was measured (or the averages once "
+                         "each, without copies), or add the instrument's noise to simulated data",
+                         source=meas.source, field="column dx_m")
+    step = meas.dp_step_m
+    if step is not None and sigma < ROUNDING_NOISE_FACTOR * step / np.sqrt(12.0) and sigma < 1e-3 * rms:
+        raise InputError(f"the rows scatter about the model by {sigma:.3g} m ({noise.source}), no more than the "
+                         f"rounding of the displacements as the file prints them ({step:.3g} m a last digit, "
+                         f"{step / np.sqrt(12.0):.3g} m RMS): the data carry no measurement noise beyond their "
+                         "printed digits (noise-free simulated data rounded on output?), so no interval or test can "
+                         "be made; give the readings as measured, or add the instrument's noise to simulated data",
+                         source=meas.source, field="column dx_m")
+
+
+def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: float | None = None,
+            sigma_rad: float | None = None) -> Prepared:
+    """Everything the verdict's tests need (:class:`Prepared`): the joints the data can identify, the weight of
+    the rotation rows, the noise model, the blunders, the error model of the rows' reference readings
+    (:mod:`stiffcal.measured.errormodel`) and the whitened design. Raises :class:`InputError` when the data cannot
+    identify the compliances or estimate the noise."""
+    check_moves(meas)
+    full = Observed.of(robot, meas)
+    dropped = check_identifiable(robot, meas, full)
+    check_testable(robot, meas, len(full.model_params(robot)) - len(dropped))
+    rw, rw_note = rad_weight(robot, meas, sigma_m, sigma_rad)
+    ob_full = Observed.of(robot, meas, rw)
+    ob_all = reduced(robot, ob_full, dropped)
+    des_all = build_design(robot, meas, ob_all)
+    vm = variance_model(robot, meas, des_all.y.reshape(-1, des_all.d))  # a first look, before the blunders
+    w_all = np.ones(meas.n_rows) if vm is None else vm.weights
+    blunders = find_blunders(des_all.weighted(w_all), meas.n_rows, alpha)
+    keep = np.ones(meas.n_rows, bool)
+    keep[blunders] = False
+    m = meas.subset(keep)
+    ob = ob_all.take(keep)
+    more = check_identifiable(robot, m, ob)
+    if more.size:  # only blunder rows turned these joints: leave them out too
+        dropped = np.union1d(dropped, more)
+        ob_all = reduced(robot, ob_all, more)
+        des_all = build_design(robot, meas, ob_all)
+        ob = ob_all.take(keep)
+    vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
+    motion = return_motion(robot, ob_full)
+
+    def weighted_fit(w):  # the rows weighted by w, their error model and its generalised least squares
+        des = des_all.rows(keep).weighted(w)
+        w0 = zero_weights(meas, keep, w)
+        em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
+        return des, w0, em, zp, gls_design(des, em)
+
+    w = np.ones(m.n_rows) if vm is None else vm.weights
+    weighted, w0, em, zp, des = weighted_fit(w)
+    for _ in range(VARIANCE_REFITS):  # the noise model refitted on the error model's residuals
+        step = residual_variance_model(robot, m, des, test=vm is None)
+        if step is None or np.abs(np.log(step.weights)).max() < VARIANCE_CONVERGED:
+            break
+        w = w * step.weights
+        w = w / np.median(w)
+        vm = VarianceModel(w, step.p_value if vm is None else vm.p_value, float(w.max() / w.min()))
+        weighted, w0, em, zp, des = weighted_fit(w)
+    noise = Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
+    check_noise(m, noise)
+    notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])
+    unseen = [j for j in range(robot.n_joints) if j not in ob_all.model_params(robot) and j not in dropped]
+    if unseen:
+        notes.append(unseen_note(robot, unseen))
+    if noise.df < 10:
+        notes.append(f"the noise estimate has only {noise.df} degrees of freedom: the tests have little power")
+    if vm is not None:
+        notes.append(f"the noise varies with the position of the measured point (a tracker's error grows with "
+                     f"the distance; p = {vm.p_value:.2g}), by a factor {vm.sigma_ratio:.3g} between rows: the fits "
+                     "are weighted by it")
+    notes += error_model_notes(em)
+    return Prepared(meas, keep, m, blunders, dropped, ob_full, ob, rw, vm, w, em, des, noise, zp, notes, weighted,
+                    w0)
+
+
+def analyse(robot: Robot, meas: Measurements, alpha: float = 0.01, test_pose=None, test_force=None,
+            gain: bool = True, sigma_m: float | None = None, sigma_rad: float | None = None) -> Verdict:
+    """The :class:`~stiffcal.measured.results.Verdict` for one data set (module docstring; fields in
+    docs/measured-data.md): the analysis's fields; those of the files and the calibrated model are None
+    (:func:`complete` fills them in).
+
+    robot: the robot; meas: its measurements; alpha: family-wise false-alarm rate; test_pose (n,) [rad] and
+    test_force (d,) [N] or wrench (d + d_m,) [N, N m] (optional): the compensation error of the tool point at
+    the study's test pose under both models; gain=False skips the prediction-error and plan comparison
+    (faster, for simulation studies); sigma_m [m] and sigma_rad [rad]: the noise levels of positions and
+    rotations, whose ratio weights the rotation rows (default: estimated, :func:`rad_weight`).
+    Raises :class:`InputError` when the data cannot identify the compliances or estimate the noise.
+    """
+    if not 0 < alpha < 1:
+        raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="alpha")
+    return verdict_of(robot, prepare(robot, meas, alpha, sigma_m, sigma_rad), alpha, test_pose, test_force, gain)
+
+
+def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None, test_force=None,
+               gain: bool = True, progress=None) -> Verdict:
+    """The verdict of :func:`analyse` from the analysis prepared by :func:`prepare` (the same arguments);
+    ``progress`` (a :class:`stiffcal.progress.Progress`, or None) is advanced when the closed test is done. Its
+    stages: the closed test and the causes it names (:func:`_named_causes`), the nominal model
+    (:func:`_nominal_summary`), the diagnostics, the extended model, the held-out check and the gain with their
+    notes (:func:`_gain_notes`)."""
+    meas, m, ob, des, noise, notes = pre.meas, pre.m, pre.ob, pre.des, pre.noise, list(pre.notes)
+    f0 = fit(des.X0, des.y)
+    lof = lack_of_fit_test(robot, m, des, noise, pre.w, pre.error)
+    sel = closed_testing(des, CAUSES, noise, lof, alpha)
+    testable = sel.causes
+    alone = {c: f_test(f0.rss, f0.df, sel.fits[frozenset([c])].rss, sel.fits[frozenset([c])].df, noise.s2, noise.df)
+             if c in testable else 1.0 for c in CAUSES}  # each cause against the nominal model alone
+    chosen = sel.explanations[0] if sel.explanations else frozenset(testable)
+    alternatives = [S for S in sel.explanations[1:] if len(S) == len(chosen)]
+    chosen, alternatives, notes = physical_choice(des, sel, chosen, alternatives, noise, robot, ob, notes)
+    cause, ranked, indistinct, p_value, p_of = _named_causes(sel, chosen, alternatives, alone, noise, alpha)
+    sigma = float(np.sqrt(noise.s2))
+    t = dist.t_isf(0.025, noise.df)
+    nominal, more = _nominal_summary(robot, pre, f0, sigma, t, lof(frozenset(), sel.fits[frozenset()]))
+    notes += more
+    tests = {c: {"extra_parameters": int(sel.fits[frozenset([c])].rank - f0.rank) if c in testable else 0,
+                 "p_value": alone[c],
+                 "adjusted_p_value": sel.adjusted.get(c), "significant": c in sel.declared} for c in CAUSES}
+    out = {"cause": cause, "causes": ranked, "indistinguishable_from": indistinct,
+           "equivalent_combinations": [sorted(S, key=CAUSES.index) for S in alternatives],
+           "p_value": p_value, "p_value_of": p_of,
+           "p_value_statement": p_value_statement(cause, p_of, p_value, sel.adjusted, alpha),
+           "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
+           "nominal": nominal, "tests": tests,
+           "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
+           "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
+           "outlier_rows": [int(meas.rows[r]) for r in pre.blunders],
+           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas,
+                                               observed=pre.ob_full.take(pre.keep)) for c in indistinct},
+           "zero_point": pre.zero_point, "error_model": pre.error.as_dict(), "notes": notes}
+    ext = sorted(chosen, key=CAUSES.index) if ranked else []
+    if progress is not None:
+        progress.advance()
+    out["diagnostics"], more = diagnostics(robot, pre, chosen, sel.fits[chosen], alpha)
+    notes += more
+    out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
+    held = held_out(robot, pre, ext) if gain else None
+    out["held_out"] = None if held is None else held.as_dict()
+    out["gain"] = _gain(robot, des, ext, noise.s2, test_pose, test_force, ob, out["held_out"]) if ext and gain else None
+    notes += _gain_notes(robot, out["gain"], out["diagnostics"], ext, pre.dropped, test_pose, test_force)
+    out = _finite(out, out["notes"])
+    if sel.unexplained:
+        f = sel.fits[chosen]
+        resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
+        out["residual_structure"] = residual_structure(robot, m, resid)
+    return Verdict(**out, robot=robot.source)
+
+
+def _named_causes(sel: Selection, chosen: frozenset, alternatives: list, alone: dict, noise: Noise, alpha: float):
+    """(cause, causes ranked by how much the chosen model needs each, indistinguishable_from, p_value,
+    p_value_of) of the verdict (docs/measured-data.md) from the closed test ``sel``, the chosen combination and
+    its equally good alternatives, and each cause's p-value alone against the nominal model."""
+    def drop_p(c):  # how much the chosen model needs c
+        a, b = sel.fits[chosen - {c}], sel.fits[chosen]
+        return f_test(a.rss, a.df, b.rss, b.df, noise.s2, noise.df)
+
+    testable = sel.causes
+    ranked = sorted(chosen, key=lambda c: (drop_p(c), CAUSES.index(c)))
+    indistinct = sorted({c for S in alternatives for c in S} - set(chosen), key=CAUSES.index)
+    if sel.unexplained:
+        cause, p_value, p_of = "unexplained", sel.adjusted["lack_of_fit"], ["lack_of_fit"]
+    elif ranked:
+        cause = ranked[0]
+        p_of = [cause, *indistinct]
+        others = sorted((c for c in testable if c not in p_of), key=lambda c: (alone[c], CAUSES.index(c)))
+        while sel.adjusted_p(p_of) > alpha and others:  # the principal cause is not needed on its own: name the
+            p_of.append(others.pop(0))                   # fewest causes of which the data need at least one
+        indistinct = sorted(p_of[1:], key=CAUSES.index)
+        p_value = sel.adjusted_p(p_of)
+    else:
+        cause, p_value, p_of = "none", (sel.adjusted_p(testable) if testable else 1.0), list(testable)
+    return cause, ranked, indistinct, p_value, p_of
+
+
+def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: float, lof_nominal) -> tuple[dict, list]:
+    """(the verdict's ``nominal``, the plausibility notes on its compliances): the paper's model fitted by the
+    analysis (f0), its noise sigma [m], the t quantile of its 95 % intervals, its lack-of-fit p-value."""
+    m, ob, noise, vm = pre.m, pre.ob, pre.noise, pre.vm
+    k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
+    notes = plausibility(robot, m, f0.beta, k_ci, ob)
+    params = ob.model_params(robot)
+    nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
+               "k_names": [robot.joint_columns("k")[int(j)] for j in params],
+               "not_identifiable_joints": [j + 1 for j in range(robot.n_joints) if j not in params],
+               "sigma_m": sigma, "rotation_weight_m_per_rad": pre.rw if m.rot is not None else None,
+               "sigma_source": noise.source, "sigma_df": int(noise.df),
+               "noise_varies": None if vm is None else {"p_value": vm.p_value, "sigma_ratio": vm.sigma_ratio},
+               "rss": f0.rss, "df": f0.df,
+               "lack_of_fit_p": lof_nominal, "n_rows": int(m.n_rows), "n_poses": int(m.n_configurations)}
+    return nominal, notes
+
+
+def _gain_notes(robot: Robot, gain: dict | None, diagnostics: dict, ext: list, dropped, test_pose,
+                test_force) -> list[str]:
+    """The notes on the verdict's ``gain`` (a held-out error that cannot be computed; an extended model no better
+    held out, which also sets ``diagnostics["extended_not_better_held_out"]``; plan figures left out, set to None
+    in ``gain``; a test load that turns a joint the data cannot identify)."""
+    notes = []
+    if gain is not None and gain["loco_ratio"] is None:
+        notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
+                     "configurations (and a nonzero error of the extended model); it is left out")
+    elif gain is not None and gain["loco_ratio"] <= 1.0:
+        diagnostics["extended_not_better_held_out"] = True
+        notes.append(f"the extended model ({', '.join(ext)}) predicts held-out configurations no better than the "
+                     f"nominal one (leave-one-configuration-out RMS {gain['loco_rms_extended_m'] * 1e6:.3g} um "
+                     f"against {gain['loco_rms_nominal_m'] * 1e6:.3g} um, loco_ratio {gain['loco_ratio']:.3g}): its "
+                     "extra parameters fit these configurations but do not carry to others, so its gain at the test "
+                     "pose rests on the extension being right there; prefer the nominal model for prediction, or "
+                     "measure more configurations")
+    for key, what in (("optimal_plan_extended_rms_m", "the O_t-optimal plan for the extended model"),
+                      ("nominal_plan_under_extended_rms_m", "the nominal model's optimal plan")):
+        if gain is not None and key in gain and not np.isfinite(gain[key]):
+            gain[key] = None
+            notes.append(f"gain.{key} is left out: {what} ({len(gain['nominal_plan_deg'])} poses under the "
+                         "test load, measuring what the data measured) does not identify every parameter of the "
+                         f"extended model ({', '.join(ext)}): its information matrix is singular, so its O_t is "
+                         "infinite")
+    if len(dropped) and gain is not None and "test_pose_rms_nominal_m" in gain:
+        tau = torques(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force))[0]
+        turned = [robot.joint_names[int(j)] for j in dropped if abs(tau[j]) > RANK_RTOL * np.abs(tau).max()]
+        if turned:
+            notes.append(f"the test load turns joint(s) {', '.join(turned)}, whose compliance these data cannot "
+                         "identify: the test-pose figures of gain leave its deflection out")
+    return notes
+
+
+def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: float) -> tuple[dict, list[str]]:
+    """The verdict's ``diagnostics`` and their notes: what a careful analyst checks beside the catalogue (each a
+    warning at ``alpha``, Bonferroni within it; none changes the verdict):
+
+    - ``one_load_per_configuration``: every configuration is measured under one load only, so at each the load-
+      deflection curve is seen at one point;
+    - ``time``: a linear drift of the tracker, rate (t - t_ref) on every row, added to the chosen model (F-test;
+      a drift over the campaign, which the catalogue only absorbs in ``measurement_offset`` or the shared errors);
+    - ``load_direction``: the F-test of a load turned by a small angle from its logged direction (a pulley, a
+      tilted fixture: regressors A(q, a x F) k for the axes a, with the nominal fit's compliances k) against the
+      nominal model, with the angle it finds, and whether the chosen causes add anything beyond it (warned when
+      they do not: the tilt then explains the data as well as they do).
+    Returns (dict, notes)."""
+    m = pre.m
+    out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
+                 "extended_not_better_held_out": False}
+    notes = []
+    loads = m.structure()["loads_per_configuration"]
+    if loads["max"] == 1:
+        out["one_load_per_configuration"] = True
+        notes.append("every configuration is measured under one load only: at a configuration the load-deflection "
+                     "curve is seen at one point, so a backlash, a nonlinear stiffness and the shared error of its "
+                     "reference reading all look like compliance there, and the data tell them apart only by how they "
+                     "vary across configurations (the compliances' intervals assume the model is right); measure two "
+                     "or more loads of different size per configuration")
+    out["time"], note = _time_diagnostic(pre, chosen, f, alpha)
+    notes += [note] if note else []
+    out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, alpha)
+    notes += [note] if note else []
+    return out, notes
+
+
+def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
+    """(``diagnostics.time`` or None, note): the time tests of :func:`diagnostics`: the F-test of a linear drift of
+    the tracker, rate (t - t_ref) on every position of every row (loaded and unloaded), t_ref the time of the
+    reading the row was taken from, added to the chosen model, with the rows' error model refitted with the drift
+    as a fixed effect (a drift between visits would otherwise be read as their shared error); the rate it finds.
+    The clock is ``timestamp_s``, else the row order."""
+    st = pre.error.structure
+    N, d = pre.m.n_rows, pre.des.d
+    pos = pre.m.dp.shape[1]
+    since = st.time - st.ref_time
+    tests = {}
+    if np.ptp(since) > 0:  # the error model refitted with the drift as a fixed effect (else a drift between
+        from . import errormodel as EM  # visits is read as the returns' shared error), then the F-test
+
+        idx = st.zero_index
+        weights = np.concatenate([pre.w, pre.w0[idx]])
+        C = np.zeros((st.n_rows, d, pos))
+        C[:, np.arange(pos), np.arange(pos)] = (since * weights)[:, None]
+        em = pre.error
+        if st.components:
+            z = pre.meas.zero_dp if pre.meas.zero_rot is None else np.hstack([pre.meas.zero_dp,
+                                                                               pre.rw * pre.meas.zero_rot])
+            Y = np.vstack([pre.weighted.y.reshape(N, d), z[idx] * pre.w0[idx, None]])
+            groups = np.unique(pre.m.group, return_inverse=True)[1].ravel()
+            em = EM.estimate(st, Y, weights, groups, pre.weighted.union().reshape(N, d, -1), drift=C, lrt=False)
+        des = gls_design(pre.weighted, em)
+        CL = em.whiten_columns(C[:N], C[N:]) if em.blocks else C[:N]
+        X = des.model(chosen)
+        f0, f1 = fit(X, des.y), fit(np.hstack([X, CL.reshape(N * d, pos)]), des.y)
+        if f1.rank > f0.rank:
+            tests["drift"] = (f1.beta[X.shape[1]:], f_test(f0.rss, f0.df, f1.rss, f1.df, em.sigma2, em.df))
+    if not tests:
+        return None, None
+    (rate, p), = tests.values()
+    out = {"p_value": p, "rate_m_per_h": None if rate is None else [float(r) * 3600 for r in rate],
+           "clock": "timestamp_s" if pre.meas.log is not None and pre.meas.log.has_time else "row order"}
+    if p > alpha:
+        return out, None
+    per = "m/h" if out["clock"] == "timestamp_s" else "m per 3600 rows"
+    return out, (f"the rows drift with the time since their reference reading (a linear drift of "
+                 f"{np.linalg.norm(out['rate_m_per_h']) * 1e6:.3g} u{per}, F-test p = {p:.2g}; the clock: "
+                 f"{out['clock']}): a drift of the tracker (or of the zero point) over the campaign? No catalogue "
+                 "cause describes it: measurement_offset and the rows' shared errors only absorb part of it; "
+                 "re-measure the reference readings more often, or log the tracker's drift check")
+
+
+def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
+    """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`: the load turned by
+    a small angle added to the nominal model (the columns A(q, a x F) k of the nominal fit's k), its F-test and the
+    angle; then whether the chosen causes still add anything beyond it (when they do not, the tilt explains the data
+    as well as they do, and the warning says so)."""
+    m, des, noise = pre.m, pre.des, pre.noise
+    N, d = m.n_rows, des.d
+    f0 = fit(des.X0, des.y)
+    k = f0.beta
+    axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
+    cols = []
+    for a in axes:
+        turned = np.cross(a, as_xyz(m.force))[:, : robot.task_dim]
+        load = np.hstack([turned, np.zeros_like(m.moment)]) if m.has_moment else turned
+        cols.append(np.einsum("ndp,p->nd", nominal_columns(robot, m.q, load, pre.ob), k))
+    T = np.stack(cols, -1) * pre.w[:, None, None]
+    T = (pre.error.whiten(T) if pre.error.blocks else T).reshape(N * d, -1)
+    f1 = fit(np.hstack([des.X0, T]), des.y)
+    if f1.rank <= f0.rank:
+        return None, None
+    p = f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df)
+    angle = f1.beta[des.X0.shape[1]:]
+    size = float(np.degrees(np.linalg.norm(angle)))
+    out = {"p_value": p, "angle_deg": size, "axis": (angle / np.linalg.norm(angle)).tolist() if size > 0 else None,
+           "chosen_beyond_p": None}
+    if chosen:
+        f2 = fit(np.hstack([des.model(chosen), T]), des.y)
+        out["chosen_beyond_p"] = f_test(f1.rss, f1.df, f2.rss, f2.df, noise.s2, noise.df)
+    if p > alpha or (out["chosen_beyond_p"] is not None and out["chosen_beyond_p"] <= alpha):
+        return out, None
+    label = "+".join(sorted(chosen, key=CAUSES.index))
+    beyond = f"; {label} adds nothing beyond it, p = {out['chosen_beyond_p']:.2g}" if chosen else ""
+    return out, (f"the nominal model's residuals follow the load turned by {size:.2g} deg from its logged direction "
+                 f"(F-test p = {p:.2g}{beyond}): the load's real direction may differ from the logged one (a pulley, a "
+                 "tilted fixture, a frame mismatch between the load cell and the tracker?); no catalogue cause "
+                 "describes it" + (f", and {label} may only absorb it" if chosen else ""))
+
+
+def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dict, alpha: float) -> str:
+    """What the verdict's ``p_value`` is about, in one sentence: the closed-testing adjusted p-value of the
+    intersection "none of ``p_of`` is needed" (the lack of fit for ``unexplained``; every testable cause for
+    ``none``). With several causes in ``p_of`` the data need at least one of them, and each one's own adjusted
+    p-value (``adjusted``, cause -> p) may be large: which one cannot be told apart."""
+    p = f"{p_value:.2g}"
+    if cause == "unexplained":
+        return (f"adjusted p = {p} of 'nothing outside the catalogue is present' (the lack of fit): something the "
+                "catalogue does not describe is left")
+    if cause == "none":
+        return (f"adjusted p = {p} of 'none of the catalogue's causes is needed' (not rejected at alpha = "
+                f"{alpha:g})" if p_of else "no cause of the catalogue can be tested on these data")
+    own = ", ".join(f"{c} {adjusted[c]:.2g}" for c in p_of if adjusted.get(c) is not None)
+    if len(p_of) == 1:
+        text = f"adjusted p = {p} of '{cause} is not needed'"
+        return text + ("" if p_value <= alpha else f": {cause} is the smallest combination that explains the data, "
+                       f"but it is not needed on its own at alpha = {alpha:g}")
+    alone = [c for c in p_of if adjusted.get(c) is not None and adjusted[c] <= alpha]
+    text = (f"the data need at least one of {{{', '.join(p_of)}}} (adjusted p = {p} of 'none of them is needed'); "
+            f"which one cannot be told apart (each one's own adjusted p: {own})")
+    if not alone:
+        text += f"; none of them is needed on its own at alpha = {alpha:g}"
+    return text
+
+
+def _finite(obj, notes: list[str], path: str = ""):
+    """obj with every float that is not finite replaced by None and named in ``notes`` (a statistic that cannot
+    be computed on these data is left out with a note, never written as NaN or inf)."""
+    if isinstance(obj, dict):
+        return {k: _finite(v, notes, f"{path}.{k}" if path else k) if k != "notes" else v for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v, notes, f"{path}[{i}]") for i, v in enumerate(obj)]
+    if isinstance(obj, (float, np.floating)) and not np.isfinite(obj):
+        notes.append(f"{path} cannot be computed on these data (it is not finite) and is left out")
+        return None
+    return obj
+
+
+def pose_rows(robot: Robot, q: np.ndarray, load: np.ndarray, causes, observed: Observed,
+              predict: bool = False) -> np.ndarray:
+    """(K, T r, p): the regressors of poses q (K, n) under ``load`` ((w,) or (K, w)) when every target the data
+    measure (T of them, :meth:`Observed.used`) is measured at each pose, each with the rotation when it is
+    measured (as the rows of the data set were: one row per target)."""
+    used = observed.used()
+    K, T = len(q), len(used)
+    load = np.broadcast_to(load, (K, np.shape(load)[-1]))
+    tgt = np.tile([observed.names.index(t) for t in used], K)
+    X = model_columns(robot, np.repeat(q, T, axis=0), np.repeat(load, T, axis=0), causes, predict,
+                      replace(observed, target=tgt))
+    return X.reshape(K, T * X.shape[1], X.shape[2])
+
+
+def _nested(robot: Robot, a: str, b: str, q: np.ndarray, load: np.ndarray, observed: Observed):
+    """Which of causes a, b has its regressors in the span of the nominal model and the other's, on the probe
+    poses q and loads (a tuple of the nested ones: data of a nested cause are always explained by the other
+    one too), with the stacked regressors (X0, A, B)."""
+    X0, A, B = (_stack(pose_rows(robot, q, load, [c] if c else [], observed)) for c in (None, a, b))
+    n0 = X0.shape[1]
+    A, B = A[:, n0:], B[:, n0:]
+    nested = tuple(c for c, X, Y in ((a, A, B), (b, B, A)) if _spans_within(X, np.hstack([X0, Y])))
+    return nested, X0, A, B
+
+
+def _missing_measurements(robot: Robot, a: str, b: str, q, load, observed: Observed, nested: tuple) -> list[str]:
+    """The measurements that, added to the data's, leave fewer of a, b nested in the other (:func:`_nested`) on
+    the probe: the tool's orientation, a second target (one of the robot file's, else a point of the tool off
+    the tool point)."""
+    rot = "rz_rad" if robot.kind == "planar" else "rx_rad, ry_rad, rz_rad"
+    found = []
+    if not observed.orientation:
+        ob = replace(observed, orientation=True, params=sensed_params(robot, Sensing(observed.used(), True)))
+        if len(_nested(robot, a, b, q, load, ob)[0]) < len(nested):
+            found.append(f"the tool's orientation (columns {rot})")
+    others = [t for t in robot.target_names if t not in observed.used()]
+    trial = robot
+    if others:
+        what = f"the position of target {others[0]} too (a target column naming the target of each row)"
+    else:
+        size = 0.1 * robot.reach_m
+        point = np.array([size, size, 0.0 if robot.kind == "planar" else size])
+        trial = replace(robot, targets={**robot.targets, "_probe": point})
+        others = ["_probe"]
+        what = ("the position of a second target on the tool, off the tool point (its position in the robot file's "
+                "targets, a target column naming the target of each row)")
+    used = (*observed.used(), others[0])
+    ob = Observed(trial.target_names, np.array([trial.target_names.index(t) for t in used]), observed.orientation,
+                  observed.rad_weight, sensed_params(trial, Sensing(used, observed.orientation)))
+    if len(_nested(trial, a, b, q, load, ob)[0]) < len(nested):
+        found.append(what)
+    return found
+
+
+def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe: int = 400,
+                      observed: Observed | None = None) -> str:
+    """Why causes a and b cannot be told apart here, and what measurement would separate them.
+
+    On a random probe of poses within the joint limits and loads in every direction (forces, and moments
+    when the data have them), measuring what the data measure (``observed``: targets, orientation): when a
+    cause's regressors lie in the span of the nominal model and the other's (it is *nested*), data of that
+    cause are always explained by the other too, and no choice of poses separates them; the advice then names
+    the measured quantities that would (the tool's orientation, a second target: the probe is repeated with
+    each added). For a planar 2-link arm with positions only the spans of link_compliance and joint_coupling
+    coincide; with the orientation or a second target a bending last link shows where coupling cannot explain
+    it (a bending first link still acts as a compliance of joints 1-2). Otherwise the probe pose where the
+    causes' predictions differ most is the one to measure.
+    """
+    ob = observed or Observed.of(robot, meas)
+    rng = np.random.default_rng(0)
+    lims = robot.joint_limits_rad
+    q = rng.uniform(lims[:, 0], lims[:, 1], (n_probe, robot.n_joints))
+    f = random_directions(rng, n_probe, robot.task_dim) * np.median(np.linalg.norm(meas.force, axis=1))
+    if meas.has_moment:
+        dm = meas.moment.shape[1]
+        f = np.hstack([f, random_directions(rng, n_probe, dm) if dm > 1 else rng.choice([-1.0, 1.0], (n_probe, 1))
+                       * np.median(np.linalg.norm(meas.moment, axis=1))])
+    nested, X0, A, B = _nested(robot, a, b, q, f, ob)
+    seen = ("end-effector position measurement" if ob.default else "measurement of "
+            + ", ".join(f"target {t}" for t in ob.used()) + (" and the orientation" if ob.orientation else ""))
+    if len(nested) == 2:
+        missing = _missing_measurements(robot, a, b, q, f, ob, nested)
+        advice = ("; measuring " + " or ".join(missing) + " would separate them" if missing else
+                  "; measure another quantity, e.g. the position of an intermediate joint")
+        return (f"for this robot every {seen} sees {a} and {b} (with the joint compliances) through the same "
+                f"directions, so no choice of poses or forces separates them{advice}")
+    wider = b if nested == (a,) else a
+    # where the predictions differ most, under the loads the lab applies (the data's forces and moments)
+    data_loads = load_of(meas)[rng.integers(0, meas.n_rows, n_probe)]
+    _, X0, A, B = _nested(robot, a, b, q, data_loads, ob)
+    X = A if wider == b else B
+    Y = np.hstack([X0, B if X is A else A])  # the larger model; X: the other cause's regressors
+    P = (Y - np.hstack([X0, X]) @ np.linalg.lstsq(np.hstack([X0, X]), Y, rcond=None)[0])
+    per_pose = np.linalg.norm(P.reshape(n_probe, -1, P.shape[1]), axis=(1, 2))
+    i = int(np.argmax(per_pose))
+    fi = data_loads[i, : robot.task_dim]
+    u = fi / np.linalg.norm(fi) if np.any(fi) else fi
+    where = (f"at {np.degrees(np.arctan2(u[1], u[0])):.0f} deg" if len(u) == 2 else
+             f"along ({', '.join(f'{c:.2f}' for c in u)})")
+    load = f"the force of {np.linalg.norm(fi):.4g} N {where}"
+    if meas.has_moment:
+        load += f" and the moment ({', '.join(f'{c:.4g}' for c in data_loads[i, robot.task_dim:])}) N m"
+    pose = (f"a measurement at q = {np.round(np.degrees(q[i]), 1).tolist()} deg with {load} (one of the data's loads) "
+            f"would{' show ' + wider + ' if it is the cause' if nested else ''} (it is where their predictions "
+            "differ most)")
+    if not nested:
+        return f"these data do not separate {a} from {b}; {pose}"
+    missing = _missing_measurements(robot, a, b, q, f, ob, nested)
+    what = ("the position of the tool point" if ob.default else
+            f"the position{'s' if len(ob.used()) > 1 else ''} of target{'s' if len(ob.used()) > 1 else ''} "
+            + " and ".join(ob.used()) + (" and the orientation" if ob.orientation else ""))
+    return (f"for this robot, measuring {what}, the deflections of {nested[0]} are also explained by {wider} (with "
+            f"the joint compliances) at every pose and force, so no choice of poses or forces separates them when "
+            f"{nested[0]} is the cause; {pose}"
+            + ("; measuring " + " or ".join(missing) + " would separate them" if missing else ""))
+
+
+#: a parameter counts as estimable when its unit vector lies within this distance of the design's row space
+#: (columns scaled to unit norm, so the distance is the sine of an angle; round-off gives about 1e-15)
+ESTIMABLE_TOL = 1e-6
+#: why a joint compliance below zero is not physical (the notes on the extended model)
+NOT_PHYSICAL = "a joint cannot push back against the load"
+
+
+@dataclass(frozen=True)
+class Confounded:
+    """Non-estimable parameters that cannot be separated from one another: ``members`` (indices into the
+    model's parameters) and, when the data determine exactly one combination of them, its coefficients
+    ``combination`` (over ``members``, in the parameters' units, the first member's coefficient 1; None
+    otherwise); ``relations``: how many independent linear relations their regressors satisfy."""
+    members: np.ndarray
+    combination: np.ndarray | None
+    relations: int
+
+
+def estimability(X: np.ndarray) -> tuple[np.ndarray, list[Confounded]]:
+    """Which parameters of the linear model y = X b + e (X (N, p)) the data determine: b_j is estimable when
+    the unit vector e_j lies in the row space of X (some linear combination of the observations has expectation
+    b_j; Searle, *Linear Models*, 1971, sec. 5.4). The rank is decided as :func:`fit` decides it (columns scaled
+    to unit norm, singular values below RANK_RTOL of the largest are absent); the parameters the pseudo-inverse
+    then gives a minimum-norm value are the others.
+
+    Returns (estimable (p,) bool, groups): the non-estimable parameters in groups that cannot be separated
+    (connected through the projector on the null space of X), each a :class:`Confounded`."""
+    from scipy.sparse.csgraph import connected_components
+
+    p = X.shape[1]
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    s, Vt = np.linalg.svd(X / scale, full_matrices=False)[1:]
+    V = Vt[s > RANK_RTOL * s[0]] if s.size else np.zeros((0, p))
+    null = np.eye(p) - V.T @ V  # projector on the null space, in the scaled parameters
+    ok = np.sqrt(np.clip(np.diag(null), 0.0, None)) <= ESTIMABLE_TOL
+    bad = np.flatnonzero(~ok)
+    linked = np.abs(null[np.ix_(bad, bad)]) > ESTIMABLE_TOL**2
+    n_groups, label = connected_components(linked, directed=False) if bad.size else (0, np.zeros(0, int))
+    groups = []
+    for g in range(n_groups):
+        members = bad[label == g]
+        block = np.eye(len(members)) - null[np.ix_(members, members)]  # projector on what the data determine
+        relations = len(members) - int(round(np.trace(block)))
+        combination = None
+        if relations == len(members) - 1:  # one combination is determined: lambda_s in the row space, D lambda_s
+            lam = block[:, np.argmax(np.linalg.norm(block, axis=0))] * scale[members]
+            combination = lam / lam[np.argmax(np.abs(lam) > ESTIMABLE_TOL * np.abs(lam).max())]
+        groups.append(Confounded(members, combination, relations))
+    return ok, groups
+
+
+def _parameters(des: Design, f: Fit, causes, sigma: float, t: float, robot: Robot, observed: Observed | None):
+    """Names, values, 95 % half-widths (None where not estimable), the estimable mask and the
+    :class:`Confounded` groups of the model nominal + ``causes`` fitted as ``f``."""
+    causes = sorted(causes, key=CAUSES.index)
+    params = (observed or Observed()).model_params(robot)
+    k_names = [robot.joint_columns("k")[int(j)] for j in params]
+    names = k_names + [name for c in causes for name in parameter_names(c, robot, observed)]
+    ok, groups = estimability(des.model(causes))
+    ci = t * sigma * np.sqrt(np.clip(np.diag(f.cov_unscaled), 0.0, None))
+    value = [float(b) if e else None for b, e in zip(f.beta, ok)]
+    half = [float(c) if e else None for c, e in zip(ci, ok)]
+    return names, value, half, ok, groups
+
+
+def _short(name: str) -> str:
+    """A parameter's name without its unit: c2_1/(N m^2) -> c2 (the compliances' names carry none)."""
+    return name.rsplit("_", 1)[0] if "/" in name or name.endswith(("_rad", "_m")) else name
+
+
+def _confounded(groups: list[Confounded], names: list[str], f: Fit, sigma: float, t: float) -> list[dict]:
+    """The verdict's ``extended.not_estimable``: per group its parameters, the number of linear relations their
+    regressors satisfy and, when the data determine one combination of them, that combination (coefficients by
+    name), its value and 95 % half-width."""
+    out = []
+    for g in groups:
+        entry = {"parameters": [names[i] for i in g.members], "relations": g.relations, "combination": None,
+                 "value": None, "ci95": None}
+        if g.combination is not None:
+            lam = np.zeros(len(f.beta))
+            lam[g.members] = g.combination
+            entry.update({"combination": {names[i]: float(c) for i, c in zip(g.members, g.combination)},
+                          "value": float(lam @ f.beta),
+                          "ci95": float(t * sigma * np.sqrt(max(lam @ f.cov_unscaled @ lam, 0.0)))})
+        out.append(entry)
+    return out
+
+
+def _extended(des: Design, f: Fit, causes: list[str], sigma: float, t: float, robot: Robot,
+              observed: Observed | None = None) -> dict:
+    """The verdict's ``extended``: the fit ``f`` of nominal + ``causes``; a parameter the data do not determine
+    (:func:`estimability`) has value and interval None and is listed in ``not_estimable``."""
+    n = des.X0.shape[1]
+    names, value, half, _, groups = _parameters(des, f, causes, sigma, t, robot, observed)
+    return {"cause": "+".join(causes), "causes": causes, "k": value[:n], "k_ci95": half[:n],
+            "parameters": value[n:], "parameters_ci95": half[n:], "parameter_names": names[n:],
+            "not_estimable": _confounded(groups, names, f, sigma, t), "rss": f.rss, "df": f.df}
+
+
+def not_estimable_note(cause: str, entries: list[dict]) -> str:
+    """The verdict's note on the extended model's parameters that the data do not determine
+    (``entries``: ``extended.not_estimable``)."""
+    parts = []
+    for e in entries:
+        names = [_short(p) for p in e["parameters"]]
+        if len(names) == 1:
+            parts.append(f"{names[0]} acts on no measured quantity here (its regressor is zero in every row)")
+            continue
+        who = ", ".join(names[:-1]) + " and " + names[-1]
+        combo = e["combination"]
+        if combo is None:
+            r = e["relations"]
+            parts.append(f"{who} cannot be separated: their regressors satisfy {r} linear "
+                         f"relation{'s' if r > 1 else ''} on these data, so only {len(names) - r} combinations of them "
+                         "are determined")
+            continue
+        terms = " + ".join(f"{c:.3g} {_short(k)}" if i else _short(k) for i, (k, c) in enumerate(combo.items()))
+        why = (f"{names[1]} moves every measured quantity as {list(combo.values())[1]:.3g} times {names[0]} does"
+               if len(names) == 2 else "their regressors are linearly dependent on these data")
+        parts.append(f"{who} cannot be separated ({why}), so only {terms.replace('+ -', '- ')} = {e['value']:.3g} "
+                     f"+- {e['ci95']:.2g} is determined")
+    return (f"extended model ({cause}): " + "; ".join(parts) + " (not estimable: e_j is not in the row space of the "
+            "design, Searle, Linear Models, 1971, sec. 5.4); their values and intervals in extended are null, and "
+            "extended.not_estimable lists them")
+
+
+def _negative(names: list[str], value: list, half: list, n: int) -> list[str]:
+    """The joint compliances (the first n parameters) that are estimable and below zero beyond their 95 %
+    interval, as "name = value +- half-width" (``names``, ``value``, ``half``: :func:`_parameters`). Only these:
+    a link's 1/(E I) or a lost motion may be truly zero, and then dips below zero by chance."""
+    return [f"{names[i]} = {value[i]:.3g} +- {half[i]:.2g}" for i in range(n)
+            if value[i] is not None and value[i] + half[i] < 0]
+
+
+def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives: list, noise: Noise, robot: Robot,
+                    observed: Observed, notes: list[str]) -> tuple[frozenset, list, list[str]]:
+    """The combination the extended model holds, among the smallest compatible ones closed testing found equally
+    good (``chosen`` first, then ``alternatives``: the verdict's ``equivalent_combinations``): the first whose
+    joint compliances are nowhere below zero beyond their 95 % interval, else ``chosen``. The selection itself
+    is unchanged; only which of the equivalent combinations comes first.
+
+    Returns (the combination, the others in their order, ``notes`` with what was found: a combination passed
+    over, an extension that is not physical, parameters the data do not determine (:func:`estimability`)).
+    Nothing is judged when the nominal model's compliances are already negative (:func:`plausibility` names
+    the likely cause: the data's signs or frames, which every extension inherits)."""
+    if not chosen:
+        return chosen, alternatives, notes
+    sigma, t = float(np.sqrt(noise.s2)), float(dist.t_isf(0.025, noise.df))
+    n = des.X0.shape[1]
+    candidates = [chosen, *alternatives]
+    tables = {S: _parameters(des, sel.fits[S], sorted(S, key=CAUSES.index), sigma, t, robot, observed)
+              for S in [frozenset(), *candidates]}
+    judged = not _negative(*tables[frozenset()][:3], n)
+    wrong = {S: _negative(*tables[S][:3], n) if judged else [] for S in candidates}
+    pick = next((S for S in candidates if not wrong[S]), chosen)
+    found = []
+    label = {S: "+".join(sorted(S, key=CAUSES.index)) for S in candidates}
+    if pick != chosen:
+        found.append(f"the extended model holds {label[pick]}, not {label[chosen]}: both explain the data equally well "
+                     f"at this alpha (equivalent_combinations), but {label[chosen]} fits with "
+                     f"{', '.join(wrong[chosen])} (below zero beyond the 95 % interval: {NOT_PHYSICAL}), so it is not "
+                     "the physical extension; "
+                     f"{label[pick]} fits with every joint compliance non-negative within its interval, and cause and "
+                     "causes name it")
+    elif wrong[chosen]:
+        also = ("; the equivalent combination" + ("s " if len(alternatives) > 1 else " ")
+                + ", ".join(f"{label[S]} ({', '.join(wrong[S])})" for S in alternatives) + " fit with negative ones too"
+                if alternatives else "")
+        found.append(f"the extended model ({label[chosen]}) fits with {', '.join(wrong[chosen])} (below zero beyond "
+                     f"the 95 % interval: {NOT_PHYSICAL}), so this extension is not physical: the data need an effect "
+                     f"it describes only with a compliance no joint has{also}")
+    names, _, _, _, groups = tables[pick]
+    if groups:
+        found.append(not_estimable_note(label[pick], _confounded(groups, names, sel.fits[pick], sigma, t)))
+    return pick, [S for S in candidates if S != pick], notes + found
+
+
+def parameter_names(cause: str, robot: Robot, observed: Observed | None = None) -> list[str]:
+    """The names of a cause's parameters (:func:`stiffcal.model.catalogue.parameter_names`) for what ``observed``
+    measures."""
+    from ..model.catalogue import parameter_names as names
+
+    return names(cause, robot, observed is not None and observed.orientation)
+
+
+def loco_predictions(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None,
+                     des: Design | None = None, error=None, weights: np.ndarray | None = None):
+    """Leave-one-configuration-out predictions of the positions: each robot configuration (all its loads,
+    targets and replicates) left out in turn and predicted from the others (fitted on every measured quantity,
+    ``observed``). With the analysis's design ``des`` (weighted by ``weights`` (N,) and whitened by the error
+    model ``error``) the fits are its generalised least squares (configurations are independent blocks, so
+    leaving one out drops its rows) and a held-out configuration's measured rows are taken less the shared
+    error its own unloaded rows predict. Returns (predicted (N, d), measured (N, d)) [m], or None when fewer
+    than two configurations."""
+    if meas.n_configurations < 2:
+        return None
+    ob = observed or Observed.of(robot, meas)
+    X = model_columns(robot, meas.q, load_of(meas), causes, observed=ob)
+    y = observations(meas, ob)
+    d = robot.task_dim
+    if des is not None:
+        Xw = des.model(causes).reshape(len(y), des.d, -1)
+        yw = des.y.reshape(len(y), des.d)
+        w = np.ones(len(y)) if weights is None else weights
+        y = y if error is None else error.adjusted(y * w[:, None]) / w[:, None]
+    else:
+        Xw, yw = X, y
+    pred = np.empty((len(y), d))
+    groups = rows_by_label(meas.config, meas.n_configurations)
+    for test, beta in zip(groups, _leave_one_group_out(Xw, yw, groups)):
+        pred[test] = np.einsum("ndp,p->nd", X[test], beta)[:, :d]
+    return pred, y[:, :d]
+
+
+def _leave_one_group_out(X: np.ndarray, y: np.ndarray, groups: list[np.ndarray]):
+    """Yield, for each group (``groups``: the rows of each, :func:`stiffcal.measured.measurements.rows_by_label`), the
+    coefficients (p,) of :func:`fit` on the rows of X (N, w, p), y (N, w) outside it, without refitting: with the
+    SVD of the whole (column-scaled) X = U S V^T, dropping group g's rows leaves the normal equations
+    (I - U_g^T U_g) c = U^T y - U_g^T y_g in c = S V^T beta (the block deletion formula; Belsley, Kuh & Welsch,
+    *Regression Diagnostics*, 1980, ch. 2): one small solve per group, so the whole is linear in the rows. Where a
+    group carries a direction that the others barely do (the deletion would change :func:`fit`'s rank decision),
+    that group is refitted from scratch."""
+    X2, y2, w = _stack(X), y.ravel(), X.shape[1]
+    scale = np.linalg.norm(X2, axis=0)
+    scale[scale == 0] = 1.0
+    U, s, Vt = np.linalg.svd(X2 / scale, full_matrices=False)
+    keep = s > RANK_RTOL * s[0] if s.size else np.zeros(0, bool)
+    U, s, Vt = U[:, keep], s[keep], Vt[keep]
+    c = U.T @ y2
+    safe = (10 * RANK_RTOL * s[0] / s[-1]) ** 2 if s.size else 1.0  # the least eigenvalue of I - U_g^T U_g
+    for rows in groups:
+        mine = flat_index(rows, w)  # the group's flattened rows
+        Ug = U[mine]
+        M = np.eye(len(s)) - Ug.T @ Ug
+        if s.size and np.linalg.eigvalsh(M)[0] > safe:
+            yield Vt.T @ (np.linalg.solve(M, c - Ug.T @ y2[mine]) / s) / scale
+        else:
+            out = np.ones(len(y2), bool)
+            out[mine] = False
+            yield fit(X2[out], y2[out]).beta
+
+
+def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None, des: Design | None = None,
+             error=None, weights: np.ndarray | None = None) -> float | None:
+    """RMS prediction error [m] of the positions of held-out configurations (:func:`loco_predictions`), None
+    when fewer than two configurations."""
+    out = loco_predictions(robot, meas, causes, observed, des, error, weights)
+    return None if out is None else float(np.sqrt(np.mean((out[1] - out[0]) ** 2)))
+
+
+@dataclass(frozen=True)
+class HeldOut:
+    """The held-out check (:func:`held_out`): measured (N, d) [m] the rows' positions (less the shared error
+    their unloaded rows predict), nominal and calibrated (N, d) [m] the leave-one-configuration-out predictions
+    of the nominal and the calibrated model (the extended one, else the nominal), config (N,) the rows'
+    configurations, labels: one per configuration."""
+    measured: np.ndarray
+    nominal: np.ndarray
+    calibrated: np.ndarray
+    config: np.ndarray
+    labels: tuple
+    causes: tuple
+
+    def as_dict(self) -> dict:
+        """The verdict's ``held_out``: per configuration its label, rows and the RMS error [m] of either model's
+        prediction, and the RMS over all rows."""
+        def rms(pred, rows=slice(None)):
+            return float(np.sqrt(np.mean((self.measured[rows] - pred[rows]) ** 2)))
+
+        table = [{"configuration": str(self.labels[g]) if g < len(self.labels) else str(g),
+                  "rows": len(mine), "rms_nominal_m": rms(self.nominal, mine),
+                  "rms_calibrated_m": rms(self.calibrated, mine)}
+                 for g, mine in zip(*rows_by_value(self.config))]
+        return {"method": "leave-one-configuration-out", "calibrated_causes": list(self.causes),
+                "rms_nominal_m": rms(self.nominal), "rms_calibrated_m": rms(self.calibrated),
+                "per_configuration": table}
+
+
+def held_out(robot: Robot, pre: "Prepared", causes=()) -> HeldOut | None:
+    """The held-out check of an analysis (:func:`prepare`) for the calibrated model nominal + ``causes``:
+    :func:`loco_predictions` of both models on the analysis's generalised least squares. None with fewer than
+    two configurations."""
+    args = (pre.ob, pre.des, pre.error, pre.w)
+    nom = loco_predictions(robot, pre.m, (), *args)
+    if nom is None:
+        return None
+    cal = loco_predictions(robot, pre.m, tuple(causes), *args) if causes else nom
+    m = pre.m
+    return HeldOut(nom[1], nom[0], cal[0], np.asarray(m.config), tuple(m.config_labels), tuple(causes))
+
+
+def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict | None) -> dict:
+    """The verdict's ``gain`` of the extended model nominal + ``causes``: the held-out RMS of either model
+    (``ho``: the verdict's ``held_out``, :meth:`HeldOut.as_dict`), and at the test pose the RMS error of either
+    model's prediction and the O_t-optimal plans (:func:`optimal_plan`)."""
+    nom = None if ho is None else ho["rms_nominal_m"]
+    ext = None if ho is None else ho["rms_calibrated_m"]
+    out = {"loco_rms_nominal_m": nom, "loco_rms_extended_m": ext,
+           "loco_ratio": nom / ext if nom is not None and ext else None}
+    if test_pose is not None and test_force is not None:
+        qt = np.atleast_2d(test_pose)
+        ft = np.atleast_2d(test_force)
+        at_tool = ob.at_tool(robot)
+        Xt0 = nominal_columns(robot, qt, ft, at_tool)[0]
+        Xt1 = model_columns(robot, qt, ft, causes, predict=True, observed=at_tool)[0]
+        f0, f1 = fit(des.X0, des.y), fit(des.model(causes), des.y)
+        bias = Xt1 @ f1.beta - Xt0 @ f0.beta  # the extended model taken as the truth
+        var0 = s2 * np.trace(Xt0 @ f0.cov_unscaled @ Xt0.T)
+        var1 = s2 * np.trace(Xt1 @ f1.cov_unscaled @ Xt1.T)
+        out.update({"test_pose_rms_nominal_m": float(np.sqrt(bias @ bias + var0)),
+                    "test_pose_rms_extended_m": float(np.sqrt(var1)),
+                    "test_pose_model_error_m": float(np.linalg.norm(bias))})
+        plan, ot_ext = optimal_plan(robot, causes, qt[0], ft[0], observed=ob)
+        plan_nom, _ = optimal_plan(robot, (), qt[0], ft[0], m=len(plan), observed=ob)
+        Xn = pose_rows(robot, np.radians(plan_nom), ft[0], causes, ob)
+        scale = np.sqrt(np.mean(Xn**2, axis=(0, 1)))
+        scale[scale == 0] = 1.0
+        ot_nom_plan = _ot_of(Xn / scale, Xt1 / scale)
+        out.update({"optimal_plan_extended_deg": plan.round(3).tolist(),
+                    "optimal_plan_extended_rms_m": float(np.sqrt(s2 * ot_ext)),
+                    "nominal_plan_deg": plan_nom.round(3).tolist(),
+                    "nominal_plan_under_extended_rms_m": float(np.sqrt(s2 * ot_nom_plan))})
+    return out
+
+
+def residual_features(robot: Robot, meas: Measurements) -> dict[str, np.ndarray]:
+    """The quantities residuals are plotted against: joint angles [deg], |F| [N], F direction [deg], the
+    moment [N m] (when the data have moments), tau [N m]."""
+    tau = torques(robot, meas.q, load_of(meas))
+    moment = {}
+    if meas.has_moment:
+        axes = "z" if meas.moment.shape[1] == 1 else "xyz"
+        moment = {f"m{a} [N m]": meas.moment[:, i] for i, a in enumerate(axes)}
+    return {**{name: np.degrees(meas.q[:, i]) for i, name in enumerate(robot.joint_columns("q", " [deg]"))},
+            "|F| [N]": np.linalg.norm(meas.force, axis=1),
+            "force direction [deg]": np.degrees(np.arctan2(meas.force[:, 1], meas.force[:, 0])), **moment,
+            **{name: tau[:, i] for i, name in enumerate(robot.joint_columns("tau", " [N m]"))}}
+
+
+def nominal_residuals(robot: Robot, meas: Measurements, keep: np.ndarray, observed: Observed | None = None):
+    """(N, d) position residuals [m] of the nominal fit made on the rows ``keep`` (all rows get a residual;
+    the fit uses every measured quantity, ``observed``)."""
+    ob = observed or Observed.of(robot, meas)
+    X = nominal_columns(robot, meas.q, load_of(meas), ob)
+    y = observations(meas, ob)
+    f = fit(_stack(X[keep]), y[keep].ravel())
+    return (y - np.einsum("ndp,p->nd", X, f.beta))[:, : robot.task_dim]
+
+
+def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_pose=None, test_force=None,
+        label: str | None = None, angle_resolution_deg: float | None = None,
+        force_resolution_N: float | None = None, moment_resolution_Nm: float | None = None,
+        sigma_m: float | None = None, sigma_rad: float | None = None, figures: bool = True) -> Verdict:
+    """Read, analyse, and write ``out_dir/verdict.json``, ``out_dir/residuals.{png,svg}``,
+    ``out_dir/heldout.{png,svg}`` (:func:`stiffcal.report.plots.fig_held_out`), ``out_dir/machining.{png,svg}``
+    (:func:`stiffcal.report.plots.fig_machining`) and, for a robot given
+    as a file, ``out_dir/calibrated.yaml`` (:mod:`stiffcal.measured.calibrated`: the robot file with the identified
+    model; the verdict's ``calibrated_model`` names it); ``figures`` False leaves the three figures out (and matplotlib
+    unloaded). Everything is computed before anything is written, so bad data leave no partial output.
+    Resolutions default to :data:`stiffcal.measured.measurements.ANGLE_RESOLUTION_DEG`,
+    :data:`~stiffcal.measured.measurements.FORCE_RESOLUTION_N` and
+    :data:`~stiffcal.measured.measurements.MOMENT_RESOLUTION_NM`; sigma_m, sigma_rad: :func:`analyse`."""
+    from ..progress import Progress
+
+    if not 0 < alpha < 1:
+        raise InputError(f"expected 0 < alpha < 1, got {alpha}", field="--alpha")
+    with Progress("discrepancy", run_estimate_s(robot, data_path, figures)) as progress:
+        return _run(robot, data_path, out_dir, alpha, test_pose, test_force, label,
+                    (angle_resolution_deg, force_resolution_N, moment_resolution_Nm), sigma_m, sigma_rad, progress,
+                    figures)
+
+
+def run_estimate_s(robot: Robot, data_path: str, figures: bool = True) -> list[tuple[str, float]]:
+    """The stages of :func:`run` with a rough estimate of their seconds on one core (fitted to 2-link and 6-axis
+    logs of 400 to 200,000 rows, whose count is taken from the file's size at about 70 bytes a row; the progress
+    lines scale what is left by how the stages so far compared with their estimates)."""
+    import os
+
+    try:
+        rows = os.stat(data_path).st_size / 70.0
+    except OSError:
+        rows = 0.0
+    w = 1.0 + 0.15 * robot.n_joints  # spatial arms: more columns per row
+    return [("reading the data", 0.2 + 2e-5 * rows), ("the noise and the rows' error model", w * (0.5 + 1e-4 * rows)),
+            ("closed testing of the catalogue", w * (0.7 + 4e-5 * rows)),
+            ("extended model with held-out check and gain", w * (0.5 + 2e-5 * rows)),
+            ("figures and files", 2.0 + 6e-5 * rows) if figures else ("files", 0.05)]
+
+
+def _run(robot: Robot, data_path: str, out_dir: str, alpha: float, test_pose, test_force, label, resolutions,
+         sigma_m, sigma_rad, progress, figures: bool = True) -> Verdict:
+    """:func:`run`, its stages reported to ``progress`` (:class:`stiffcal.progress.Progress`)."""
+    import json
+    from pathlib import Path
+
+    from . import calibrated
+
+    verdict, cal, meas = analysed(robot, data_path, alpha, test_pose, test_force, resolutions, sigma_m, sigma_rad,
+                                  progress)
+    calibrated_doc = calibrated.calibrated_document(robot, cal, out_dir) if Path(robot.source).is_file() else None
+    verdict = replace(verdict, calibrated_model=calibrated.CALIBRATED_FILE if calibrated_doc is not None else None)
+    text = json.dumps(verdict.to_dict(), indent=2, allow_nan=False)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    if figures:
+        _write_figures(robot, meas, verdict, cal, label or Path(data_path).name, out)
+    if calibrated_doc is not None:
+        calibrated.write_calibrated(robot, cal, out)
+    (out / "verdict.json").write_text(text + "\n", encoding="utf-8")
+    return verdict
+
+
+def analysed(robot: Robot, data_path: str, alpha: float = 0.01, test_pose=None, test_force=None,
+             resolutions=(None, None, None), sigma_m: float | None = None, sigma_rad: float | None = None,
+             progress=None):
+    """(the :class:`~stiffcal.measured.results.Verdict` of the data file, its calibrated model
+    (:class:`stiffcal.measured.calibrated.Calibration`), the :class:`Measurements`) without writing anything: read,
+    analyse and :func:`complete` (``calibrated_model`` None: no file written). resolutions: (angle [deg], force
+    [N], moment [N m]) or None for the defaults of :mod:`stiffcal.measured.measurements`; ``progress`` (or None) is
+    advanced after each stage. Raises :class:`InputError` for bad data."""
+    from . import measurements as M
+
+    angle_res, force_res, moment_res = resolutions
+    meas = M.read_measurements(data_path, robot,
+                               M.ANGLE_RESOLUTION_DEG if angle_res is None else angle_res,
+                               M.FORCE_RESOLUTION_N if force_res is None else force_res,
+                               M.MOMENT_RESOLUTION_NM if moment_res is None else moment_res)
+    if progress is not None:
+        progress.advance()
+    pre = prepare(robot, meas, alpha, sigma_m, sigma_rad)
+    if progress is not None:
+        progress.advance()
+    verdict, cal = complete(robot, pre, verdict_of(robot, pre, alpha, test_pose, test_force, progress=progress),
+                            data_path, test_pose, test_force)
+    if progress is not None:
+        progress.advance()
+    return verdict, cal, meas
+
+
+def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose=None, test_force=None):
+    """(``verdict`` with the files analysed (``data``, ``robot``) and what the calibrated model gives with a test
+    pose (``next_round``, ``machining_path``: docs/measured-data.md), its
+    :class:`stiffcal.measured.calibrated.Calibration`): the calibrated model of the analysis prepared by :func:`prepare`
+    with the verdict :func:`verdict_of` gave."""
+    from . import calibrated
+
+    verdict = replace(verdict, data=str(data_path), robot=robot.source)
+    cal = calibrated.from_analysis(robot, pre, verdict, data_path)
+    if test_pose is None or test_force is None:
+        return verdict, cal
+    model = replace(robot, calibration=cal)
+    nominal = replace(robot, calibration=calibrated.from_analysis(robot, pre, {**verdict, "extended": None}))
+    machining = {"test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
+                 **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
+    return replace(verdict, next_round=calibrated.next_round_summary(model, test_pose, test_force),
+                   machining_path=machining), cal
+
+
+def _write_figures(robot: Robot, meas: Measurements, verdict: dict, cal, label: str, out) -> None:
+    """:func:`run`'s three figures into the folder ``out``: the nominal model's residuals, the held-out
+    configurations and the simulated machining path."""
+    from ..report import plots
+
+    keep = np.ones(meas.n_rows, bool)
+    keep[np.isin(meas.rows, verdict["outlier_rows"])] = False
+    weight = verdict["nominal"]["rotation_weight_m_per_rad"]
+    resid = nominal_residuals(robot, meas, keep, Observed.of(robot, meas, 1.0 if weight is None else weight))
+    plots.save(plots.fig_residuals(meas, residual_features(robot, meas), resid, verdict["nominal"]["sigma_m"],
+                                   f"Nominal-model residuals: {label}", outlier_rows=verdict["outlier_rows"]),
+               out / "residuals")
+    plots.save(plots.fig_held_out(verdict.get("held_out"), verdict["nominal"]["sigma_m"],
+                                  f"Held-out configurations: {label}"), out / "heldout")
+    plots.save(plots.fig_machining(verdict["machining_path"], cal.causes, f"Simulated machining path: {label}"),
+               out / "machining")
+
+
+# --- the paper's method applied to the model that fits --------------------------------------------------
+
+def _ot_of(Xs: np.ndarray, Xt: np.ndarray) -> float:
+    """O_t / sigma^2 = tr(X_t M^-1 X_t^T) of a plan with regressors Xs (m, d, p); inf when singular."""
+    M = np.einsum("mdi,mdj->ij", Xs, Xs)
+    try:
+        return float(np.trace(Xt @ np.linalg.solve(M, Xt.T))) if np.linalg.cond(M) < 1e12 else np.inf
+    except np.linalg.LinAlgError:
+        return np.inf
+
+
+def candidate_poses(robot: Robot, step_deg: float = 10.0) -> np.ndarray:
+    """(K, n) [rad]: the candidate poses of the plans for measured data (:func:`optimal_plan`,
+    :func:`stiffcal.measured.calibrated.next_round`): a step_deg grid within the joint limits (4096 quasi-random poses
+    for 4+ joints), those the robot's cell allows. Raises :class:`InputError` when the cell allows none."""
+    if is_sampled(robot, step_deg):
+        pool = sample_joint_space(robot, 12, seed=0)  # a grid would be too large: 4096 quasi-random poses
+    else:
+        lims = np.degrees(robot.joint_limits_rad)
+        axes = [np.arange(lo, hi + 1e-9, step_deg) for lo, hi in lims]
+        pool = np.radians(np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, robot.n_joints))
+    if robot.cell is not None:  # only the poses the robot can take in its cell (stiffcal.model.workcell)
+        from ..model.workcell import feasible
+
+        pool = pool[feasible(robot, pool)]
+        if not len(pool):
+            raise InputError(f"no pose of the plan's candidate grid can be taken in the cell ({robot.cell.describe()})",
+                             source=robot.cell.source, field="cell")
+    return pool
+
+
+def plan_regressors(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
+                    observed: Observed | None = None, step_deg: float = 10.0):
+    """The plan problem of :func:`optimal_plan`: (pool (K, n) [rad] of :func:`candidate_poses`, Xp (K, r, p) the
+    regressors of every candidate under the test load, Xt (d, p) the tool point's at the test pose, scale (p,)
+    [m per parameter unit]), Xp and Xt divided by scale (the columns' RMS over the pool: O_t does not depend on
+    the parameters' units, and balanced columns keep the information matrices well conditioned)."""
+    ob = observed or Observed()
+    pool = candidate_poses(robot, step_deg)
+    Xp = pose_rows(robot, pool, np.asarray(test_force, float), causes, ob)
+    Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True,
+                       observed=ob.at_tool(robot))[0]
+    scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))
+    scale[scale == 0] = 1.0
+    return pool, Xp / scale, Xt / scale, scale
+
+
+def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
+                 m: int | None = None, step_deg: float = 10.0, seed: int = 0, observed: Observed | None = None):
+    """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
+    model nominal + ``causes``, the test force (or wrench) used in every measurement (as in the paper), every
+    pose measuring what the data measured (``observed``: its targets and orientation; default the tool point)
+    and O_t the tool point's position error at the test pose: Fedorov exchange
+    (:func:`stiffcal.planning.plans.fedorov_exchange`, the engine of every plan) over :func:`candidate_poses`. Returns
+    (poses [deg] (m, n), O_t / sigma^2)."""
+    from ..planning.plans import fedorov_exchange
+
+    pool, Xp, Xt, _ = plan_regressors(robot, causes, test_pose, test_force, observed, step_deg)
+    m = m or int(np.ceil(Xp.shape[2] / Xp.shape[1])) + 1
+    res = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
+    return np.degrees(pool[res.indices]), res.value

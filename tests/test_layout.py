@@ -1,0 +1,108 @@
+"""The package's layout (docs/extending.md, "Where things live"): the subpackages import only those before them,
+nothing in production imports the test support (stiffcal.testing), and every flat module path of release 0.1 still
+imports, as the very module at its new path, with a DeprecationWarning."""
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import stiffcal
+
+PACKAGE = Path(stiffcal.__file__).resolve().parent
+#: the subpackages in their import order: each may import those before it, never one after it
+ORDER = ["model", "planning", "paper", "report", "measured", "workflow"]
+
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = list(path.relative_to(PACKAGE).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        if parts:
+            out[".".join(parts)] = path
+    return out
+
+
+def _imports(module: str, path: Path) -> set[str]:
+    """The stiffcal modules (dotted below the package) that any import statement of ``path`` names, resolved by hand
+    (absolute and relative forms; a name imported from a package counts as its module when one exists)."""
+    here = module.split(".")
+    package = here if path.name == "__init__.py" else here[:-1]
+    modules = _modules()
+    out = set()
+    for n in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(n, ast.Import):
+            out |= {a.name.split(".", 1)[1] for a in n.names if a.name.startswith("stiffcal.")}
+        elif isinstance(n, ast.ImportFrom):
+            if n.level:
+                base = package[: len(package) - (n.level - 1)] + (n.module.split(".") if n.module else [])
+            elif n.module and (n.module == "stiffcal" or n.module.startswith("stiffcal.")):
+                base = n.module.split(".")[1:]
+            else:
+                continue
+            for a in n.names:
+                full = ".".join(base + [a.name])
+                out.add(full if full in modules else ".".join(base))
+    return {m for m in out if m}
+
+
+def test_no_production_module_imports_the_test_support_and_subpackages_import_only_those_before_them():
+    bad = []
+    for module, path in _modules().items():
+        top = module.split(".")[0]
+        if top == "testing":
+            continue
+        for m in _imports(module, path):
+            dep = m.split(".")[0]
+            if dep == "testing":
+                bad.append(f"{module} imports the test support {m}")
+            elif top in ORDER and dep in ORDER and ORDER.index(dep) > ORDER.index(top):
+                bad.append(f"{module} ({top}) imports {m} ({dep}, later in {ORDER})")
+            elif "." not in module and module not in ("api", "cli") and dep in ORDER:
+                bad.append(f"the input and output layer's {module} imports {m}")
+    assert not bad, "\n".join(bad)
+
+
+def _run(code: str) -> dict:
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout)
+
+
+def test_importing_every_production_module_loads_nothing_of_the_test_support():
+    production = [m for m in _modules() if not m.startswith("testing")]
+    loaded = _run(f"""
+import importlib, json, sys
+for m in {production!r}:
+    importlib.import_module("stiffcal." + m)
+print(json.dumps(sorted(m for m in sys.modules if m.startswith("stiffcal.testing"))))
+""")
+    assert loaded == []
+
+
+def test_every_old_flat_path_imports_the_module_at_its_new_path_with_a_deprecation_warning():
+    moved = stiffcal._MOVED
+    assert set(moved.values()) <= set(_modules())
+    assert not set(moved) & set(_modules())  # an old path is never a module of its own
+    report = _run(f"""
+import importlib, json, warnings
+import stiffcal
+out = {{}}
+for old, new in {moved!r}.items():
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        a = importlib.import_module("stiffcal." + old)
+    b = importlib.import_module("stiffcal." + new)
+    out[old] = [a is b, b.__name__, b.__spec__.name,
+                [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)]]
+from stiffcal.api import design
+out["design is the API function"] = stiffcal.design is design
+print(json.dumps(out))
+""")
+    assert report.pop("design is the API function") is True
+    for old, (same, name, spec, warned) in report.items():
+        new = "stiffcal." + moved[old]
+        assert same and name == new and spec == new, old
+        assert len(warned) == 1 and new in warned[0], (old, warned)
