@@ -15,7 +15,8 @@ seeds, alpha 0.01, 1 process, clean cells with SEEDS seeds too; JOBS processes s
 seeds and output; CLEAN_SEEDS: more seeds for the clean cells, whose false-alarm rate per protocol needs several
 hundred cases for its 95 % interval to end below 2 alpha; beyond the first 20 seeds of a clean cell only the
 CSV with pose_id is analysed). Two more optional arguments run a slice of the matrix: ONLY, comma-separated parts
-of protocol names ("reference per visit,one hanging mass": those protocols alone), and the word clean (the clean
+of protocol names ("reference per visit,one hanging mass": those protocols alone; separated by | instead when a
+part holds a comma: "hanging x3, reference per configuration, half revisited|"), and the word clean (the clean
 cells alone, for the false-alarm rate per protocol). Prints one row per robot x protocol x effect: named /
 qualifying (rate), or for clean data false alarms / cases; then the totals per effect, the false alarms and
 rates per protocol, and the share of cases where the two CSV variants give the same verdict. Requirements
@@ -55,7 +56,7 @@ def main(seeds: int = 20, alpha: float = 0.01, jobs: int = 1, clean_seeds: int |
     arms = R.robots(ROOT)
     start = time.process_time()
     clean_seeds = seeds if clean_seeds is None else clean_seeds
-    wanted = None if not only else [w.strip() for w in only.split(",") if w.strip()]
+    wanted = None if not only else [w.strip() for w in only.split("|" if "|" in only else ",") if w.strip()]
     cells = [(arm, protocol, effects) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
              if wanted is None or any(w in protocol for w in wanted)
              for effects in ([()] if clean_only else [(e,) for e in R.EFFECTS] + [()] + [PAIRS[arm]])]

@@ -189,3 +189,23 @@ def test_design_json_writes_every_infinity_as_a_string(root, capsys, monkeypatch
     assert d["approximate_design"]["equivalence_gap"] == "inf"
     assert d["poses_deg"] == [[0.0, 45.0]] and "-0.0" not in out
     assert _strict_json(json.dumps(odd.to_dict(), allow_nan=False)) == d
+
+
+@pytest.mark.parametrize("sigmas,needle", [
+    (["--sigma-m", "1.5e-5"], "'--sigma-rad': expected both noise levels (sigma_m and sigma_rad) or neither: their "
+                              "ratio weighs the rotation rows"),
+    (["--sigma-m", "1.5e-5", "--sigma-rad", "1e-5"], "'--sigma-m': sigma_m and sigma_rad only weigh the rotation "
+                                                     "rows against the positions, and the data "
+                                                     "(data/synthetic_paper_2r.csv) have no rotation columns")])
+def test_noise_levels_for_data_without_rotation_columns_are_refused_not_ignored(root, capsys, monkeypatch, tmp_path,
+                                                                                sigmas, needle):
+    """A user gave --sigma-m to set the position noise: it sets only the rotation rows' weight, so on data without
+    rotation columns it used to be ignored without a word (the verdict's sigma_m still the replicates'). One line,
+    exit 2, nothing written."""
+    monkeypatch.chdir(root)
+    out_dir = tmp_path / "out"
+    code = main(["discrepancy", "--robot", "config/robots/paper_2r.yaml", "--data", "data/synthetic_paper_2r.csv",
+                 "--out", str(out_dir), "--no-figures", *sigmas])
+    err = capsys.readouterr().err
+    assert code == 2 and needle in err and err.count("\n") == 1, err
+    assert not out_dir.exists()

@@ -16,14 +16,16 @@ What is written, per tree (each by a child process whose PYTHONPATH puts that tr
 The simulated logs and the command lines are this tree's (the baseline analyses the same files). The pipeline's
 tables are checked by tests/test_workflow.py (byte-identical reruns) and tests/test_paper.py (the paper's digits).
 
-Run: .venv/bin/python tools/golden.py [--baseline COMMIT] [--cases N]   (default 3b438d5, every case: about 5 minutes)
-Exit status 0 when every output is identical, 1 (naming each file that differs) otherwise.
+Run: .venv/bin/python tools/golden.py [--baseline COMMIT] [--cases N] [--keep DIR]
+(default 3b438d5, every case: about 5 minutes; --keep copies both trees' outputs into DIR). Exit status 0 when every
+output is identical, 1 otherwise (naming each file that differs, and the verdicts among them that name other causes).
 """
 
 import argparse
 import filecmp
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -123,10 +125,28 @@ def _differences(a: Path, b: Path) -> list[str]:
                                                  and filecmp.cmp(a / n, b / n, shallow=False)))
 
 
+def _verdict_changes(a: Path, b: Path, names: list[str]) -> list[str]:
+    """For the outputs that differ and are verdicts (JSON with a ``cause``): the ones whose named causes changed,
+    as ``name: baseline's -> this tree's`` (the others differ in their numbers only)."""
+    out = []
+    for name in names:
+        try:
+            va, vb = (json.loads((d / name).read_text(encoding="utf-8")) for d in (a, b))
+        except (OSError, ValueError):
+            continue
+        if isinstance(va, dict) and isinstance(vb, dict) and "cause" in va and "cause" in vb:
+            ca = (va["cause"], tuple(va.get("indistinguishable_from") or ()))
+            cb = (vb["cause"], tuple(vb.get("indistinguishable_from") or ()))
+            if ca != cb:
+                out.append(f"{name}: {ca[0]} {list(ca[1]) or ''} -> {cb[0]} {list(cb[1]) or ''}")
+    return out
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--baseline", default="3b438d5", help="the commit to compare with (default 3b438d5)")
     ap.add_argument("--cases", type=int, default=None, help="at most this many simulated logs (default all)")
+    ap.add_argument("--keep", metavar="DIR", help="copy both trees' outputs into DIR (baseline/, this-tree/)")
     ap.add_argument("--dump", nargs=2, metavar=("CASES", "OUT"), help=argparse.SUPPRESS)  # the child's job
     args = ap.parse_args()
     if args.dump:
@@ -150,8 +170,13 @@ def main() -> int:
                            check=True)
         diff = _differences(outs["baseline"], outs["this tree"])
         count = sum(1 for p in outs["this tree"].rglob("*") if p.is_file() and ".cache" not in p.parts)
+        if args.keep:
+            for label, folder in outs.items():
+                shutil.copytree(folder, Path(args.keep) / label.replace(" ", "-"), dirs_exist_ok=True)
         if diff:
             print(f"golden: {len(diff)} of {count} outputs differ from {args.baseline}'s: {', '.join(diff)}")
+            changed = _verdict_changes(outs["baseline"], outs["this tree"], diff)
+            print(f"golden: of those, {len(changed)} verdicts name other causes" + "".join(f"\n  {c}" for c in changed))
             return 1
         print(f"golden: all {count} outputs identical to {args.baseline}'s")
         return 0

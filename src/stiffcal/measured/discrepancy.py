@@ -574,21 +574,40 @@ class VarianceModel:
 HETEROSCEDASTICITY_ALPHA = 0.01
 
 
+#: fewest configurations with replicates that :func:`variance_model` fits a variance function to
+VARIANCE_MIN_CONFIGS = 8
+
+
 def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = None) -> VarianceModel | None:
     """The :class:`VarianceModel` of the replicate groups (their spread about their means, or about
     ``resid``'s group means when given), or None when the data have too few replicates to tell (fewer than
-    8 groups with replicates) or a constant variance is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`."""
+    :data:`VARIANCE_MIN_CONFIGS` configurations with replicates, or no more of them than covariates) or a
+    constant variance is not rejected at :data:`HETEROSCEDASTICITY_ALPHA`.
+
+    The replicate groups of one configuration share its reference readings (one per visit, or one per
+    configuration reused on a revisit; docs/measured-data.md, "The lab's reference readings"), so their spreads
+    are not independent: each configuration's groups are pooled into one variance (sum of squares over degrees of
+    freedom), and the configurations are the GLM's observations, tested by :func:`_constant_variance_p` with the
+    dispersion they show (Liang & Zeger's point: correlated observations tested as independent reject too often;
+    pooling per cluster is the simple remedy, Diggle, Heagerty, Liang & Zeger, *Analysis of Longitudinal Data*,
+    2nd ed., 2002, sec. 1.4)."""
     y = meas.dp if resid is None else resid
     groups = [r for r in rows_by_value(meas.group)[1] if len(r) > 1]
-    if len(groups) < 8:
+    if not groups:
         return None
-    s2 = np.array([((y[r] - y[r].mean(0)) ** 2).sum() for r in groups])
-    df = np.array([(len(r) - 1) * y.shape[1] for r in groups], float)
+    ss = np.array([((y[r] - y[r].mean(0)) ** 2).sum() for r in groups])
+    df_g = np.array([(len(r) - 1) * y.shape[1] for r in groups], float)
+    configs, first, of_group = np.unique(meas.config[[r[0] for r in groups]], return_index=True,
+                                         return_inverse=True)
+    Z = position_covariates(robot, meas.q[[groups[i][0] for i in first]])
+    if len(configs) < max(VARIANCE_MIN_CONFIGS, Z.shape[1] + 2):
+        return None
+    s2 = np.bincount(of_group, ss, len(configs))
+    df = np.bincount(of_group, df_g, len(configs))
     if np.any(s2 <= 0):
         return None
     s2 = s2 / df
     s2 = s2 / np.median(s2)  # metres squared are tiny; the log link's intercept absorbs the scale
-    Z = position_covariates(robot, meas.q[[r[0] for r in groups]])
     use = np.ones(len(s2), bool)
 
     def glm(rows, cols=slice(None)):
@@ -600,14 +619,25 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
             # a group with a blunder has a wild variance, which pulls the fit towards itself: test the most
             # extreme groups (against the fit, and the largest variance) against the fit without them, leave
             # the wildest out, and go on (at most a tenth of the groups)
+            # (F against the fit and dispersion of the others; those a chi-square calls wild against the median
+            # variance, a fit that blunders cannot bend, are left out of that reference, so that a second blunder
+            # does not mask the first)
+            strict = 1e-3 / len(s2)
             for _ in range(max(1, len(s2) // 10)):
                 ratio = np.where(use, s2 / np.exp(Z @ glm(use).params), -np.inf)
+                wild = use & (dist.chi2_sf(s2 / np.median(s2[use]) * df, df) < strict)
                 p_loo = {}
                 for g in {int(np.argmax(ratio)), int(np.argmax(np.where(use, s2, -np.inf)))}:
-                    trial = use.copy()
+                    trial = use & ~wild
                     trial[g] = False
-                    loo = s2[g] / np.exp(Z[g] @ glm(trial).params)
-                    p_loo[g] = dist.chi2_sf(loo * df[g], df[g])
+                    if trial.sum() <= Z.shape[1]:
+                        continue
+                    fit_g = glm(trial)
+                    phi = _dispersion(s2[trial], Z[trial], df[trial], fit_g)  # 2 for chi-square variances
+                    loo = s2[g] / np.exp(Z[g] @ fit_g.params) / (phi / 2.0)
+                    p_loo[g] = float(np.nan_to_num(dist.f_sf(loo, df[g], trial.sum() - Z.shape[1]), nan=1.0))
+                if not p_loo:
+                    break
                 worst = min(p_loo, key=p_loo.get)
                 if p_loo[worst] >= 1e-3 / len(s2):
                     break
@@ -615,7 +645,7 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
             full, null = glm(use), glm(use, slice(0, 1))
     except (ValueError, np.linalg.LinAlgError, Warning):
         return None
-    p = _constant_variance_p(full, null, Z.shape[1])
+    p = _constant_variance_p(full, null, s2[use], Z[use], df[use])
     if not np.isfinite(p) or p >= HETEROSCEDASTICITY_ALPHA:
         return None
     return _fitted_variance(robot, meas.q, full.params, p)
@@ -680,9 +710,32 @@ def _gamma_irls(s2: np.ndarray, Z: np.ndarray, w_var: np.ndarray) -> GammaFit:
     return GammaFit(params, deviance(np.exp(np.dot(Z, params)), 1.0))
 
 
-def _constant_variance_p(full, null, n_covariates: int) -> float:
-    """The likelihood-ratio p-value of a constant variance (``null``) against the fit on every covariate."""
-    return float(dist.chi2_sf(max(null.deviance - full.deviance, 0.0) / 2.0, n_covariates - 1))
+def _dispersion(s2: np.ndarray, Z: np.ndarray, df: np.ndarray, fit: GammaFit) -> float:
+    """The dispersion of the Gamma GLM ``fit`` of the variances s2 (k,) on df (k,) degrees of freedom, covariates Z
+    (k, c), estimated from its Pearson residuals, X^2 / (k - c) on k - c degrees of freedom (McCullagh & Nelder
+    1989, sec. 8.3.6): 2 for independent chi-square variances, more when they scatter more than that (variances
+    pooled from groups that share a reference reading); NaN when k <= c."""
+    if len(s2) <= Z.shape[1]:
+        return float("nan")
+    mu = np.exp(Z @ fit.params)
+    return float(np.sum(df * (s2 - mu) ** 2 / mu**2) / (len(s2) - Z.shape[1]))
+
+
+def _constant_variance_p(full: GammaFit, null: GammaFit, s2: np.ndarray, Z: np.ndarray, df: np.ndarray,
+                         dispersion: float | None = None) -> float:
+    """The p-value of a constant variance (``null``) against the fit on every covariate (``full``) of the variances
+    s2 (k,) on df (k,) degrees of freedom, covariates Z (k, c). ``dispersion`` None: the quasi-likelihood F test,
+    the deviance difference over c - 1 against the dispersion estimated on k - c degrees of freedom (McCullagh &
+    Nelder 1989, sec. 9.3.1; a test on an estimated noise uses its degrees of freedom), so that variances that
+    scatter more than chi-square ones (pooled from groups that share a reference reading) do not pass for a trend;
+    ``dispersion`` given (2: independent chi-square variances), the likelihood-ratio test, chi-square on c - 1."""
+    c = Z.shape[1]
+    if dispersion is not None:
+        return float(dist.chi2_sf(max(null.deviance - full.deviance, 0.0) / dispersion, c - 1))
+    phi = _dispersion(s2, Z, df, full)
+    if not phi > 0:
+        return float("nan")
+    return float(dist.f_sf(max(null.deviance - full.deviance, 0.0) / (c - 1) / phi, c - 1, len(s2) - c))
 
 
 def _fitted_variance(robot: Robot, q: np.ndarray, params: np.ndarray, p: float) -> VarianceModel:
@@ -743,7 +796,8 @@ def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test:
         full, null = _gamma_fit(s2, Z, dof[use]), _gamma_fit(s2, Z[:, :1], dof[use])
     except (ValueError, np.linalg.LinAlgError, Warning):
         return None
-    p = _constant_variance_p(full, null, Z.shape[1])
+    # whitened by the error model, the configurations' residual sums of squares are independent chi-squares
+    p = _constant_variance_p(full, null, s2, Z, dof[use], dispersion=2.0)
     if not np.isfinite(p) or (test and p >= HETEROSCEDASTICITY_ALPHA):
         return None
     return _fitted_variance(robot, meas.q, full.params, p)
@@ -1344,8 +1398,14 @@ def rad_weight(robot: Robot, meas: Measurements, sigma_m: float | None = None,
     10-11), from the noise levels when both are given, else estimated: from the replicates (the pure error of
     the displacements and of the rotations, Draper & Smith 2.1) or, without replicates, from the residuals of
     the union of all extensions (two-step feasible weighted least squares, the residual degrees of freedom
-    shared in proportion to the rows). 1 without orientation columns."""
+    shared in proportion to the rows). 1 without orientation columns; InputError when noise levels are given for
+    data without them (they set nothing else: the noise of the positions is always estimated from the data)."""
     if meas.rot is None:
+        if sigma_m is not None or sigma_rad is not None:
+            raise InputError(f"sigma_m and sigma_rad only weigh the rotation rows against the positions, and the "
+                             f"data ({meas.source}) have no rotation columns: leave them out (the noise of the "
+                             "positions is always estimated from the data: the replicates' pure error, or the "
+                             "residuals)", field="sigma_m")
         return 1.0, None
     if sigma_m is not None and sigma_rad is not None:
         w = float(sigma_m) / float(sigma_rad)
