@@ -576,17 +576,13 @@ def test_the_variance_inflation_of_estimated_components_is_what_a_monte_carlo_gi
 def _trend_test_fires(robot, protocol: T.Protocol, seeds: range, tmp_path) -> int:
     """How many of the clean lab logs of ``protocol`` (one per seed, read from their CSV with pose_id as a lab's)
     make the replicate-based test of a noise trend (stiffcal.measured.discrepancy.variance_model) weight the rows."""
-    R.PROTOCOLS["_trend"] = protocol
-    try:
-        fired = 0
-        for seed in seeds:
-            log, dp, _ = R.simulate_case(robot, "_trend", (), seed)
-            path = tmp_path / "case.csv"
-            path.write_text(T.lab_csv(robot, log, dp, pose_id=True), encoding="utf-8")
-            fired += D.variance_model(robot, read_measurements(path, robot)) is not None
-        return fired
-    finally:
-        del R.PROTOCOLS["_trend"]
+    fired = 0
+    for seed in seeds:
+        log, dp, _ = R.simulate_case(robot, protocol, (), seed)
+        path = tmp_path / "case.csv"
+        path.write_text(T.lab_csv(robot, log, dp, pose_id=True), encoding="utf-8")
+        fired += D.variance_model(robot, read_measurements(path, robot)) is not None
+    return fired
 
 
 @pytest.mark.parametrize("arm,protocol,seeds", [

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import stiffcal
+from stiffcal.workflow import codeversion
 
 PACKAGE = Path(stiffcal.__file__).resolve().parent
 #: the subpackages in their import order: each may import those before it, never one after it
@@ -27,26 +28,9 @@ def _modules() -> dict[str, Path]:
 
 
 def _imports(module: str, path: Path) -> set[str]:
-    """The stiffcal modules (dotted below the package) that any import statement of ``path`` names, resolved by hand
-    (absolute and relative forms; a name imported from a package counts as its module when one exists)."""
-    here = module.split(".")
-    package = here if path.name == "__init__.py" else here[:-1]
-    modules = _modules()
-    out = set()
-    for n in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        if isinstance(n, ast.Import):
-            out |= {a.name.split(".", 1)[1] for a in n.names if a.name.startswith("stiffcal.")}
-        elif isinstance(n, ast.ImportFrom):
-            if n.level:
-                base = package[: len(package) - (n.level - 1)] + (n.module.split(".") if n.module else [])
-            elif n.module and (n.module == "stiffcal" or n.module.startswith("stiffcal.")):
-                base = n.module.split(".")[1:]
-            else:
-                continue
-            for a in n.names:
-                full = ".".join(base + [a.name])
-                out.add(full if full in modules else ".".join(base))
-    return {m for m in out if m}
+    """The stiffcal modules (dotted below the package) that any import statement of ``path`` runs, every import
+    form resolved (:func:`stiffcal.workflow.codeversion.imported_modules`, tested on its own)."""
+    return codeversion.imported_modules(ast.parse(path.read_text(encoding="utf-8")), module)
 
 
 def test_no_production_module_imports_the_test_support_and_subpackages_import_only_those_before_them():

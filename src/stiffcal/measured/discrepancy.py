@@ -616,12 +616,11 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # a fit that does not converge cleanly is no reason to weight
-            # a group with a blunder has a wild variance, which pulls the fit towards itself: test the most
-            # extreme groups (against the fit, and the largest variance) against the fit without them, leave
-            # the wildest out, and go on (at most a tenth of the groups)
-            # (F against the fit and dispersion of the others; those a chi-square calls wild against the median
-            # variance, a fit that blunders cannot bend, are left out of that reference, so that a second blunder
-            # does not mask the first)
+            # a configuration with a blunder has a wild variance, which pulls the fit towards itself: test the most
+            # extreme ones (against the fit, and the largest variance) by F against the fit and dispersion of the
+            # others, leave the wildest out, and go on (at most a tenth of them); those a chi-square calls wild
+            # against the median variance, which blunders cannot bend, stay out of that reference, so that a second
+            # blunder does not mask the first
             strict = 1e-3 / len(s2)
             for _ in range(max(1, len(s2) // 10)):
                 ratio = np.where(use, s2 / np.exp(Z @ glm(use).params), -np.inf)

@@ -319,12 +319,13 @@ class CaseResult:
         return any(diag.get(k) and diag[k]["p_value"] <= v["alpha"] for k in ("time", "load_direction"))
 
 
-def simulate_case(robot: Robot, protocol: str, effects: tuple[str, ...], seed: int, n_configs: int = 40,
+def simulate_case(robot: Robot, protocol: str | T.Protocol, effects: tuple[str, ...], seed: int, n_configs: int = 40,
                   size_range=(0.02, 1.0)) -> tuple[T.LabLog, np.ndarray, dict]:
     """One case's lab log, its measured rows dp (N, w) [m] and each hidden effect's noise-free displacement
-    {effect: (N_noisy, w)} (module docstring; effect sizes as :func:`run_case`), all drawn from ``seed``."""
+    {effect: (N_noisy, w)} (module docstring; effect sizes as :func:`run_case`), all drawn from ``seed``;
+    ``protocol`` a name of :data:`PROTOCOLS` or a protocol of its own."""
     rng = np.random.default_rng(seed)
-    log = T.lab_log(robot, PROTOCOLS[protocol], rng, n_configs)
+    log = T.lab_log(robot, PROTOCOLS[protocol] if isinstance(protocol, str) else protocol, rng, n_configs)
     k = compliances(robot)
     base = T.Truth(k)
     truth, disp = base, {}
