@@ -424,14 +424,18 @@ def test_loads_apart_from_the_test_wrench(root):
     (["--cell", "CELL:floor_m: 5.0\nlink_radius_m: 0.05\n"], "cell"),
     (["--candidates", "CSV:q1_deg\n10\n"], "columns"),
     (["--candidates", "CSV:q1_deg,q2_deg\n10,abc\n"], "row 2, column q2_deg"),
+    (["--candidates", "CSV:q1_deg,q2_deg\n\n,\n"], "no poses"),
+    (["--joint-limits-deg", "-90:90,-90:90", "--candidates", "CSV:q1_deg,q2_deg\n10,20\n10,120\n"],
+     "row 3, column q2_deg"),
 ])
 def test_bad_cell_loads_and_candidates_are_one_line_and_exit_2(tmp_path, capsys, args, field):
     args = list(args)
-    if args[1].startswith(("CELL:", "CSV:")):
-        kind, text = args[1].split(":", 1)
-        f = tmp_path / ("cell.yaml" if kind == "CELL" else "c.csv")
-        f.write_text(text)
-        args[1] = str(f)
+    for i, a in enumerate(args):
+        if a.startswith(("CELL:", "CSV:")):
+            kind, text = a.split(":", 1)
+            f = tmp_path / ("cell.yaml" if kind == "CELL" else "c.csv")
+            f.write_text(text)
+            args[i] = str(f)
     code = main(["design", "--robot", str(PAPER), "--test-pose-deg", "60,30", "--force-N", "0,-1", "--experiments",
                  "2", *args])
     err = capsys.readouterr()

@@ -297,14 +297,59 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     equivalence theorem bounds O_t of any M-pose plan from below (``lower_bound``, ``gap``).
     Raises :class:`InputError` for bad arguments or a file that does not hold a valid robot.
     """
-    from .model import criteria
-    from .planning.certificate import unconstrained
-    from .planning.problem import optimal_single_pose, plan_summary
-    from .planning.designcache import cached_design, cached_pool
-    from .planning.plans import best_plan
-    from .planning.study import Study, check_sensing, check_test_inputs
     from .threads import one_blas_thread
-    from .model.workcell import cell_notes, clearance, read_candidates
+
+    inp = _design_inputs(robot, test_pose_deg, force_N, wrench, experiments, criterion, sigma, targets, orientation,
+                         sigma_rad, test_target, orientation_length_m, joint_limits_deg, loads, cell, candidates, seed,
+                         cache_dir)
+    stages = design_estimate_s(inp.robot, inp.m, inp.m == 1)
+    with one_blas_thread(), _stages(progress if progress is None else _flag(progress, "progress"), stages) as bar:
+        found = _search(inp, bar)
+    return _design_result(inp, found)
+
+
+@dataclass(frozen=True)
+class _DesignInputs:
+    """The checked arguments of :func:`design`: the placed robot, its study and the criterion's problem."""
+
+    robot: Robot
+    criterion: str
+    m: int
+    sigma: float
+    seed: int
+    q_t: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray | None
+    sensing: object
+    test_target: str
+    length: float
+    meas_loads: object
+    study: object
+    base: object
+    cache_dir: object
+
+
+@dataclass(frozen=True)
+class _Found:
+    """What :func:`design`'s search found: the poses, the single pose's notes and optimal set, and the optimal
+    approximate designs (over the candidates, and over the continuum where a cell restricts a continuous pool)."""
+
+    poses: np.ndarray
+    notes: list
+    optimal_set: np.ndarray
+    degenerate: bool
+    approx: object
+    continuum: object
+
+
+def _design_inputs(robot, test_pose_deg, force_N, wrench, experiments, criterion, sigma, targets, orientation,
+                   sigma_rad, test_target, orientation_length_m, joint_limits_deg, loads, cell, candidates, seed,
+                   cache_dir) -> _DesignInputs:
+    """:func:`design`'s arguments checked (InputError naming the argument) and its study built."""
+    from .model import criteria
+    from .model.observation import measurement_loads
+    from .model.workcell import read_candidates
+    from .planning.study import Study, check_sensing, check_test_inputs
 
     robot = _placed(_robot(robot), joint_limits_deg, cell)
     if criterion not in criteria.CRITERIA_KEYS:
@@ -327,8 +372,6 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     sensing, test_target, length = check_sensing(
         robot, [TOOL_TARGET] if targets is None else _names(targets, "targets"), _flag(orientation, "orientation"),
         sigma, sigma_rad, test_target, positive_number(orientation_length_m, "orientation_length_m", 0.0), "", None)
-    from .model.observation import measurement_loads
-
     meas_loads = None if loads is None else measurement_loads(robot, loads, "loads")
     pool = None if candidates is None else read_candidates(_path(candidates, "candidates", "a CSV of candidate poses"),
                                                            robot)
@@ -339,33 +382,49 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     if m < base.min_poses:
         raise InputError(f"expected at least {base.min_poses} poses: {m} give {m * base.rows_per_pose} equations "
                          f"for {base.n_params} compliances", field="experiments")
-    notes, optimal_set, degenerate = [], np.zeros((0, robot.n_joints)), False
+    return _DesignInputs(robot, criterion, m, sigma, seed, q_t, force, moment, sensing, test_target, length,
+                         meas_loads, study, base, cache_dir)
+
+
+def _search(inp: _DesignInputs, bar) -> _Found:
+    """:func:`design`'s computation, ``bar`` advanced after each stage: the single-pose search (M = 1), the
+    optimal approximate design and its certificate (cached in ``cache_dir``), the M-pose plan (M > 1)."""
+    from .planning.certificate import unconstrained
+    from .planning.designcache import cached_design, cached_pool
+    from .planning.plans import best_plan
+    from .planning.problem import optimal_single_pose
+
+    study, base, m, cache_dir = inp.study, inp.base, inp.m, inp.cache_dir
+    notes, optimal_set, degenerate = [], np.zeros((0, inp.robot.n_joints)), False
     continuum = None
-    stages = design_estimate_s(robot, m, m == 1)
-    with one_blas_thread(), _stages(progress if progress is None else _flag(progress, "progress"), stages) as bar:
-        if m == 1:
-            _check_single_pose_identifies(base)
-            res1 = optimal_single_pose(base)
-            notes, degenerate, optimal_set = list(res1.notes), res1.degenerate, res1.optimal_set_deg
-            poses = res1.pose_deg[None, :]
+    if m == 1:
+        _check_single_pose_identifies(base)
+        res1 = optimal_single_pose(base)
+        notes, degenerate, optimal_set = list(res1.notes), res1.degenerate, res1.optimal_set_deg
+        poses = res1.pose_deg[None, :]
+    bar.advance()
+    approx = cached_design(study.problem("ot"), cache_dir)
+    if approx.exact_over_candidates and inp.robot.cell is not None and base.continuous:
+        continuum = cached_design(unconstrained(study.problem("ot")), cache_dir)
+    bar.advance()
+    if m > 1:
+        pool = None if cache_dir is None else cached_pool(study.problem("ot"), cache_dir)
+        poses = best_plan(study.problem(inp.criterion, m), approx, seed=inp.seed, pool=pool).poses_deg
         bar.advance()
-        approx = cached_design(study.problem("ot"), cache_dir)
-        if approx.exact_over_candidates and robot.cell is not None and base.continuous:
-            continuum = cached_design(unconstrained(study.problem("ot")), cache_dir)
-        bar.advance()
-        if m > 1:
-            pool = None if cache_dir is None else cached_pool(study.problem("ot"), cache_dir)
-            poses = best_plan(study.problem(criterion, m), approx, seed, pool).poses_deg
-            bar.advance()
-    summ = plan_summary(study, poses)
-    bound = feasible_bound = None
-    over = feasible_over = None
+    return _Found(poses, notes, optimal_set, degenerate, approx, continuum)
+
+
+def _ot_bound(inp: _DesignInputs, found: _Found):
+    """(lower_bound, over, feasible_lower_bound, feasible_over, converged) of an O_t plan (the equivalence
+    theorem's bound on O_t of every M-pose plan, and what it is over); None for the other criteria."""
+    approx, continuum, m, sigma = found.approx, found.continuum, inp.m, inp.sigma
+    bound = feasible_bound = over = feasible_over = None
     converged = approx.converged
-    if criterion == "ot":
+    if inp.criterion == "ot":
         if continuum is not None:
             bound, converged = continuum.lower_bound(m, sigma), continuum.converged
             over = "every plan within the joint limits, so every plan the cell allows (the cell ignored: valid, loose)"
-            feasible_bound = approx.bound_with(study.problem("ot"), np.radians(poses), m, sigma)
+            feasible_bound = approx.bound_with(inp.study.problem("ot"), np.radians(found.poses), m, sigma)
             feasible_over = (f"every plan of the {approx.n_candidates} feasible pool poses, the feasible search "
                              "points, the maxima of phi found from them and this plan's poses (exact over these; not "
                              "a bound for plans of other feasible poses)")
@@ -375,19 +434,36 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         else:
             bound = approx.lower_bound(m, sigma)
             over = "every plan within the joint limits"
+    return bound, over, feasible_bound, feasible_over, converged
+
+
+def _unidentified_notes(robot: Robot, base) -> list[str]:
+    """A note for each joint whose compliance the plan cannot identify, saying why and what would."""
     params_note = base.sensed
-    notes += [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
-              "compliance never deflects them, cannot be identified from their positions and is left out of the "
-              "model (cov_diag 'inf'); measure a point off that axis (tool_m, targets) or the orientation to "
-              "identify it" if j not in params_note else
-              f"joint {robot.joint_names[j]} is never turned by the measurement loads ({_load_words(base)}) at any "
-              "pose, nor by the test load: its compliance cannot be identified and is left out of the model "
-              "(cov_diag 'inf'), as the measured-data analysis does; a load that turns it (a push sideways, a "
-              "moment) identifies it" if j in base.unturned else
-              f"joint {robot.joint_names[j]}'s axis passes through the tool point, where the force is applied: "
-              "without a moment the load never turns that joint, whose compliance cannot be identified and is "
-              "left out of the model (cov_diag 'inf'); apply a moment (--wrench) to identify it"
-              for j in range(robot.n_joints) if j not in base.params]
+    return [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
+            "compliance never deflects them, cannot be identified from their positions and is left out of the "
+            "model (cov_diag 'inf'); measure a point off that axis (tool_m, targets) or the orientation to "
+            "identify it" if j not in params_note else
+            f"joint {robot.joint_names[j]} is never turned by the measurement loads ({_load_words(base)}) at any "
+            "pose, nor by the test load: its compliance cannot be identified and is left out of the model "
+            "(cov_diag 'inf'), as the measured-data analysis does; a load that turns it (a push sideways, a "
+            "moment) identifies it" if j in base.unturned else
+            f"joint {robot.joint_names[j]}'s axis passes through the tool point, where the force is applied: "
+            "without a moment the load never turns that joint, whose compliance cannot be identified and is "
+            "left out of the model (cov_diag 'inf'); apply a moment (--wrench) to identify it"
+            for j in range(robot.n_joints) if j not in base.params]
+
+
+def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
+    """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
+    from .model import criteria
+    from .model.workcell import cell_notes, clearance
+    from .planning.problem import plan_summary
+
+    robot, base, approx, continuum, poses = inp.robot, inp.base, found.approx, found.continuum, found.poses
+    summ = plan_summary(inp.study, poses)
+    bound, over, feasible_bound, feasible_over, converged = _ot_bound(inp, found)
+    notes = found.notes + _unidentified_notes(robot, base)
     if not converged:
         notes.append((continuum or approx).convergence_note())
     if continuum is not None and not approx.converged:
@@ -397,23 +473,25 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
         notes += cell_notes(robot)
         c, names = clearance(robot, np.radians(poses))
         clear, closest = c, tuple(names)
-        if not base.feasible(np.radians(q_t)[None])[0]:
+        if not base.feasible(np.radians(inp.q_t)[None])[0]:
             notes.append("the test pose itself cannot be taken in the cell (a body within the clearance of an obstacle "
                          "or of another body): the plan predicts its compensation error all the same")
     ot = float(summ["O_t"])
+    meas_loads, sensing = inp.meas_loads, inp.sensing
     return DesignResult(
-        criterion=criterion, criterion_label=criteria.label(criterion), robot=robot.name, experiments=m,
-        poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=base.ot_star(m),
+        criterion=inp.criterion, criterion_label=criteria.label(inp.criterion), robot=robot.name, experiments=inp.m,
+        poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=base.ot_star(inp.m),
         chi=float(summ["chi"]), cov_diag=np.array([float(summ[e]) for e in robot.joint_columns("E_dk")]),
         lower_bound=bound, gap=None if bound is None else ot / bound - 1.0,
-        optimal_set_deg=np.asarray(optimal_set, float).reshape(-1, robot.n_joints), degenerate=bool(degenerate),
+        optimal_set_deg=np.asarray(found.optimal_set, float).reshape(-1, robot.n_joints),
+        degenerate=bool(found.degenerate),
         approximate_design={"support_deg": approx.support_deg, "weights": approx.weights,
                             "equivalence_gap": approx.equivalence_gap, "converged": approx.converged,
                             "region": approx.region},
-        notes=tuple(notes), sigma=sigma, seed=seed, test_pose_deg=q_t, force_N=force, joint_names=robot.joint_names,
-        lower_bound_converged=None if bound is None else converged, moment_Nm=moment,
-        targets=sensing.targets, orientation=sensing.orientation, sigma_rad=sensing.sigma_rad,
-        test_target=test_target, orientation_length_m=length, lower_bound_over=over,
+        notes=tuple(notes), sigma=inp.sigma, seed=inp.seed, test_pose_deg=inp.q_t, force_N=inp.force,
+        joint_names=robot.joint_names, lower_bound_converged=None if bound is None else converged,
+        moment_Nm=inp.moment, targets=sensing.targets, orientation=sensing.orientation, sigma_rad=sensing.sigma_rad,
+        test_target=inp.test_target, orientation_length_m=inp.length, lower_bound_over=over,
         feasible_lower_bound=feasible_bound, feasible_gap=None if feasible_bound is None else ot / feasible_bound - 1.0,
         feasible_lower_bound_over=feasible_over, clearance_m=clear, closest=closest,
         loads=None if meas_loads is None else meas_loads.spec,

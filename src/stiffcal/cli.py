@@ -290,11 +290,22 @@ def _cell_options(p: argparse.ArgumentParser) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from .model.criteria import CRITERIA_KEYS  # the registry (stiffcal.model.criteria.CRITERIA)
-
     p = _Parser(prog="stiffcal", description=__doc__.split("\n")[0])
     p.add_argument("--version", action="version", version=f"stiffcal {__version__}")
     sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    _design_parser(sub)
+    _discrepancy_parser(sub)
+    _discriminate_parser(sub)
+    _predict_parser(sub)
+    _compensate_parser(sub)
+    _verify_archive_parser(sub)
+    return p
+
+
+def _design_parser(sub) -> None:
+    """``stiffcal design``: optimal measurement poses for a test pose."""
+    from .model.criteria import CRITERIA_KEYS  # the registry (stiffcal.model.criteria.CRITERIA)
+
     d = sub.add_parser("design", help="optimal measurement poses for a test pose (prints JSON)")
     d.add_argument("--robot", required=True, help="robot YAML file (docs/contracts.md)")
     d.add_argument("--test-pose-deg", required=True, help="test pose q*, comma-separated degrees")
@@ -330,6 +341,10 @@ def build_parser() -> argparse.ArgumentParser:
     d.add_argument("--quiet", action="store_true", help="no progress on stderr (a bar on a terminal, else a line "
                                                         "every few seconds with an estimate)")
     d.set_defaults(func=design)
+
+
+def _discrepancy_parser(sub) -> None:
+    """``stiffcal discrepancy``: what the stiffness model gets wrong in measured data."""
     x = sub.add_parser("discrepancy",
                        help="what the stiffness model gets wrong in measured data (writes DIR/verdict.json)")
     x.add_argument("--robot", required=True, help="robot YAML file")
@@ -355,6 +370,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "the figures are about half of a small data set's CPU)")
     x.add_argument("--quiet", action="store_true", help="no progress on stderr")
     x.set_defaults(func=discrepancy)
+
+
+def _discriminate_parser(sub) -> None:
+    """``stiffcal discriminate``: the next experiment that tells rival causes apart."""
     t = sub.add_parser("discriminate", help="the next experiment that tells rival causes apart (writes DIR/plan.json)")
     t.add_argument("--robot", required=True, help="robot YAML file")
     t.add_argument("--data", required=True, help="measured-data CSV (docs/measured-data.md)")
@@ -376,6 +395,10 @@ def build_parser() -> argparse.ArgumentParser:
     _cell_options(t)
     t.add_argument("--quiet", action="store_true", help="no progress on stderr")
     t.set_defaults(func=discriminate)
+
+
+def _predict_parser(sub) -> None:
+    """``stiffcal predict``: the calibrated model's deflection at given poses."""
     r = sub.add_parser("predict", help="the calibrated model's deflection at given poses under given loads (CSV)")
     r.add_argument("--robot", required=True, help="calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy)")
     r.add_argument("--poses", required=True, help="CSV of poses and loads: q1_deg.., fx_N.. (mx_Nm.., target)")
@@ -383,18 +406,25 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--orientation", action="store_true", help="predict the tool's rotation too (rx_rad..)")
     r.add_argument("--quiet", action="store_true", help="no progress on stderr")
     r.set_defaults(func=predict)
+
+
+def _compensate_parser(sub) -> None:
+    """``stiffcal compensate``: a path compensated with the calibrated model."""
     c = sub.add_parser("compensate", help="a path compensated with the calibrated model (CSV)")
     c.add_argument("--robot", required=True, help="calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy)")
     c.add_argument("--path", required=True, help="CSV of the path's poses and loads: q1_deg.., fx_N.. (mx_Nm..)")
     c.add_argument("--out", help="CSV to write: corrected targets and joint angles, residuals (default: nothing)")
     c.add_argument("--quiet", action="store_true", help="no progress on stderr")
     c.set_defaults(func=compensate)
+
+
+def _verify_archive_parser(sub) -> None:
+    """``stiffcal verify-archive``: a results archive checked against its SHA256SUMS."""
     v = sub.add_parser("verify-archive",
                        help="check a results archive against its SHA256SUMS (exit 1 names each changed file)")
     v.add_argument("file", help="results/archive/stiffcal-<commit>.tar.gz")
     v.add_argument("--quiet", action="store_true", help="no progress on stderr")
     v.set_defaults(func=verify_archive)
-    return p
 
 
 def main(argv: list[str] | None = None) -> int:

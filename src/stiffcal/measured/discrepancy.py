@@ -578,6 +578,41 @@ HETEROSCEDASTICITY_ALPHA = 0.01
 VARIANCE_MIN_CONFIGS = 8
 
 
+def _screened_configurations(s2: np.ndarray, Z: np.ndarray, df: np.ndarray) -> np.ndarray:
+    """Which configurations (their pooled variances s2 (c,) on df (c,), covariates Z (c, k)) the variance function
+    is fitted to: a configuration with a blunder has a wild variance, which pulls the fit towards itself, so the
+    most extreme ones (against the fit, and the largest variance) are tested by F against the fit and dispersion
+    of the others, the wildest left out, and so on (at most a tenth of them); those a chi-square calls wild
+    against the median variance, which blunders cannot bend, stay out of that reference, so that a second
+    blunder does not mask the first. Returns (c,) bool."""
+    use = np.ones(len(s2), bool)
+
+    def glm(rows):
+        return _gamma_fit(s2[rows], Z[rows], df[rows])
+
+    strict = 1e-3 / len(s2)
+    for _ in range(max(1, len(s2) // 10)):
+        ratio = np.where(use, s2 / np.exp(Z @ glm(use).params), -np.inf)
+        wild = use & (dist.chi2_sf(s2 / np.median(s2[use]) * df, df) < strict)
+        p_loo = {}
+        for g in {int(np.argmax(ratio)), int(np.argmax(np.where(use, s2, -np.inf)))}:
+            trial = use & ~wild
+            trial[g] = False
+            if trial.sum() <= Z.shape[1]:
+                continue
+            fit_g = glm(trial)
+            phi = _dispersion(s2[trial], Z[trial], df[trial], fit_g)  # 2 for chi-square variances
+            loo = s2[g] / np.exp(Z[g] @ fit_g.params) / (phi / 2.0)
+            p_loo[g] = float(np.nan_to_num(dist.f_sf(loo, df[g], trial.sum() - Z.shape[1]), nan=1.0))
+        if not p_loo:
+            break
+        worst = min(p_loo, key=p_loo.get)
+        if p_loo[worst] >= 1e-3 / len(s2):
+            break
+        use[worst] = False
+    return use
+
+
 def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = None) -> VarianceModel | None:
     """The :class:`VarianceModel` of the replicate groups (their spread about their means, or about
     ``resid``'s group means when given), or None when the data have too few replicates to tell (fewer than
@@ -608,40 +643,11 @@ def variance_model(robot: Robot, meas: Measurements, resid: np.ndarray | None = 
         return None
     s2 = s2 / df
     s2 = s2 / np.median(s2)  # metres squared are tiny; the log link's intercept absorbs the scale
-    use = np.ones(len(s2), bool)
-
-    def glm(rows, cols=slice(None)):
-        return _gamma_fit(s2[rows], Z[rows][:, cols], df[rows])
-
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("error")  # a fit that does not converge cleanly is no reason to weight
-            # a configuration with a blunder has a wild variance, which pulls the fit towards itself: test the most
-            # extreme ones (against the fit, and the largest variance) by F against the fit and dispersion of the
-            # others, leave the wildest out, and go on (at most a tenth of them); those a chi-square calls wild
-            # against the median variance, which blunders cannot bend, stay out of that reference, so that a second
-            # blunder does not mask the first
-            strict = 1e-3 / len(s2)
-            for _ in range(max(1, len(s2) // 10)):
-                ratio = np.where(use, s2 / np.exp(Z @ glm(use).params), -np.inf)
-                wild = use & (dist.chi2_sf(s2 / np.median(s2[use]) * df, df) < strict)
-                p_loo = {}
-                for g in {int(np.argmax(ratio)), int(np.argmax(np.where(use, s2, -np.inf)))}:
-                    trial = use & ~wild
-                    trial[g] = False
-                    if trial.sum() <= Z.shape[1]:
-                        continue
-                    fit_g = glm(trial)
-                    phi = _dispersion(s2[trial], Z[trial], df[trial], fit_g)  # 2 for chi-square variances
-                    loo = s2[g] / np.exp(Z[g] @ fit_g.params) / (phi / 2.0)
-                    p_loo[g] = float(np.nan_to_num(dist.f_sf(loo, df[g], trial.sum() - Z.shape[1]), nan=1.0))
-                if not p_loo:
-                    break
-                worst = min(p_loo, key=p_loo.get)
-                if p_loo[worst] >= 1e-3 / len(s2):
-                    break
-                use[worst] = False
-            full, null = glm(use), glm(use, slice(0, 1))
+            use = _screened_configurations(s2, Z, df)
+            full, null = _gamma_fit(s2[use], Z[use], df[use]), _gamma_fit(s2[use], Z[use][:, :1], df[use])
     except (ValueError, np.linalg.LinAlgError, Warning):
         return None
     p = _constant_variance_p(full, null, s2[use], Z[use], df[use])
@@ -897,6 +903,63 @@ def min_p_value(p_min: float, spaces: list[np.ndarray], df: int, draws: int = MI
     return float(min(1.0, level.sum() * np.mean(1.0 / hits.sum(axis=1))))
 
 
+class _HypothesisTests:
+    """The local tests of :func:`closed_testing` on the fits of every subset of causes (``fits``, from the one
+    QR of the union, ``red``): F-tests of a cause's block added to a model, and of each of its parameters alone,
+    combined by a weighted min-P test."""
+
+    def __init__(self, des: Design, red: Reduced, fits: dict, noise: Noise):
+        self.des, self.red, self.fits, self.noise = des, red, fits, noise
+        self.spans: dict = {}
+
+    def span(self, S):
+        """The orthonormal basis of nominal + S (needed only by a min-P test, rarely: computed when first asked)."""
+        if S not in self.spans:
+            self.spans[S] = _span(self.red.R, self.des.columns(S))
+        return self.spans[S]
+
+    def p_add(self, c, S) -> float:
+        f0, f1 = self.fits[S], self.fits[S | {c}]
+        return f_test(f0.rss, f0.df, f1.rss, f1.df, self.noise.s2, self.noise.df) if f1.rank > f0.rank else 1.0
+
+    def statistics(self, c, S) -> list:
+        """[(p, space, weight)]: the block of c added to S, and each parameter of c alone; each space a function
+        that computes it (its dimension is the fits' rank difference)."""
+        des, red, noise, f0 = self.des, self.red, self.noise, self.fits[S]
+        block = (self.p_add(c, S), lambda: _beyond(self.span(S), self.span(S | {c})))
+        extra = np.setdiff1d(des.columns([c]), des.columns())
+        singles = []
+        if self.fits[S | {c}].rank - f0.rank > 1:
+            for j in extra:
+                cols = np.append(des.columns(S), j)
+                f1 = red.fit(cols)
+                if f1.rank > f0.rank:
+                    singles.append((f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df),
+                                    lambda cols=cols: _beyond(self.span(S), _span(red.R, cols))))
+        if len(singles) < 2:
+            return [(*block, 1.0)]
+        return [(*block, 0.5)] + [(p, W, 0.5 / len(singles)) for p, W in singles]
+
+    def causes_p(self, U: frozenset, rest: frozenset, alpha: float, with_lof: bool, i: int) -> float | None:
+        """The weighted min-P test of the causes in U, each added to the largest model H_U allows (``rest``);
+        where it cannot change a decision at alpha its weighted Bonferroni bound min p / w is kept: a valid
+        p-value, never below the min-P one, with the same decisions at alpha. None for U empty; 1 when no cause
+        of U adds a direction."""
+        fits = self.fits
+        members = [c for c in sorted(U, key=CAUSES.index) if fits[rest | {c}].rank > fits[rest].rank]
+        if not members:
+            return 1.0 if U else None
+        tests = [(p, W, wt / len(members)) for c in members for p, W, wt in self.statistics(c, rest)]
+        ps, spaces, weights = (list(x) for x in zip(*tests))
+        t = min(p / wt for p, wt in zip(ps, weights))
+        p_causes = min(1.0, t)
+        low = max(weights) * t
+        if low <= alpha and p_causes > alpha * (1.0 - (1.0 / (len(U) + 1) if with_lof else 0.0)):
+            p_causes = min_p_value(t, [space() for space in spaces], self.noise.df,
+                                   rng=np.random.default_rng([MIN_P_SEED, i]), weights=weights)
+        return p_causes
+
+
 def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float) -> Selection:
     """Closed testing of the catalogue (module docstring) over ``causes`` (those that add no direction to
     the nominal model on these data are left out). ``lack_of_fit(S, fit)`` gives the p-value of the
@@ -908,52 +971,11 @@ def closed_testing(des: Design, causes, noise: Noise, lack_of_fit, alpha: float)
     subsets = _subsets(causes)
     fits = {S: red.fit(des.columns(S)) for S in subsets}
     lof = {S: lack_of_fit(S, fits[S]) for S in fits}
-    spans: dict = {}
-
-    def span(S):  # the orthonormal bases are needed only by a min-P test (rarely): computed when first asked for
-        if S not in spans:
-            spans[S] = _span(red.R, des.columns(S))
-        return spans[S]
-
-    def p_add(c, S):
-        f0, f1 = fits[S], fits[S | {c}]
-        return f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df) if f1.rank > f0.rank else 1.0
-
-    def statistics(c, S):  # (p, space, weight): the block of c added to S, and each parameter of c alone; each
-        f0 = fits[S]       # space a function that computes it (its dimension is the fits' rank difference)
-        block = (p_add(c, S), lambda: _beyond(span(S), span(S | {c})))
-        extra = np.setdiff1d(des.columns([c]), des.columns())
-        singles = []
-        if fits[S | {c}].rank - f0.rank > 1:
-            for j in extra:
-                cols = np.append(des.columns(S), j)
-                f1 = red.fit(cols)
-                if f1.rank > f0.rank:
-                    singles.append((f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df),
-                                    lambda cols=cols: _beyond(span(S), _span(red.R, cols))))
-        if len(singles) < 2:
-            return [(*block, 1.0)]
-        return [(*block, 0.5)] + [(p, W, 0.5 / len(singles)) for p, W in singles]
-
+    tests = _HypothesisTests(des, red, fits, noise)
     local = {}
     for i, U in enumerate(subsets):
         rest = everything - U
-        members = [c for c in sorted(U, key=CAUSES.index) if fits[rest | {c}].rank > fits[rest].rank]
-        p_causes = None
-        if members:  # the weighted min-P test of the causes in U, each added to the largest model H_U allows;
-            # where it cannot change a decision at alpha its weighted Bonferroni bound min p / w is kept: a valid
-            # p-value, never below the min-P one, with the same decisions at alpha
-            tests = [(p, W, wt / len(members)) for c in members for p, W, wt in statistics(c, rest)]
-            ps, spaces, weights = (list(x) for x in zip(*tests))
-            t = min(p / wt for p, wt in zip(ps, weights))
-            p_causes = min(1.0, t)
-            low = max(weights) * t
-            if low <= alpha and p_causes > alpha * (1.0 - (1.0 / (len(U) + 1) if lof[rest] is not None else 0.0)):
-                p_causes = min_p_value(t, [space() for space in spaces], noise.df,
-                                       rng=np.random.default_rng([MIN_P_SEED, i]),
-                                       weights=weights)
-        elif U:
-            p_causes = 1.0
+        p_causes = tests.causes_p(U, rest, alpha, lof[rest] is not None, i)
         if p_causes is not None:
             local[(U, False)] = p_causes
         if lof[rest] is not None:  # weighted Bonferroni: weight 1/(|U| + 1) to the lack of fit
@@ -1518,6 +1540,35 @@ def check_noise(meas: Measurements, noise: "Noise") -> None:
                          source=meas.source, field="column dx_m")
 
 
+def _weighted_error_model(robot: Robot, meas: Measurements, m: Measurements, keep: np.ndarray, des_all: Design,
+                          ob_full: Observed, rw: float, alpha: float):
+    """The noise weights and the error model of the rows kept (``m``, ``keep``), refitted together: the
+    replicates' variance function first (:func:`variance_model`), then at most :data:`VARIANCE_REFITS` refits of
+    the noise model on the error model's residuals (:func:`residual_variance_model`). Returns (the variance
+    model or None, the weights (N,), the weighted design, the unloaded rows' weights, the error model, the
+    zero-point summary, the whitened (GLS) design)."""
+    vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
+    motion = return_motion(robot, ob_full)
+
+    def weighted_fit(w):  # the rows weighted by w, their error model and its generalised least squares
+        des = des_all.rows(keep).weighted(w)
+        w0 = zero_weights(meas, keep, w)
+        em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
+        return des, w0, em, zp, gls_design(des, em)
+
+    w = np.ones(m.n_rows) if vm is None else vm.weights
+    weighted, w0, em, zp, des = weighted_fit(w)
+    for _ in range(VARIANCE_REFITS):  # the noise model refitted on the error model's residuals
+        step = residual_variance_model(robot, m, des, test=vm is None)
+        if step is None or np.abs(np.log(step.weights)).max() < VARIANCE_CONVERGED:
+            break
+        w = w * step.weights
+        w = w / np.median(w)
+        vm = VarianceModel(w, step.p_value if vm is None else vm.p_value, float(w.max() / w.min()))
+        weighted, w0, em, zp, des = weighted_fit(w)
+    return vm, w, weighted, w0, em, zp, des
+
+
 def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: float | None = None,
             sigma_rad: float | None = None) -> Prepared:
     """Everything the verdict's tests need (:class:`Prepared`): the joints the data can identify, the weight of
@@ -1545,25 +1596,7 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
         ob_all = reduced(robot, ob_all, more)
         des_all = build_design(robot, meas, ob_all)
         ob = ob_all.take(keep)
-    vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
-    motion = return_motion(robot, ob_full)
-
-    def weighted_fit(w):  # the rows weighted by w, their error model and its generalised least squares
-        des = des_all.rows(keep).weighted(w)
-        w0 = zero_weights(meas, keep, w)
-        em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
-        return des, w0, em, zp, gls_design(des, em)
-
-    w = np.ones(m.n_rows) if vm is None else vm.weights
-    weighted, w0, em, zp, des = weighted_fit(w)
-    for _ in range(VARIANCE_REFITS):  # the noise model refitted on the error model's residuals
-        step = residual_variance_model(robot, m, des, test=vm is None)
-        if step is None or np.abs(np.log(step.weights)).max() < VARIANCE_CONVERGED:
-            break
-        w = w * step.weights
-        w = w / np.median(w)
-        vm = VarianceModel(w, step.p_value if vm is None else vm.p_value, float(w.max() / w.min()))
-        weighted, w0, em, zp, des = weighted_fit(w)
+    vm, w, weighted, w0, em, zp, des = _weighted_error_model(robot, meas, m, keep, des_all, ob_full, rw, alpha)
     noise = Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
     check_noise(m, noise)
     notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])
@@ -1940,6 +1973,30 @@ def _missing_measurements(robot: Robot, a: str, b: str, q, load, observed: Obser
     return found
 
 
+def _separating_pose(robot: Robot, a: str, b: str, meas: Measurements, q: np.ndarray, ob: Observed, nested: tuple,
+                     wider: str, rng: np.random.Generator) -> str:
+    """The probe pose (of ``q``) where the predictions of a and b differ most under the lab's own loads (the
+    data's forces and moments), as a sentence of :func:`separation_advice`."""
+    n_probe = len(q)
+    data_loads = load_of(meas)[rng.integers(0, meas.n_rows, n_probe)]
+    _, X0, A, B = _nested(robot, a, b, q, data_loads, ob)
+    X = A if wider == b else B
+    Y = np.hstack([X0, B if X is A else A])  # the larger model; X: the other cause's regressors
+    P = (Y - np.hstack([X0, X]) @ np.linalg.lstsq(np.hstack([X0, X]), Y, rcond=None)[0])
+    per_pose = np.linalg.norm(P.reshape(n_probe, -1, P.shape[1]), axis=(1, 2))
+    i = int(np.argmax(per_pose))
+    fi = data_loads[i, : robot.task_dim]
+    u = fi / np.linalg.norm(fi) if np.any(fi) else fi
+    where = (f"at {np.degrees(np.arctan2(u[1], u[0])):.0f} deg" if len(u) == 2 else
+             f"along ({', '.join(f'{c:.2f}' for c in u)})")
+    load = f"the force of {np.linalg.norm(fi):.4g} N {where}"
+    if meas.has_moment:
+        load += f" and the moment ({', '.join(f'{c:.4g}' for c in data_loads[i, robot.task_dim:])}) N m"
+    return (f"a measurement at q = {np.round(np.degrees(q[i]), 1).tolist()} deg with {load} (one of the data's "
+            f"loads) would{' show ' + wider + ' if it is the cause' if nested else ''} (it is where their "
+            "predictions differ most)")
+
+
 def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe: int = 400,
                       observed: Observed | None = None) -> str:
     """Why causes a and b cannot be told apart here, and what measurement would separate them.
@@ -1973,24 +2030,7 @@ def separation_advice(robot: Robot, a: str, b: str, meas: Measurements, n_probe:
         return (f"for this robot every {seen} sees {a} and {b} (with the joint compliances) through the same "
                 f"directions, so no choice of poses or forces separates them{advice}")
     wider = b if nested == (a,) else a
-    # where the predictions differ most, under the loads the lab applies (the data's forces and moments)
-    data_loads = load_of(meas)[rng.integers(0, meas.n_rows, n_probe)]
-    _, X0, A, B = _nested(robot, a, b, q, data_loads, ob)
-    X = A if wider == b else B
-    Y = np.hstack([X0, B if X is A else A])  # the larger model; X: the other cause's regressors
-    P = (Y - np.hstack([X0, X]) @ np.linalg.lstsq(np.hstack([X0, X]), Y, rcond=None)[0])
-    per_pose = np.linalg.norm(P.reshape(n_probe, -1, P.shape[1]), axis=(1, 2))
-    i = int(np.argmax(per_pose))
-    fi = data_loads[i, : robot.task_dim]
-    u = fi / np.linalg.norm(fi) if np.any(fi) else fi
-    where = (f"at {np.degrees(np.arctan2(u[1], u[0])):.0f} deg" if len(u) == 2 else
-             f"along ({', '.join(f'{c:.2f}' for c in u)})")
-    load = f"the force of {np.linalg.norm(fi):.4g} N {where}"
-    if meas.has_moment:
-        load += f" and the moment ({', '.join(f'{c:.4g}' for c in data_loads[i, robot.task_dim:])}) N m"
-    pose = (f"a measurement at q = {np.round(np.degrees(q[i]), 1).tolist()} deg with {load} (one of the data's loads) "
-            f"would{' show ' + wider + ' if it is the cause' if nested else ''} (it is where their predictions "
-            "differ most)")
+    pose = _separating_pose(robot, a, b, meas, q, ob, nested, wider, rng)
     if not nested:
         return f"these data do not separate {a} from {b}; {pose}"
     missing = _missing_measurements(robot, a, b, q, f, ob, nested)

@@ -1025,6 +1025,49 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
     ``m_curve`` (default 1 .. max(m, 8); exchanged over the pool, not polished). ``effort``: how hard the
     searches work (:class:`Effort`); ``seed``: of the exchange's random starts. Raises :class:`InputError` for
     m < 1, repeats < 1, a weight outside [0, 1] or loads of the wrong dimension."""
+    _check_request(robot, m, repeats, weight, loads)
+    notes = []
+    loads = _with_data_moments(robot, meas, loads, notes)
+    pre = D.prepare(robot, meas, alpha if verdict is None else float(verdict["alpha"]))
+    if verdict is None:
+        verdict = D.verdict_of(robot, pre, alpha, gain=False)
+    rm = rivals_from_verdict(robot, meas, verdict, prepared=pre)
+    pool = make_pool(robot, pose_pool(robot, effort.pool_step_deg, effort.pool_log2), loads.forces,
+                     {c for mdl in rm.models for c in mdl.causes}, loads.kind == "hanging")
+    seps = separability(rm, pool, measurement)
+    pairs = design_pairs(rm, seps, truth)
+    notes += _rival_notes(verdict, rm, seps, pairs)
+    crit0 = None
+    if test_pose is not None and test_force is not None:
+        crit0 = build_criterion(rm, pool, [], repeats, 0.0, test_pose, test_force, measurement)
+    plan = cert = None
+    curve: list[tuple[int, float]] = []
+    if pairs:
+        plan, cert, curve = _discriminating_plan(rm, pool, pairs, m, repeats, measurement, effort, seed, crit0,
+                                                 m_curve)
+        notes += _few_equations_note(robot, rm, m, repeats)
+    compound = ot_plan = ot_bound = None
+    if crit0 is not None:  # the O_t-optimal plan, then the compound plan started from both
+        known = [] if plan is None else [(np.radians(plan.poses_deg), plan.forces_N)]
+        q0, F0 = _optimise(crit0, robot, pool, m, effort.n_starts, seed, known)
+        ot_plan = _session(crit0, rm, q0, F0, measurement)
+        ot_bound = ot_lower_bound(crit0, rm, pool, q0, F0, measurement, effort)
+        if pairs:
+            critc = build_criterion(rm, pool, pairs, repeats, weight, test_pose, test_force, measurement)
+            qc, Fc = _optimise(critc, robot, pool, m, effort.n_starts, seed, known + [(q0, F0)])
+            compound = _session(critc, rm, qc, Fc, measurement)
+    elif pairs:
+        notes.append("no test pose: the compound plan (discrimination and O_t together) is left out")
+    if robot.cell is not None:
+        from ..model.workcell import cell_notes
+
+        notes += [f"the cell ({robot.cell.describe()}): " + n for n in cell_notes(robot)]
+    return Discrimination(rm, loads, m, repeats, truth, tuple(seps), tuple(pairs), plan, cert, float(weight),
+                          compound, ot_plan, ot_bound, tuple(curve), tuple(notes))
+
+
+def _check_request(robot: Robot, m: int, repeats: int, weight: float, loads: LoadSet) -> None:
+    """:func:`discriminate`'s request checked: InputError naming the option."""
     if m < 1:
         raise InputError(f"expected a number of experiments >= 1, got {m}", field="--experiments")
     if repeats < 1:
@@ -1039,22 +1082,24 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
     if loads.forces.shape[1] not in (robot.task_dim, wrench_dim):
         raise InputError(f"expected loads of {robot.task_dim} components (forces) or {wrench_dim} (force and moment) "
                          f"for robot {robot.name}, got {loads.forces.shape[1]}", field="--loads")
-    notes = []
+
+
+def _with_data_moments(robot: Robot, meas: Measurements, loads: LoadSet, notes: list) -> LoadSet:
+    """The loads to plan with: the data's own wrenches when the data's loads carry moments (a loading bar) and
+    the loads are the data's; a note when pure forces are given for such data."""
     if meas.has_moment and loads.moments is None:
         if loads.kind == "data":  # the data's loads are wrenches (a loading bar): keep their moments
-            loads = load_set("data", robot.task_dim, D.load_of(meas), meas.resolutions[1],
-                             moment_resolution_Nm=meas.resolutions[2])
-        else:
-            notes.append(f"the data's loads carry moments (a loading bar) but the loads given ({loads.spec}) are "
-                         "pure forces: the plan applies them without a moment")
-    pre = D.prepare(robot, meas, alpha if verdict is None else float(verdict["alpha"]))
-    if verdict is None:
-        verdict = D.verdict_of(robot, pre, alpha, gain=False)
-    rm = rivals_from_verdict(robot, meas, verdict, prepared=pre)
-    pool = make_pool(robot, pose_pool(robot, effort.pool_step_deg, effort.pool_log2), loads.forces,
-                     {c for mdl in rm.models for c in mdl.causes}, loads.kind == "hanging")
-    seps = separability(rm, pool, measurement)
-    pairs = design_pairs(rm, seps, truth)
+            return load_set("data", robot.task_dim, D.load_of(meas), meas.resolutions[1],
+                            moment_resolution_Nm=meas.resolutions[2])
+        notes.append(f"the data's loads carry moments (a loading bar) but the loads given ({loads.spec}) are "
+                     "pure forces: the plan applies them without a moment")
+    return loads
+
+
+def _rival_notes(verdict: dict, rm: "RivalModels", seps, pairs) -> list[str]:
+    """What the plan's user must know of the rivals: an unexplained verdict, causes needed only together, no
+    rival or no separable pair, noise that varies with the position."""
+    notes = []
     if verdict["cause"] == "unexplained":
         notes.append("the verdict is 'unexplained': something outside the catalogue is left, and the plan "
                      "separates the catalogue's combinations only")
@@ -1076,57 +1121,49 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
     if verdict["nominal"]["noise_varies"]:
         notes.append("the noise varies with the position of the measured point; the new points are assumed to "
                      "have the noise of the median row")
-    plan = cert = crit0 = None
-    curve: list[tuple[int, float]] = []
-    if test_pose is not None and test_force is not None:
-        crit0 = build_criterion(rm, pool, [], repeats, 0.0, test_pose, test_force, measurement)
-    if pairs:
-        tpool = pool
-        crit = build_criterion(rm, tpool, pairs, repeats, 1.0, measurement=measurement)
-        q, F, val = polish(crit, robot, tpool, exchange(crit, m, effort.n_starts, seed).indices)
-        cert = t_certificate(crit, rm, tpool, q, F, measurement, effort)
-        for _ in range(effort.rounds):  # vertex direction: the maxima of psi join the pool
-            if cert.efficiency >= 0.99:
-                break
-            bigger = tpool.joined(robot, np.vstack([q, np.radians(cert.where_deg)]),
-                                  np.concatenate([_load_index(tpool, F), _load_index(tpool, cert.where_load)]))
-            crit2 = build_criterion(rm, bigger, pairs, repeats, 1.0, measurement=measurement)
-            start = len(tpool) + np.arange(m)
-            q2, F2, val2 = polish(crit2, robot, bigger, exchange(crit2, m, 0, seed, starts=[start]).indices)
-            if not val2 > val + 1e-9 * abs(val):
-                break
-            tpool, crit, q, F, val = bigger, crit2, q2, F2, val2
-            cert = t_certificate(crit, rm, tpool, q, F, measurement, effort)
-        plan = _session(crit, rm, q, F, measurement, crit0)
-        for mm_ in (m_curve or range(1, max(m, 8) + 1)):
-            idx = None if mm_ == m else exchange(crit, int(mm_), 0, seed).indices
-            qm, Fm = (q, F) if idx is None else (tpool.q[idx], tpool.force[idx])
-            curve.append((int(mm_), _session(crit, rm, qm, Fm, measurement).power(pairs, rm.models)))
-        total = len(rm.old.q) * robot.task_dim + m * repeats * PositionModel().rows(robot)
-        p_union = rm.old_rows(D.CAUSES).shape[1]
-        if total <= 2 * p_union:
-            notes.append(f"old and new data give {total} equations, at most twice the {p_union} parameters of the "
-                         "union model: the analysis then screens blunders against the nominal model and may set "
-                         "aside the very points that separate the rivals; repeat the points (--repeats) or measure "
-                         "more")
-    compound = ot_plan = ot_bound = None
-    if crit0 is not None:  # the O_t-optimal plan, then the compound plan started from both
-        known = [] if plan is None else [(np.radians(plan.poses_deg), plan.forces_N)]
-        q0, F0 = _optimise(crit0, robot, pool, m, effort.n_starts, seed, known)
-        ot_plan = _session(crit0, rm, q0, F0, measurement)
-        ot_bound = ot_lower_bound(crit0, rm, pool, q0, F0, measurement, effort)
-        if pairs:
-            critc = build_criterion(rm, pool, pairs, repeats, weight, test_pose, test_force, measurement)
-            qc, Fc = _optimise(critc, robot, pool, m, effort.n_starts, seed, known + [(q0, F0)])
-            compound = _session(critc, rm, qc, Fc, measurement)
-    elif pairs:
-        notes.append("no test pose: the compound plan (discrimination and O_t together) is left out")
-    if robot.cell is not None:
-        from ..model.workcell import cell_notes
+    return notes
 
-        notes += [f"the cell ({robot.cell.describe()}): " + n for n in cell_notes(robot)]
-    return Discrimination(rm, loads, m, repeats, truth, tuple(seps), tuple(pairs), plan, cert, float(weight),
-                          compound, ot_plan, ot_bound, tuple(curve), tuple(notes))
+
+def _discriminating_plan(rm: "RivalModels", pool, pairs, m: int, repeats: int, measurement, effort: Effort,
+                         seed: int, crit0, m_curve):
+    """(plan, certificate, power against M) of the T-optimal discriminating plan: exchanged and polished, the
+    maxima of psi brought into the pool while its certified efficiency is below 0.99 (vertex direction), then
+    the best plan of every M of ``m_curve`` (exchanged over the pool, not polished)."""
+    robot = rm.robot
+    tpool = pool
+    crit = build_criterion(rm, tpool, pairs, repeats, 1.0, measurement=measurement)
+    q, F, val = polish(crit, robot, tpool, exchange(crit, m, effort.n_starts, seed).indices)
+    cert = t_certificate(crit, rm, tpool, q, F, measurement, effort)
+    for _ in range(effort.rounds):  # vertex direction: the maxima of psi join the pool
+        if cert.efficiency >= 0.99:
+            break
+        bigger = tpool.joined(robot, np.vstack([q, np.radians(cert.where_deg)]),
+                              np.concatenate([_load_index(tpool, F), _load_index(tpool, cert.where_load)]))
+        crit2 = build_criterion(rm, bigger, pairs, repeats, 1.0, measurement=measurement)
+        start = len(tpool) + np.arange(m)
+        q2, F2, val2 = polish(crit2, robot, bigger, exchange(crit2, m, 0, seed, starts=[start]).indices)
+        if not val2 > val + 1e-9 * abs(val):
+            break
+        tpool, crit, q, F, val = bigger, crit2, q2, F2, val2
+        cert = t_certificate(crit, rm, tpool, q, F, measurement, effort)
+    plan = _session(crit, rm, q, F, measurement, crit0)
+    curve = []
+    for mm_ in (m_curve or range(1, max(m, 8) + 1)):
+        idx = None if mm_ == m else exchange(crit, int(mm_), 0, seed).indices
+        qm, Fm = (q, F) if idx is None else (tpool.q[idx], tpool.force[idx])
+        curve.append((int(mm_), _session(crit, rm, qm, Fm, measurement).power(pairs, rm.models)))
+    return plan, cert, curve
+
+
+def _few_equations_note(robot: Robot, rm: "RivalModels", m: int, repeats: int) -> list[str]:
+    """A note when old and new data give at most twice the union model's parameters in equations."""
+    total = len(rm.old.q) * robot.task_dim + m * repeats * PositionModel().rows(robot)
+    p_union = rm.old_rows(D.CAUSES).shape[1]
+    if total > 2 * p_union:
+        return []
+    return [f"old and new data give {total} equations, at most twice the {p_union} parameters of the union model: "
+            "the analysis then screens blunders against the nominal model and may set aside the very points that "
+            "separate the rivals; repeat the points (--repeats) or measure more"]
 
 
 # --- results as JSON, the command and the figure ------------------------------------------------------------

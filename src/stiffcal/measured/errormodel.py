@@ -264,6 +264,33 @@ def _pairs(a: np.ndarray, b: np.ndarray, where: np.ndarray) -> np.ndarray:
     return lab
 
 
+def _shared_reference_evidence(f: dict, visit: np.ndarray, model: np.ndarray) -> set[int]:
+    """The configurations whose rows show a shared reference where no exact-zero row or column says which
+    reading a row was taken from: unloaded rows with noise (readings against the reference), or several visits;
+    elsewhere nothing in the data could tell it from the model's own misfit."""
+    evidence = set()
+    in_config = rows_by_label(f["config"])
+    for c in np.unique(f["config"][model]):
+        at = in_config[c]
+        loaded = f["loaded"][at]
+        if (~loaded & ~f["exact"][at]).any() or len(np.unique(visit[at][loaded])) > 1:
+            evidence.add(int(c))
+    return evidence
+
+
+def _reference_times(f: dict, visit: np.ndarray, ref: np.ndarray, known: np.ndarray) -> np.ndarray:
+    """The time of each file row's reference reading: its known reference's exact-zero row (else that reference's
+    first row), or the start of its visit."""
+    start = {}
+    for i in np.lexsort((f["rows"], f["time"])):
+        start.setdefault(int(visit[i]), f["time"][i])
+    ref_time = np.array([start[int(v)] for v in visit], float)
+    for r in np.unique(ref[known]):
+        rows = ref == r
+        ref_time[rows] = f["time"][rows & f["exact"]].min() if (rows & f["exact"]).any() else f["time"][rows].min()
+    return ref_time
+
+
 def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None) -> ReadingStructure:
     """The :class:`ReadingStructure` of the loaded rows ``keep`` (bool (N,)) of ``meas`` and its unloaded rows but
     ``zero_out`` (indices into ``zero_rows``: blunders among them), from the ``reference`` and ``visit``
@@ -285,16 +312,7 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None) -> Readi
     comps = []
     if known.any():
         comps.append(Component("reference", _renumber(np.where(known & model, ref, -1))))
-    # where no exact-zero row or column says which reading a row was taken from, a shared reference is modelled
-    # only at configurations whose rows show one: unloaded rows with noise (readings against the reference), or
-    # several visits; elsewhere nothing in the data could tell it from the model's own misfit
-    evidence = set()
-    in_config = rows_by_label(f["config"])
-    for c in np.unique(f["config"][model]):
-        at = in_config[c]
-        loaded = f["loaded"][at]
-        if (~loaded & ~f["exact"][at]).any() or len(np.unique(visit[at][loaded])) > 1:
-            evidence.add(int(c))
+    evidence = _shared_reference_evidence(f, visit, model)
     unknown = ~known & model & np.array([int(c) in evidence for c in f["config"]])
     if unknown.any():
         comps.append(Component("visit", _pairs(visit, f["target"], unknown)))
@@ -317,13 +335,7 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None) -> Readi
     for c, v in zip(f["config"][f["loaded"]], visit[f["loaded"]]):
         visits_at.setdefault(int(c), set()).add(int(v))
     zero_model = model[~f["loaded"]]
-    start = {}
-    for i in np.lexsort((f["rows"], f["time"])):
-        start.setdefault(int(visit[i]), f["time"][i])
-    ref_time = np.array([start[int(v)] for v in visit], float)
-    for r in np.unique(ref[known]):
-        rows = ref == r
-        ref_time[rows] = f["time"][rows & f["exact"]].min() if (rows & f["exact"]).any() else f["time"][rows].min()
+    ref_time = _reference_times(f, visit, ref, known)
     return ReadingStructure(int(f["loaded"].sum()), f["zero_idx"][zero_model], block, _renumber(visit[idx]),
                             tuple(comps), kind, source, len(set(visit[f["loaded"]].tolist())),
                             sum(len(v) > 1 for v in visits_at.values()), len(holder), int(f["exact"].sum()),

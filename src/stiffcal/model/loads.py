@@ -104,83 +104,117 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
     :data:`~stiffcal.limits.MAX_FORCE_N` (:func:`check_lab_loads`)."""
     text = "data" if spec is None else spec.strip()
     kind, _, rest = text.partition(":")
+    g = None if gravity is None else np.asarray(gravity, float)
     if kind == "data":
-        if data_forces is None or len(data_forces) == 0 or cluster is None:
-            raise InputError("expected loads (the data have none)", field=field_name)
-        width = data_forces.shape[1]
-        labels = cluster(data_forces, np.r_[np.full(d, resolution_N), np.full(width - d, moment_resolution_Nm)])
-        if labels.max() + 1 > MAX_DATA_LOADS:
-            raise InputError(f"expected the loads the lab can apply: the data have {labels.max() + 1} distinct loads "
-                             f"(more than {MAX_DATA_LOADS} to plan over); give them as 'hanging:M1,M2', "
-                             "'directions:K:M1,M2' or 'forces:FX,FY;...'", field=field_name)
-        forces = np.array([data_forces[labels == g].mean(axis=0) for g in range(labels.max() + 1)])
-    elif kind == "hanging":
-        mags = _numbers(rest, "the hanging weights [N]", field_name)
-        if np.any(mags <= 0):
-            raise InputError(f"expected weights > 0 N, got {rest!r}", field=field_name)
-        check_lab_loads(mags, len(mags), resolution_N, field_name, "weight")
-        forces = mags[:, None] * (_gravity(d) if gravity is None else np.asarray(gravity, float))
-    elif kind == "bar":
-        arm_text, _, mtext = rest.partition(":")
-        arm = _numbers(arm_text, "the bar's end [m] from the tool point in the tip frame", field_name)
-        if arm.size != d:
-            raise InputError(f"expected 'bar:AX,AY{',AZ' if d == 3 else ''}:M1,M2' with {d} coordinates of the bar's "
-                             f"end [m] in the tip frame, got {text!r}", field=field_name)
-        mags = _numbers(mtext, "the weights [N]", field_name)
-        if np.any(mags <= 0):
-            raise InputError(f"expected weights > 0 N, got {mtext!r}", field=field_name)
-        check_lab_loads(mags, len(mags), resolution_N, field_name, "weight")
-        g = _gravity(d) if gravity is None else np.asarray(gravity, float)
-        return LoadSet(mags[:, None] * g, kind, text, d, np.r_[arm, 0.0] if d == 2 else arm)
-    elif kind == "wrenches":
-        w = d + (1 if d == 2 else 3)
-        rows = [_numbers(r, "a wrench [N, N m]", field_name) for r in rest.split(";") if r.strip()]
-        if not rows or any(len(r) != w for r in rows):
-            names = "FX,FY,MZ" if d == 2 else "FX,FY,FZ,MX,MY,MZ"
-            raise InputError(f"expected wrenches of {w} components ({names}) separated by ';', got {rest!r}",
-                             field=field_name)
-        if len(rows) > MAX_LOADS:
-            check_lab_loads(np.ones(1), len(rows), resolution_N, field_name, "wrench")
-        forces = np.array(rows)
-        if np.any(np.linalg.norm(forces, axis=1) == 0):
-            raise InputError(f"expected nonzero wrenches, got {rest!r}", field=field_name)
-        floor = MIN_LOAD if resolution_N is None else resolution_N  # a wrench may be a moment with no force
-        check_lab_loads(np.linalg.norm(forces[:, :d], axis=1).clip(min=floor), len(rows), resolution_N, field_name,
-                        "wrench's force")
-    elif kind == "directions":
-        count, _, mtext = rest.partition(":")
-        try:
-            k = int(count)
-        except ValueError:
-            k = 0
-        if k < 1:
-            raise InputError(f"expected 'directions:K:M1,M2' with K >= 1 directions, got {text!r}", field=field_name)
-        mags = _numbers(mtext, "the push magnitudes [N]", field_name)
-        if np.any(mags <= 0):
-            raise InputError(f"expected magnitudes > 0 N, got {mtext!r}", field=field_name)
-        check_lab_loads(mags, k * len(mags), resolution_N, field_name, "magnitude")
-        if d == 2:
-            ang = 2 * np.pi * np.arange(k) / k
-            u = np.stack([np.cos(ang), np.sin(ang)], -1)
-        else:
-            u = sphere_directions(k)
-        forces = (u[:, None, :] * mags[None, :, None]).reshape(-1, d)
-    elif kind == "forces":
-        rows = [_numbers(r, "a force [N]", field_name) for r in rest.split(";") if r.strip()]
-        if not rows or any(len(r) != d for r in rows):
-            raise InputError(f"expected forces of {d} components separated by ';', got {rest!r}", field=field_name)
-        if len(rows) > MAX_LOADS:
-            check_lab_loads(np.ones(1), len(rows), resolution_N, field_name, "force")
-        forces = np.array(rows)
-        if np.any(np.linalg.norm(forces, axis=1) == 0):
-            raise InputError(f"expected nonzero forces, got {rest!r}", field=field_name)
-        big = np.abs(forces).max(axis=1)
-        check_lab_loads(np.where(big > MAX_FORCE_N, big, np.hypot.reduce(forces, axis=1)), len(rows), resolution_N,
-                        field_name, "force")
-    else:
+        return LoadSet(_data_loads(data_forces, d, resolution_N, moment_resolution_Nm, cluster, field_name), kind,
+                       text, d)
+    if kind == "bar":
+        arm, forces = _bar_loads(rest, text, d, resolution_N, field_name, g)
+        return LoadSet(forces, kind, text, d, arm)
+    parse = _LOAD_KINDS.get(kind)
+    if parse is None:
         raise InputError(f"expected 'hanging:M1,M2', 'directions:K:M1,M2', 'forces:FX,FY;...', "
                          f"'wrenches:FX,..,MZ;...', 'bar:AX,AY,AZ:M1,M2' or 'data', got {text!r}", field=field_name)
-    return LoadSet(np.asarray(forces, float), kind, text, d)
+    return LoadSet(np.asarray(parse(rest, text, d, resolution_N, field_name, g), float), kind, text, d)
+
+
+def _data_loads(data_forces, d, resolution_N, moment_resolution_Nm, cluster, field_name) -> np.ndarray:
+    """The distinct loads of the data (``data_forces`` (N, d) or (N, d + d_m)), merged by ``cluster``."""
+    if data_forces is None or len(data_forces) == 0 or cluster is None:
+        raise InputError("expected loads (the data have none)", field=field_name)
+    width = data_forces.shape[1]
+    labels = cluster(data_forces, np.r_[np.full(d, resolution_N), np.full(width - d, moment_resolution_Nm)])
+    if labels.max() + 1 > MAX_DATA_LOADS:
+        raise InputError(f"expected the loads the lab can apply: the data have {labels.max() + 1} distinct loads "
+                         f"(more than {MAX_DATA_LOADS} to plan over); give them as 'hanging:M1,M2', "
+                         "'directions:K:M1,M2' or 'forces:FX,FY;...'", field=field_name)
+    return np.array([data_forces[labels == g].mean(axis=0) for g in range(labels.max() + 1)])
+
+
+def _weights(mtext, what, count, resolution_N, field_name, noun="weight") -> np.ndarray:
+    """The magnitudes [N] of ``mtext``, each > 0 and within the lab's range (:func:`check_lab_loads`)."""
+    mags = _numbers(mtext, what, field_name)
+    if np.any(mags <= 0):
+        raise InputError(f"expected {noun}s > 0 N, got {mtext!r}", field=field_name)
+    check_lab_loads(mags, count(len(mags)), resolution_N, field_name, noun)
+    return mags
+
+
+def _hanging_loads(rest, text, d, resolution_N, field_name, gravity) -> np.ndarray:
+    """``hanging:M1,M2,...``: forces of M_k newtons along gravity."""
+    mags = _weights(rest, "the hanging weights [N]", lambda n: n, resolution_N, field_name)
+    return mags[:, None] * (_gravity(d) if gravity is None else gravity)
+
+
+def _bar_loads(rest, text, d, resolution_N, field_name, gravity) -> tuple[np.ndarray, np.ndarray]:
+    """``bar:AX,AY[,AZ]:M1,M2,...``: (the bar's end (3,) [m] in the tip frame, the forces along gravity)."""
+    arm_text, _, mtext = rest.partition(":")
+    arm = _numbers(arm_text, "the bar's end [m] from the tool point in the tip frame", field_name)
+    if arm.size != d:
+        raise InputError(f"expected 'bar:AX,AY{',AZ' if d == 3 else ''}:M1,M2' with {d} coordinates of the bar's "
+                         f"end [m] in the tip frame, got {text!r}", field=field_name)
+    mags = _weights(mtext, "the weights [N]", lambda n: n, resolution_N, field_name)
+    g = _gravity(d) if gravity is None else gravity
+    return (np.r_[arm, 0.0] if d == 2 else arm), mags[:, None] * g
+
+
+def _wrench_loads(rest, text, d, resolution_N, field_name, gravity) -> np.ndarray:
+    """``wrenches:FX,FY,FZ,MX,MY,MZ;...`` (planar ``FX,FY,MZ``): forces and moments about the tool point."""
+    w = d + (1 if d == 2 else 3)
+    rows = [_numbers(r, "a wrench [N, N m]", field_name) for r in rest.split(";") if r.strip()]
+    if not rows or any(len(r) != w for r in rows):
+        names = "FX,FY,MZ" if d == 2 else "FX,FY,FZ,MX,MY,MZ"
+        raise InputError(f"expected wrenches of {w} components ({names}) separated by ';', got {rest!r}",
+                         field=field_name)
+    if len(rows) > MAX_LOADS:
+        check_lab_loads(np.ones(1), len(rows), resolution_N, field_name, "wrench")
+    forces = np.array(rows)
+    if np.any(np.linalg.norm(forces, axis=1) == 0):
+        raise InputError(f"expected nonzero wrenches, got {rest!r}", field=field_name)
+    floor = MIN_LOAD if resolution_N is None else resolution_N  # a wrench may be a moment with no force
+    check_lab_loads(np.linalg.norm(forces[:, :d], axis=1).clip(min=floor), len(rows), resolution_N, field_name,
+                    "wrench's force")
+    return forces
+
+
+def _direction_loads(rest, text, d, resolution_N, field_name, gravity) -> np.ndarray:
+    """``directions:K:M1,M2,...``: K directions (equally spaced in the plane, quasi-uniform on the sphere), each at
+    every magnitude."""
+    count, _, mtext = rest.partition(":")
+    try:
+        k = int(count)
+    except ValueError:
+        k = 0
+    if k < 1:
+        raise InputError(f"expected 'directions:K:M1,M2' with K >= 1 directions, got {text!r}", field=field_name)
+    mags = _weights(mtext, "the push magnitudes [N]", lambda n: k * n, resolution_N, field_name, "magnitude")
+    if d == 2:
+        ang = 2 * np.pi * np.arange(k) / k
+        u = np.stack([np.cos(ang), np.sin(ang)], -1)
+    else:
+        u = sphere_directions(k)
+    return (u[:, None, :] * mags[None, :, None]).reshape(-1, d)
+
+
+def _force_loads(rest, text, d, resolution_N, field_name, gravity) -> np.ndarray:
+    """``forces:FX,FY[,FZ];...``: the given forces."""
+    rows = [_numbers(r, "a force [N]", field_name) for r in rest.split(";") if r.strip()]
+    if not rows or any(len(r) != d for r in rows):
+        raise InputError(f"expected forces of {d} components separated by ';', got {rest!r}", field=field_name)
+    if len(rows) > MAX_LOADS:
+        check_lab_loads(np.ones(1), len(rows), resolution_N, field_name, "force")
+    forces = np.array(rows)
+    if np.any(np.linalg.norm(forces, axis=1) == 0):
+        raise InputError(f"expected nonzero forces, got {rest!r}", field=field_name)
+    big = np.abs(forces).max(axis=1)
+    check_lab_loads(np.where(big > MAX_FORCE_N, big, np.hypot.reduce(forces, axis=1)), len(rows), resolution_N,
+                    field_name, "force")
+    return forces
+
+
+#: the parsers of the load kinds whose loads are forces (or wrenches) alone, by the kind's word in a SPEC
+_LOAD_KINDS = {"hanging": _hanging_loads, "wrenches": _wrench_loads, "directions": _direction_loads,
+               "forces": _force_loads}
 
 
 def check_lab_loads(magnitudes: np.ndarray, count: int, resolution_N: float | None, field_name: str,

@@ -617,6 +617,64 @@ def load_config_robot(root: str | Path, path: str, source: str, field: str) -> R
     return load_robot(full)
 
 
+def _link_masses(robot: Robot, doc: dict, src: str) -> tuple[list, list, list]:
+    """(kg, link index, centre of mass (3,) [m] in the link's frame) of each link from ``link_masses_kg`` and
+    ``link_coms_m`` (empty lists when not given); InputError naming the field."""
+    n = robot.n_joints
+    if "link_masses_kg" not in doc:
+        if "link_coms_m" in doc:
+            raise InputError("link_coms_m needs link_masses_kg: give the mass of each link", source=src,
+                             field="link_coms_m")
+        return [], [], []
+    masses = doc["link_masses_kg"]
+    if len(masses) != n:
+        raise InputError(f"expected {n} masses [kg] (one per link), got {len(masses)}", source=src,
+                         field="link_masses_kg")
+    coms = doc.get("link_coms_m")
+    if coms is None and robot.kind != "planar":
+        raise InputError("expected link_coms_m beside link_masses_kg: the centre of mass of each link, [x, y, z] "
+                         "[m] in its DH frame", source=src, field="link_coms_m")
+    if coms is not None and len(coms) != n:
+        raise InputError(f"expected {n} centres of mass (one per link), got {len(coms)}", source=src,
+                         field="link_coms_m")
+    kg, link, com = [], [], []
+    for j in range(n):
+        if robot.kind == "planar":
+            c = robot.links_m[j] / 2 if coms is None else coms[j]
+            if isinstance(c, list):
+                if len(c) != 2:
+                    raise InputError(f"expected [x, y] [m] (x along the link), got {len(c)} numbers", source=src,
+                                     field=f"link_coms_m[{j}]")
+                xyz = [c[0], c[1], 0.0]
+            else:
+                xyz = [float(c), 0.0, 0.0]
+        else:
+            if not isinstance(coms[j], list) or len(coms[j]) != 3:
+                raise InputError("expected [x, y, z] [m] in the link's DH frame", source=src,
+                                 field=f"link_coms_m[{j}]")
+            xyz = coms[j]
+        kg.append(float(masses[j]))
+        link.append(j)
+        com.append(np.asarray(xyz, float))
+    return kg, link, com
+
+
+def _payload_mass(robot: Robot, doc: dict, src: str) -> tuple[list, list, list]:
+    """([kg], [n], [centre of mass (3,) [m] in the tip frame]) of ``payload_kg`` and ``payload_com_m`` (default
+    the tool point); empty lists when not given; InputError naming the field."""
+    if "payload_kg" not in doc:
+        if "payload_com_m" in doc:
+            raise InputError("payload_com_m needs payload_kg: give the payload's mass", source=src,
+                             field="payload_com_m")
+        return [], [], []
+    pc = doc.get("payload_com_m")
+    if pc is not None and len(pc) != robot.task_dim:
+        raise InputError(f"expected {robot.task_dim} coordinates [m] in the tip frame, got {len(pc)}", source=src,
+                         field="payload_com_m")
+    return ([float(doc["payload_kg"])], [robot.n_joints],
+            [robot.target_point(TOOL_TARGET) if pc is None else as_xyz(np.asarray(pc, float))])
+
+
 def load_robot(path: str | Path, base_frame: str | None = None, tip_frame: str | None = None) -> Robot:
     """Read and validate a robot file (planar, spatial or urdf; schema ``workflow/schemas/robot.schema.yaml``), or a
     URDF itself (a path ending in ``.urdf``: the arm from ``base_frame`` to ``tip_frame``, each guessed when not
@@ -642,29 +700,8 @@ def load_robot(path: str | Path, base_frame: str | None = None, tip_frame: str |
         raise InputError("base_frame and tip_frame are for a URDF path; a robot file names its own frames",
                          source=src, field="tip_frame" if tip_frame is not None else "base_frame")
     doc = read_yaml(path)
-    if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
-        raise InputError("missing required field 'kind' (planar, spatial or urdf)", source=src, field="kind")
-    for key in ("links_m", "dh", "joints"):  # before the schema: its message would not say why
-        if isinstance(doc, dict) and isinstance(doc.get(key), list) and len(doc[key]) > MAX_JOINTS:
-            raise InputError(f"{len(doc[key])} joints: expected at most {MAX_JOINTS} (every industrial arm has at most "
-                             "7; the design's searches grow exponentially with the joints; docs/contracts.md, "
-                             "'Limits')", source=src, field=key)
-    validate(doc, "robot", src)
-    check_ranges(doc, src)
-    for key, kinds in FIELD_KINDS.items():
-        if key in doc and doc["kind"] not in kinds:
-            raise InputError(f"'{key}' belongs to a {' or '.join(kinds)} robot, but this file says kind: "
-                             f"{doc['kind']}; remove the field or change 'kind'", source=src, field=key)
-    if doc["kind"] == "spatial":
-        robot = _load_spatial(doc, src)
-    elif doc["kind"] == "urdf":
-        robot = _load_urdf(doc, src)
-    else:
-        links = np.asarray(doc["links_m"], float)
-        limits, comp, names = _per_joint(doc, links.size, src, "link")
-        robot = replace(planar_robot(links, doc["name"], limits, names),
-                        compliances=None if comp is None else np.asarray(comp, float), source=src,
-                        reference=doc.get("source", ""))
+    _check_robot_document(doc, src)
+    robot = _LOADERS[doc["kind"]](doc, src)
     robot = with_targets(robot, doc.get("targets"), src)
     if "gravity" in doc:
         robot = with_gravity(robot, doc["gravity"], src)
@@ -678,6 +715,33 @@ def load_robot(path: str | Path, base_frame: str | None = None, tip_frame: str |
 
         robot = replace(robot, calibration=from_dict(doc["calibration"], robot, src))
     return robot
+
+
+def _check_robot_document(doc, src: str) -> None:
+    """A robot file's document checked against the schema and its ranges; InputError naming the field for a
+    missing ``kind``, too many joints, or a field of another kind."""
+    if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
+        raise InputError("missing required field 'kind' (planar, spatial or urdf)", source=src, field="kind")
+    for key in ("links_m", "dh", "joints"):  # before the schema: its message would not say why
+        if isinstance(doc, dict) and isinstance(doc.get(key), list) and len(doc[key]) > MAX_JOINTS:
+            raise InputError(f"{len(doc[key])} joints: expected at most {MAX_JOINTS} (every industrial arm has at most "
+                             "7; the design's searches grow exponentially with the joints; docs/contracts.md, "
+                             "'Limits')", source=src, field=key)
+    validate(doc, "robot", src)
+    check_ranges(doc, src)
+    for key, kinds in FIELD_KINDS.items():
+        if key in doc and doc["kind"] not in kinds:
+            raise InputError(f"'{key}' belongs to a {' or '.join(kinds)} robot, but this file says kind: "
+                             f"{doc['kind']}; remove the field or change 'kind'", source=src, field=key)
+
+
+def _load_planar(doc: dict, src: str) -> Robot:
+    """The planar arm of a validated robot file (``links_m``)."""
+    links = np.asarray(doc["links_m"], float)
+    limits, comp, names = _per_joint(doc, links.size, src, "link")
+    return replace(planar_robot(links, doc["name"], limits, names),
+                   compliances=None if comp is None else np.asarray(comp, float), source=src,
+                   reference=doc.get("source", ""))
 
 
 #: standard gravity [m/s^2] (ISO 80000-3), the size of the arm's own weight along the robot file's ``gravity``
@@ -702,50 +766,8 @@ def with_masses(robot: Robot, doc: dict, src: str, urdf_masses: MassModel | None
     kg, link, com = [], [], []
     if urdf_masses is not None:
         kg, link, com = list(urdf_masses.kg), list(urdf_masses.link), list(urdf_masses.com_m)
-    n = robot.n_joints
-    if "link_masses_kg" in doc:
-        masses = doc["link_masses_kg"]
-        if len(masses) != n:
-            raise InputError(f"expected {n} masses [kg] (one per link), got {len(masses)}", source=src,
-                             field="link_masses_kg")
-        coms = doc.get("link_coms_m")
-        if coms is None and robot.kind != "planar":
-            raise InputError("expected link_coms_m beside link_masses_kg: the centre of mass of each link, [x, y, z] "
-                             "[m] in its DH frame", source=src, field="link_coms_m")
-        if coms is not None and len(coms) != n:
-            raise InputError(f"expected {n} centres of mass (one per link), got {len(coms)}", source=src,
-                             field="link_coms_m")
-        for j in range(n):
-            if robot.kind == "planar":
-                c = robot.links_m[j] / 2 if coms is None else coms[j]
-                if isinstance(c, list):
-                    if len(c) != 2:
-                        raise InputError(f"expected [x, y] [m] (x along the link), got {len(c)} numbers", source=src,
-                                         field=f"link_coms_m[{j}]")
-                    xyz = [c[0], c[1], 0.0]
-                else:
-                    xyz = [float(c), 0.0, 0.0]
-            else:
-                if not isinstance(coms[j], list) or len(coms[j]) != 3:
-                    raise InputError("expected [x, y, z] [m] in the link's DH frame", source=src,
-                                     field=f"link_coms_m[{j}]")
-                xyz = coms[j]
-            kg.append(float(masses[j]))
-            link.append(j)
-            com.append(np.asarray(xyz, float))
-    elif "link_coms_m" in doc:
-        raise InputError("link_coms_m needs link_masses_kg: give the mass of each link", source=src,
-                         field="link_coms_m")
-    if "payload_kg" in doc:
-        pc = doc.get("payload_com_m")
-        if pc is not None and len(pc) != d:
-            raise InputError(f"expected {d} coordinates [m] in the tip frame, got {len(pc)}", source=src,
-                             field="payload_com_m")
-        kg.append(float(doc["payload_kg"]))
-        link.append(n)
-        com.append(robot.target_point(TOOL_TARGET) if pc is None else as_xyz(np.asarray(pc, float)))
-    elif "payload_com_m" in doc:
-        raise InputError("payload_com_m needs payload_kg: give the payload's mass", source=src, field="payload_com_m")
+    for part in (_link_masses(robot, doc, src), _payload_mass(robot, doc, src)):
+        kg, link, com = kg + part[0], link + part[1], com + part[2]
     g = STANDARD_GRAVITY_M_S2 * np.asarray(robot.gravity, float) if robot.gravity else np.asarray(GRAVITY_M_S2[d])
     kg = np.asarray(kg, float)
     if kg.size == 0 or not np.any(kg > 0):
@@ -886,3 +908,7 @@ def _load_urdf(doc: dict, src: str) -> Robot:
     if "joint_limits_deg" in doc:
         robot = narrowed_limits(robot, doc["joint_limits_deg"], src, within_urdf=True)
     return robot
+
+
+#: the reader of each robot kind's validated document (the schema's ``kind``)
+_LOADERS = {"planar": _load_planar, "spatial": _load_spatial, "urdf": _load_urdf}

@@ -380,6 +380,27 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
     if not path_joints:
         raise InputError(f"no joint moves {tip_frame!r} relative to {base_frame!r}", source=source, field="tip_frame")
 
+    axes, limits = _chain_joints(model, path_joints, names, mimic, base_frame, tip_frame, source)
+    moving = _moving(names, joints, source)
+    if len(moving) > MAX_JOINTS:
+        raise InputError(f"{len(moving)} joints move between {base_frame!r} and {tip_frame!r}: expected at most "
+                         f"{MAX_JOINTS} (the design's searches grow exponentially with the joints; docs/contracts.md, "
+                         "'Limits'); name the joints that move in 'joints' and hold the others with "
+                         "'fixed_joints_deg'", source=source, field="joints" if joints is not None else "tip_frame")
+    held = _held(names, moving, limits, fixed_joints_deg, source)
+    chain = _moving_chain(model, b, t, path_joints, names, moving, axes, held)
+    lim = np.array([limits.get(name, (-np.pi, np.pi)) for name in moving], float)
+    moving_ids = [j for j, name in zip(path_joints, names) if name in moving]
+    return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving),
+                   tuple(i for i, name in enumerate(moving) if name not in limits),
+                   chain_masses(model, moving_ids, {j: (held[name], axes[name]) for j, name in zip(path_joints, names)
+                                                    if name in held}), held)
+
+
+def _chain_joints(model, path_joints: list[int], names: list[str], mimic, base_frame: str, tip_frame: str,
+                  source: str) -> tuple[dict, dict]:
+    """({name: unit axis (3,)}, {name: (lower, upper) [rad]} of the limited ones) of the chain's joints; InputError
+    for a mimic joint, a joint that is not revolute or continuous, or limits that are inverted or too wide."""
     import pinocchio as pin
 
     axes, limits, neutral = {}, {}, pin.neutral(model)
@@ -402,14 +423,13 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
                 raise InputError(f"joint {name!r} has limits [{np.degrees(lo):g}, {np.degrees(hi):g}] deg in the URDF; "
                                  f"expected within +-{MAX_JOINT_ANGLE_DEG:g} deg", source=source, field="urdf")
             limits[name] = (lo, hi)
+    return axes, limits
 
-    moving = _moving(names, joints, source)
-    if len(moving) > MAX_JOINTS:
-        raise InputError(f"{len(moving)} joints move between {base_frame!r} and {tip_frame!r}: expected at most "
-                         f"{MAX_JOINTS} (the design's searches grow exponentially with the joints; docs/contracts.md, "
-                         "'Limits'); name the joints that move in 'joints' and hold the others with "
-                         "'fixed_joints_deg'", source=source, field="joints" if joints is not None else "tip_frame")
-    held = _held(names, moving, limits, fixed_joints_deg, source)
+
+def _moving_chain(model, b: int, t: int, path_joints: list[int], names: list[str], moving, axes: dict,
+                  held: dict) -> Chain:
+    """The chain of the moving joints from frame ``b`` to frame ``t``: the held joints folded into the placements
+    at their held angles."""
     C = model.frames[b].placement.inverse().homogeneous
     placements, chain_axes = [], []
     for j, name in zip(path_joints, names):
@@ -422,13 +442,7 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
             rot = np.eye(4)
             rot[:3, :3] = rotation_about(axes[name], held[name])
             C = C @ rot
-    chain = Chain(np.array(placements), np.array(chain_axes), C @ model.frames[t].placement.homogeneous)
-    lim = np.array([limits.get(name, (-np.pi, np.pi)) for name in moving], float)
-    moving_ids = [j for j, name in zip(path_joints, names) if name in moving]
-    return UrdfArm(tuple(moving), chain, lim, any(name in limits for name in moving),
-                   tuple(i for i, name in enumerate(moving) if name not in limits),
-                   chain_masses(model, moving_ids, {j: (held[name], axes[name]) for j, name in zip(path_joints, names)
-                                                    if name in held}), held)
+    return Chain(np.array(placements), np.array(chain_axes), C @ model.frames[t].placement.homogeneous)
 
 
 def chain_masses(model, moving: list[int], held: dict[int, tuple]) -> MassModel | None:

@@ -343,79 +343,10 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
     from ..validation import validate
 
     validate(doc, "cell", source, prefix)
-    planar = robot.kind == "planar"
-    d = 2 if planar else 3
-
-    def vec(v, fld, size=d):
-        v = np.asarray(v, float)
-        if v.shape != (size,):
-            raise InputError(f"expected {size} components for a {robot.kind} robot, got {len(v)}", source=source,
-                             field=_at(prefix, fld))
-        return np.r_[v, 0.0] if size == 2 else v
-
-    obstacles, names = [], set()
-
-    def add(o: Obstacle, fld: str):
-        if o.name in names:
-            raise InputError(f"expected unique obstacle names, got {o.name!r} twice", source=source,
-                             field=_at(prefix, fld))
-        names.add(o.name)
-        obstacles.append(o)
-
-    up = -np.asarray(robot.gravity, float)
-    up = np.r_[up, 0.0] if up.size == 2 else up
-    if "floor_m" in doc:
-        add(Obstacle("floor", "half_space", normal=up, offset=float(doc["floor_m"])), "floor_m")
-    for i, h in enumerate(doc.get("half_spaces", [])):
-        fld = f"half_spaces[{i}]"
-        add(Obstacle(h.get("name", f"half_space{i + 1}"), "half_space", normal=_unit(vec(h["normal"], f"{fld}.normal"),
-                     source, _at(prefix, f"{fld}.normal")), offset=float(h.get("offset_m", 0.0))), fld)
-    for i, b in enumerate(doc.get("boxes", [])):
-        fld = f"boxes[{i}]"
-        size = vec(b["size_m"], f"{fld}.size_m")
-        if planar:
-            rot = rpy_matrix([0.0, 0.0, np.radians(b.get("angle_deg", 0.0))])
-            size[2] = 2 * PLANAR_DEPTH_M
-        else:
-            rot = rpy_matrix(np.radians(b.get("rpy_deg", [0.0, 0.0, 0.0])))
-        if "angle_deg" in b and not planar or "rpy_deg" in b and planar:
-            bad = "angle_deg" if not planar else "rpy_deg"
-            raise InputError(f"'{bad}' belongs to a {'planar' if bad == 'angle_deg' else 'spatial'} robot's box "
-                             f"({'angle_deg' if planar else 'rpy_deg'} here)", source=source,
-                             field=_at(prefix, f"{fld}.{bad}"))
-        add(Obstacle(b.get("name", f"box{i + 1}"), "box", center=vec(b["center_m"], f"{fld}.center_m"),
-                     rotation=rot, half=size / 2, flat=planar), fld)
-    for i, c in enumerate(doc.get("cylinders", [])):
-        fld = f"cylinders[{i}]"
-        if planar:
-            for bad in ("axis", "length_m"):
-                if bad in c:
-                    raise InputError(f"a planar robot's cylinder is a disc in its plane: '{bad}' does not apply",
-                                     source=source, field=_at(prefix, f"{fld}.{bad}"))
-            axis, half = np.array([0.0, 0.0, 1.0]), PLANAR_DEPTH_M
-        else:
-            if "length_m" not in c:
-                raise InputError("missing required field 'length_m' (a spatial robot's cylinder)", source=source,
-                                 field=_at(prefix, fld))
-            axis = _unit(vec(c.get("axis", [0.0, 0.0, 1.0]), f"{fld}.axis"), source, _at(prefix, f"{fld}.axis"))
-            half = float(c["length_m"]) / 2
-        add(Obstacle(c.get("name", f"cylinder{i + 1}"), "cylinder", center=vec(c["center_m"], f"{fld}.center_m"),
-                     axis=axis, radius=float(c["radius_m"]), half_length=half, flat=planar), fld)
-    radius = doc.get("link_radius_m")
-    if radius is not None:
-        radius = [radius] * robot.n_segments if isinstance(radius, (int, float)) else list(radius)
-        if len(radius) != robot.n_segments:
-            raise InputError(f"expected one radius or {robot.n_segments} (one per segment of the drawn arm: "
-                             f"{', '.join(segment_names(robot))}), got {len(radius)}", source=source,
-                             field=_at(prefix, "link_radius_m"))
-        radius = tuple(float(r) for r in radius)
-    srdf = doc.get("srdf")
-    if srdf is not None:
-        if robot.kind != "urdf":
-            raise InputError("'srdf' belongs to a URDF robot (kind: urdf)", source=source, field=_at(prefix, "srdf"))
-        srdf = str((Path(base_dir) / srdf).resolve())
-        if not Path(srdf).is_file():
-            raise InputError(f"no such file: {srdf}", source=source, field=_at(prefix, "srdf"))
+    obstacles = _obstacles(doc, robot, source, prefix)
+    names = {o.name for o in obstacles}
+    radius = _link_radii(doc.get("link_radius_m"), robot, source, prefix)
+    srdf = _srdf_path(doc.get("srdf"), robot, base_dir, source, prefix)
     self_collision = bool(doc.get("self_collision", True))
     if (self_collision or obstacles) and radius is None and not _has_meshes(robot):
         what = "a URDF without collision geometry" if robot.kind == "urdf" else f"a {robot.kind} robot"
@@ -432,6 +363,102 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
     spec = json.dumps({**doc, **({"srdf": srdf} if srdf else {})}, sort_keys=True, allow_nan=False)
     return WorkCell(tuple(obstacles), float(doc.get("clearance_m", 0.0)), doc.get("self_clearance_m"), self_collision,
                     radius, srdf, pairs, doc.get("cable_length_m"), source, spec)
+
+
+def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
+    """The cell's obstacles (the floor, half-spaces, boxes, cylinders), in that order; InputError for a vector of
+    the wrong size, a key that belongs to the other robot kind, or a name used twice."""
+    planar = robot.kind == "planar"
+    d = 2 if planar else 3
+
+    def vec(v, fld, size=d):
+        v = np.asarray(v, float)
+        if v.shape != (size,):
+            raise InputError(f"expected {size} components for a {robot.kind} robot, got {len(v)}", source=source,
+                             field=_at(prefix, fld))
+        return np.r_[v, 0.0] if size == 2 else v
+
+    found = []
+    up = -np.asarray(robot.gravity, float)
+    up = np.r_[up, 0.0] if up.size == 2 else up
+    if "floor_m" in doc:
+        found.append((Obstacle("floor", "half_space", normal=up, offset=float(doc["floor_m"])), "floor_m"))
+    for i, h in enumerate(doc.get("half_spaces", [])):
+        fld = f"half_spaces[{i}]"
+        found.append((Obstacle(h.get("name", f"half_space{i + 1}"), "half_space",
+                               normal=_unit(vec(h["normal"], f"{fld}.normal"), source, _at(prefix, f"{fld}.normal")),
+                               offset=float(h.get("offset_m", 0.0))), fld))
+    found += [(_box(b, i, planar, vec, source, prefix), f"boxes[{i}]") for i, b in enumerate(doc.get("boxes", []))]
+    found += [(_cylinder(c, i, planar, vec, source, prefix), f"cylinders[{i}]")
+              for i, c in enumerate(doc.get("cylinders", []))]
+    names = set()
+    for o, fld in found:
+        if o.name in names:
+            raise InputError(f"expected unique obstacle names, got {o.name!r} twice", source=source,
+                             field=_at(prefix, fld))
+        names.add(o.name)
+    return [o for o, _ in found]
+
+
+def _box(b: dict, i: int, planar: bool, vec, source: str, prefix: str) -> Obstacle:
+    """The i-th box of the cell (a planar robot's: a rectangle in its plane, turned by ``angle_deg``)."""
+    fld = f"boxes[{i}]"
+    size = vec(b["size_m"], f"{fld}.size_m")
+    if planar:
+        rot = rpy_matrix([0.0, 0.0, np.radians(b.get("angle_deg", 0.0))])
+        size[2] = 2 * PLANAR_DEPTH_M
+    else:
+        rot = rpy_matrix(np.radians(b.get("rpy_deg", [0.0, 0.0, 0.0])))
+    if "angle_deg" in b and not planar or "rpy_deg" in b and planar:
+        bad = "angle_deg" if not planar else "rpy_deg"
+        raise InputError(f"'{bad}' belongs to a {'planar' if bad == 'angle_deg' else 'spatial'} robot's box "
+                         f"({'angle_deg' if planar else 'rpy_deg'} here)", source=source,
+                         field=_at(prefix, f"{fld}.{bad}"))
+    return Obstacle(b.get("name", f"box{i + 1}"), "box", center=vec(b["center_m"], f"{fld}.center_m"), rotation=rot,
+                    half=size / 2, flat=planar)
+
+
+def _cylinder(c: dict, i: int, planar: bool, vec, source: str, prefix: str) -> Obstacle:
+    """The i-th cylinder of the cell (a planar robot's: a disc in its plane)."""
+    fld = f"cylinders[{i}]"
+    if planar:
+        for bad in ("axis", "length_m"):
+            if bad in c:
+                raise InputError(f"a planar robot's cylinder is a disc in its plane: '{bad}' does not apply",
+                                 source=source, field=_at(prefix, f"{fld}.{bad}"))
+        axis, half = np.array([0.0, 0.0, 1.0]), PLANAR_DEPTH_M
+    else:
+        if "length_m" not in c:
+            raise InputError("missing required field 'length_m' (a spatial robot's cylinder)", source=source,
+                             field=_at(prefix, fld))
+        axis = _unit(vec(c.get("axis", [0.0, 0.0, 1.0]), f"{fld}.axis"), source, _at(prefix, f"{fld}.axis"))
+        half = float(c["length_m"]) / 2
+    return Obstacle(c.get("name", f"cylinder{i + 1}"), "cylinder", center=vec(c["center_m"], f"{fld}.center_m"),
+                    axis=axis, radius=float(c["radius_m"]), half_length=half, flat=planar)
+
+
+def _link_radii(radius, robot, source: str, prefix: str) -> tuple[float, ...] | None:
+    """``link_radius_m``: one radius for every segment of the drawn arm, or one per segment; None if not given."""
+    if radius is None:
+        return None
+    radius = [radius] * robot.n_segments if isinstance(radius, (int, float)) else list(radius)
+    if len(radius) != robot.n_segments:
+        raise InputError(f"expected one radius or {robot.n_segments} (one per segment of the drawn arm: "
+                         f"{', '.join(segment_names(robot))}), got {len(radius)}", source=source,
+                         field=_at(prefix, "link_radius_m"))
+    return tuple(float(r) for r in radius)
+
+
+def _srdf_path(srdf, robot, base_dir, source: str, prefix: str) -> str | None:
+    """The absolute path of ``srdf`` (relative to ``base_dir``), a file; only for a URDF robot."""
+    if srdf is None:
+        return None
+    if robot.kind != "urdf":
+        raise InputError("'srdf' belongs to a URDF robot (kind: urdf)", source=source, field=_at(prefix, "srdf"))
+    srdf = str((Path(base_dir) / srdf).resolve())
+    if not Path(srdf).is_file():
+        raise InputError(f"no such file: {srdf}", source=source, field=_at(prefix, "srdf"))
+    return srdf
 
 
 def _at(prefix: str, fld: str) -> str:
@@ -1011,21 +1038,14 @@ def clearance(robot, q: np.ndarray) -> tuple[np.ndarray, list[str]]:
 # ---------------------------------------------------------------------------------------------------
 # candidate poses from a file
 
-def read_candidates(path, robot) -> np.ndarray:
-    """Candidate poses (N, n) [rad] from a CSV file (FIGAROH-style: one configuration per row): columns
-    ``q1_deg`` .. (``q_<name>_deg``, the project's pose columns, in degrees) or the joint names themselves (in
-    radians, as ROS joint states and FIGAROH write them); other columns are ignored. Rows outside the joint
-    limits or beyond +-MAX_JOINT_ANGLE_DEG are refused, and so is a file that is not a regular file (a FIFO), larger
-    than :data:`~stiffcal.limits.MAX_CANDIDATE_BYTES` or with more than :data:`~stiffcal.limits.MAX_CANDIDATES`
-    poses (before it is parsed). Raises :class:`InputError` naming the file, row and column."""
+def _candidate_rows(path: Path, src: str) -> list[list[str]]:
+    """The CSV rows of a candidate file (at most MAX_CANDIDATE_BYTES, MAX_CANDIDATES poses, UTF-8), the header
+    first; InputError naming the file."""
     import csv
 
     from ..limits import MAX_CANDIDATE_BYTES, MAX_CANDIDATES
-    from .robot import MAX_JOINT_ANGLE_DEG
     from ..safeio import read_bounded
 
-    path = Path(path)
-    src = str(path)
     raw = read_bounded(path, MAX_CANDIDATE_BYTES, source=src, what="candidate file")
     try:
         text = raw.decode("utf-8")
@@ -1041,16 +1061,14 @@ def read_candidates(path, robot) -> np.ndarray:
         raise InputError(f"not a CSV file a reader can split ({err})", source=src) from None
     if not rows:
         raise InputError("empty file: expected a header row and one pose per row", source=src)
-    header = [h.strip() for h in rows[0]]
-    deg_cols, rad_cols = robot.joint_columns("q", "_deg"), list(robot.joint_names)
-    if all(c in header for c in deg_cols):
-        cols, scale = deg_cols, np.pi / 180
-    elif all(c in header for c in rad_cols):
-        cols, scale = rad_cols, 1.0
-    else:
-        raise InputError(f"expected the columns {', '.join(deg_cols)} [deg] or {', '.join(rad_cols)} [rad], got "
-                         f"{', '.join(header)}", source=src)
-    idx = [header.index(c) for c in cols]
+    return rows
+
+
+def _candidate_angles(rows: list[list[str]], idx: list[int], cols: list[str], scale: float, src: str) -> list:
+    """The joint angles [rad] of each non-blank row after the header (columns ``idx``, times ``scale``);
+    InputError naming the row and column of a value that is not a finite angle within +-MAX_JOINT_ANGLE_DEG."""
+    from .robot import MAX_JOINT_ANGLE_DEG
+
     out = []
     for r, row in enumerate(rows[1:], start=2):
         if not any(v.strip() for v in row):
@@ -1067,6 +1085,28 @@ def read_candidates(path, robot) -> np.ndarray:
                                  source=src, field=f"row {r}, column {c}")
             vals.append(v * scale)
         out.append(vals)
+    return out
+
+
+def read_candidates(path, robot) -> np.ndarray:
+    """Candidate poses (N, n) [rad] from a CSV file (FIGAROH-style: one configuration per row): columns
+    ``q1_deg`` .. (``q_<name>_deg``, the project's pose columns, in degrees) or the joint names themselves (in
+    radians, as ROS joint states and FIGAROH write them); other columns are ignored. Rows outside the joint
+    limits or beyond +-MAX_JOINT_ANGLE_DEG are refused, and so is a file that is not a regular file (a FIFO), larger
+    than :data:`~stiffcal.limits.MAX_CANDIDATE_BYTES` or with more than :data:`~stiffcal.limits.MAX_CANDIDATES`
+    poses (before it is parsed). Raises :class:`InputError` naming the file, row and column."""
+    src = str(path)
+    rows = _candidate_rows(Path(path), src)
+    header = [h.strip() for h in rows[0]]
+    deg_cols, rad_cols = robot.joint_columns("q", "_deg"), list(robot.joint_names)
+    if all(c in header for c in deg_cols):
+        cols, scale = deg_cols, np.pi / 180
+    elif all(c in header for c in rad_cols):
+        cols, scale = rad_cols, 1.0
+    else:
+        raise InputError(f"expected the columns {', '.join(deg_cols)} [deg] or {', '.join(rad_cols)} [rad], got "
+                         f"{', '.join(header)}", source=src)
+    out = _candidate_angles(rows, [header.index(c) for c in cols], cols, scale, src)
     if not out:
         raise InputError("no poses: expected one pose per row after the header", source=src)
     q = np.array(out, float)

@@ -842,6 +842,55 @@ class ExactCertificate:
     certified: np.ndarray
 
 
+def _ball_lower_bounds(Sb: list, B, cell: np.ndarray, balls: list, c: np.ndarray, valid: np.ndarray) -> list:
+    """Per cell the smallest lower bound (an arb's lower end) of log O_t over the balls of its candidate x:
+    log O_t(x, c0) - (d log O_t / dc (x, c0))^2 in ball arithmetic (:func:`certify_exact`); a cell whose line
+    minimiser or bound is not finite is marked invalid in ``valid`` (in place)."""
+    import flint
+
+    low_ball = [None] * len(Sb)
+    for i, (k, X) in enumerate(zip(cell, balls)):
+        if not np.isfinite(c[i]):
+            valid[k] = False
+            continue
+        c0 = flint.arb(flint.fmpq(*_fraction(c[i])))
+        log_o, d = _ball_log_ot(Sb[k], B, X, c0)
+        lb = log_o - d * d
+        if not lb.is_finite():
+            valid[k] = False
+            continue
+        lb = lb.lower()
+        if low_ball[k] is None or lb < low_ball[k]:
+            low_ball[k] = lb
+    return low_ball
+
+
+def _best_points(Sb: list, B, x: np.ndarray, c: np.ndarray, v: np.ndarray, cell: np.ndarray, valid: np.ndarray,
+                 low_ball: list, tol: float):
+    """(value, lower, x, c, s, certified), each (N,), of :class:`ExactCertificate`: the best point of each valid
+    cell, rounded to doubles, its value bounded above in ball arithmetic and certified against the cell's lower
+    bound within ``tol``."""
+    import flint
+
+    n = len(Sb)
+    order = np.lexsort((v, cell))
+    first = order[np.minimum(np.searchsorted(cell[order], np.arange(n)), max(len(order) - 1, 0))] \
+        if len(cell) else np.zeros(n, int)
+    out_x, out_c = np.full(n, np.nan), np.full(n, np.nan)
+    out_s, value, lower = np.full(n, np.nan), np.full(n, np.inf), np.full(n, np.inf)
+    certified = np.zeros(n, bool)
+    for k in np.nonzero(valid)[0]:
+        i = first[k]
+        xf, cf = float(x[i]), float(c[i])
+        sf = float(np.sqrt((1 - c[i]) * (1 + c[i])))
+        log_u, _ = _ball_log_ot(Sb[k], B, flint.arb(xf), flint.arb(cf))
+        out_x[k], out_c[k], out_s[k] = xf, cf, sf
+        value[k] = float(log_u.exp().mid())
+        lower[k] = float(low_ball[k].exp().lower())
+        certified[k] = bool(log_u.upper() - low_ball[k] < math.log1p(tol))
+    return value, lower, out_x, out_c, out_s, certified
+
+
 def certify_exact(S: np.ndarray, R: np.ndarray, b: float, tol: float = 1e-9) -> ExactCertificate:
     """The global minimum of O_t over single measurement poses for normalised S (N, 3) = R^T R (double or
     long double), by exact arithmetic (the argument is in the module docstring of :mod:`stiffcal.planning.maps`,
@@ -878,42 +927,12 @@ def certify_exact(S: np.ndarray, R: np.ndarray, b: float, tol: float = 1e-9) -> 
                 xs.append(float(X.mid()))
                 cell.append(k)
         cell = np.array(cell, int)
-        ld = S.dtype
-        x = np.array(xs, ld)
+        x = np.array(xs, S.dtype)
         c, _, v = c_star(S[cell], R[cell], b, x)
         v = np.where(np.isfinite(v) & (v >= 0), v, np.inf)
-        lower = np.full(n, np.inf)
-        low_ball = [None] * n
         Sb = [[flint.arb(flint.fmpq(*f)) for f in row] for row in fr]
-        for i, (k, X) in enumerate(zip(cell, balls)):
-            if not np.isfinite(c[i]):
-                valid[k] = False
-                continue
-            c0 = flint.arb(flint.fmpq(*_fraction(c[i])))
-            log_o, d = _ball_log_ot(Sb[k], B, X, c0)
-            lb = log_o - d * d
-            if not lb.is_finite():
-                valid[k] = False
-                continue
-            lb = lb.lower()
-            if low_ball[k] is None or lb < low_ball[k]:
-                low_ball[k] = lb
-        # the best point of each cell, rounded to doubles, and its value bounded above in ball arithmetic
-        order = np.lexsort((v, cell))
-        first = order[np.minimum(np.searchsorted(cell[order], np.arange(n)), max(len(order) - 1, 0))] \
-            if len(cell) else np.zeros(n, int)
-        out_x, out_c = np.full(n, np.nan), np.full(n, np.nan)
-        out_s, value = np.full(n, np.nan), np.full(n, np.inf)
-        certified = np.zeros(n, bool)
-        for k in np.nonzero(valid)[0]:
-            i = first[k]
-            xf, cf = float(x[i]), float(c[i])
-            sf = float(np.sqrt((1 - c[i]) * (1 + c[i])))
-            log_u, _ = _ball_log_ot(Sb[k], B, flint.arb(xf), flint.arb(cf))
-            out_x[k], out_c[k], out_s[k] = xf, cf, sf
-            value[k] = float(log_u.exp().mid())
-            lower[k] = float(low_ball[k].exp().lower())
-            certified[k] = bool(log_u.upper() - low_ball[k] < math.log1p(tol))
+        low_ball = _ball_lower_bounds(Sb, B, cell, balls, c, valid)
+        value, lower, out_x, out_c, out_s, certified = _best_points(Sb, B, x, c, v, cell, valid, low_ball, tol)
     finally:
         flint.ctx.prec = old
     return ExactCertificate(value, lower, out_x, out_c, out_s, certified)

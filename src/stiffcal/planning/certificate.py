@@ -250,6 +250,36 @@ def multiplicative(P: np.ndarray, W: np.ndarray, iters: int = 3000, tol: float =
     return w, it
 
 
+def _damped_newton_step(P: np.ndarray, w: np.ndarray, phi: np.ndarray, viol: np.ndarray, Phi: float,
+                        Minv: np.ndarray, B: np.ndarray, mu: float, tol: float, value) -> tuple[np.ndarray, float, bool]:
+    """One projected, Levenberg-Marquardt-damped Newton step of :func:`optimal_weights` with Armijo
+    backtracking: (weights, damping mu, whether a step was accepted); mu grows by 100 after a failure (up to
+    1e10) and shrinks by 10 after a full step."""
+    k = len(w)
+    drop = (w <= 1e-12) & (viol < 0)
+    F = np.flatnonzero(~drop & ((w > 0) | (viol > tol)))
+    H = 2.0 * (P[F] @ Minv).reshape(len(F), -1) @ np.swapaxes(P[F] @ B, -1, -2).reshape(len(F), -1).T
+    H = 0.5 * (H + H.T)
+    D = np.diag(np.maximum(np.diag(H), 1e-300))
+    one = np.ones((len(F), 1))
+    while mu < 1e10:
+        step = np.zeros(k)
+        K = np.block([[H + mu * D, one], [one.T, np.zeros((1, 1))]])
+        try:
+            step[F] = np.linalg.solve(K, np.append(phi[F], 0.0))[:len(F)]
+        except np.linalg.LinAlgError:  # poses that add nothing make H singular: damp more
+            mu *= 100
+            continue
+        for a in 0.5 ** np.arange(6):
+            trial = np.where(drop, 0.0, np.maximum(w + a * step, 0.0))
+            trial /= trial.sum()
+            decrease = phi @ trial - Phi  # first-order decrease of Phi towards trial
+            if decrease > 0 and value(trial) <= Phi - 1e-4 * decrease:
+                return trial, (mu / 10 if a == 1.0 else mu), True
+        mu *= 100
+    return w, mu, False
+
+
 def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, tol: float = 1e-9,
                     max_iter: int = 500) -> np.ndarray:
     """The optimal weights of an approximate design on a fixed set of k poses: min ``Phi(w) =
@@ -290,31 +320,7 @@ def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, 
         viol = phi / Phi - 1.0
         if viol.max() <= tol:
             break
-        drop = (w <= 1e-12) & (viol < 0)
-        F = np.flatnonzero(~drop & ((w > 0) | (viol > tol)))
-        H = 2.0 * (P[F] @ Minv).reshape(len(F), -1) @ np.swapaxes(P[F] @ B, -1, -2).reshape(len(F), -1).T
-        H = 0.5 * (H + H.T)
-        D = np.diag(np.maximum(np.diag(H), 1e-300))
-        one = np.ones((len(F), 1))
-        accepted = False
-        while mu < 1e10 and not accepted:
-            step = np.zeros(k)
-            K = np.block([[H + mu * D, one], [one.T, np.zeros((1, 1))]])
-            try:
-                step[F] = np.linalg.solve(K, np.append(phi[F], 0.0))[:len(F)]
-            except np.linalg.LinAlgError:  # poses that add nothing make H singular: damp more
-                mu *= 100
-                continue
-            for a in 0.5 ** np.arange(6):
-                trial = np.where(drop, 0.0, np.maximum(w + a * step, 0.0))
-                trial /= trial.sum()
-                decrease = phi @ trial - Phi  # first-order decrease of Phi towards trial
-                if decrease > 0 and value(trial) <= Phi - 1e-4 * decrease:
-                    w, accepted = trial, True
-                    mu = mu / 10 if a == 1.0 else mu
-                    break
-            else:
-                mu *= 100
+        w, mu, accepted = _damped_newton_step(P, w, phi, viol, Phi, Minv, B, mu, tol, value)
         if not accepted:
             e = -w.copy()
             e[int(np.argmax(phi))] += 1.0
@@ -326,6 +332,29 @@ def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, 
             w /= w.sum()
             mu = 1e-8
     return w
+
+
+def _ascent_step(v: np.ndarray, h: float, n: int, pi: np.ndarray, pj: np.ndarray, Xa: np.ndarray, lo: np.ndarray,
+                 hi: np.ndarray) -> np.ndarray:
+    """Newton's ascent step (k, n) of :func:`newton_maximise` from the function's values ``v`` (k, 1 + 2n + 2 n(n-1)/2)
+    on the central-difference stencil (step ``h``; ``pi``, ``pj`` the pairs of the mixed differences): the
+    Hessian's eigenvalues made negative, the joints at a limit with the gradient pointing out held."""
+    npair = len(pi)
+    f0, fp, fm = v[:, 0], v[:, 1:1 + n], v[:, 1 + n:1 + 2 * n]
+    pp, mm = v[:, 1 + 2 * n:1 + 2 * n + npair], v[:, 1 + 2 * n + npair:]
+    g = (fp - fm) / (2 * h)
+    H = np.empty((len(v), n, n))
+    H[:, np.arange(n), np.arange(n)] = (fp - 2 * f0[:, None] + fm) / h**2
+    off = (pp + mm - fp[:, pi] - fm[:, pi] - fp[:, pj] - fm[:, pj] + 2 * f0[:, None]) / (2 * h**2)
+    H[:, pi, pj] = off
+    H[:, pj, pi] = off
+    held = ((Xa <= lo + 1e-12) & (g < 0)) | ((Xa >= hi - 1e-12) & (g > 0))
+    g = np.where(held, 0.0, g)
+    H = np.where(held[:, :, None] | held[:, None, :], 0.0, H)
+    H[:, np.arange(n), np.arange(n)] = np.where(held, -1.0, H[:, np.arange(n), np.arange(n)])
+    lam, Vec = np.linalg.eigh(H)
+    lam = np.maximum(np.abs(lam), 1e-10 * np.abs(lam).max(axis=1, keepdims=True) + 1e-300)
+    return np.einsum("kij,kj->ki", Vec, np.einsum("kji,kj->ki", Vec, g) / lam)
 
 
 def newton_maximise(fun, robot: Robot, X0: np.ndarray, h: float = 1e-4, max_iter: int = 100,
@@ -351,7 +380,6 @@ def newton_maximise(fun, robot: Robot, X0: np.ndarray, h: float = 1e-4, max_iter
     E = h * np.eye(n)
     pi, pj = np.triu_indices(n, 1)
     stencil = np.vstack([np.zeros(n), E, -E, E[pi] + E[pj], -(E[pi] + E[pj])])
-    npair = len(pi)
     f = np.asarray(fun(X), float)
     radius = np.full(k, 0.5)
     active = np.isfinite(f)
@@ -363,21 +391,8 @@ def newton_maximise(fun, robot: Robot, X0: np.ndarray, h: float = 1e-4, max_iter
             break
         Xa = X[idx]
         v = np.asarray(fun((Xa[:, None, :] + stencil).reshape(-1, n)), float).reshape(len(idx), -1)
-        f0, fp, fm = v[:, 0], v[:, 1:1 + n], v[:, 1 + n:1 + 2 * n]
-        pp, mm = v[:, 1 + 2 * n:1 + 2 * n + npair], v[:, 1 + 2 * n + npair:]
-        g = (fp - fm) / (2 * h)
-        H = np.empty((len(idx), n, n))
-        H[:, np.arange(n), np.arange(n)] = (fp - 2 * f0[:, None] + fm) / h**2
-        off = (pp + mm - fp[:, pi] - fm[:, pi] - fp[:, pj] - fm[:, pj] + 2 * f0[:, None]) / (2 * h**2)
-        H[:, pi, pj] = off
-        H[:, pj, pi] = off
-        held = ((Xa <= lo + 1e-12) & (g < 0)) | ((Xa >= hi - 1e-12) & (g > 0))
-        g = np.where(held, 0.0, g)
-        H = np.where(held[:, :, None] | held[:, None, :], 0.0, H)
-        H[:, np.arange(n), np.arange(n)] = np.where(held, -1.0, H[:, np.arange(n), np.arange(n)])
-        lam, Vec = np.linalg.eigh(H)
-        lam = np.maximum(np.abs(lam), 1e-10 * np.abs(lam).max(axis=1, keepdims=True) + 1e-300)
-        step = np.einsum("kij,kj->ki", Vec, np.einsum("kji,kj->ki", Vec, g) / lam)
+        f0 = v[:, 0]
+        step = _ascent_step(v, h, n, pi, pj, Xa, lo, hi)
         norm = np.linalg.norm(step, axis=1)
         step *= np.minimum(1.0, radius[idx] / np.maximum(norm, 1e-300))[:, None]
         Xn = np.clip(Xa + step, lo, hi)
@@ -629,24 +644,29 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
             gap = _gap(found, Phi)
             if gap <= target_gap or rnd == max_rounds - 1:
                 break
-        # the maxima of phi above Phi join the support with weight 0 (the weights step brings them in);
-        # poses that coincide or carry the same information merge
-        xg, fg, xm, fm = found
-        # a support pose whose maximum of phi is near (within MOVE_DEG) moves there when that lowers Phi at
-        # the same weights; the other maxima above Phi (at most MAX_NEW, the highest) join with weight 0
-        near = np.all(np.abs(angle_diff(xm, X)) <= np.radians(MOVE_DEG), axis=1)
-        moved = np.where(near[:, None], xm, X)
-        P_moved = _info(problem, moved)
-        if _phi_design(W, np.einsum("k,kij->ij", wS, P_moved))[0] < Phi:
-            X, PS, fm = moved, P_moved, np.where(near, -np.inf, fm)
-        xs, fs = np.vstack([xm, xg]), np.concatenate([fm, fg])
-        best = np.argsort(-fs, kind="stable")[:MAX_NEW]
-        new = xs[best[fs[best] > Phi]]
-        X, wS = _merge(problem, np.vstack([X, new]), np.append(wS, np.zeros(len(new))))
-        PS = _info(problem, X)
+        X, wS, PS = _grow_support(problem, W, X, wS, Phi, found)
     max_phi = Phi * (1.0 + gap)
     order = np.argsort(-wS, kind="stable")
     return ApproximateDesign(into_limits(robot, np.degrees(X[order])), wS[order], Phi, max_phi, Phi**2 / max_phi, it)
+
+
+def _grow_support(problem: Problem, W: np.ndarray, X: np.ndarray, wS: np.ndarray, Phi: float,
+                  found) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(X, w, P) of the support after a search of phi (``found``: :meth:`PhiSearch.maximise`'s grid and local
+    maxima): a support pose whose maximum of phi is near (within MOVE_DEG) moves there when that lowers Phi at
+    the same weights; the other maxima above Phi (at most MAX_NEW, the highest) join with weight 0 (the weights
+    step brings them in); poses that coincide or carry the same information merge."""
+    xg, fg, xm, fm = found
+    near = np.all(np.abs(angle_diff(xm, X)) <= np.radians(MOVE_DEG), axis=1)
+    moved = np.where(near[:, None], xm, X)
+    P_moved = _info(problem, moved)
+    if _phi_design(W, np.einsum("k,kij->ij", wS, P_moved))[0] < Phi:
+        X, fm = moved, np.where(near, -np.inf, fm)
+    xs, fs = np.vstack([xm, xg]), np.concatenate([fm, fg])
+    best = np.argsort(-fs, kind="stable")[:MAX_NEW]
+    new = xs[best[fs[best] > Phi]]
+    X, wS = _merge(problem, np.vstack([X, new]), np.append(wS, np.zeros(len(new))))
+    return X, wS, _info(problem, X)
 
 
 def _feasible_design(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.ndarray, search: "PhiSearch",

@@ -889,6 +889,44 @@ def design_starts(problem: Problem, design: ApproximateDesign, m: int) -> list[n
 
 
 @single_threaded
+def _given_starts(problem: Problem, starts, pool: np.ndarray) -> list[np.ndarray]:
+    """The given starting plans [deg] as (m, n) [rad], those the cell or the candidate file does not allow left
+    out; ValueError for a plan of the wrong shape."""
+    m = problem.m
+    inits = [np.radians(np.atleast_2d(s)) for s in (starts or [])]
+    for i, init in enumerate(inits):
+        if init.shape != (m, problem.robot.n_joints):
+            raise ValueError(f"starting plan {i} has shape {init.shape}, expected ({m}, {problem.robot.n_joints})")
+    if problem.robot.cell is not None:  # a start with a pose the cell does not allow is no start
+        inits = [q for q in inits if problem.feasible(q).all()]
+    if not problem.continuous:  # a candidate file: plans of its poses only
+        inits = [q for q in inits if _in_pool(q, pool)]
+    return inits
+
+
+def _reported(problem: Problem, results: list, canonical: bool) -> tuple[np.ndarray, float, int]:
+    """(the best plan [deg] as reported, its loss, how many distinct plans reach it) of the polished plans
+    ``results`` [(loss, plan [rad])]: the representative symmetric copy (``canonical``) or the poses in
+    order, its repeated poses merged where that is no worse."""
+    vals = np.array([r[0] for r in results])
+    best_val, best_plan = results[int(np.argmin(vals))]
+    symmetries = information_symmetries(problem) if canonical else None
+
+    def canon_of(plan):
+        if canonical:
+            return canonical_plan(problem, np.degrees(plan), symmetries)
+        q = into_limits(problem.robot, np.degrees(plan))
+        return q[np.lexsort(q.T[::-1])]
+
+    canon = canon_of(best_plan)
+    merged = merge_repeats(canon)
+    merged_val = float(plan_loss(problem, np.radians(merged)))
+    if merged_val <= best_val * (1 + 1e-10):
+        canon, best_val = merged, merged_val
+    near = [canon_of(p) for v, p in results if v <= best_val * (1 + 1e-9) + 1e-300]
+    return canon, best_val, len({tuple(np.round(c, 3).ravel()) for c in near})
+
+
 def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.ndarray | None = None,
                   starts: list[np.ndarray] | None = None, n_starts: int = 16, seed: int = 0,
                   pool_step_deg: float | None = None, canonical: bool = True, n_polish: int | None = None,
@@ -911,14 +949,7 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
     elif problem.robot.cell is not None:  # a pool given (the workflow's pool.npy): only the poses the cell allows
         pool = pool[problem.feasible(pool)]
     pool_A = _plan_A(problem, pool)
-    inits = [np.radians(np.atleast_2d(s)) for s in (starts or [])]
-    for i, init in enumerate(inits):
-        if init.shape != (m, problem.robot.n_joints):
-            raise ValueError(f"starting plan {i} has shape {init.shape}, expected ({m}, {problem.robot.n_joints})")
-    if problem.robot.cell is not None:  # a start with a pose the cell does not allow is no start
-        inits = [q for q in inits if problem.feasible(q).all()]
-    if not problem.continuous:  # a candidate file: plans of its poses only
-        inits = [q for q in inits if _in_pool(q, pool)]
+    inits = _given_starts(problem, starts, pool)
     inits += [pool[rng.choice(len(pool), m, replace=len(pool) < m)] for _ in range(n_starts)]
     forms = pool_forms(*_compact(pool_A)) if problem.criterion in L_OPTIMAL + CLOSED_FORM else None
     plans, losses = exchange_plans(problem, np.stack(inits), pool, pool_A, forms=forms, scores=scores)
@@ -931,25 +962,7 @@ def optimise_plan(problem: Problem, pool: np.ndarray | None = None, free: np.nda
         done, done_vals = polish_plans(problem, rough[finish], free)
     else:
         done, done_vals = plans[order], losses[order]
-    results = list(zip(done_vals, done))
-    vals = np.array([r[0] for r in results])
-    best_i = int(np.argmin(vals))
-    best_val, best_plan = results[best_i]
-    symmetries = information_symmetries(problem) if canonical else None
-
-    def canon_of(plan):
-        if canonical:
-            return canonical_plan(problem, np.degrees(plan), symmetries)
-        q = into_limits(problem.robot, np.degrees(plan))
-        return q[np.lexsort(q.T[::-1])]
-
-    canon = canon_of(best_plan)
-    merged = merge_repeats(canon)
-    merged_val = float(plan_loss(problem, np.radians(merged)))
-    if merged_val <= best_val * (1 + 1e-10):
-        canon, best_val = merged, merged_val
-    near = [canon_of(p) for v, p in results if v <= best_val * (1 + 1e-9) + 1e-300]
-    distinct = len({tuple(np.round(c, 3).ravel()) for c in near})
+    canon, best_val, distinct = _reported(problem, list(zip(done_vals, done)), canonical)
     return PlanResult(canon, float(best_val), len(inits), distinct)
 
 

@@ -324,6 +324,33 @@ RASTER_POINTS = 2000
 MAX_BARS = 200
 
 
+def _config_slots(meas, fmag: np.ndarray, n_cfg: int) -> np.ndarray:
+    """The x of each row in the per-configuration panel: its configuration's slot, its rows spread by load
+    (sorted by force magnitude, then row) across 0.7 of the slot."""
+    config = np.asarray(meas.config)
+    by = np.lexsort((np.arange(len(fmag)), fmag, config))
+    counts = np.bincount(config, minlength=n_cfg)
+    rank = np.arange(len(by)) - (np.cumsum(counts) - counts)[config[by]]
+    slot = np.zeros(len(fmag))
+    slot[by] = config[by] - 0.35 + 0.7 * (rank + 0.5) / counts[config[by]]
+    return slot
+
+
+def _feature_panels(fig, grid, cols: int, features: dict, um: np.ndarray, ok: np.ndarray, out: np.ndarray, lim,
+                    sigma: float, dense: bool) -> None:
+    """One panel of the residuals [µm] against each feature, from the second row of ``grid`` on."""
+    for i, (name, v) in enumerate(features.items()):
+        ax = fig.add_subplot(grid[1 + i // cols, i % cols])
+        for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
+            if j < um.shape[1]:
+                ax.plot(v[ok], um[ok, j], mk, ms=3, alpha=0.7, label=f"d{lab}", rasterized=dense or None)
+        if out.any():
+            _outliers(ax, v[out], um[out], lim)
+        ax.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
+        ax.set_xlabel(name)
+        ax.set_ylabel("residual [µm]")
+
+
 def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigma: float, title: str,
                   outlier_rows=()):
     """Residuals of the nominal fit [m]: first per robot configuration (every load of a configuration side by
@@ -357,13 +384,7 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
         order = np.argsort(meas.config, kind="stable")
         order = order[ok[order]]
         n_cfg = max(meas.n_configurations, 1)
-        # within a configuration, spread its rows by load (sorted by force magnitude, then row) across 0.7 of a slot
-        config = np.asarray(meas.config)
-        by = np.lexsort((np.arange(len(fmag)), fmag, config))
-        counts = np.bincount(config, minlength=n_cfg)
-        rank = np.arange(len(by)) - (np.cumsum(counts) - counts)[config[by]]
-        slot = np.zeros(len(fmag))
-        slot[by] = config[by] - 0.35 + 0.7 * (rank + 0.5) / counts[config[by]]
+        slot = _config_slots(meas, fmag, n_cfg)
         dense = len(fmag) > RASTER_POINTS  # many points: drawn as an image inside the SVG, the text stays vector
         norm = (plt.Normalize(fmag.min(), fmag.max()) if by_magnitude else plt.Normalize(-180.0, 180.0))
         for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
@@ -380,16 +401,7 @@ def fig_residuals(meas, features: dict[str, np.ndarray], resid: np.ndarray, sigm
         ax0.set_ylabel("residual [µm]")
         fig.colorbar(sc, ax=ax0, label="|F| [N]" if by_magnitude else "force direction [deg]", pad=0.01)
         ax0.legend(fontsize=7, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=4, frameon=False, borderaxespad=0.2)
-        for i, (name, v) in enumerate(features.items()):
-            ax = fig.add_subplot(grid[1 + i // cols, i % cols])
-            for j, (lab, mk) in enumerate(zip("xyz", "o^s")):
-                if j < resid.shape[1]:
-                    ax.plot(v[ok], um[ok, j], mk, ms=3, alpha=0.7, label=f"d{lab}", rasterized=dense or None)
-            if out.any():
-                _outliers(ax, v[out], um[out], lim)
-            ax.axhspan(-2e6 * sigma, 2e6 * sigma, color="0.85", zorder=0)
-            ax.set_xlabel(name)
-            ax.set_ylabel("residual [µm]")
+        _feature_panels(fig, grid, cols, features, um, ok, out, lim, sigma, dense)
         if lim is not None:
             for ax in fig.axes:
                 if ax.get_ylabel() == "residual [µm]":
@@ -535,6 +547,46 @@ def fig_study_versus_m(df: pd.DataFrame, sigma: float):
         return fig
 
 
+def _draw_session(ax, robot, session: dict | None, planar: bool) -> None:
+    """The plan to measure on ``ax``: each pose's arm with its load's arrow (a point measured several times drawn
+    once, labelled with every number), the base, the reach and the cell."""
+    reach = robot.reach_m
+    if session:
+        fmax = max(np.linalg.norm(session["forces_N"], axis=1).max(), 1e-300)
+        points: dict = {}  # a point measured several times is drawn once, labelled with every number
+        for i, (pose, f) in enumerate(zip(session["poses_deg"], session["forces_N"])):
+            points.setdefault((tuple(np.round(pose, 3)), tuple(np.round(f, 3))), []).append(i + 1)
+        for k, ((pose, f), numbers) in enumerate(points.items()):
+            pts = as_xyz(robot.link_points(np.radians(pose)))
+            arrow = as_xyz(np.asarray(f)) / fmax * 0.25 * reach
+            c = f"C{k % 10}"
+            text = " " + ",".join(map(str, numbers))
+            if planar:
+                ax.plot(pts[:, 0], pts[:, 1], "o-", color=c, lw=1.4, ms=3, alpha=0.85)
+                ax.annotate("", xy=pts[-1, :2] + arrow[:2], xytext=pts[-1, :2],
+                            arrowprops=dict(arrowstyle="-|>", color=c, lw=1.0))
+                ax.text(*pts[-1, :2], text, fontsize=7, color=c)
+            else:
+                ax.plot(*pts.T, "o-", color=c, lw=1.2, ms=2, alpha=0.85)
+                ax.quiver(*pts[-1], *arrow, color=c, lw=1)
+                ax.text(*pts[-1], text, fontsize=7, color=c)
+    if planar:
+        ax.plot(0, 0, "ks", ms=7)
+        ax.add_patch(plt.Circle((0, 0), reach, fill=False, ls=":", color="0.6"))
+        draw_cell_2d(ax, robot, 1.3 * reach)
+        ax.set_xlim(-1.3 * reach, 1.3 * reach)
+        ax.set_ylim(-1.3 * reach, 1.3 * reach)
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+    else:
+        draw_cell(ax, robot, -reach * np.ones(3), reach * np.ones(3))
+        for set_lim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
+            set_lim(-reach, reach)
+        ax.set_box_aspect((1, 1, 1))
+        ax.set_zlabel("z [m]")
+        ax.view_init(elev=22, azim=-60)
+
+
 def fig_discrimination(robot, plan: dict, title: str):
     """The next experiment (``stiffcal discriminate``, plan.json as ``plan``): the plan to measure (the compound
     plan when there is one, else the discriminating plan) drawn with its loads (left; in the plane for a planar
@@ -542,45 +594,11 @@ def fig_discrimination(robot, plan: dict, title: str):
     of points M, with the certified bound at the chosen M (right)."""
     which = "compound" if plan.get("compound") else ("plan" if plan.get("plan") else "ot_plan")
     session = plan.get(which)
-    reach = robot.reach_m
     with plt.rc_context(STYLE):
         fig = plt.figure(figsize=(8.4, 3.8))
         planar = robot.task_dim == 2
         ax = fig.add_subplot(1, 2, 1) if planar else fig.add_subplot(1, 2, 1, projection="3d")
-        if session:
-            fmax = max(np.linalg.norm(session["forces_N"], axis=1).max(), 1e-300)
-            points: dict = {}  # a point measured several times is drawn once, labelled with every number
-            for i, (pose, f) in enumerate(zip(session["poses_deg"], session["forces_N"])):
-                points.setdefault((tuple(np.round(pose, 3)), tuple(np.round(f, 3))), []).append(i + 1)
-            for k, ((pose, f), numbers) in enumerate(points.items()):
-                pts = as_xyz(robot.link_points(np.radians(pose)))
-                arrow = as_xyz(np.asarray(f)) / fmax * 0.25 * reach
-                c = f"C{k % 10}"
-                text = " " + ",".join(map(str, numbers))
-                if planar:
-                    ax.plot(pts[:, 0], pts[:, 1], "o-", color=c, lw=1.4, ms=3, alpha=0.85)
-                    ax.annotate("", xy=pts[-1, :2] + arrow[:2], xytext=pts[-1, :2],
-                                arrowprops=dict(arrowstyle="-|>", color=c, lw=1.0))
-                    ax.text(*pts[-1, :2], text, fontsize=7, color=c)
-                else:
-                    ax.plot(*pts.T, "o-", color=c, lw=1.2, ms=2, alpha=0.85)
-                    ax.quiver(*pts[-1], *arrow, color=c, lw=1)
-                    ax.text(*pts[-1], text, fontsize=7, color=c)
-        if planar:
-            ax.plot(0, 0, "ks", ms=7)
-            ax.add_patch(plt.Circle((0, 0), reach, fill=False, ls=":", color="0.6"))
-            draw_cell_2d(ax, robot, 1.3 * reach)
-            ax.set_xlim(-1.3 * reach, 1.3 * reach)
-            ax.set_ylim(-1.3 * reach, 1.3 * reach)
-            ax.set_aspect("equal")
-            ax.grid(alpha=0.3)
-        else:
-            draw_cell(ax, robot, -reach * np.ones(3), reach * np.ones(3))
-            for set_lim in (ax.set_xlim, ax.set_ylim, ax.set_zlim):
-                set_lim(-reach, reach)
-            ax.set_box_aspect((1, 1, 1))
-            ax.set_zlabel("z [m]")
-            ax.view_init(elev=22, azim=-60)
+        _draw_session(ax, robot, session, planar)
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
         label = {"compound": f"compound plan (κ = {plan['compound']['weight'] if plan.get('compound') else ''})",

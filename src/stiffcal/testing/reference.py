@@ -96,6 +96,82 @@ def reference_exchange(pool_info: np.ndarray, Xt: np.ndarray, start, max_passes:
     return np.sort(idx), best
 
 
+class _Reference:
+    """The pieces of :func:`certified_bound_reference`: random poses within the limits, information matrices,
+    Phi, and the joint polish of poses and weights by L-BFGS-B."""
+
+    def __init__(self, problem, rng: np.random.Generator, polish_iters: int):
+        robot = problem.robot
+        self.robot, self.F, self.At = robot, problem.force, problem.At
+        self.W = self.At.T @ self.At
+        self.n = robot.n_joints
+        self.rng, self.polish_iters = rng, polish_iters
+        lo, hi = robot.joint_limits_rad.T
+        self.lo, self.hi = np.where(hi - lo >= 2 * np.pi, -np.pi, lo), np.where(hi - lo >= 2 * np.pi, np.pi, hi)
+        self.free = robot.joint_limits_rad[:, 1] - robot.joint_limits_rad[:, 0] >= 2 * np.pi - 1e-12
+
+    def A_of(self, q):
+        return observation_matrix(self.robot.model_jacobian(q), self.F)
+
+    def faces(self, q):
+        """Half of the poses with each limited joint at a limit with probability 1/3 (maxima lie there)."""
+        u = self.rng.uniform(size=q.shape)
+        free, lo, hi = self.free, self.lo, self.hi
+        moved = np.where(~free & (u < 1 / 6), lo, np.where(~free & (u > 5 / 6), hi, q))
+        return np.where(np.arange(len(q))[:, None] % 2 == 1, moved, q)
+
+    def info(self, q):
+        A = self.A_of(q)
+        return np.einsum("...di,...dj->...ij", A, A)
+
+    def phi_fun(self, C):
+        return lambda q: np.sum((self.A_of(q) @ C) ** 2, axis=(-2, -1))
+
+    def grad_fd(self, fun, X, h=1e-6):
+        n = self.n
+        steps = h * np.eye(n)
+        return (fun((X[:, None, :] + steps).reshape(-1, n)) - fun((X[:, None, :] - steps).reshape(-1, n))
+                ).reshape(len(X), n) / (2 * h)
+
+    def Phi_of(self, X, w):
+        return float(np.trace(self.W @ np.linalg.inv(np.einsum("k,kij->ij", w, self.info(X)))))
+
+    def polish(self, X, w):
+        """Poses and weights (softmax) polished together by L-BFGS-B on Phi, with its gradient
+        ``-w_i grad phi(x_i)``, ``-phi_i``."""
+        from scipy.optimize import minimize as _minimize
+
+        k, n, W, At = len(w), self.n, self.W, self.At
+
+        def fg(z):
+            Xz, logit = z[:k * n].reshape(k, n), z[k * n:]
+            wz = np.exp(logit - logit.max())
+            wz /= wz.sum()
+            M = np.einsum("k,kij->ij", wz, self.info(Xz))
+            try:
+                Minv = np.linalg.inv(M)
+            except np.linalg.LinAlgError:
+                return 1e300, np.zeros_like(z)
+            val = float(np.trace(W @ Minv))
+            if not (np.isfinite(val) and val > 0):
+                return 1e300, np.zeros_like(z)
+            C = Minv @ At.T
+            fun = self.phi_fun(C)
+            phis = fun(Xz)
+            gx = -wz[:, None] * self.grad_fd(fun, Xz)
+            gw = -phis
+            return val, np.concatenate([gx.ravel(), wz * (gw - wz @ gw)])
+
+        free, lo, hi = self.free, self.lo, self.hi
+        bounds = [(None, None) if free[j % n] else (lo[j % n], hi[j % n]) for j in range(k * n)] + [(-40, 40)] * k
+        z0 = np.concatenate([X.ravel(), np.log(np.maximum(w, 1e-16))])
+        res = _minimize(fg, z0, jac=True, method="L-BFGS-B", bounds=bounds,
+                        options=dict(maxiter=self.polish_iters, ftol=1e-13, gtol=1e-10))
+        Xz, logit = res.x[:k * n].reshape(k, n), res.x[k * n:]
+        wz = np.exp(logit - logit.max())
+        return Xz, wz / wz.sum()
+
+
 def certified_bound_reference(problem, pool_size: int = 1500, searches: int = 60_000, polish_top: int = 12,
                               rounds: int = 6, iters: int = 2000, polish_iters: int = 300, seed: int = 0):
     """An independent, slower certified lower bound on Phi* = min over designs of trace(W M(xi)^-1), for
@@ -113,76 +189,15 @@ def certified_bound_reference(problem, pool_size: int = 1500, searches: int = 60
 
     Returns (Phi(xi), max_x phi(x, xi), bound).
     """
-    from scipy.optimize import minimize as _minimize
-
-    robot, F = problem.robot, problem.force
-    At = problem.At
-    W = At.T @ At
-    n = robot.n_joints
-    rng = np.random.default_rng(seed)
-    lo, hi = robot.joint_limits_rad.T
-    lo, hi = np.where(hi - lo >= 2 * np.pi, -np.pi, lo), np.where(hi - lo >= 2 * np.pi, np.pi, hi)
-    free = robot.joint_limits_rad[:, 1] - robot.joint_limits_rad[:, 0] >= 2 * np.pi - 1e-12
-
-    def A_of(q):
-        return observation_matrix(robot.model_jacobian(q), F)
-
-    def faces(q):
-        """Half of the poses with each limited joint at a limit with probability 1/3 (maxima lie there)."""
-        u = rng.uniform(size=q.shape)
-        moved = np.where(~free & (u < 1 / 6), lo, np.where(~free & (u > 5 / 6), hi, q))
-        return np.where(np.arange(len(q))[:, None] % 2 == 1, moved, q)
-
-    def info(q):
-        A = A_of(q)
-        return np.einsum("...di,...dj->...ij", A, A)
-
-    def phi_fun(C):
-        return lambda q: np.sum((A_of(q) @ C) ** 2, axis=(-2, -1))
-
-    def grad_fd(fun, X, h=1e-6):
-        steps = h * np.eye(n)
-        return (fun((X[:, None, :] + steps).reshape(-1, n)) - fun((X[:, None, :] - steps).reshape(-1, n))
-                ).reshape(len(X), n) / (2 * h)
-
-    def Phi_of(X, w):
-        return float(np.trace(W @ np.linalg.inv(np.einsum("k,kij->ij", w, info(X)))))
-
-    def polish(X, w):
-        k = len(w)
-
-        def fg(z):
-            Xz, logit = z[:k * n].reshape(k, n), z[k * n:]
-            wz = np.exp(logit - logit.max())
-            wz /= wz.sum()
-            M = np.einsum("k,kij->ij", wz, info(Xz))
-            try:
-                Minv = np.linalg.inv(M)
-            except np.linalg.LinAlgError:
-                return 1e300, np.zeros_like(z)
-            val = float(np.trace(W @ Minv))
-            if not (np.isfinite(val) and val > 0):
-                return 1e300, np.zeros_like(z)
-            C = Minv @ At.T
-            fun = phi_fun(C)
-            phis = fun(Xz)
-            gx = -wz[:, None] * grad_fd(fun, Xz)
-            gw = -phis
-            return val, np.concatenate([gx.ravel(), wz * (gw - wz @ gw)])
-
-        bounds = [(None, None) if free[j % n] else (lo[j % n], hi[j % n]) for j in range(k * n)] + [(-40, 40)] * k
-        z0 = np.concatenate([X.ravel(), np.log(np.maximum(w, 1e-16))])
-        res = _minimize(fg, z0, jac=True, method="L-BFGS-B", bounds=bounds,
-                        options=dict(maxiter=polish_iters, ftol=1e-13, gtol=1e-10))
-        Xz, logit = res.x[:k * n].reshape(k, n), res.x[k * n:]
-        wz = np.exp(logit - logit.max())
-        return Xz, wz / wz.sum()
+    ref = _Reference(problem, np.random.default_rng(seed), polish_iters)
+    rng, n = ref.rng, ref.n
+    W = ref.W
 
     def max_phi(X, w):
         return max_phi_reference(problem, X, w, searches, polish_top, rng)
 
-    pool = faces(rng.uniform(lo, hi, (pool_size, n)))
-    P = info(pool).reshape(pool_size, -1)
+    pool = ref.faces(rng.uniform(ref.lo, ref.hi, (pool_size, n)))
+    P = ref.info(pool).reshape(pool_size, -1)
     w = np.full(pool_size, 1.0 / pool_size)
     for _ in range(iters):
         Minv = np.linalg.inv((w @ P).reshape(problem.robot.n_params, -1))
@@ -190,11 +205,11 @@ def certified_bound_reference(problem, pool_size: int = 1500, searches: int = 60
         w = w * phis / np.trace(W @ Minv)
         w /= w.sum()
     keep = w >= 1e-4 * w.max()
-    X, w = polish(pool[keep], w[keep] / w[keep].sum())
+    X, w = ref.polish(pool[keep], w[keep] / w[keep].sum())
     for _ in range(rounds):
         _, x = max_phi(X, w)
-        X, w = polish(np.vstack([X, x]), np.append(0.9 * w, 0.1))
-    Phi = Phi_of(X, w)
+        X, w = ref.polish(np.vstack([X, x]), np.append(0.9 * w, 0.1))
+    Phi = ref.Phi_of(X, w)
     top, _ = max_phi(X, w)
     top = max(top, Phi)
     return Phi, top, Phi**2 / top

@@ -222,6 +222,49 @@ def _check_lab_loads(entry: dict, robot, source: str, where: str) -> None:
         raise err.renamed(f"{where}.discriminate.loads", source) from None
 
 
+def _check_measured_entry(config: dict, entry: dict, where: str, study, root, source: str, memo) -> None:
+    """One entry of ``measured_data`` (``where``): its robot, its data file (read and checked, or known good by
+    ``memo``), its lab loads, its noise levels and its test pose and load; InputError naming the field."""
+    from ..model.observation import moment_dim
+    from ..model.robot import load_config_robot
+    from ..planning.study import check_load_bends
+
+    robot = study.robot
+    data_robot = load_config_robot(root, entry["robot"], source, f"{where}.robot")
+    data = Path(root) / entry["data"]
+    if not data.is_file():
+        from ..safeio import regular_file  # a FIFO, a device or a directory is named as such
+
+        regular_file(data, source=source, field=f"{where}.data")
+        raise InputError(f"no such file: {entry['data']}", source=source, field=f"{where}.data")
+    _check_data(data, data_robot, memo)  # the data themselves (the message names the CSV, row and column)
+    _check_lab_loads(entry, data_robot, source, where)
+    force = entry.get("force_N", config["study"]["force_N"])
+    moment = entry.get("moment_Nm", config["study"].get("moment_Nm"))
+    field = f"{where}.force_N" if "force_N" in entry else "study.force_N"
+    mfield = f"{where}.moment_Nm" if "moment_Nm" in entry else "study.moment_Nm"
+    if ("sigma_m" in entry) != ("sigma_rad" in entry):
+        raise InputError("expected both noise levels (sigma_m and sigma_rad) or neither: their ratio weighs the "
+                         "rotation rows of data with orientation columns against the positions", source=source,
+                         field=f"{where}.{'sigma_rad' if 'sigma_m' in entry else 'sigma_m'}")
+    if entry.get("test_pose_deg") is not None:  # the data set's own test pose: its robot's joints and limits
+        from ..planning.study import check_test_inputs
+
+        check_test_inputs(data_robot, entry["test_pose_deg"], np.asarray(force, float), f"{where}.test_pose_deg",
+                          field, source, None if moment is None else np.asarray(moment, float), mfield)
+    elif data_robot.n_joints == robot.n_joints:  # the predicted gain at the study's test pose
+        if len(force) != data_robot.task_dim:
+            raise InputError(f"expected {data_robot.task_dim} force components for the {data_robot.kind} robot "
+                             f"{entry['robot']}, got {len(force)}", source=source, field=field)
+        dm = moment_dim(data_robot)
+        if moment is not None and len(moment) != dm:
+            raise InputError(f"expected {dm} moment component(s) for the {data_robot.kind} robot "
+                             f"{entry['robot']}, got {len(moment)}", source=source, field=mfield)
+        if not any(force) and not any(moment or []):
+            raise InputError("expected a nonzero force at the test pose", source=source, field=field)
+        check_load_bends(data_robot, study.test_pose, np.r_[force, moment or []], field, source)
+
+
 def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT,
                  memo_dir: str | Path | None = None) -> None:
     """Check a workflow config completely (module docstring); raise :class:`InputError` naming ``source`` and
@@ -230,9 +273,7 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT,
     ``data-checked.json``; :mod:`stiffcal.memo`), so that a rerun does not read them again; None: every file
     is read every time."""
     from ..planning.maps import map_studies
-    from ..model.observation import moment_dim
-    from ..model.robot import load_config_robot
-    from ..planning.study import check_load_bends, design_studies, study_from_config
+    from ..planning.study import design_studies, study_from_config
     from ..validation import validate
 
     validate(config, "config", source)
@@ -256,41 +297,8 @@ def check_config(config: dict, root: str | Path = ".", source: str = DEFAULT,
 
         memo = JsonMemo(Path(memo_dir) / "data-checked.json", package_fingerprint())
     for i, entry in enumerate(config.get("measured_data") or []):
-        where = f"measured_data[{i}]"
         if entry["name"] in names:
             raise InputError(f"expected unique names, got {entry['name']!r} twice", source=source,
-                             field=f"{where}.name")
+                             field=f"measured_data[{i}].name")
         names.add(entry["name"])
-        data_robot = load_config_robot(root, entry["robot"], source, f"{where}.robot")
-        data = Path(root) / entry["data"]
-        if not data.is_file():
-            from ..safeio import regular_file  # a FIFO, a device or a directory is named as such
-
-            regular_file(data, source=source, field=f"{where}.data")
-            raise InputError(f"no such file: {entry['data']}", source=source, field=f"{where}.data")
-        _check_data(data, data_robot, memo)  # the data themselves (the message names the CSV, row and column)
-        _check_lab_loads(entry, data_robot, source, where)
-        force = entry.get("force_N", config["study"]["force_N"])
-        moment = entry.get("moment_Nm", config["study"].get("moment_Nm"))
-        field = f"{where}.force_N" if "force_N" in entry else "study.force_N"
-        mfield = f"{where}.moment_Nm" if "moment_Nm" in entry else "study.moment_Nm"
-        if ("sigma_m" in entry) != ("sigma_rad" in entry):
-            raise InputError("expected both noise levels (sigma_m and sigma_rad) or neither: their ratio weighs the "
-                             "rotation rows of data with orientation columns against the positions", source=source,
-                             field=f"{where}.{'sigma_rad' if 'sigma_m' in entry else 'sigma_m'}")
-        if entry.get("test_pose_deg") is not None:  # the data set's own test pose: its robot's joints and limits
-            from ..planning.study import check_test_inputs
-
-            check_test_inputs(data_robot, entry["test_pose_deg"], np.asarray(force, float), f"{where}.test_pose_deg",
-                              field, source, None if moment is None else np.asarray(moment, float), mfield)
-        elif data_robot.n_joints == robot.n_joints:  # the predicted gain at the study's test pose
-            if len(force) != data_robot.task_dim:
-                raise InputError(f"expected {data_robot.task_dim} force components for the {data_robot.kind} robot "
-                                 f"{entry['robot']}, got {len(force)}", source=source, field=field)
-            dm = moment_dim(data_robot)
-            if moment is not None and len(moment) != dm:
-                raise InputError(f"expected {dm} moment component(s) for the {data_robot.kind} robot "
-                                 f"{entry['robot']}, got {len(moment)}", source=source, field=mfield)
-            if not any(force) and not any(moment or []):
-                raise InputError("expected a nonzero force at the test pose", source=source, field=field)
-            check_load_bends(data_robot, study.test_pose, np.r_[force, moment or []], field, source)
+        _check_measured_entry(config, entry, f"measured_data[{i}]", study, root, source, memo)
