@@ -102,12 +102,68 @@ def _rotation_vector(R):
     return 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
 
 
-@pytest.mark.parametrize("name", ["paper_2r", "kuka_kr210_r2700"])
-def test_joint_frames_and_tool_frame_give_the_6d_jacobian_of_any_tip_point(name, root, rng):
+def _example_of(kind: str, root):
+    """A robot file of ``kind`` among the shipped ones (config/robots/): every registered kind must have one."""
+    import yaml
+
+    for path in sorted((root / "config/robots").glob("*.yaml")):
+        doc = yaml.safe_load(path.read_text())
+        if isinstance(doc, dict) and doc.get("kind") == kind:
+            return load_robot(path)
+    raise AssertionError(f"no robot file of kind {kind!r} in config/robots: add an example (docs/extending.md)")
+
+
+def test_the_schema_and_the_field_checks_are_the_kinds_registry(root):
+    """The robot schema's kind enum, its per-kind requirements and its fields are the registry's
+    (stiffcal.model.robot.ROBOT_KINDS): a new kind cannot be half-registered."""
+    import yaml
+
+    from stiffcal.model.robot import FIELD_KINDS, ROBOT_KINDS
+
+    schema = yaml.safe_load((root / "src/stiffcal/schemas/robot.schema.yaml").read_text())
+    assert schema["properties"]["kind"]["enum"] == list(ROBOT_KINDS)
+    assert sorted(c["if"]["properties"]["kind"]["const"] for c in schema["allOf"]) == sorted(ROBOT_KINDS)
+    assert set(FIELD_KINDS) <= set(schema["properties"])
+    for kind in ROBOT_KINDS.values():
+        assert kind.task_dim in (2, 3)
+        required = next(c["then"]["required"] for c in schema["allOf"] if c["if"]["properties"]["kind"]["const"]
+                        == kind.name)
+        assert set(required) <= set(kind.fields), (kind.name, required)
+
+
+@pytest.mark.parametrize("kind", list(__import__("stiffcal.model.robot", fromlist=["x"]).ROBOT_KINDS))
+def test_every_kind_s_kinematics_agree_with_each_other(kind, root, rng):
+    """Conformance of a registered kind: fk's dimension is task_dim, the Jacobian is fk's finite difference, the
+    drawn arm starts at the base and ends at the measured point with n_segments segments, the reach bounds the
+    measured point, and link frame j turns with joints 1..j only."""
+    robot = _example_of(kind, root)
+    n, d = robot.n_joints, robot.task_dim
+    q = rng.uniform(*robot.joint_limits_rad.T, (5, n))
+    x = robot.fk(q)
+    assert x.shape == (5, d)
+    h = 1e-6
+    fd = np.stack([(robot.fk(q + h * np.eye(n)[j]) - robot.fk(q - h * np.eye(n)[j])) / (2 * h) for j in range(n)], -1)
+    np.testing.assert_allclose(robot.jacobian(q), fd, atol=1e-7 * max(robot.reach_m, 1.0))
+    pts = robot.link_points(q)
+    assert pts.shape == (5, robot.n_segments + 1, d)
+    np.testing.assert_allclose(pts[:, 0], 0.0, atol=1e-12)
+    np.testing.assert_allclose(pts[:, -1], x, atol=1e-12)
+    assert np.all(np.linalg.norm(x, axis=-1) <= robot.reach_m * (1 + 1e-12))
+    R, o = robot.link_frames(q)
+    assert R.shape == (5, n, 3, 3) and o.shape == (5, n, 3)
+    for j in range(n):
+        R2, o2 = robot.link_frames(q + 0.3 * np.eye(n)[j])
+        np.testing.assert_allclose(R2[:, :j], R[:, :j], atol=1e-12)  # frames before j stay
+        np.testing.assert_allclose(o2[:, :j], o[:, :j], atol=1e-12)
+        assert np.abs(R2[:, j] - R[:, j]).max() > 1e-3  # frame j turns with joint j
+
+
+@pytest.mark.parametrize("kind", list(__import__("stiffcal.model.robot", fromlist=["x"]).ROBOT_KINDS))
+def test_joint_frames_and_tool_frame_give_the_6d_jacobian_of_any_tip_point(kind, root, rng):
     """The interface every robot kind provides: the linear rows axes x (p + R t - origins) and the angular rows
     axes are the derivatives of the point's position and of the tip frame's orientation (finite differences of
     tool_frame alone), for the tool point and for another point of the tip frame."""
-    robot = load_robot(root / f"config/robots/{name}.yaml")
+    robot = _example_of(kind, root)
     n = robot.n_joints
     q = rng.uniform(-np.pi, np.pi, (6, n))
     origins, axes = robot.joint_frames(q)

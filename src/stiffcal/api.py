@@ -243,7 +243,7 @@ def design_estimate_s(robot: Robot, m: int, single: bool = True) -> list[tuple[s
     progress lines scale what is left by how the stages so far compared with their estimates). single: the
     single-pose search runs (one pose identifies every compliance)."""
     n = robot.n_joints
-    if robot.kind == "planar":
+    if robot.planar:
         approx, plan = 0.3 + 0.75 * n, 19.0 * (n / 10) ** 3.85
     else:
         approx, plan = 1.5 + 30.0 * (n / 10) ** 8, 0.5 + 5.0 * (n / 10) ** 8
@@ -560,7 +560,7 @@ def load_arguments(robot: Robot, force_N, wrench, required: bool = True):
         w = float_list(wrench, "wrench", limit=math.inf)  # the physical range is check_load's
         d, dw = force_dim(robot), wrench_dim(robot)
         if w.size != dw:
-            names = "fx, fy, mz" if robot.kind == "planar" else "fx, fy, fz, mx, my, mz"
+            names = "fx, fy, mz" if robot.planar else "fx, fy, fz, mx, my, mz"
             raise InputError(f"expected {dw} wrench components ({names}) for a {robot.kind} robot, got {w.size}",
                              field="wrench")
         check_load(w[:d], w[d:], "wrench")

@@ -130,7 +130,7 @@ class Observed:
 
     def component_names(self, robot: Robot) -> list[str]:
         """Names of a row's measured components: x, y (z), then rx, ry, rz (planar: rz)."""
-        rot = (["rz"] if robot.kind == "planar" else ["rx", "ry", "rz"]) if self.orientation else []
+        rot = (["rz"] if robot.planar else ["rx", "ry", "rz"]) if self.orientation else []
         return list("xyz"[: force_dim(robot)]) + rot
 
     def model_params(self, robot: Robot) -> np.ndarray:
@@ -209,7 +209,7 @@ def _link_twists(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray:
     and the moment M = r x F + M_tool it transmits (bending only): tip deflection (L^3/3) F_perp +
     (L^2/2) M_perp x u, tip rotation (L^2/2) u x F_perp + L M_perp, carried to the tool point by the lever r."""
     pts = as_xyz(robot.link_points(q))
-    W = load if robot.kind != "planar" else np.column_stack([load[:, :2], np.zeros((len(load), 3)), load[:, 2:]])
+    W = load if not robot.planar else np.column_stack([load[:, :2], np.zeros((len(load), 3)), load[:, 2:]])
     F, M_tool = as_xyz(W[:, :3]), W[:, 3:]
     pe = pts[:, -1, :]
     cols = []
@@ -1948,7 +1948,7 @@ def _missing_measurements(robot: Robot, a: str, b: str, q, load, observed: Obser
     """The measurements that, added to the data's, leave fewer of a, b nested in the other (:func:`_nested`) on
     the probe: the tool's orientation, a second target (one of the robot file's, else a point of the tool off
     the tool point)."""
-    rot = "rz_rad" if robot.kind == "planar" else "rx_rad, ry_rad, rz_rad"
+    rot = "rz_rad" if robot.planar else "rx_rad, ry_rad, rz_rad"
     found = []
     if not observed.orientation:
         ob = replace(observed, orientation=True, params=sensed_params(robot, Sensing(observed.used(), True)))
@@ -1960,7 +1960,7 @@ def _missing_measurements(robot: Robot, a: str, b: str, q, load, observed: Obser
         what = f"the position of target {others[0]} too (a target column naming the target of each row)"
     else:
         size = 0.1 * robot.reach_m
-        point = np.array([size, size, 0.0 if robot.kind == "planar" else size])
+        point = np.array([size, size, 0.0 if robot.planar else size])
         trial = replace(robot, targets={**robot.targets, "_probe": point})
         others = ["_probe"]
         what = ("the position of a second target on the tool, off the tool point (its position in the robot file's "

@@ -90,7 +90,7 @@ def parameter_names(cause: str, robot, orientation: bool = False) -> list[str]:
     ``b1_rad`` .. (backlash), ``ox_m`` .. and ``orz_rad`` .. (the tracker's offset)."""
     if cause not in CATALOGUE:
         raise ValueError(f"unknown cause {cause!r}")
-    rot = ([] if not orientation else ["orz_rad"] if robot.kind == "planar" else ["orx_rad", "ory_rad", "orz_rad"])
+    rot = ([] if not orientation else ["orz_rad"] if robot.planar else ["orx_rad", "ory_rad", "orz_rad"])
     return CATALOGUE[cause].names(robot, rot)
 
 

@@ -51,12 +51,12 @@ PLANAR_ROWS = (0, 1, 5)
 
 def force_dim(robot: Robot) -> int:
     """Force components (and position coordinates) of the arm: 2 planar, 3 spatial."""
-    return 2 if robot.kind == "planar" else 3
+    return 2 if robot.planar else 3
 
 
 def moment_dim(robot: Robot) -> int:
     """Moment components (and rotation coordinates) of the arm: 1 planar (about z), 3 spatial."""
-    return 1 if robot.kind == "planar" else 3
+    return 1 if robot.planar else 3
 
 
 def wrench_dim(robot: Robot) -> int:
@@ -77,12 +77,12 @@ def as_wrench(robot: Robot, load: np.ndarray) -> np.ndarray:
 
 def reduce_rows(robot: Robot, v6: np.ndarray, axis: int = -2) -> np.ndarray:
     """The rows a planar arm uses ((x, y, rz) of a 6-D twist or wrench along ``axis``); spatial: all six."""
-    return np.take(v6, PLANAR_ROWS, axis=axis) if robot.kind == "planar" else v6
+    return np.take(v6, PLANAR_ROWS, axis=axis) if robot.planar else v6
 
 
 def _lift6(robot: Robot, v: np.ndarray) -> np.ndarray:
     """(..., w) wrench or twist of the arm -> (..., 6) in 3-D (planar: z, rx, ry = 0)."""
-    if robot.kind != "planar":
+    if not robot.planar:
         return v
     out = np.zeros(v.shape[:-1] + (6,))
     out[..., list(PLANAR_ROWS)] = v
@@ -139,7 +139,7 @@ class Sensing:
     def row_names(self, robot: Robot) -> list[str]:
         """Names of the measured rows of one pose: ``dx@A``, ``dy@A``, ..., ``rz``."""
         axes = "xyz"[: force_dim(robot)]
-        rot = ["rz"] if robot.kind == "planar" else ["rx", "ry", "rz"]
+        rot = ["rz"] if robot.planar else ["rx", "ry", "rz"]
         return [f"d{a}@{t}" for t in self.targets for a in axes] + (rot if self.orientation else [])
 
     def check(self, robot: Robot, prefix: str = "", source: str | None = None) -> "Sensing":
@@ -183,7 +183,7 @@ def observe(robot: Robot, twist: np.ndarray, R: np.ndarray, offsets: np.ndarray,
     pos = moved[..., :d, :].reshape(moved.shape[:-3] + (-1, moved.shape[-1]))
     if not orientation:
         return pos
-    rot = w[..., 2:, :] if robot.kind == "planar" else w
+    rot = w[..., 2:, :] if robot.planar else w
     return np.concatenate([pos, rad_weight * rot], axis=-2)
 
 

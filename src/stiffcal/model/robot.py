@@ -32,6 +32,7 @@ import os
 import re
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -284,7 +285,17 @@ class Robot:
         if not self.joint_names:
             object.__setattr__(self, "joint_names", default_joint_names(self.n_joints))
         if not self.gravity:
-            object.__setattr__(self, "gravity", (0.0, -1.0) if self.kind == "planar" else (0.0, 0.0, -1.0))
+            object.__setattr__(self, "gravity", (0.0, -1.0) if self.planar else (0.0, 0.0, -1.0))
+
+    @property
+    def kind_spec(self) -> "RobotKind":
+        """This robot's kind in the registry :data:`ROBOT_KINDS`."""
+        return ROBOT_KINDS[self.kind]
+
+    @property
+    def planar(self) -> bool:
+        """True for an arm that moves in a plane (a 2-D task space: x, y and the rotation about z)."""
+        return ROBOT_KINDS[self.kind].task_dim == 2
 
     @property
     def n_joints(self) -> int:
@@ -319,7 +330,7 @@ class Robot:
     @property
     def n_segments(self) -> int:
         """Straight segments of the drawn arm (:meth:`link_points`): n links, plus the tool for a spatial arm."""
-        return self.n_joints + (self.kind != "planar")
+        return self.n_joints + self.kind_spec.tool_segment
 
     @property
     def limited(self) -> np.ndarray:
@@ -339,50 +350,26 @@ class Robot:
     @property
     def task_dim(self) -> int:
         """Number of measured Cartesian coordinates per pose (2 for planar arms, 3 for spatial ones)."""
-        return 2 if self.kind == "planar" else 3
+        return self.kind_spec.task_dim
 
     @property
     def reach_m(self) -> float:
         """An upper bound on the distance from the base to the measured point [m]."""
-        if self.kind == "planar":
-            return float(self.links_m.sum())
-        if self.kind == "urdf":
-            steps = np.concatenate([self.chain.placements[:, :3, 3], self.chain.tip[None, :3, 3]])
-            return float(np.linalg.norm(steps, axis=1).sum() + np.linalg.norm(self.tool_m))
-        return float(np.abs(self.dh[:, 0]).sum() + np.abs(self.dh[:, 2]).sum() + np.linalg.norm(self.tool_m))
+        return float(self.kind_spec.reach(self))
 
     def fk(self, q: np.ndarray) -> np.ndarray:
         """(..., n) [rad] -> (..., d) [m]."""
-        if self.kind == "planar":
-            return planar_fk(self.links_m, np.asarray(q, float))
-        if self.kind == "urdf":
-            R, p = self.tool_frame(q)
-            return p + R @ self.tool_m
-        return dh_tool_point(dh_frames(self.dh, q, self.convention), self.tool_m)
+        return self.kind_spec.fk(self, np.asarray(q, float))
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
         """(..., n) [rad] -> (..., d, n) [m/rad]."""
-        if self.kind == "planar":
-            return planar_jacobian(self.links_m, np.asarray(q, float))
-        if self.kind == "urdf":
-            origins, axes, R, p = chain_frames(self.chain, q)
-            point = R @ self.tool_m + p
-            return np.swapaxes(np.cross(axes, point[..., None, :] - origins), -1, -2)
-        return dh_jacobian(self.dh, self.tool_m, q, self.convention)
+        return self.kind_spec.jacobian(self, np.asarray(q, float))
 
     def link_points(self, q: np.ndarray) -> np.ndarray:
         """Points of the drawn arm, base first, measured point last: (..., n) [rad] -> (..., n + 1, 2) for a
         planar arm, (..., n + 2, 3) for a spatial one (base, frame origins 1..n, tool point; for a URDF arm:
         base, the origins of joints 2..n, the tip frame's origin, tool point) [m]."""
-        if self.kind == "planar":
-            return planar_link_points(self.links_m, np.asarray(q, float))
-        if self.kind == "urdf":
-            origins, _, R, p = chain_frames(self.chain, q)
-            base = np.zeros(origins.shape[:-2] + (1, 3))
-            return np.concatenate([base, origins[..., 1:, :], p[..., None, :], (R @ self.tool_m + p)[..., None, :]],
-                                  axis=-2)
-        F = dh_frames(self.dh, q, self.convention)
-        return np.concatenate([F[..., :, :3, 3], dh_tool_point(F, self.tool_m)[..., None, :]], axis=-2)
+        return self.kind_spec.link_points(self, np.asarray(q, float))
 
     def scaled(self, factor: float) -> "Robot":
         """The same robot with every length multiplied by ``factor``."""
@@ -402,43 +389,20 @@ class Robot:
 
         With :meth:`tool_frame` this gives the geometric Jacobian of any point t of the tip frame: linear
         rows ``axes x (p + R t - origins)``, angular rows ``axes`` (Siciliano et al., *Robotics*, eq. 3.30)."""
-        q = np.asarray(q, float)
-        if self.kind == "planar":
-            origins = as_xyz(planar_link_points(self.links_m, q)[..., :-1, :])
-            return origins, np.broadcast_to([0.0, 0.0, 1.0], origins.shape)
-        if self.kind == "urdf":
-            return chain_frames(self.chain, q)[:2]
-        F = dh_frames(self.dh, q, self.convention)
-        F = F[..., :-1, :, :] if self.convention == "standard" else F[..., 1:, :, :]
-        return F[..., :3, 3], F[..., :3, 2]
+        return self.kind_spec.joint_frames(self, np.asarray(q, float))
 
     def tool_frame(self, q: np.ndarray):
         """The tip frame in the base frame: (..., n) [rad] -> ``(R (..., 3, 3), p (..., 3) [m])``, its rotation and
         origin; a point t given in the tip frame (``tool_m``, a target) is at ``p + R t``. Planar arms: the
         frame at the end of the last link, x along that link; spatial arms: the last DH frame."""
-        q = np.asarray(q, float)
-        if self.kind == "planar":
-            c = q.sum(axis=-1)
-            p = as_xyz(planar_fk(self.links_m, q))
-            return rotation_about(np.array([0.0, 0.0, 1.0]), c), p
-        if self.kind == "urdf":
-            return chain_frames(self.chain, q)[2:]
-        T = dh_frames(self.dh, q, self.convention)[..., -1, :, :]
-        return T[..., :3, :3], T[..., :3, 3]
+        return self.kind_spec.tool_frame(self, np.asarray(q, float))
 
     def link_frames(self, q: np.ndarray):
         """The frame that moves with each joint, in the base frame: (..., n) [rad] -> ``(R (..., n, 3, 3),
         o (..., n, 3) [m])``: for a planar arm the frame at joint j with x along link j; for a DH arm frame j
         (after joint j's transform, either convention); for a URDF arm joint j's own frame after its rotation
         (Pinocchio's joint frame). Frame j turns with joints 1..j."""
-        q = np.asarray(q, float)
-        if self.kind == "planar":
-            origins = as_xyz(planar_link_points(self.links_m, q)[..., :-1, :])
-            return rotation_about(np.array([0.0, 0.0, 1.0]), np.cumsum(q, axis=-1)), origins
-        if self.kind == "urdf":
-            return chain_link_frames(self.chain, q)
-        F = dh_frames(self.dh, q, self.convention)[..., 1:, :, :]
-        return F[..., :3, :3], F[..., :3, 3]
+        return self.kind_spec.link_frames(self, np.asarray(q, float))
 
     def mass_positions(self, q: np.ndarray) -> np.ndarray:
         """(..., n) [rad] -> (..., B, 3) [m]: the base-frame position of every point mass of :attr:`masses`."""
@@ -578,14 +542,6 @@ def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, 
     return tuple(int(j) for j in np.flatnonzero(col <= 1e-12 * max(robot.reach_m, 1e-300)))
 
 
-#: the kinds of robot file that may have each kind-specific field
-FIELD_KINDS = {"links_m": ("planar",), "dh": ("spatial",), "dh_convention": ("spatial",),
-               "tool_m": ("spatial", "urdf"), "joint_limits_deg": ("planar", "spatial", "urdf"),
-               "joint_names": ("planar", "spatial"), "urdf": ("urdf",), "base_frame": ("urdf",),
-               "tip_frame": ("urdf",), "joints": ("urdf",), "fixed_joints_deg": ("urdf",),
-               "link_masses_kg": ("planar", "spatial"), "link_coms_m": ("planar", "spatial")}
-
-
 #: the name of the tool point among the measured targets (``tool_m``; the end of the last link of a planar arm)
 TOOL_TARGET = "tool"
 
@@ -595,7 +551,7 @@ def with_targets(robot: Robot, targets, src: str) -> Robot:
     checked: one coordinate per tip-frame axis of the arm, and no target named ``"tool"`` (the tool point's
     name). Planar targets are stored with z = 0."""
     out = {}
-    d = 2 if robot.kind == "planar" else 3
+    d = robot.task_dim
     for name, xyz in (targets or {}).items():
         if name == TOOL_TARGET:
             raise InputError(f"the name '{TOOL_TARGET}' is the tool point's; give this target another name",
@@ -631,7 +587,7 @@ def _link_masses(robot: Robot, doc: dict, src: str) -> tuple[list, list, list]:
         raise InputError(f"expected {n} masses [kg] (one per link), got {len(masses)}", source=src,
                          field="link_masses_kg")
     coms = doc.get("link_coms_m")
-    if coms is None and robot.kind != "planar":
+    if coms is None and not robot.planar:
         raise InputError("expected link_coms_m beside link_masses_kg: the centre of mass of each link, [x, y, z] "
                          "[m] in its DH frame", source=src, field="link_coms_m")
     if coms is not None and len(coms) != n:
@@ -639,7 +595,7 @@ def _link_masses(robot: Robot, doc: dict, src: str) -> tuple[list, list, list]:
                          field="link_coms_m")
     kg, link, com = [], [], []
     for j in range(n):
-        if robot.kind == "planar":
+        if robot.planar:
             c = robot.links_m[j] / 2 if coms is None else coms[j]
             if isinstance(c, list):
                 if len(c) != 2:
@@ -676,7 +632,7 @@ def _payload_mass(robot: Robot, doc: dict, src: str) -> tuple[list, list, list]:
 
 
 def load_robot(path: str | Path, base_frame: str | None = None, tip_frame: str | None = None) -> Robot:
-    """Read and validate a robot file (planar, spatial or urdf; schema ``workflow/schemas/robot.schema.yaml``), or a
+    """Read and validate a robot file (a kind of :data:`ROBOT_KINDS`; schema ``schemas/robot.schema.yaml``), or a
     URDF itself (a path ending in ``.urdf``: the arm from ``base_frame`` to ``tip_frame``, each guessed when not
     given, :func:`stiffcal.model.urdf.chain_frames`: the root link, and the end of the longest chain of revolute joints
     or the flange its tool frames hang from; no tool offset, masses from the URDF's inertias).
@@ -701,7 +657,7 @@ def load_robot(path: str | Path, base_frame: str | None = None, tip_frame: str |
                          source=src, field="tip_frame" if tip_frame is not None else "base_frame")
     doc = read_yaml(path)
     _check_robot_document(doc, src)
-    robot = _LOADERS[doc["kind"]](doc, src)
+    robot = ROBOT_KINDS[doc["kind"]].load(doc, src)
     robot = with_targets(robot, doc.get("targets"), src)
     if "gravity" in doc:
         robot = with_gravity(robot, doc["gravity"], src)
@@ -721,7 +677,7 @@ def _check_robot_document(doc, src: str) -> None:
     """A robot file's document checked against the schema and its ranges; InputError naming the field for a
     missing ``kind``, too many joints, or a field of another kind."""
     if isinstance(doc, dict) and "kind" not in doc:  # the schema's other checks depend on it
-        raise InputError("missing required field 'kind' (planar, spatial or urdf)", source=src, field="kind")
+        raise InputError(f"missing required field 'kind' ({', '.join(ROBOT_KINDS)})", source=src, field="kind")
     for key in ("links_m", "dh", "joints"):  # before the schema: its message would not say why
         if isinstance(doc, dict) and isinstance(doc.get(key), list) and len(doc[key]) > MAX_JOINTS:
             raise InputError(f"{len(doc[key])} joints: expected at most {MAX_JOINTS} (every industrial arm has at most "
@@ -796,7 +752,7 @@ def check_ranges(doc: dict, src: str) -> None:
 def with_gravity(robot: Robot, gravity, src: str, field: str = "gravity") -> Robot:
     """``robot`` with the direction of gravity ``gravity`` (2 components planar, 3 spatial; normalised)."""
     g = np.asarray(gravity, float)
-    d = 2 if robot.kind == "planar" else 3
+    d = robot.task_dim
     if g.shape != (d,) or not np.linalg.norm(g) > 0:
         raise InputError(f"expected a nonzero direction of {d} components for a {robot.kind} robot, got "
                          f"{np.asarray(gravity).tolist()}", source=src, field=field)
@@ -910,5 +866,115 @@ def _load_urdf(doc: dict, src: str) -> Robot:
     return robot
 
 
-#: the reader of each robot kind's validated document (the schema's ``kind``)
-_LOADERS = {"planar": _load_planar, "spatial": _load_spatial, "urdf": _load_urdf}
+
+# --- the robot kinds: the registry ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class RobotKind:
+    """One robot kind, an entry of the registry :data:`ROBOT_KINDS` (the robot file's ``kind``): ``name``;
+    ``task_dim`` (2: an arm in a plane, its task space x, y and the rotation about z; 3: a spatial arm);
+    ``fields``: the robot-file fields that belong to this kind (besides the common ones; the schema
+    ``robot.schema.yaml`` gives their types, :data:`FIELD_KINDS` refuses them in a file of another kind);
+    ``load(doc, src) -> Robot``: the robot of a validated robot file; ``tool_segment``: the drawn arm ends with a
+    segment from the last frame to the measured point; and its kinematics, each ``(robot, q (..., n) [rad])``:
+    ``fk`` -> (..., d) [m], ``jacobian`` -> (..., d, n) [m/rad], ``link_points`` (:meth:`Robot.link_points`),
+    ``joint_frames``, ``tool_frame``, ``link_frames`` (the methods of :class:`Robot` of the same names), and
+    ``reach(robot)`` [m]. docs/extending.md, "A robot kind", says what a new kind touches."""
+
+    name: str
+    task_dim: int
+    fields: tuple[str, ...]
+    load: Callable
+    tool_segment: bool
+    fk: Callable
+    jacobian: Callable
+    link_points: Callable
+    joint_frames: Callable
+    tool_frame: Callable
+    link_frames: Callable
+    reach: Callable
+
+
+def _planar_tool_frame(robot: Robot, q: np.ndarray):
+    return rotation_about(np.array([0.0, 0.0, 1.0]), q.sum(axis=-1)), as_xyz(planar_fk(robot.links_m, q))
+
+
+def _planar_joint_frames(robot: Robot, q: np.ndarray):
+    origins = as_xyz(planar_link_points(robot.links_m, q)[..., :-1, :])
+    return origins, np.broadcast_to([0.0, 0.0, 1.0], origins.shape)
+
+
+def _planar_link_frames(robot: Robot, q: np.ndarray):
+    origins = as_xyz(planar_link_points(robot.links_m, q)[..., :-1, :])
+    return rotation_about(np.array([0.0, 0.0, 1.0]), np.cumsum(q, axis=-1)), origins
+
+
+def _dh_joint_frames(robot: Robot, q: np.ndarray):
+    F = dh_frames(robot.dh, q, robot.convention)
+    F = F[..., :-1, :, :] if robot.convention == "standard" else F[..., 1:, :, :]
+    return F[..., :3, 3], F[..., :3, 2]
+
+
+def _dh_tool_frame(robot: Robot, q: np.ndarray):
+    T = dh_frames(robot.dh, q, robot.convention)[..., -1, :, :]
+    return T[..., :3, :3], T[..., :3, 3]
+
+
+def _dh_link_frames(robot: Robot, q: np.ndarray):
+    F = dh_frames(robot.dh, q, robot.convention)[..., 1:, :, :]
+    return F[..., :3, :3], F[..., :3, 3]
+
+
+def _dh_link_points(robot: Robot, q: np.ndarray):
+    F = dh_frames(robot.dh, q, robot.convention)
+    return np.concatenate([F[..., :, :3, 3], dh_tool_point(F, robot.tool_m)[..., None, :]], axis=-2)
+
+
+def _chain_fk(robot: Robot, q: np.ndarray):
+    R, p = chain_frames(robot.chain, q)[2:]
+    return p + R @ robot.tool_m
+
+
+def _chain_jacobian(robot: Robot, q: np.ndarray):
+    origins, axes, R, p = chain_frames(robot.chain, q)
+    point = R @ robot.tool_m + p
+    return np.swapaxes(np.cross(axes, point[..., None, :] - origins), -1, -2)
+
+
+def _chain_link_points(robot: Robot, q: np.ndarray):
+    origins, _, R, p = chain_frames(robot.chain, q)
+    base = np.zeros(origins.shape[:-2] + (1, 3))
+    return np.concatenate([base, origins[..., 1:, :], p[..., None, :], (R @ robot.tool_m + p)[..., None, :]], axis=-2)
+
+
+def _chain_reach(robot: Robot) -> float:
+    steps = np.concatenate([robot.chain.placements[:, :3, 3], robot.chain.tip[None, :3, 3]])
+    return float(np.linalg.norm(steps, axis=1).sum() + np.linalg.norm(robot.tool_m))
+
+
+#: the robot kinds by name (the robot file's ``kind``; the schema's enum is checked against it by the tests)
+ROBOT_KINDS = {k.name: k for k in (
+    RobotKind("planar", 2, ("links_m", "joint_limits_deg", "joint_names", "link_masses_kg", "link_coms_m"),
+              _load_planar, False,
+              fk=lambda r, q: planar_fk(r.links_m, q), jacobian=lambda r, q: planar_jacobian(r.links_m, q),
+              link_points=lambda r, q: planar_link_points(r.links_m, q), joint_frames=_planar_joint_frames,
+              tool_frame=_planar_tool_frame, link_frames=_planar_link_frames,
+              reach=lambda r: float(r.links_m.sum())),
+    RobotKind("spatial", 3, ("dh", "dh_convention", "tool_m", "joint_limits_deg", "joint_names", "link_masses_kg",
+                             "link_coms_m"),
+              _load_spatial, True,
+              fk=lambda r, q: dh_tool_point(dh_frames(r.dh, q, r.convention), r.tool_m),
+              jacobian=lambda r, q: dh_jacobian(r.dh, r.tool_m, q, r.convention), link_points=_dh_link_points,
+              joint_frames=_dh_joint_frames, tool_frame=_dh_tool_frame, link_frames=_dh_link_frames,
+              reach=lambda r: float(np.abs(r.dh[:, 0]).sum() + np.abs(r.dh[:, 2]).sum() + np.linalg.norm(r.tool_m))),
+    RobotKind("urdf", 3, ("urdf", "base_frame", "tip_frame", "joints", "fixed_joints_deg", "tool_m",
+                          "joint_limits_deg"),
+              _load_urdf, True, fk=_chain_fk, jacobian=_chain_jacobian, link_points=_chain_link_points,
+              joint_frames=lambda r, q: chain_frames(r.chain, q)[:2],
+              tool_frame=lambda r, q: chain_frames(r.chain, q)[2:],
+              link_frames=lambda r, q: chain_link_frames(r.chain, q), reach=_chain_reach),
+)}
+
+#: the kinds of robot file that may have each kind-specific field (from :data:`ROBOT_KINDS`)
+FIELD_KINDS = {f: tuple(k.name for k in ROBOT_KINDS.values() if f in k.fields)
+               for f in dict.fromkeys(f for k in ROBOT_KINDS.values() for f in k.fields)}

@@ -368,7 +368,7 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
 def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
     """The cell's obstacles (the floor, half-spaces, boxes, cylinders), in that order; InputError for a vector of
     the wrong size, a key that belongs to the other robot kind, or a name used twice."""
-    planar = robot.kind == "planar"
+    planar = robot.planar
     d = 2 if planar else 3
 
     def vec(v, fld, size=d):
@@ -469,7 +469,7 @@ def _at(prefix: str, fld: str) -> str:
 def segment_names(robot) -> list[str]:
     """Names of the segments of :meth:`stiffcal.model.robot.Robot.link_points` (capsules): ``link1`` .. ``link<n>`` and,
     for a spatial arm, ``tool`` (to the tool point)."""
-    return [f"link{k + 1}" for k in range(robot.n_joints)] + (["tool"] if robot.kind != "planar" else [])
+    return [f"link{k + 1}" for k in range(robot.n_joints)] + (["tool"] if robot.kind_spec.tool_segment else [])
 
 
 def body_names(robot, radius=None) -> list[str]:

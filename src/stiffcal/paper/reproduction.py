@@ -421,7 +421,7 @@ def q1_family(study: Study, optimum_deg: np.ndarray, m: int) -> Q1Family | None:
     (n,) [deg] and free q1's (plan (ii) of Tables 4-5), or None when the segment of :class:`Q1Family` is
     not optimal. Planar arms of two joints only (None otherwise)."""
     robot = study.robot
-    if robot.kind != "planar" or m < 2 or robot.n_joints != 2 or robot.n_params != 2:
+    if not robot.planar or m < 2 or robot.n_joints != 2 or robot.n_params != 2:
         return None
     q0 = np.radians(np.asarray(optimum_deg, float))
     J0 = robot.model_jacobian(np.concatenate([[0.0], q0[1:]]))

@@ -63,7 +63,7 @@ POOL_LOG2 = 13
 def has_planar_symmetry(robot: Robot, problem: Problem | None = None) -> bool:
     """Whether a pose's half-turn and mirror copies carry the same information (planar arm, no limits, and
     for ``problem`` no moment and no measured target beside the last link's line: :attr:`Problem.symmetric`)."""
-    return robot.kind == "planar" and robot.n_joints >= 2 and robot.cell is None and all(
+    return robot.planar and robot.n_joints >= 2 and robot.cell is None and all(
         _is_full_turn(lo, hi) for lo, hi in robot.joint_limits_rad) and (problem is None or problem.symmetric)
 
 

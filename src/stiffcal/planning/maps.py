@@ -618,7 +618,7 @@ def map_studies(config: dict, root=".", source: str = "config") -> list[MapStudy
             from ..model.robot import load_config_robot
 
             robot = load_config_robot(root, s["robot"], source, f"{field}.robot")
-            if robot.kind != "planar" or robot.n_joints != 2:
+            if not robot.planar or robot.n_joints != 2:
                 raise InputError(f"expected a planar robot with 2 joints for a map, got {robot.kind} with "
                                  f"{robot.n_joints}", source=source, field=f"{field}.robot")
             b = float(robot.links_m[1] / robot.links_m[0])

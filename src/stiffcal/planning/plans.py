@@ -78,7 +78,7 @@ def information_symmetries(problem: Problem, n_probe: int = 16, rtol: float = 1e
 
     robot, force = problem.robot, np.asarray(problem.force, float)
     identity = np.array([[np.ones(robot.n_joints), np.zeros(robot.n_joints)]])
-    if robot.kind == "planar" or force.shape != (3,):
+    if robot.planar or force.shape != (3,):
         return identity
     phi = np.degrees(np.arctan2(force[1], force[0]))
     first = [(1.0, 0.0), (-1.0, 2 * phi)]
@@ -102,7 +102,7 @@ def canonical_plan(problem: Problem, plan_deg: np.ndarray, symmetries: np.ndarra
     plan = into_limits(robot, np.atleast_2d(plan_deg))
     if has_planar_symmetry(robot, problem):
         plan = np.array([representative(into_limits(robot, symmetric_copies(robot, p, problem.force))) for p in plan])
-    elif robot.kind != "planar":
+    elif not robot.planar:
         maps = information_symmetries(problem) if symmetries is None else symmetries
         if len(maps) > 1:
             copies = into_limits(robot, plan[:, None] * maps[:, 0] + maps[:, 1])  # (m, K, n)

@@ -418,7 +418,7 @@ def draw_cell(ax, robot, lo: np.ndarray, hi: np.ndarray) -> None:
         return
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    planar = robot.kind == "planar"
+    planar = robot.planar
     for o in cell.obstacles:
         if o.kind == "half_space":
             n = o.normal

@@ -102,7 +102,7 @@ def self_weight_torques(robot: Robot, q: np.ndarray, step: float = 1e-6) -> np.n
 def _moment3(robot: Robot, moment: np.ndarray) -> np.ndarray:
     """(N, d_m) -> (N, 3): a planar arm's moment about z as a 3-D vector."""
     moment = np.asarray(moment, float)
-    return np.column_stack([np.zeros((len(moment), 2)), moment]) if robot.kind == "planar" else moment
+    return np.column_stack([np.zeros((len(moment), 2)), moment]) if robot.planar else moment
 
 
 def target_world(robot: Robot, q: np.ndarray, target: np.ndarray | None, names) -> np.ndarray:
