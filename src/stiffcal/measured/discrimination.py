@@ -546,8 +546,12 @@ def exchange(crit: Criterion, m: int, n_starts: int = 4, seed: int = 0, max_pass
     """Fedorov's exchange (Fedorov 1972, ch. 3) of an m-point plan over the pool, maximising ``crit``: from
     the given ``starts`` (pool indices), the greedy sequential plan (each point the best addition to the old
     data and the points before it) and ``n_starts`` random plans (seeded); each start is exchanged until no
-    single replacement improves it. The old data make every rest plan estimable, so no start is singular.
-    Deterministic for a seed."""
+    single replacement improves it, all in lockstep by the project's one exchange engine
+    (:func:`stiffcal.planning.plans.exchange_loop`, scored by :meth:`Criterion.scores`); the plan of the largest
+    :meth:`Criterion.value` is returned (the first on ties). The old data make every rest plan estimable, so no
+    start is singular. Deterministic for a seed."""
+    from ..planning.plans import exchange_loop
+
     K = crit.size
     rng = np.random.default_rng(seed)
     greedy: list[int] = []
@@ -555,24 +559,17 @@ def exchange(crit: Criterion, m: int, n_starts: int = 4, seed: int = 0, max_pass
         greedy.append(int(np.argmax(crit.scores(greedy))))
     starts = [np.asarray(s, int) for s in starts] + [np.array(greedy)]
     starts += [rng.choice(K, m, replace=K < m) for _ in range(n_starts)]
-    best = None
-    for idx in starts:
-        idx = idx.copy()
-        val = crit.value(idx)
-        for _ in range(max_passes):
-            changed = False
-            for i in range(m):
-                s = crit.scores(np.delete(idx, i))
-                c = int(np.argmax(s))
-                if c != idx[i] and s[c] > val + 1e-10 * max(abs(val), 1.0):
-                    idx[i] = c
-                    val = crit.value(idx)
-                    changed = True
-            if not changed:
-                break
-        if best is None or val > best[1] + 1e-12 * max(abs(best[1]), 1.0):
-            best = (np.sort(idx), val)
-    return Exchanged(best[0], float(best[1]), len(starts))
+    idx = np.array(starts, int)  # (S, m): the plans, exchanged in place
+
+    def loss(ss, js, _):  # the engine minimises: minus the value of each plan with slot j replaced by each candidate
+        return np.stack([-crit.scores(np.delete(idx[s], j)) for s, j in zip(ss, js)])
+
+    # the engine's sums of information matrices are not this criterion's: empty ones; the scorer reads the plans
+    exchange_loop(loss, [-crit.value(i) for i in idx], np.zeros(idx.shape + (0, 0)), idx, np.zeros((K, 0, 0)),
+                  max_passes)
+    values = [crit.value(i) for i in idx]
+    best = int(np.argmax(values))  # the first on ties
+    return Exchanged(np.sort(idx[best]), float(values[best]), len(starts))
 
 
 def polish(crit: Criterion, robot: Robot, pool: Pool, idx, max_evaluations: int = 600):

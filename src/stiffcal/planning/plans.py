@@ -413,9 +413,10 @@ class ExchangeResult:
     starts: int
 
 
-def _exchange_loop(score, best, slot_P, slot_idx, pool_P, max_passes: int, slot_X=None, pool_X=None) -> np.ndarray:
-    """Fedorov's exchange of S plans in lockstep (the engine of :func:`exchange_plans` and
-    :func:`fedorov_exchange`). slot_P (S, m, p, p), slot_X (S, m, d, p) or None and slot_idx (S, m) (pool
+def exchange_loop(score, best, slot_P, slot_idx, pool_P, max_passes: int, slot_X=None, pool_X=None) -> np.ndarray:
+    """Fedorov's exchange of S plans in lockstep: the project's one exchange engine (of :func:`exchange_plans`,
+    :func:`fedorov_exchange` and the discrimination planner's :func:`stiffcal.measured.discrimination.exchange`,
+    which plugs in its own scorer). slot_P (S, m, p, p), slot_X (S, m, d, p) or None and slot_idx (S, m) (pool
     index, or -1 for a starting pose outside the pool) describe the plans and are updated in place; best (S,)
     are their losses. Each plan visits its slots in turn (at most ``max_passes`` passes) until m visits in
     a row change nothing; at a visit to slot j, ``score(plans, slots, M_rest)`` gives, for each plan due a
@@ -501,7 +502,7 @@ def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: b
         raise ValueError("fedorov_exchange needs at least one start (starts, n_starts or greedy)")
     idx = np.array(inits, int)
     slot_P = forms.info[idx]
-    vals = _exchange_loop(lambda _, __, M_rest: exchange_scores(forms, M_rest + M0, Xt),
+    vals = exchange_loop(lambda _, __, M_rest: exchange_scores(forms, M_rest + M0, Xt),
                           _general_scores(slot_P.sum(axis=1) + M0, Xt), slot_P, idx, forms.info, max_passes)
     best = int(np.argmin(vals))  # the first on ties
     return ExchangeResult(np.sort(idx[best]), float(vals[best]), len(inits))
@@ -514,7 +515,7 @@ L_OPTIMAL = tuple(k for k, c in criteria.CRITERIA.items() if c.exchange == "line
 def exchange_plans(problem: Problem, plans: np.ndarray, pool: np.ndarray, pool_A: np.ndarray, max_passes: int = 30,
                    forms: PoolForms | None = None, scores=None) -> tuple[np.ndarray, np.ndarray]:
     """Fedorov exchange of S plans of m poses (S, m, n) [rad] over a pool (N, n) with rows pool_A (N, d, p),
-    in lockstep (:func:`_exchange_loop`; each plan exactly as alone).
+    in lockstep (:func:`exchange_loop`; each plan exactly as alone).
 
     O_t and A-optimality are scored by :func:`exchange_scores` (``scores``: another function of its
     single-M_rest signature, e.g. :func:`stiffcal.testing.reference.general_exchange_scores` in the tests; forms: the
@@ -558,7 +559,7 @@ def exchange_plans(problem: Problem, plans: np.ndarray, pool: np.ndarray, pool_A
             return np.stack(out)
 
     start = [criteria.loss(key, a.reshape(m * d, p), m, problem.At, problem.sigma) for a in A]
-    best = _exchange_loop(score, start, slot_P, idx, pool_P, max_passes, A, pool_A)
+    best = exchange_loop(score, start, slot_P, idx, pool_P, max_passes, A, pool_A)
     return np.where((idx >= 0)[..., None], pool[np.maximum(idx, 0)], plans), best
 
 
