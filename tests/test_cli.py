@@ -209,3 +209,28 @@ def test_noise_levels_for_data_without_rotation_columns_are_refused_not_ignored(
     err = capsys.readouterr().err
     assert code == 2 and needle in err and err.count("\n") == 1, err
     assert not out_dir.exists()
+
+
+def test_the_one_json_walk_writes_each_contract_s_non_finite_numbers():
+    """stiffcal.jsonsafe.json_safe, the walk every written JSON goes through: json.dumps(allow_nan=False) then
+    holds; "inf" where the design's contract gives an infinite value a meaning, and in a verdict's (notes given)
+    null with a note naming the field, also inside numpy arrays; -0.0 is 0.0; a 'notes' key is left alone."""
+    import json
+
+    import numpy as np
+
+    from stiffcal.jsonsafe import json_safe
+
+    obj = {"cov": np.array([1.0, np.inf, -0.0]), "p": np.float64(np.nan), "n": np.int64(3), "ok": np.bool_(True),
+           "rows": [{"x": -np.inf}], "notes": ["kept"]}
+    plain = json_safe(obj)
+    assert plain == {"cov": [1.0, "inf", 0.0], "p": None, "n": 3, "ok": True, "rows": [{"x": "-inf"}],
+                     "notes": ["kept"]}
+    assert str(plain["cov"][2]) == "0.0"
+    notes = []
+    noted = json_safe(obj, notes)
+    assert noted["cov"] == [1.0, None, 0.0] and noted["p"] is None and noted["rows"] == [{"x": None}]
+    assert noted["notes"] == ["kept"] and type(noted["n"]) is int and noted["ok"] is True
+    assert [n.split(" ")[0] for n in notes] == ["cov[1]", "p", "rows[0].x"]
+    for out in (plain, noted):
+        json.dumps(out, allow_nan=False)

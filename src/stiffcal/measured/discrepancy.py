@@ -61,6 +61,7 @@ from ..model.catalogue import joint_columns
 from ..planning.problem import is_sampled, sample_joint_space
 from . import distributions as dist
 from ..errors import InputError
+from ..jsonsafe import json_safe
 from .measurements import Measurements, rows_by_label, rows_by_value
 from ..model.observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
                           tool_twists)
@@ -1679,7 +1680,7 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     out["held_out"] = None if held is None else held.as_dict()
     out["gain"] = _gain(robot, des, ext, noise.s2, test_pose, test_force, ob, out["held_out"]) if ext and gain else None
     notes += _gain_notes(robot, out["gain"], out["diagnostics"], ext, pre.dropped, test_pose, test_force)
-    out = _finite(out, out["notes"])
+    out = json_safe(out, out["notes"])
     if sel.unexplained:
         f = sel.fits[chosen]
         resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
@@ -1904,19 +1905,6 @@ def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dic
     if not alone:
         text += f"; none of them is needed on its own at alpha = {alpha:g}"
     return text
-
-
-def _finite(obj, notes: list[str], path: str = ""):
-    """obj with every float that is not finite replaced by None and named in ``notes`` (a statistic that cannot
-    be computed on these data is left out with a note, never written as NaN or inf)."""
-    if isinstance(obj, dict):
-        return {k: _finite(v, notes, f"{path}.{k}" if path else k) if k != "notes" else v for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v, notes, f"{path}[{i}]") for i, v in enumerate(obj)]
-    if isinstance(obj, (float, np.floating)) and not np.isfinite(obj):
-        notes.append(f"{path} cannot be computed on these data (it is not finite) and is left out")
-        return None
-    return obj
 
 
 def pose_rows(robot: Robot, q: np.ndarray, load: np.ndarray, causes, observed: Observed,

@@ -78,6 +78,7 @@ from scipy import optimize, stats
 from . import discrepancy as D
 from ..planning.problem import grid_size, is_sampled, joint_grids, sample_joint_space, sampled_minimise
 from ..errors import InputError
+from ..jsonsafe import json_safe
 from .measurements import Measurements
 from .results import DiscriminationPlan
 from ..model.robot import Robot
@@ -1251,7 +1252,7 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
         ot_eff = res.ot_bound / res.compound.o_t if res.ot_bound is not None and res.compound.o_t else None
         out["compound"] = comp | {"weight": res.weight, "t_efficiency": t_eff,
                                   "ot_efficiency": ot_eff if ot_eff is None or ot_eff > 0 else None}
-    return D._finite(out, out["notes"])
+    return json_safe(out, out["notes"])
 
 
 def planned(robot: Robot, data_path: str, experiments: int, loads: str | None = None, repeats: int = 1,
