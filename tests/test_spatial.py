@@ -15,7 +15,7 @@ from stiffcal.errors import InputError
 from stiffcal.measured.measurements import Measurements
 from stiffcal.planning.plans import optimise_plan, round_design
 from stiffcal.testing.reference import certified_bound_reference, max_phi_reference
-from stiffcal.model.robot import load_robot, spatial_robot
+from stiffcal.model.robot import FIELD_KINDS, load_robot, spatial_robot
 from stiffcal.paper.tables import certificate_table
 from stiffcal.model.stiffness import observation_matrix
 
@@ -100,7 +100,7 @@ def test_a_point_on_the_last_axis_leaves_that_compliance_out(rng):
     ("name: x\nkind: spatial\ndh_convention: standard\ndh: [{a_m: 1, alpha_deg: 0, d_m: 0}]\n"
      "joint_limits_deg: [[0, 1], [0, 1]]\n", "expected 1 [lower, upper] pairs"),
     ("name: x\nkind: planar\nlinks_m: [1]\ntool_m: [0, 0, 1]\n",
-     "field 'tool_m': 'tool_m' belongs to a spatial or urdf robot"),
+     f"field 'tool_m': 'tool_m' belongs to a {' or '.join(FIELD_KINDS['tool_m'])} robot"),
 ])
 def test_bad_spatial_robot_files_get_one_clear_error(tmp_path, text, message):
     path = tmp_path / "r.yaml"

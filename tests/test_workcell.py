@@ -653,3 +653,22 @@ def test_a_calibrated_file_keeps_its_urdf_and_srdf_from_another_folder(tmp_path)
     from stiffcal.model.workcell import feasible
     poses = np.radians(np.random.default_rng(0).uniform(-150, 150, (50, 7)))
     assert np.array_equal(feasible(back, poses), feasible(robot, poses))
+
+
+def test_the_cell_s_engine_is_shared_by_equal_geometry_and_rebuilt_for_any_other(tmp_path):
+    """The feasibility engine is kept per robot geometry, whatever the kind's own fields: a copy with another name or
+    compliances shares it; a robot scaled, with other limits or another tool point gets its own (and answers for
+    its own bodies: a pose feasible for the short arm collides for the long one)."""
+    from dataclasses import replace
+
+    from stiffcal.model.workcell import engine, feasible
+
+    path = tmp_path / "r.yaml"
+    path.write_text(PAPER.read_text() + "cell:\n  floor_m: -0.5\n  link_radius_m: 0.02\n  self_collision: false\n")
+    robot = load_robot(path)
+    assert engine(replace(robot, name="other", compliances=np.array([1e-6, 2e-6]))) is engine(robot)
+    longer = robot.scaled(2.0)
+    assert engine(longer) is not engine(robot)
+    q = np.radians([[-20.0, 0.0]])  # the tip 0.34 m below the base, 0.68 m once scaled: the floor is at -0.5 m
+    assert feasible(robot, q)[0] and not feasible(longer, q)[0]
+    assert feasible(robot, q)[0]  # asked again after the long arm's engine was built: still the short arm's answer

@@ -492,7 +492,7 @@ def spatial_robot(dh_rows, tool_m=(0.0, 0.0, 0.0), name: str = "spatial", joint_
     robot = Robot(name, "spatial", np.zeros(n), lim, None if compliances is None else np.asarray(compliances, float),
                   source, has, dh, convention, np.asarray(tool_m, float), reference=reference,
                   joint_names=tuple(joint_names))
-    return _with_geometry(robot, "check dh and tool_m")
+    return _with_geometry(robot, "check dh and tool_m", "dh", "the dh table's a_m and d_m and tool_m")
 
 
 def chain_robot(chain: Chain, tool_m, joint_limits_rad, joint_names, name: str = "urdf", compliances=None,
@@ -505,25 +505,24 @@ def chain_robot(chain: Chain, tool_m, joint_limits_rad, joint_names, name: str =
                   None if compliances is None else np.asarray(compliances, float), source, has_joint_limits,
                   tool_m=np.asarray(tool_m, float), reference=reference, joint_names=tuple(joint_names), chain=chain,
                   urdf=urdf, unlimited_joints=tuple(int(j) for j in unlimited_joints))
-    return _with_geometry(robot, "check base_frame, tip_frame, the joints and tool_m")
+    return _with_geometry(robot, "check base_frame, tip_frame, the joints and tool_m", "urdf",
+                          "the URDF's joint origins and tool_m")
 
 
-def _with_geometry(robot: Robot, advice: str) -> Robot:
-    """A spatial robot with its drawn link lengths and inert joints filled in; refused if it has more than
-    :data:`~stiffcal.limits.MAX_JOINTS` joints, if its lengths are below the physical range (the measured point
-    within :data:`~stiffcal.limits.MIN_LINK_M` of the base whatever the pose), or if no joint moves the measured
-    point."""
+def _with_geometry(robot: Robot, advice: str, field_: str, lengths: str) -> Robot:
+    """A spatial robot with its drawn link lengths and inert joints filled in; refused (naming the robot file's
+    ``field_``, and ``lengths``, what gives its lengths) if it has more than :data:`~stiffcal.limits.MAX_JOINTS`
+    joints, if its lengths are below the physical range (the measured point within
+    :data:`~stiffcal.limits.MIN_LINK_M` of the base whatever the pose), or if no joint moves the measured point
+    (``advice``: what to check)."""
     n = robot.n_joints
-    field_ = "dh" if robot.kind == "spatial" else "urdf"
     if n > MAX_JOINTS:
         raise InputError(f"{n} joints: expected at most {MAX_JOINTS} (docs/contracts.md, 'Limits')",
                          source=robot.source, field=field_)
     if robot.reach_m < MIN_LINK_M:
-        what = ("the dh table's a_m and d_m and tool_m" if robot.kind == "spatial"
-                else "the URDF's joint origins and tool_m")
         raise InputError(f"the arm's lengths add up to {robot.reach_m:g} m: expected at least {MIN_LINK_M:g} m (the "
-                         f"physical range of lengths; docs/contracts.md, 'Limits'); check {what}", source=robot.source,
-                         field=field_)
+                         f"physical range of lengths; docs/contracts.md, 'Limits'); check {lengths}",
+                         source=robot.source, field=field_)
     links = np.linalg.norm(np.diff(robot.link_points(np.zeros(n)), axis=0), axis=-1)
     inert = inert_joints(robot)
     if len(inert) == n:

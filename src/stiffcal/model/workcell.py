@@ -973,16 +973,41 @@ def _rotation_to(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.eye(3) + K + K @ K / (1.0 + c)
 
 
+#: fields of a Robot that do not change where its bodies are (left out of :func:`_geometry_key`)
+_NOT_GEOMETRY = ("name", "compliances", "reference", "masses", "calibration", "cell")
+
+
+def _hashable(v):
+    """``v`` (arrays, dataclasses such as a Chain, dicts, sequences, scalars) as a hashable value."""
+    import dataclasses
+
+    if isinstance(v, np.ndarray):
+        return (v.shape, v.dtype.str, v.tobytes())
+    if dataclasses.is_dataclass(v) and not isinstance(v, type):
+        return tuple(_hashable(getattr(v, f.name)) for f in dataclasses.fields(v))
+    if isinstance(v, dict):
+        return tuple(sorted((str(k), _hashable(x)) for k, x in v.items()))
+    if isinstance(v, (list, tuple)):
+        return tuple(_hashable(x) for x in v)
+    return v
+
+
+def _geometry_key(robot) -> tuple:
+    """What decides ``robot``'s bodies in its cell: every field of the robot but :data:`_NOT_GEOMETRY`, whatever its
+    kind (the kind's own geometry, its limits, targets, gravity and URDF), as a hashable key."""
+    import dataclasses
+
+    return tuple((f.name, _hashable(getattr(robot, f.name))) for f in dataclasses.fields(robot)
+                 if f.name not in _NOT_GEOMETRY)
+
+
 def engine(robot):
     """The feasibility engine of ``robot``'s cell (None without a cell), built once per robot geometry and joint
     limits and kept with the cell."""
     cell = robot.cell
     if cell is None:
         return None
-    key = (robot.kind, robot.source, robot.links_m.tobytes(), None if robot.dh is None else robot.dh.tobytes(),
-           None if robot.tool_m is None else robot.tool_m.tobytes(), robot.joint_limits_rad.tobytes(),
-           robot.has_joint_limits, robot.unlimited_joints, tuple(sorted(robot.targets)),
-           None if robot.chain is None else robot.chain.placements.tobytes(), tuple(np.asarray(robot.gravity)))
+    key = _geometry_key(robot)
     eng = cell._engines.get(key)
     if eng is None:
         use_caps = cell.link_radius_m is not None or not _has_meshes(robot)
