@@ -1007,12 +1007,19 @@ def engine(robot):
     cell = robot.cell
     if cell is None:
         return None
+    seen = cell._engines.get(id(robot))  # this very robot object asked before: no key to build
+    if seen is not None and seen[0] is robot:
+        return seen[1]
     key = _geometry_key(robot)
     eng = cell._engines.get(key)
     if eng is None:
         use_caps = cell.link_radius_m is not None or not _has_meshes(robot)
         eng = CapsuleEngine(robot, cell) if use_caps else MeshEngine(robot, cell)
         cell._engines[key] = eng
+    if len(cell._engines) > 512:  # many robot objects asked once each (copies in a loop): forget them, not the engines
+        for k in [k for k in cell._engines if isinstance(k, int)]:
+            del cell._engines[k]
+    cell._engines[id(robot)] = (robot, eng)
     return eng
 
 
