@@ -808,6 +808,16 @@ VARIANCE_CONVERGED = 0.05
 VARIANCE_CONFIGS_PER_COVARIATE = 5
 
 
+def _union_residuals(gls: Design) -> tuple[np.ndarray, np.ndarray]:
+    """(residuals (N, d), hat-matrix trace per row (N,)) of the union of all extensions fitted to ``gls`` (the rank
+    rule of :func:`fit`)."""
+    X, y = gls.union(), gls.y
+    norm = np.linalg.norm(X, axis=0)
+    Q = _span(X / np.where(norm > 0, norm, 1.0), np.arange(X.shape[1]))
+    r = (y - Q @ (Q.T @ y)).reshape(-1, gls.d)
+    return r, (Q**2).sum(1).reshape(-1, gls.d).sum(1)
+
+
 def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test: bool = True) -> VarianceModel | None:
     """The correction of the rows' noise weights that the residuals of the union of all extensions in
     generalised least squares (``gls``: weighted and whitened by the error model) show, or None when the data
@@ -824,11 +834,7 @@ def residual_variance_model(robot: Robot, meas: Measurements, gls: Design, test:
     every row, the shared errors whitened out, where the replicates' spread (:func:`variance_model`) holds few
     rows and, on a protocol with revisits, the robot's return error too. Returns the factors 1 / kappa_i of
     every row (N,) relative to the median row."""
-    X, y = gls.union(), gls.y
-    norm = np.linalg.norm(X, axis=0)
-    Q = _span(X / np.where(norm > 0, norm, 1.0), np.arange(X.shape[1]))  # the rank rule of fit()
-    r = (y - Q @ (Q.T @ y)).reshape(-1, gls.d)
-    h = (Q**2).sum(1).reshape(-1, gls.d).sum(1)
+    r, h = _union_residuals(gls)
     rows = rows_by_value(meas.config)[1]
     first = [mine[0] for mine in rows]
     rss = np.array([(r[mine] ** 2).sum() for mine in rows])
@@ -1633,10 +1639,7 @@ def held_out_variance_factor(gls: Design, held: np.ndarray) -> float:
     function fitted without it removes that to first order. 1 when no weight was estimated (``held`` all 0)."""
     if not np.any(held):
         return 1.0
-    X, y = gls.union(), gls.y
-    norm = np.linalg.norm(X, axis=0)
-    Q = _span(X / np.where(norm > 0, norm, 1.0), np.arange(X.shape[1]))  # the rank rule of fit()
-    r2 = ((y - Q @ (Q.T @ y)) ** 2).reshape(-1, gls.d).sum(1)
+    r2 = (_union_residuals(gls)[0] ** 2).sum(1)
     total = float(r2.sum())
     return float(np.exp(-held) @ r2 / total) if total > 0 else 1.0
 
