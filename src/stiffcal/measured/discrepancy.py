@@ -611,7 +611,7 @@ def _screened_configurations(s2: np.ndarray, Z: np.ndarray, df: np.ndarray) -> n
         if not p_loo:
             break
         worst = min(p_loo, key=p_loo.get)
-        if p_loo[worst] >= 1e-3 / len(s2):
+        if p_loo[worst] >= strict:
             break
         use[worst] = False
     return use
