@@ -52,6 +52,19 @@ def test_measured_data_example_finds_the_hidden_backlash_and_writes_its_files(tm
         p.name for p in (tmp_path / "out").iterdir()}
 
 
+def test_measured_data_example_refuses_an_output_folder_that_is_a_file_in_one_line(tmp_path):
+    """Bad input never gives a traceback: OUT_DIR naming a file stops the script with one message naming it, and
+    nothing is written."""
+    taken = tmp_path / "taken"
+    taken.write_text("a file", encoding="utf-8")
+    res = subprocess.run([sys.executable, str(ROOT / "examples" / "measured_data.py"), str(taken)], cwd=tmp_path,
+                         capture_output=True, text=True)
+    assert res.returncode == 1, res.stderr
+    assert res.stderr.strip().splitlines() == [f"measured_data.py: error: {taken}: expected a directory to write "
+                                               "into, but it is a file"], res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["taken"] and taken.read_text(encoding="utf-8") == "a file"
+
+
 def test_urdf_example_plans_within_the_urdf_s_limits_and_as_the_dh_file_does(tmp_path):
     """The poses printed for the URDF arm lie within the joint limits the URDF itself states (read here with
     xml.etree, not through stiffcal), O_t is above its certified bound, and the DH file of the same arm gives
