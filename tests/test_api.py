@@ -113,6 +113,29 @@ def test_analyse_measurements_writes_nothing_without_out_and_returns_the_file_s_
     assert json.loads(json.dumps({**v.to_dict(), "calibrated_model": "calibrated.yaml"})) == on_disk
 
 
+def test_analyse_measurements_leaves_one_run_s_files_in_out(root, tmp_path):
+    """A second analysis into the same folder replaces the first's files and removes those it does not write
+    itself (the figures after figures=False, calibrated.yaml for a robot not given as a file), so the folder
+    never holds a verdict beside another run's figures; a file of the user's is left alone."""
+    from dataclasses import replace
+
+    from stiffcal.measured.discrepancy import RUN_FILES
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "my notes.txt").write_text("mine", encoding="utf-8")
+    args = (root / PAPER_ROBOT, root / "data/synthetic_paper_2r.csv")
+    stiffcal.analyse_measurements(*args, out=out)
+    assert sorted(p.name for p in out.iterdir()) == sorted([*RUN_FILES, "my notes.txt"])
+    stiffcal.analyse_measurements(*args, out=out, figures=False)
+    assert sorted(p.name for p in out.iterdir()) == ["calibrated.yaml", "my notes.txt", "verdict.json"]
+    in_memory = replace(stiffcal.load_robot(args[0]), source="<built in code>")
+    v = stiffcal.analyse_measurements(in_memory, args[1], out=out, figures=False)
+    assert v.calibrated_model is None
+    assert sorted(p.name for p in out.iterdir()) == ["my notes.txt", "verdict.json"]
+    assert (out / "my notes.txt").read_text(encoding="utf-8") == "mine"
+
+
 def test_plan_discrimination_returns_the_file_s_plan_with_and_without_out(root, tmp_path):
     """The typed plan (stiffcal.DiscriminationPlan) is plan.json, field for field and in its order, whether or not
     ``out`` is given (before, the in-memory path read the loads another way than the written one)."""

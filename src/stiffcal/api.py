@@ -619,7 +619,8 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     out: a directory for ``verdict.json``, ``calibrated.yaml`` and the figures
     (:func:`stiffcal.measured.discrepancy.run`; None: nothing is written); figures: False writes the two files
     without the figures; label: the data set's name in the figures' titles (default the file's name). The files are
-    written to a temporary directory and moved into ``out`` only when everything succeeded.
+    written to a temporary directory and moved into ``out`` only when everything succeeded; an earlier run's files
+    there that this run does not write (its figures, after ``figures=False``) are then removed.
     angle_resolution_deg [deg], force_resolution_N [N], moment_resolution_Nm [N m]: joint angles and loads
     that agree within these are one configuration and one load (encoder and load-cell resolution; defaults
     0.01 deg, 0.5 N and 0.05 N m, docs/measured-data.md). sigma_m [m] and sigma_rad [rad]: the noise levels
@@ -650,7 +651,7 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     if out is None:
         return discrepancy.analysed(robot, str(data), alpha, qt, ft, res, *sig)[0]
     return _written_whole(out, lambda tmp: discrepancy.run(robot, str(data), tmp, alpha, qt, ft, label, *res, *sig,
-                                                           figures=bool(figures)))
+                                                           figures=bool(figures)), discrepancy.RUN_FILES)
 
 
 def _placed(robot: Robot, joint_limits_deg=None, cell=None) -> Robot:
@@ -693,17 +694,23 @@ def _test_pose(robot: Robot, test_pose_deg, force_N, wrench=None):
     return qt, (force if moment is None else np.r_[force, moment])
 
 
-def _written_whole(out, write) -> dict:
+def _written_whole(out, write, owned: tuple[str, ...] = ()) -> dict:
     """Run ``write(directory)`` into a temporary directory beside ``out`` and move its files into ``out`` only
-    when it succeeded (no partial output); returns what ``write`` returns."""
+    when it succeeded (no partial output); the files named in ``owned`` (every file ``write`` may write) that it
+    did not write this time are then removed from ``out``, so that ``out`` holds one run's results (never a verdict
+    beside the figures or the calibrated model of another data set); other files are left alone. Returns what
+    ``write`` returns."""
     out = check_out_dir(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         result = write(str(tmp))
         out.mkdir(exist_ok=True)
-        for f in sorted(tmp.iterdir()):
+        written = sorted(tmp.iterdir())
+        for f in written:
             f.replace(out / f.name)
+        for name in sorted(set(owned) - {f.name for f in written}):
+            (out / name).unlink(missing_ok=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return result

@@ -350,7 +350,8 @@ def _discrepancy_parser(sub) -> None:
     x.add_argument("--robot", required=True, help="robot YAML file")
     x.add_argument("--data", required=True, help="measured-data CSV (docs/measured-data.md)")
     x.add_argument("--out", required=True, help="output directory (verdict.json, calibrated.yaml, the figures "
-                                                "residuals, heldout and machining as .png and .svg)")
+                                                "residuals, heldout and machining as .png and .svg; an earlier "
+                                                "run's files of these names are replaced or removed)")
     x.add_argument("--alpha", default=0.01, help="family-wise false-alarm rate (default 0.01)")
     x.add_argument("--test-pose-deg", help="test pose for the predicted compensation error (optional)")
     x.add_argument("--force-N", help="force at the test pose, comma-separated newtons (with --test-pose-deg)")

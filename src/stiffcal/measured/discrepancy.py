@@ -2468,7 +2468,8 @@ def run(robot: Robot, data_path: str, out_dir: str, alpha: float = 0.01, test_po
     (:func:`stiffcal.report.plots.fig_machining`) and, for a robot given
     as a file, ``out_dir/calibrated.yaml`` (:mod:`stiffcal.measured.calibrated`: the robot file with the identified
     model; the verdict's ``calibrated_model`` names it); ``figures`` False leaves the three figures out (and matplotlib
-    unloaded). Everything is computed before anything is written, so bad data leave no partial output.
+    unloaded); :data:`RUN_FILES` lists every file it may write. Everything is computed before anything is
+    written, so bad data leave no partial output.
     Resolutions default to :data:`stiffcal.measured.measurements.ANGLE_RESOLUTION_DEG`,
     :data:`~stiffcal.measured.measurements.FORCE_RESOLUTION_N` and
     :data:`~stiffcal.measured.measurements.MOMENT_RESOLUTION_NM`; sigma_m, sigma_rad: :func:`analyse`."""
@@ -2520,6 +2521,11 @@ def _run(robot: Robot, data_path: str, out_dir: str, alpha: float, test_pose, te
         calibrated.write_calibrated(robot, cal, out)
     (out / "verdict.json").write_text(text + "\n", encoding="utf-8")
     return verdict
+
+
+#: every file :func:`run` may write into its folder (which of them depends on ``figures`` and the robot's source)
+RUN_FILES = ("verdict.json", "calibrated.yaml",
+             *(f"{stem}.{ext}" for stem in ("residuals", "heldout", "machining") for ext in ("png", "svg")))
 
 
 def analysed(robot: Robot, data_path: str, alpha: float = 0.01, test_pose=None, test_force=None,
