@@ -98,6 +98,22 @@ def test_visits_come_from_the_row_order_where_no_reference_is_logged(tmp_path):
     assert set(comps) == {"visit", "configuration", "return"}
 
 
+def test_a_configuration_that_ends_one_pass_and_begins_the_next_is_two_visits(tmp_path):
+    """One configuration visited three times in a row, each visit a reference logged as an exact-zero row, one load
+    and a return-to-zero row: three visits, each measured from its own reference (no return error), as the
+    simulator made them; before, the exact-zero row that began a visit was counted in the visit before it."""
+    robot = R.robots(ROOT)["2-link"]
+    pr = T.Protocol("visit, zeros, one load", magnitudes_N=(300.0,), repeats=1, reference="visit", passes=3,
+                    zero_rows=True, return_to_zero=True)
+    log, _, path = _log_csv(tmp_path, robot, pr, n_configs=1)
+    meas = read_measurements(path, robot)
+    st = EM.reading_structure(meas, np.ones(meas.n_rows, bool))
+    rows = _model_rows(log, meas, st)
+    comps = {c.name: c.label for c in st.components}
+    assert st.n_visits == len(np.unique(log.visit)) == 3
+    assert set(comps) == {"reference"} and _same_partition(comps["reference"], log.reference[rows])
+
+
 # --- the variance components against another library ---------------------------------------------------------------
 
 def _nested(seed, n_configs=12, visits=3, rows=4, s=(1.0, 0.7, 1.3), p=3):

@@ -18,8 +18,9 @@ logs them, else from what the rows show: a reference logged as a row of exact ze
 its target at its configuration, and every later row of that target there (in time order: ``timestamp_s``,
 else the file's order) is measured from it, whatever the visit; a visit is a run of consecutive rows at one
 configuration (ended by a change of configuration or ``pose_id``, by an exact-zero row after loaded rows, or by
-a load repeated after a return-to-zero row). Exact-zero rows are the reference itself and never a noise
-sample. Where no exact-zero row says which reading a row was taken from, the model holds both hypotheses
+a load repeated after a return-to-zero row, the next visit then beginning at the exact-zero rows logged between
+the two: a configuration that ends one pass and begins the next). Exact-zero rows are the reference itself and
+never a noise sample. Where no exact-zero row says which reading a row was taken from, the model holds both hypotheses
 (a reference per visit and one per configuration) and lets the data weigh them, at the configurations whose
 rows can show a shared error (unloaded rows with noise, or several visits); rows of other configurations
 (one visit, no unloaded row) are taken as independent, as nothing in them could tell a shared reference
@@ -199,14 +200,17 @@ def _visits(f: dict) -> np.ndarray:
         for i in order:
             visit[i] = keys.setdefault((int(f["config"][i]), f["visit"][i]), len(keys))
         return visit
-    cur, prev, seen, closed = -1, None, set(), False
+    cur, prev, seen, closed, zeros = -1, None, set(), False, []
     for i in order:
+        repeated = bool(f["loaded"][i] and closed and f["group"][i] in seen)
         new = (prev is None or f["config"][i] != f["config"][prev]
                or (f["label"] is not None and f["label"][i] != f["label"][prev])
-               or (f["exact"][i] and f["loaded"][prev])
-               or (f["loaded"][i] and closed and f["group"][i] in seen))
+               or (f["exact"][i] and f["loaded"][prev]) or repeated)
         if new:
             cur, seen, closed = cur + 1, set(), False
+            if repeated:  # the next visit began at the reference reading logged after the return-to-zero row
+                visit[zeros] = cur  # (the robot left and came back between the two)
+        zeros = zeros + [i] if f["exact"][i] and closed else []
         if f["loaded"][i]:
             seen.add(int(f["group"][i]))
         elif seen and not f["exact"][i]:
