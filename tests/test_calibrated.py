@@ -437,6 +437,7 @@ def calibrated_file(tmp_path_factory):
     ("q1_deg,q2_deg,fx_N,fy_N\n60,30,0,-300\n10,20,0,-1,\n", "row 3 (data row 1)", "comma too many"),
     ("Q1_deg,q2_deg,fx_N,fy_N\n60,30,0,-300\n", "column Q1_deg", "misspelling"),
     ("q1_deg,q2_deg,fx_N,fy_N,dx_m\n60,30,0,-300,1\n", "column dx_m", "written by the output"),
+    ("q1_deg,q2_deg,fx_N,fy_N\n60,30,0,-300\n10,2\x000,0,-1\n", "row 3 (data row 1), column q2_deg", "U+0000"),
 ])
 def test_bad_pose_files_are_refused(tmp_path, calibrated_file, text, field, words):
     """One line naming the file and field, exit 2, and no output file: a row with a field too many (pandas would

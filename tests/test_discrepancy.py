@@ -732,6 +732,24 @@ def test_a_column_name_given_twice_is_refused_naming_it(tmp_path):
         read_measurements(path, robot)
 
 
+@pytest.mark.parametrize("char, column", [("\x00", "pose_id"), ("\x1b", "dx_m"), ("\x7f", "q2_deg")])
+def test_a_control_character_in_a_cell_is_refused_naming_row_and_column(tmp_path, char, column):
+    """A NUL inside a pose_id would make one configuration's rows two configurations, silently; an escape or DEL
+    in a number is a damaged file: each is named by row and column (the character's code point too)."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+
+    def damage(h, rows):
+        j = h.index(column)
+        rows = [list(r) for r in rows]
+        rows[3][j] = rows[3][j][:1] + char + rows[3][j][1:]
+        return h, rows
+
+    path = _lab_file(tmp_path, "ctrl.csv", damage)
+    with pytest.raises(InputError, match=rf"ctrl.csv.*row 5 \(data row 3\), column {column}.*control character "
+                                         rf"\(U\+{ord(char):04X}\)"):
+        read_measurements(path, robot)
+
+
 @pytest.mark.parametrize("extra, words", [(lambda r: r + ["7"], "got 12: a comma too many"),
                                           (lambda r: r[:-1], "got 10: a comma too few")])
 def test_a_row_with_a_field_too_many_or_too_few_is_refused(tmp_path, extra, words):

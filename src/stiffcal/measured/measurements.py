@@ -746,12 +746,30 @@ ROWS_HINT = ("(MAX_MEASURED_ROWS: the analysis grows linearly with the rows, 2 x
              "and load, or analyse the log in parts")
 
 
+#: characters no lab's CSV holds (C0 controls but tab, line feed and carriage return; DEL): a binary or damaged file
+_CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
+
+
+def _check_text(row: list[str], names: list[str], line_no: int, source: str) -> None:
+    """Raise :class:`InputError` naming the row and column of the first control character in ``row`` (a NUL in a
+    pose_id would otherwise make a configuration's rows two configurations, silently)."""
+    if _CONTROL.search("".join(row)) is None:
+        return
+    j = next(j for j, cell in enumerate(row) if _CONTROL.search(cell))
+    ch = _CONTROL.search(row[j]).group()
+    where = f"row {line_no}" + (f" (data row {line_no - 2})" if line_no > 1 else "") + (
+        f", column {names[j]}" if line_no > 1 and j < len(names) else "")
+    raise InputError(f"a control character (U+{ord(ch):04X}) in a cell: expected text (numbers, labels), not a "
+                     "binary or damaged file; remove it, or write the file again from its source", source=source,
+                     field=where)
+
+
 def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HINT) -> list[str]:
     """The header row as the file writes it (pandas renames a repeated name 'dx_m' to 'dx_m.1'): raises
-    :class:`InputError` for a column name given twice, a header with no comma but semicolons or tabs (a
-    file separated by another character: a comma-separated file is expected), or a row with more or fewer fields
-    than the header (pandas would take a surplus first field as the index and shift every column), or more than
-    ``max_rows`` data rows (counted before anything is parsed)."""
+    :class:`InputError` for a control character in any cell (:func:`_check_text`), a column name given twice, a
+    header with no comma but semicolons or tabs (a file separated by another character: a comma-separated file is
+    expected), or a row with more or fewer fields than the header (pandas would take a surplus first field as the
+    index and shift every column), or more than ``max_rows`` data rows (counted before anything is parsed)."""
     import csv
     from collections import Counter
 
@@ -787,6 +805,7 @@ def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HIN
             if row is None:
                 break
             line_no += 1
+            _check_text(row, names, line_no, source)
             filled = line_no > 1 and any(c.strip() for c in row)  # blank lines are not rows
             data_rows += filled
             if max_rows is not None and data_rows > max_rows:
