@@ -173,6 +173,8 @@ def _config_error(root, tmp_path, edit) -> str:
     (lambda c: c["studies"][0].update(force_N=[1, 2]), "field 'studies[0].force_N': expected 3 force components"),
     (lambda c: c["monte_carlo"].update(samples=10**9), "field 'monte_carlo.samples': expected a number <= 1000000"),
     (lambda c: c["study"].update(sigma_m="1e-6x"), "field 'study.sigma_m': expected number"),
+    (lambda c: c["measured_data"][0].update(sigma_m=1e-5),
+     "field 'measured_data[0].sigma_rad': expected both noise levels (sigma_m and sigma_rad) or neither"),
 ])
 def test_config_errors_name_the_file_and_the_field(root, tmp_path, edit, needle):
     assert needle in _config_error(root, tmp_path, edit)

@@ -634,6 +634,7 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
     (``calibrated_model`` None when nothing is written). Raises :class:`InputError` for bad arguments or data.
     """
     from .measured import discrepancy
+    from .measured.measurements import check_noise_levels
 
     robot = _placed(_robot(robot), joint_limits_deg, cell)
     data = _input_file(_path(data, "data", "a measured-data CSV"))
@@ -641,10 +642,7 @@ def analyse_measurements(robot, data, *, alpha: float = 0.01, test_pose_deg=None
         out = check_out_dir(_path(out, "out", "an output directory"))
     alpha = positive_number(alpha, "alpha", 1e-12, 1 - 1e-12)
     res = _resolutions(angle_resolution_deg, force_resolution_N, moment_resolution_Nm)
-    if (sigma_m is None) != (sigma_rad is None):
-        raise InputError("expected both noise levels (sigma_m and sigma_rad) or neither: their ratio weighs the "
-                         "rotation rows of data with orientation columns against the positions (the noise itself is "
-                         "always estimated from the data)", field="sigma_rad" if sigma_rad is None else "sigma_m")
+    check_noise_levels(sigma_m is not None, sigma_rad is not None)
     sig = (None, None) if sigma_m is None else (positive_number(sigma_m, "sigma_m"),
                                                  positive_number(sigma_rad, "sigma_rad"))
     qt, ft = _test_pose(robot, test_pose_deg, force_N, wrench)

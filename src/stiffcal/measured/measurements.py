@@ -746,6 +746,17 @@ ROWS_HINT = ("(MAX_MEASURED_ROWS: the analysis grows linearly with the rows, 2 x
              "and load, or analyse the log in parts")
 
 
+def check_noise_levels(sigma_m_given: bool, sigma_rad_given: bool, source: str | None = None,
+                       prefix: str = "") -> None:
+    """Raise :class:`InputError` unless both noise levels (``sigma_m`` [m], ``sigma_rad`` [rad]) or neither are
+    given, naming the missing one (``prefix``: where they are given, e.g. a config entry's path)."""
+    if sigma_m_given != sigma_rad_given:
+        raise InputError("expected both noise levels (sigma_m and sigma_rad) or neither: their ratio weighs the "
+                         "rotation rows of data with orientation columns against the positions (the noise itself is "
+                         "always estimated from the data)", source=source,
+                         field=prefix + ("sigma_rad" if sigma_m_given else "sigma_m"))
+
+
 #: characters no lab's CSV holds (C0 controls but tab, line feed and carriage return; DEL): a binary or damaged file
 _CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 

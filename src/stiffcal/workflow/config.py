@@ -243,10 +243,9 @@ def _check_measured_entry(config: dict, entry: dict, where: str, study, root, so
     moment = entry.get("moment_Nm", config["study"].get("moment_Nm"))
     field = f"{where}.force_N" if "force_N" in entry else "study.force_N"
     mfield = f"{where}.moment_Nm" if "moment_Nm" in entry else "study.moment_Nm"
-    if ("sigma_m" in entry) != ("sigma_rad" in entry):
-        raise InputError("expected both noise levels (sigma_m and sigma_rad) or neither: their ratio weighs the "
-                         "rotation rows of data with orientation columns against the positions", source=source,
-                         field=f"{where}.{'sigma_rad' if 'sigma_m' in entry else 'sigma_m'}")
+    from ..measured.measurements import check_noise_levels
+
+    check_noise_levels("sigma_m" in entry, "sigma_rad" in entry, source, f"{where}.")
     if entry.get("test_pose_deg") is not None:  # the data set's own test pose: its robot's joints and limits
         from ..planning.study import check_test_inputs
 
