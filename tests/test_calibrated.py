@@ -502,3 +502,27 @@ def test_next_round_measures_the_given_robot(tmp_path, calibrated_file):
     assert not inside(free) and inside(plan) and plan["O_t"] >= free["O_t"] * (1 - 1e-9)
     with pytest.raises(C.InputError, match="another robot"):
         plan_next_round(calibrated_file[1], [0] * 6, [0, 0, -300], robot=ROOT / "config/robots/kuka_kr210_r2700.yaml")
+
+
+def test_a_backlash_joint_without_torque_is_named_in_predictions(calibrated_file):
+    """At q = (60, 30) deg under F = (0, -300) N link 2 points straight up, so joint 2's torque
+    l2 (cos(q1 + q2) Fy - sin(q1 + q2) Fx) is zero: the identified backlash b2 cannot say on which side of its gap
+    the joint rests, and the prediction's note says so; at (60, 10) deg the load sets it and no note is given."""
+    robot = load_robot(calibrated_file[1])
+    unset = C.predict(robot, np.radians([[60.0, 30.0]]), np.array([[0.0, -300.0]]))
+    assert any("a joint with backlash carries no torque under the load" in n and "data row(s) 0" in n
+               for n in unset.notes), unset.notes
+    set_ = C.predict(robot, np.radians([[60.0, 10.0]]), np.array([[0.0, -300.0]]))
+    assert not any("carries no torque" in n for n in set_.notes)
+
+
+def test_design_prior_refuses_options_it_does_not_use_with_their_reasons(calibrated_file, capsys):
+    from stiffcal.cli import main
+
+    code = main(["design", "--robot", str(ROOT / "config/robots/paper_2r.yaml"), "--prior", str(calibrated_file[1]),
+                 "--test-pose-deg", "60,30", "--force-N", "0,-300", "--experiments", "2", "--criterion", "d",
+                 "--cache-dir", str(calibrated_file[0] / "cache")])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "--criterion (it plans the tool point's position under the test load with the O_t criterion)" in err
+    assert "--cache-dir (it computes no approximate design, so there is nothing to cache)" in err

@@ -371,6 +371,14 @@ def test_extended_fit_recovers_the_hidden_parameters_and_gains(paper_robot):
     assert v["gain"]["test_pose_model_error_m"] < 2e-6
 
 
+def test_a_verdict_without_a_cause_says_why_its_gain_is_null(paper_robot):
+    """Clean data with a test pose: cause none, no extended model, gain null, and a note says why."""
+    meas = _simulated(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), 3)
+    v = D.analyse(paper_robot, meas, test_pose=np.radians([60, 30]), test_force=np.array([0, -300.0]))
+    assert v["cause"] == "none" and v["extended"] is None and v["gain"] is None
+    assert any(n.startswith("gain is null: no catalogue cause is named") for n in v["notes"])
+
+
 @pytest.mark.parametrize("scale, unit_hint", [(-1.0, "negative compliance"), (1e3, "millimetres")])
 def test_unphysical_compliances_are_flagged_with_their_likely_cause(paper_robot, scale, unit_hint):
     meas = _simulated(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), 0)
@@ -730,6 +738,62 @@ def test_a_column_name_given_twice_is_refused_naming_it(tmp_path):
     path = _lab_file(tmp_path, "twice.csv", lambda h, rows: (h + ["dx_m"], [r + [r[-1]] for r in rows]))
     with pytest.raises(InputError, match=r"twice.csv.*column dx_m.*more than once: dx_m \(header columns 11, 12\)"):
         read_measurements(path, robot)
+
+
+def test_absolute_positions_and_millimetres_labelled_metres_are_refused(tmp_path):
+    """Absolute positions in the d*_m columns (each loaded row 0.5 m off) and the file's deflections (about 0.2 mm)
+    written in mm under columns in m: both over 10 % of the 3-link arm's 1.15 m reach, refused naming the columns.
+    Deflections 200 times their size (2-10 % of the reach) are read, and the analysis notes their size."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+
+    def shifted(by, scale):
+        def edit(h, rows):
+            cols = [h.index(c) for c in ("dx_m", "dy_m")]
+            loaded = [any(float(r[h.index(f)]) != 0 for f in ("fx_N", "fy_N", "mz_Nm")) for r in rows]
+            return h, [[f"{float(v) * scale + (by if on else 0.0):.6e}" if i in cols else v for i, v in enumerate(r)]
+                       for r, on in zip(rows, loaded)]
+        return edit
+
+    for name, by, scale in (("absolute.csv", 0.5, 1.0), ("mm.csv", 0.0, 1000.0)):
+        with pytest.raises(InputError, match=rf"{name}.*columns dx_m, dy_m.*expected deflections.*% of the arm's "
+                                             r"reach.*absolute positions, or millimetres"):
+            read_measurements(_lab_file(tmp_path, name, shifted(by, scale)), robot)
+    meas = read_measurements(_lab_file(tmp_path, "large.csv", shifted(0.0, 200.0)), robot)
+    size = np.median(np.linalg.norm(meas.dp, axis=1)) / robot.reach_m
+    assert 0.02 < size < 0.10, size
+    notes = D.plausibility(robot, meas, np.ones(robot.n_joints), np.zeros(robot.n_joints))
+    assert any("far more than an elastic deflection" in n for n in notes)
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda h, rows: ([], []), r"empty.csv.*the file is empty: expected a CSV table"),
+    (lambda h, rows: (h, rows[:3] + [[f'"{v.replace(".", ",")}"' if j == h.index("q2_deg") else v
+                                      for j, v in enumerate(rows[3])]] + rows[4:]),
+     r"empty.csv.*row 5 \(data row 3\), column q2_deg.*a decimal comma\? write numbers with a decimal point"),
+])
+def test_an_empty_file_and_a_decimal_comma_are_named(tmp_path, edit, words):
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = _lab_file(tmp_path, "empty.csv", edit)
+    if not path.read_text().strip():
+        path.write_text("")
+    with pytest.raises(InputError, match=words):
+        read_measurements(path, robot)
+
+
+def test_a_latin1_file_is_named_with_its_row_and_a_trailing_comma_is_a_note(tmp_path):
+    """A degree sign written in Latin-1 on data row 3 (file row 5): the message names row 5 and says to save the
+    file as UTF-8; a comma at the end of every line (an empty header cell) is ignored with one note, not named as
+    an unused column 'Unnamed: 11'."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    path = _lab_file(tmp_path, "latin.csv", lambda h, rows: (h + ["remark"], [r + ["" if i != 3 else "25 C"]
+                                                                             for i, r in enumerate(rows)]))
+    path.write_bytes(path.read_bytes().replace(b"25 C", "25 \u00b0C".encode("latin-1")))
+    with pytest.raises(InputError, match=r"latin.csv.*row 5.*not UTF-8 text: byte 0xb0.*save it as UTF-8"):
+        read_measurements(path, robot)
+    trailing = _lab_file(tmp_path, "trailing.csv", lambda h, rows: (h + [""], [r + [""] for r in rows]))
+    notes = read_measurements(trailing, robot).notes
+    assert any("without a name and blank in every row (a comma at the end of every line?)" in n for n in notes)
+    assert not any("Unnamed" in n for n in notes), notes
 
 
 @pytest.mark.parametrize("char, column", [("\x00", "pose_id"), ("\x1b", "dx_m"), ("\x7f", "q2_deg")])

@@ -168,9 +168,14 @@ def _cache_dir(args):
         return None
 
 
-#: design options the next round (``--prior``) does not take: it plans the tool point's position under the test load
-_NOT_WITH_PRIOR = {"criterion": "ot", "targets": None, "orientation": False, "sigma_rad": None, "test_target": "tool",
-                   "orientation_length_m": 0.0, "loads": None, "candidates": None, "cache_dir": None}
+_O_T_OF_THE_TOOL = "it plans the tool point's position under the test load with the O_t criterion"
+#: design options the next round (``--prior``) does not take (their default) and why
+_NOT_WITH_PRIOR = {"criterion": ("ot", _O_T_OF_THE_TOOL), "targets": (None, _O_T_OF_THE_TOOL),
+                   "orientation": (False, _O_T_OF_THE_TOOL), "sigma_rad": (None, _O_T_OF_THE_TOOL),
+                   "test_target": ("tool", _O_T_OF_THE_TOOL), "orientation_length_m": (0.0, _O_T_OF_THE_TOOL),
+                   "loads": (None, "the next round measures under the test load"),
+                   "candidates": (None, "its candidate poses are those of the measured-data plans"),
+                   "cache_dir": (None, "it computes no approximate design, so there is nothing to cache")}
 
 
 def next_round(args, m: int) -> dict:
@@ -179,10 +184,11 @@ def next_round(args, m: int) -> dict:
     from .api import plan_next_round, positive_number
     from .model.robot import load_robot
 
-    given = [k for k, default in _NOT_WITH_PRIOR.items() if getattr(args, k) not in (default, str(default))]
+    given = {k: why for k, (default, why) in _NOT_WITH_PRIOR.items() if getattr(args, k) not in (default, str(default))}
     if given:
-        raise InputError(f"--prior plans the tool point's position under the test load with the O_t criterion: "
-                         f"{', '.join('--' + k.replace('_', '-') for k in given)} cannot be given with it",
+        reasons = {why: [f"--{k.replace('_', '-')}" for k in given if given[k] == why] for why in given.values()}
+        raise InputError("the next round does not take " + "; ".join(f"{', '.join(opts)} ({why})"
+                                                                    for why, opts in reasons.items()),
                          field="--prior")
     out = plan_next_round(load_robot(args.prior), args.test_pose_deg, args.force_N, wrench=args.wrench,
                           experiments=m,

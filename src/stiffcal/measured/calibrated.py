@@ -192,6 +192,7 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
         notes.append("some parameters of the calibrated model were not determined by its data (their minimum-norm "
                      "values are used): predictions far from the data's poses may carry an error the standard "
                      "deviation does not show")
+    notes += _unset_backlash_notes(robot, cal, q, load)
     names = robot.target_names
     tnames = tuple(names[t] for t in (np.zeros(len(q), int) if target is None else np.asarray(target, int)))
     return Prediction(q, load, mean[:, :d], sd[:, :d], mean[:, d:] if orientation else None,
@@ -262,9 +263,42 @@ def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = 
     notes = list(pred.notes)
     if not done.all():
         notes.append(f"{int((~done).sum())} pose(s) did not converge to {tol_m:g} m in {iterations} iterations (a "
-                     "pose near a singularity?): their residual_m says how far they are")
+                     "pose near a singularity, or a backlash the load does not set: a joint's torque near zero flips "
+                     "its jump as the pose is corrected): their residual_m says how far they are")
     return Compensation(q, load, pred.displacement, pred.sd, band95(pred.cov), x, x - pred.displacement, q1, qc,
                         residual, e1, its, done, tuple(notes))
+
+
+#: a backlash joint whose (total) torque is within this fraction of the row's largest torque of zero: its state is
+#: not set by the load
+UNSET_TORQUE_FRACTION = 1e-6
+
+
+def _unset_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) -> list[str]:
+    """A note on the rows where a joint of the calibration's backlash carries no torque (its total torque, with the
+    arm's own weight where the backlash is preloaded, zero to :data:`UNSET_TORQUE_FRACTION` of the row's largest):
+    the load does not say on which side of its gap the joint rests, so the prediction (the gap's centre, sign 0)
+    may be off by the jump b_j either way, which its sd does not include."""
+    if "backlash" not in cal.causes:
+        return []
+    from .discrepancy import _preload, torques
+
+    tau = torques(robot, q, load)
+    t0 = _preload("backlash", robot, q)
+    total = tau if t0 is None else tau + t0
+    scale = np.abs(tau).max(axis=1, keepdims=True) + (0.0 if t0 is None else np.abs(t0).max(axis=1, keepdims=True))
+    gaps = {j: cal.theta[cal.names.index(f"b{j + 1}_rad")] for j in range(robot.n_joints)
+            if f"b{j + 1}_rad" in cal.names}  # the catalogue's backlash parameters (stiffcal.model.catalogue)
+    unset = {j: np.flatnonzero(np.abs(total[:, j]) <= UNSET_TORQUE_FRACTION * scale[:, 0]) for j in gaps}
+    unset = {j: rows for j, rows in unset.items() if rows.size and abs(gaps[j]) > 0}
+    if not unset:
+        return []
+    where = "; ".join(f"joint {robot.joint_names[j]} (b = {gaps[j]:.3g} rad) at data row(s) "
+                      f"{', '.join(str(int(r)) for r in rows[:5])}{' ...' if rows.size > 5 else ''}"
+                      for j, rows in unset.items())
+    return [f"a joint with backlash carries no torque under the load: {where}; the load does not set on which side "
+            "of its gap the joint rests, so the prediction there (the gap's centre) may be off by the joint's jump b "
+            "either way, which sd does not include: load the joint, or measure that pose"]
 
 
 def band95(cov: np.ndarray) -> np.ndarray:

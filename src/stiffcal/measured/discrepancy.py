@@ -1816,6 +1816,9 @@ def _gain_notes(robot: Robot, gain: dict | None, diagnostics: dict, ext: list, d
     held out, which also sets ``diagnostics["extended_not_better_held_out"]``; plan figures left out, set to None
     in ``gain``; a test load that turns a joint the data cannot identify)."""
     notes = []
+    if gain is None and not ext and test_pose is not None:
+        notes.append("gain is null: no catalogue cause is named, so the calibrated model is the nominal one and "
+                     "there is no extended model to compare with it at the test pose")
     if gain is not None and gain["loco_ratio"] is None:
         notes.append("the leave-one-configuration-out prediction error needs measurements at two or more "
                      "configurations (and a nonzero error of the extended model); it is left out")

@@ -432,7 +432,10 @@ def _numbers(df, cols: list[str], source: str) -> np.ndarray:
         bad = np.flatnonzero(~np.isfinite(num))
         if bad.size:
             r = bad[0]
-            raise InputError(f"expected a finite number, got {df[c].iloc[r]!r}", source=source,
+            cell = str(df[c].iloc[r])
+            hint = (": a decimal comma? write numbers with a decimal point" if re.fullmatch(r"\s*[-+]?\d+,\d+\s*", cell)
+                    else "")
+            raise InputError(f"expected a finite number, got {cell!r}{hint}", source=source,
                              field=f"row {r + 2} (data row {r}), column {c}")
         limit = _MAX_ABS[c[0]]
         huge = np.flatnonzero(np.abs(num) > limit)
@@ -520,6 +523,7 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
                               source)
     _check_loads_below_resolution(q_deg, force, moment if groups["moment"] else None, dp, target, unloaded,
                                   angle_resolution_deg, force_resolution_N, moment_resolution_Nm, cols[n:n + d], source)
+    _check_displacement_size(robot, dp[~unloaded], cols[n + d:n + 2 * d], source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
     notes += _angle_notes(q_deg, cols[:n], robot) + _duplicate_notes(df, loaded)
@@ -589,8 +593,12 @@ def _data_columns(df, robot: Robot, source: str) -> tuple[list[str], dict, list[
     if surplus:
         notes.append(f"column(s) {', '.join(surplus)} do not belong to a {robot.kind} robot with {robot.task_dim} "
                      f"measured coordinates and are ignored")
+    unnamed = [c for c in df.columns if c not in used and _UNNAMED.fullmatch(c) and (df[c].str.strip() == "").all()]
+    if unnamed:
+        notes.append(f"{len(unnamed)} column(s) without a name and blank in every row (a comma at the end of every "
+                     "line?) are ignored")
     unused = [c for c in df.columns if c not in used and c not in ("pose_id", "target", *LOG_COLUMNS)
-              and c not in surplus]
+              and c not in surplus and c not in unnamed]
     if unused:
         notes.append(f"column(s) {', '.join(unused)} not used by the analysis"
                      + "".join(f"; {c!r} looks like {name} (a misspelling?): rename it {name} to "
@@ -620,6 +628,24 @@ def _pose_labels(df, source: str) -> tuple[np.ndarray | None, list[str]]:
                          "row the label of its robot configuration, or drop the column (configurations are "
                          "then found from the joint angles)", source=source, field="column pose_id")
     return raw, []
+
+
+#: a median displacement of the loaded rows above this fraction of the arm's reach is refused: no serial robot deflects
+#: that far elastically (absolute positions, or a unit 1000 too small; between 2 % and this the analysis notes it)
+MAX_DISPLACEMENT_OF_REACH = 0.10
+
+
+def _check_displacement_size(robot: Robot, dp: np.ndarray, columns: list[str], source: str) -> None:
+    """Raise :class:`InputError` when the loaded rows' displacements ``dp`` (N, d) [m] are, in the median, more than
+    :data:`MAX_DISPLACEMENT_OF_REACH` of the robot's reach: not deflections."""
+    reach = robot.reach_m
+    size = float(np.median(np.linalg.norm(dp, axis=1))) if len(dp) else 0.0
+    if reach > 0 and size > MAX_DISPLACEMENT_OF_REACH * reach:
+        raise InputError(f"expected deflections (each loaded reading less its unloaded reference reading, in metres), "
+                         f"but the loaded rows' displacements are {size:.3g} m in the median, {100 * size / reach:.3g} "
+                         f"% of the arm's reach ({reach:.3g} m): no serial robot deflects that far elastically; "
+                         "absolute positions, or millimetres in columns labelled metres?", source=source,
+                         field=f"columns {', '.join(columns)}")
 
 
 def _unloaded_rows(force: np.ndarray, moment: np.ndarray, force_resolution_N: float, moment_resolution_Nm: float,
@@ -757,6 +783,9 @@ def check_noise_levels(sigma_m_given: bool, sigma_rad_given: bool, source: str |
                          field=prefix + ("sigma_rad" if sigma_m_given else "sigma_m"))
 
 
+#: the name pandas gives a column whose header cell is empty
+_UNNAMED = re.compile(r"Unnamed: \d+")
+
 #: characters no lab's CSV holds (C0 controls but tab, line feed and carriage return; DEL): a binary or damaged file
 _CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 
@@ -781,6 +810,35 @@ def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HIN
     header with no comma but semicolons or tabs (a file separated by another character: a comma-separated file is
     expected), or a row with more or fewer fields than the header (pandas would take a surplus first field as the
     index and shift every column), or more than ``max_rows`` data rows (counted before anything is parsed)."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            line = fh.readline()
+            if line == "":
+                raise InputError("the file is empty: expected a CSV table, a header row naming its columns and a "
+                                 "row per reading", source=source)
+        return _header_and_rows(path, line, source, max_rows, hint)
+    except UnicodeDecodeError:
+        raise _not_utf8(path, source) from None
+
+
+def _not_utf8(path, source: str) -> InputError:
+    """The error for a file that is not UTF-8 text, naming the row and byte where it stops being."""
+    raw = Path(path).read_bytes()
+    try:
+        raw.decode("utf-8")
+        where = None
+    except UnicodeDecodeError as err:
+        where = err
+    if where is None:
+        return InputError("not UTF-8 text", source=source)
+    row = raw.count(b"\n", 0, where.start) + 1
+    return InputError(f"not UTF-8 text: byte 0x{raw[where.start]:02x} (a file saved as Latin-1 or Windows-1252, "
+                      "whose degree sign or accented letters UTF-8 cannot read?); save it as UTF-8", source=source,
+                      field=f"row {row}")
+
+
+def _header_and_rows(path, line: str, source: str, max_rows: int | None, hint: str) -> list[str]:
+    """:func:`_header` from its first ``line`` on."""
     import csv
     from collections import Counter
 
@@ -789,8 +847,6 @@ def _header(path, source: str, max_rows: int | None = None, hint: str = ROWS_HIN
     def unsplittable(err, row: int) -> InputError:  # csv's own errors (a field over its 128 KiB limit)
         return InputError(f"not a CSV row a reader can split ({err})", source=source, field=f"row {row}")
 
-    with open(path, newline="", encoding="utf-8-sig") as fh:
-        line = fh.readline()
     if line.count(",") >= MAX_MEASURED_COLUMNS:
         raise InputError(f"more than {MAX_MEASURED_COLUMNS:,} columns in the header (the most read; a measured-data "
                          "file has a dozen or two): not a measured-data table", source=source, field="row 1")
