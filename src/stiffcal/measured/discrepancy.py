@@ -1858,11 +1858,13 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     - ``load_direction``: the F-test of a load turned by a small angle from its logged direction (a pulley, a
       tilted fixture: regressors A(q, a x F) k for the axes a, with the nominal fit's compliances k) against the
       nominal model, with the angle it finds, and whether the chosen causes add anything beyond it (warned when
-      they do not: the tilt then explains the data as well as they do).
+      they do not: the tilt then explains the data as well as they do);
+    - ``return_to_zero``: whether the unloaded rows read after a load keep a jump that follows its joint torques'
+      signs (:func:`_return_diagnostic`: a backlash that stays where the load pushed it).
     Returns (dict, notes)."""
     m = pre.m
     out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
-                 "extended_not_better_held_out": False}
+                 "extended_not_better_held_out": False, "return_to_zero": None}
     notes = []
     loads = m.structure()["loads_per_configuration"]
     if loads["max"] == 1:
@@ -1876,7 +1878,62 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     notes += [note] if note else []
     out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, alpha)
     notes += [note] if note else []
+    out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
+    notes += [note] if note else []
     return out, notes
+
+
+def _after_loads(pre: Prepared) -> tuple[np.ndarray, np.ndarray]:
+    """(the unloaded rows with noise that follow a loaded row of their visit, as indices into the error model's
+    unloaded rows (M_a,); the loaded row each follows, the last before it in time (M_a,), into ``pre.m``)."""
+    st = pre.error.structure
+    N, M = st.n_loaded, len(st.zero_index)
+    rows, prev = [], []
+    for m in range(M):
+        r = N + m
+        before = np.flatnonzero((st.visit[:N] == st.visit[r]) & (st.time[:N] < st.time[r]))
+        if before.size:
+            rows.append(m)
+            prev.append(int(before[np.argmax(st.time[before])]))
+    return np.array(rows, int), np.array(prev, int)
+
+
+def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
+    """(``diagnostics.return_to_zero`` or None, note): do the unloaded rows read after a load come back to zero? The
+    F-test, on those rows alone (weighted by the noise model; a common shift of the zero point allowed), of the
+    catalogue's backlash regressors of the load before each (the joint's motion times the sign of its torque): a
+    gear that stays where the load pushed it (friction holding a backlash) leaves them there, and the rows' shared
+    errors then take the jump for the reference reading's, so that the catalogue's backlash (a jump from the gap's
+    centre that unloading undoes) may not be named. Tool-point positions only (None otherwise, or with fewer
+    rows than regressors)."""
+    st = pre.error.structure
+    if st.time is None or not len(st.zero_index) or pre.meas.zero_rot is not None or not pre.ob.default:
+        return None, None
+    rows, prev = _after_loads(pre)
+    d = robot.task_dim
+    load = load_of(pre.m)[prev]
+    if not rows.size or not _plain(load, robot, None):
+        return None, None
+    w = pre.w0[st.zero_index[rows]]
+    X = cause_columns("backlash", robot, pre.m.q[prev], load) * w[:, None, None]
+    joints = np.flatnonzero(np.abs(X).max(axis=(0, 1)) > 0)
+    y = (pre.meas.zero_dp[st.zero_index[rows]] * w[:, None]).ravel()
+    shift = _stack(np.broadcast_to(np.eye(d), (len(rows), d, d)) * w[:, None, None])
+    f0, f1 = fit(shift, y), fit(np.hstack([shift, _stack(X[..., joints])]), y)
+    if not joints.size or f1.rank <= f0.rank or f1.df <= 0:
+        return None, None
+    p = f_test(f0.rss, f0.df, f1.rss, f1.df, f1.rss / f1.df, f1.df)
+    jumps = {robot.joint_names[j]: float(b) for j, b in zip(joints, f1.beta[d:])}
+    out = {"p_value": p, "n_rows": int(len(rows)), "jump_rad": jumps}
+    if p > alpha:
+        return out, None
+    size = ", ".join(f"joint {name} {b:.2g} rad" for name, b in jumps.items())
+    return out, (f"the unloaded rows read after a load do not come back to zero: they keep a displacement along the "
+                 f"joints' motion that follows the sign of the load's torque before them (F-test p = {p:.2g}; {size}): "
+                 "a backlash that stays where the load pushed it (friction in the gear), not a drift. The catalogue's "
+                 "backlash is a jump from the gap's centre that unloading undoes; here the rows' shared errors take "
+                 "the jump for their reference reading's, so the verdict may not name it: push each joint to one "
+                 "side of its gap before the reference reading (a preload), or measure loads of both signs")
 
 
 def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
