@@ -81,6 +81,34 @@ def test_the_reference_readings_are_found_as_the_simulator_made_them(tmp_path, p
         assert "return" not in comps and not away.any()
 
 
+def test_visit_and_reference_columns_that_contradict_the_reference_rows_are_noted(tmp_path):
+    """Two passes, a reference read (as an exact-zero row) at every visit: a visit column that gives both passes
+    one label per configuration, and a reference label with no exact-zero row beside labels with one, are each
+    named in a note; the simulator's own columns give neither note."""
+    robot = R.robots(ROOT)["2-link"]
+    pr = T.Protocol("visit, zeros", magnitudes_N=(100.0, 300.0), repeats=1, reference="visit", passes=2, shuffle=True,
+                    zero_rows=True, return_to_zero=True, timestamps=True)
+    log, _, path = _log_csv(tmp_path, robot, pr)
+    lines = path.read_text(encoding="utf-8").splitlines()
+
+    def with_columns(visit, reference, name):
+        out = tmp_path / name
+        out.write_text("\n".join([lines[0] + ",visit,reference"] + [f"{ln},{v},{r}" for ln, v, r in
+                                                                    zip(lines[1:], visit, reference)]) + "\n",
+                       encoding="utf-8")
+        meas = read_measurements(out, robot)
+        return " ".join(EM.reading_structure(meas, np.ones(meas.n_rows, bool)).notes)
+
+    true_visit, true_ref = [f"v{v}" for v in log.visit], [f"r{r}" for r in log.reference]
+    assert "visit column hold two or more" not in with_columns(true_visit, true_ref, "true.csv")
+    assert "no exact-zero row" not in with_columns(true_visit, true_ref, "true.csv")
+    assert "visit(s) of the visit column hold two or more reference readings" in with_columns(
+        [f"c{c}" for c in log.config], true_ref, "by_pose.csv")
+    typo = list(true_ref)
+    typo[int(np.flatnonzero(log.loaded)[3])] = "r999"
+    assert "reference label(s) r999 have no exact-zero row" in with_columns(true_visit, typo, "typo.csv")
+
+
 def test_visits_come_from_the_row_order_where_no_reference_is_logged(tmp_path):
     """One reference per visit, not logged, a return-to-zero row ending each visit: the visits are the
     simulator's (a visit of a configuration straight after another of the same one included), and both

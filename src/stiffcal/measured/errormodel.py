@@ -343,7 +343,35 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None) -> Readi
     return ReadingStructure(int(f["loaded"].sum()), f["zero_idx"][zero_model], block, _renumber(visit[idx]),
                             tuple(comps), kind, source, len(set(visit[f["loaded"]].tolist())),
                             sum(len(v) > 1 for v in visits_at.values()), len(holder), int(f["exact"].sum()),
-                            (), np.asarray(f["time"][idx], float), ref_time[idx])
+                            tuple(_label_notes(f, visit)), np.asarray(f["time"][idx], float), ref_time[idx])
+
+
+def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
+    """Notes where the ``visit`` or ``reference`` column and the exact-zero reference rows disagree: a visit label
+    holding two reference readings of one target (two visits under one label?), reference labels without an
+    exact-zero row beside labels with one (a typo?). The exact-zero rows decide which reading a row was taken from
+    only where no ``reference`` column is given."""
+    notes = []
+    exact = np.flatnonzero(f["exact"])
+    if f["visit"] is not None and exact.size:
+        per = np.unique(np.column_stack([visit[exact], f["target"][exact]]), axis=0, return_counts=True)[1]
+        if (per > 1).any():
+            notes.append(f"{int((per > 1).sum())} visit(s) of the visit column hold two or more reference readings "
+                         "(exact-zero rows) of one target: each reference reading is taken as the start of a "
+                         "reference of its own, the visits as the column says; if the robot left and came back "
+                         "between them, give each return a visit label of its own (the robot's return error is "
+                         "modelled per visit)")
+    if f["reference"] is not None and exact.size:
+        noisy = ~f["exact"]
+        keys = {(int(c), int(t), str(r)) for c, t, r in zip(f["config"], f["target"], f["reference"])}
+        held = {(int(f["config"][i]), int(f["target"][i]), str(f["reference"][i])) for i in exact}
+        orphan = sorted({k[2] for k in keys - held
+                         if any(noisy & (f["config"] == k[0]) & (f["reference"] == k[2]))})
+        if orphan:
+            notes.append(f"reference label(s) {', '.join(orphan[:5])}{' ...' if len(orphan) > 5 else ''} have no "
+                         "exact-zero row while other labels do: a typo? Their rows are taken as measured from an "
+                         "unlogged reading of their own")
+    return notes
 
 
 def return_loading(jacobian: np.ndarray, tool_jacobian: np.ndarray) -> np.ndarray:
