@@ -526,3 +526,20 @@ def test_design_prior_refuses_options_it_does_not_use_with_their_reasons(calibra
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "--criterion (it plans the tool point's position under the test load with the O_t criterion)" in err
     assert "--cache-dir (it computes no approximate design, so there is nothing to cache)" in err
+
+
+def test_compensation_never_commands_a_pose_worse_than_no_correction(calibrated_file):
+    """Poses where joint 2 carries no torque (q1 + q2 = 90 deg under a vertical load) and tiny loads: the backlash's
+    jump flips with each correction and the iteration cannot converge. Each such row keeps the better of the
+    first-order step and the nominal pose: its residual is at most the deflection itself, which the model's own
+    prediction at the commanded pose confirms."""
+    robot = load_robot(calibrated_file[1])
+    q = np.radians([[60.0, 30.0], [10.0, 80.0]])
+    load = np.array([[0.0, -0.3], [0.0, -0.3]])
+    comp = C.compensate(robot, q, load)
+    assert not comp.converged.any()
+    deflection = np.linalg.norm(comp.deflection, axis=1)
+    assert np.all(comp.residual_m <= deflection + 1e-15)
+    again = np.asarray(robot.fk(comp.q_corrected)) + C.predict(robot, comp.q_corrected, load).displacement
+    assert np.allclose(np.linalg.norm(again - comp.target_m, axis=1), comp.residual_m, rtol=1e-9, atol=1e-15)
+    assert any("left at the better of the first-order step and no correction" in n for n in comp.notes)

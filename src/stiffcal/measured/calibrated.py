@@ -208,7 +208,8 @@ class Compensation:
     error, which compensation leaves; the noise of a reading is not in it); target_m (N, d): the nominal tool points;
     corrected_target_m (N, d): the points to command (nominal less the deflection, first order); q_first
     (N, n) [rad]: q - J^+ dp(q); q_corrected (N, n) [rad]: the joint angles whose deflected tool point is the
-    nominal one (iterated); residual_m (N,): the predicted error left at q_corrected (the iteration's);
+    nominal one (iterated; a row that does not converge keeps the better of q_first and q when the iteration ended
+    further away); residual_m (N,): the predicted error left at q_corrected;
     first_order_residual_m (N,): that of q_first; iterations (N,) int; converged (N,) bool."""
     q: np.ndarray
     load: np.ndarray
@@ -224,6 +225,16 @@ class Compensation:
     iterations: np.ndarray
     converged: np.ndarray
     notes: tuple = ()
+
+
+def _no_worse(q, q1, qc, e0, e1, residual, done) -> tuple[np.ndarray, np.ndarray, int]:
+    """(q_corrected, residual_m, how many rows changed): each row that did not converge takes the best of the
+    nominal pose (predicted error e0: the deflection itself), the first-order step (e1) and the iteration's pose
+    (residual), so that compensating never commands a pose the model predicts to be worse than either."""
+    errors = np.column_stack([residual, e1, e0])
+    best = np.where(done, 0, np.argmin(errors, axis=1))
+    poses = np.stack([qc, q1, q], axis=0)[best, np.arange(len(q))]
+    return poses, errors[np.arange(len(q)), best], int(np.count_nonzero(best))
 
 
 def _pinv_step(J: np.ndarray, e: np.ndarray) -> np.ndarray:
@@ -265,6 +276,10 @@ def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = 
         notes.append(f"{int((~done).sum())} pose(s) did not converge to {tol_m:g} m in {iterations} iterations (a "
                      "pose near a singularity, or a backlash the load does not set: a joint's torque near zero flips "
                      "its jump as the pose is corrected): their residual_m says how far they are")
+    qc, residual, kept = _no_worse(q, q1, qc, np.linalg.norm(pred.displacement, axis=1), e1, residual, done)
+    if kept:
+        notes.append(f"{kept} pose(s) that did not converge are left at the better of the first-order step and no "
+                     "correction (q1_cmd_deg; the iteration ended further from the nominal point than either)")
     return Compensation(q, load, pred.displacement, pred.sd, band95(pred.cov), x, x - pred.displacement, q1, qc,
                         residual, e1, its, done, tuple(notes))
 
