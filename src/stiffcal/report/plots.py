@@ -659,7 +659,9 @@ def fig_held_out(held: dict | None, sigma: float, title: str):
         ax.set_xticks(x[::step], [r["configuration"] for r in table][::step], rotation=60, ha="right", fontsize=6)
         ax.set_xlabel("held-out configuration")
         ax.set_ylabel("RMS prediction error [µm]")
-        ax.legend(fontsize=7, loc="upper right" if many else "best")
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, lo + 1.25 * (hi - lo))  # headroom: the legend's row above every bar
+        ax.legend(fontsize=7, loc="upper left", ncol=3, frameon=False)
         ax.grid(alpha=0.3, axis="y")
         ax.set_title(title, fontsize=9)
         fig.tight_layout()
