@@ -543,3 +543,19 @@ def test_compensation_never_commands_a_pose_worse_than_no_correction(calibrated_
     again = np.asarray(robot.fk(comp.q_corrected)) + C.predict(robot, comp.q_corrected, load).displacement
     assert np.allclose(np.linalg.norm(again - comp.target_m, axis=1), comp.residual_m, rtol=1e-9, atol=1e-15)
     assert any("left at the better of the first-order step and no correction" in n for n in comp.notes)
+
+
+def test_a_calibrated_model_with_a_negative_compliance_is_named_in_its_predictions(tmp_path, calibrated_file):
+    """A calibrated.yaml whose k2 came out negative (forces logged with their sign reversed): predictions say so."""
+    import yaml
+
+    doc = yaml.safe_load(calibrated_file[1].read_text(encoding="utf-8"))
+    cal = doc["calibration"]
+    i = cal["parameter_names"].index("k2")
+    cal["parameters"][i] = -abs(cal["parameters"][i])
+    path = tmp_path / "negative.yaml"
+    path.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    pred = C.predict(load_robot(path), np.radians([[60.0, 10.0]]), np.array([[0.0, -300.0]]))
+    assert any("compliance of joint(s) 2 is negative" in n for n in pred.notes), pred.notes
+    assert not any("negative" in n for n in C.predict(load_robot(calibrated_file[1]), np.radians([[60.0, 10.0]]),
+                                                      np.array([[0.0, -300.0]])).notes)

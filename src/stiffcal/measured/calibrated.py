@@ -192,6 +192,13 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
         notes.append("some parameters of the calibrated model were not determined by its data (their minimum-norm "
                      "values are used): predictions far from the data's poses may carry an error the standard "
                      "deviation does not show")
+    k = cal.compliances(robot.n_joints)
+    negative = [robot.joint_names[j] for j in range(robot.n_joints) if k[j] < 0]
+    if negative:
+        notes.append(f"the calibrated model's compliance of joint(s) {', '.join(negative)} is negative: its "
+                     "deflections push against the load, which no joint does; the data it came from were likely "
+                     "logged with the force's or the displacement's sign reversed, or in the wrong frame (its "
+                     "verdict's notes say which): fix them and analyse again before using these predictions")
     notes += _unset_backlash_notes(robot, cal, q, load)
     names = robot.target_names
     tnames = tuple(names[t] for t in (np.zeros(len(q), int) if target is None else np.asarray(target, int)))
