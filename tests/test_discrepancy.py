@@ -4,6 +4,7 @@ independent of the analysis) found at the rates of an oracle, several effects at
 cases, bad and degenerate data, the CLI."""
 
 import json
+import re
 from dataclasses import replace
 from pathlib import Path
 
@@ -794,6 +795,18 @@ def test_a_latin1_file_is_named_with_its_row_and_a_trailing_comma_is_a_note(tmp_
     notes = read_measurements(trailing, robot).notes
     assert any("without a name and blank in every row (a comma at the end of every line?)" in n for n in notes)
     assert not any("Unnamed" in n for n in notes), notes
+
+
+def test_joint_columns_named_as_ros_logs_them_get_the_naming_hint(tmp_path):
+    """Columns named by the joints alone (a ROS joint_states export) are not read as angles: the message names them
+    and says how to name them (q_<name>_deg or q<i>_deg)."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+    names = robot.joint_names
+    path = _lab_file(tmp_path, "ros.csv", lambda h, rows: ([names[int(c[1]) - 1] if re.fullmatch(r"q\d_deg", c)
+                                                             else c for c in h], rows))
+    with pytest.raises(InputError, match=rf"ros.csv.*missing column.*the robot's joint names without unit: name each "
+                                         rf"q_<name>_deg \('q_{re.escape(names[2])}_deg'"):
+        read_measurements(path, robot)
 
 
 @pytest.mark.parametrize("char, column", [("\x00", "pose_id"), ("\x1b", "dx_m"), ("\x7f", "q2_deg")])

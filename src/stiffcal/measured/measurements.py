@@ -354,8 +354,9 @@ def angle_columns(columns, robot: Robot, source: str) -> list[str]:
 
 def _rows_text(rows: np.ndarray) -> str:
     """'rows 2, 5 and 9 (data rows 0, 3, 7)': file lines (header = line 1) and 0-based data rows."""
-    rows = np.asarray(rows, int)[:_MAX_LISTED]
-    more = "" if len(rows) < _MAX_LISTED else ", ..."
+    rows = np.asarray(rows, int)
+    more = "" if len(rows) <= _MAX_LISTED else ", ..."
+    rows = rows[:_MAX_LISTED]
     return (f"row{'s' if len(rows) > 1 else ''} {', '.join(str(r + 2) for r in rows)}{more} "
             f"(data row{'s' if len(rows) > 1 else ''} {', '.join(str(r) for r in rows)}{more})")
 
@@ -575,8 +576,11 @@ def _data_columns(df, robot: Robot, source: str) -> tuple[list[str], dict, list[
                              source=source, field=f"column {col}")
     missing = [c for c in cols if c not in df.columns]
     if missing:
+        bare = [c for c in df.columns if c in robot.joint_names]  # a joint's name alone, as ROS logs it
+        hint = (f"; the column(s) {', '.join(bare)} are the robot's joint names without unit: name each "
+                f"q_<name>_deg ('q_{bare[0]}_deg', angles in degrees) or q<i>_deg" if bare else "")
         raise InputError(f"missing column(s) {', '.join(missing)}; expected {', '.join(cols)} (and optionally pose_id, "
-                         "target, the moment and the orientation)", source=source)
+                         f"target, the moment and the orientation){hint}", source=source)
     groups = {}
     for what, names in optional_columns(robot).items():
         have = [c for c in names if c in df.columns]
