@@ -559,3 +559,17 @@ def test_a_calibrated_model_with_a_negative_compliance_is_named_in_its_predictio
     assert any("compliance of joint(s) 2 is negative" in n for n in pred.notes), pred.notes
     assert not any("negative" in n for n in C.predict(load_robot(calibrated_file[1]), np.radians([[60.0, 10.0]]),
                                                       np.array([[0.0, -300.0]])).notes)
+
+
+def test_a_pose_outside_the_joint_limits_is_refused_in_a_path(tmp_path):
+    """tests/data/lab/lab_3r.yaml limits joint 2 to [-150, 150] deg: a path pose at q2 = 155 deg is refused naming its
+    row and column (compensating it would command a pose the arm cannot reach); 150 deg is read."""
+    robot = load_robot(ROOT / "tests/data/lab/lab_3r.yaml")
+    assert np.allclose(np.degrees(robot.joint_limits_rad[1]), [-150, 150])
+    path = tmp_path / "path.csv"
+    path.write_text("q1_deg,q2_deg,q3_deg,fx_N,fy_N\n10,20,30,0,-100\n10,155,30,0,-100\n", encoding="utf-8")
+    with pytest.raises(C.InputError, match=r"path.csv.*row 3 \(data row 1\), column q2_deg.*within the joint's "
+                                           r"limits \[-150, 150\] deg.*got 155"):
+        C.read_poses(path, robot)
+    path.write_text("q1_deg,q2_deg,q3_deg,fx_N,fy_N\n10,150,30,0,-100\n", encoding="utf-8")
+    assert np.allclose(np.degrees(C.read_poses(path, robot).q), [[10, 150, 30]])

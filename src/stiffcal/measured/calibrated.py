@@ -390,6 +390,14 @@ def read_poses(path, robot: Robot) -> PoseFile:
     values = M._numbers(df, qcols + fcols + (mcols if have else []), source)
     n = robot.n_joints
     q = np.radians(values[:, :n])
+    outside = np.argwhere(robot.outside_limits(q))
+    if outside.size:
+        r, j = (int(v) for v in outside[0])
+        lo, hi = np.degrees(robot.joint_limits_rad[j])
+        raise InputError(f"expected an angle within the joint's limits [{lo:g}, {hi:g}] deg (the robot file's), got "
+                         f"{values[r, j]:g}: the arm cannot reach this pose, and a compensated command there would "
+                         f"be outside them too ({len(np.unique(outside[:, 0]))} row(s) in all)", source=source,
+                         field=f"row {r + 2} (data row {r}), column {qcols[j]}")
     load = values[:, n:] if have else values[:, n:n + d]
     target = M._targets(df, robot, source)[0] if "target" in df.columns else None
     used = set(qcols + fcols + (mcols if have else []) + ["target"])
