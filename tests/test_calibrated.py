@@ -573,3 +573,26 @@ def test_a_pose_outside_the_joint_limits_is_refused_in_a_path(tmp_path):
         C.read_poses(path, robot)
     path.write_text("q1_deg,q2_deg,q3_deg,fx_N,fy_N\n10,150,30,0,-100\n", encoding="utf-8")
     assert np.allclose(np.degrees(C.read_poses(path, robot).q), [[10, 150, 30]])
+
+
+def test_a_joint_the_calibration_did_not_identify_moves_with_the_robot_file_s_compliance(tmp_path, calibrated_file):
+    """The calibration without joint 1 (as when no load of the data turned it), the file's compliances_rad_per_Nm
+    kept: the prediction adds joint 1's deflection J_1 k_1 J_1^T F with the file's k_1, so its mean equals the full
+    calibration's (whose k_1 the file holds) and a note says k_1's error is not in the sd."""
+    import yaml
+
+    doc = yaml.safe_load(calibrated_file[1].read_text(encoding="utf-8"))
+    cal = doc["calibration"]
+    i = cal["parameter_names"].index("k1")
+    keep = [j for j in range(len(cal["parameter_names"])) if j != i]
+    cal["k_joints"] = [j for j in cal["k_joints"] if j != 1]
+    for key in ("parameter_names", "parameters", "estimable"):
+        cal[key] = [cal[key][j] for j in keep]
+    cal["covariance"] = [[cal["covariance"][a][b] for b in keep] for a in keep]
+    path = tmp_path / "without_k1.yaml"
+    path.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    q, F = np.radians([[60.0, 10.0], [-30.0, 100.0]]), np.array([[0.0, -300.0], [120.0, 40.0]])
+    full, partial = C.predict(load_robot(calibrated_file[1]), q, F), C.predict(load_robot(path), q, F)
+    assert np.allclose(partial.displacement, full.displacement, rtol=1e-12, atol=1e-18)
+    assert any("joint(s) 1 were not identified by the calibration" in n and "whose error the sd does not include" in n
+               for n in partial.notes), partial.notes

@@ -184,10 +184,8 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
         notes.append("the robot file has no calibration section: the predictions use its compliances_rad_per_Nm "
                      "alone, with no extension and no uncertainty (sd 0); give the calibrated.yaml that stiffcal "
                      "discrepancy writes")
-    missing = [robot.joint_names[j] for j in range(robot.n_joints) if j not in cal.k_joints]
-    if missing:
-        notes.append(f"joint(s) {', '.join(missing)} were not identified by the calibration: their deflection is "
-                     "left out of the prediction")
+    mean, note = _with_unidentified_joints(robot, cal, q, load, target, orientation, mean)
+    notes += [note] if note else []
     if not all(cal.estimable):
         notes.append("some parameters of the calibrated model were not determined by its data (their minimum-norm "
                      "values are used): predictions far from the data's poses may carry an error the standard "
@@ -289,6 +287,30 @@ def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = 
                      "correction (q1_cmd_deg; the iteration ended further from the nominal point than either)")
     return Compensation(q, load, pred.displacement, pred.sd, band95(pred.cov), x, x - pred.displacement, q1, qc,
                         residual, e1, its, done, tuple(notes))
+
+
+def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, mean):
+    """(mean, note): the predicted motion ``mean`` (N, r) plus that of the joints the calibration did not identify
+    (no load of its data turned them), each with the robot file's compliance where it has one (the calibrated file
+    keeps the original's); their error is not in the sd, which the note says. None: every joint identified."""
+    from . import discrepancy as D
+
+    missing = [j for j in range(robot.n_joints) if j not in cal.k_joints]
+    if not missing:
+        return mean, None
+    names = ", ".join(robot.joint_names[j] for j in missing)
+    k = robot.compliances
+    if k is None or not all(np.isfinite(k[j]) and k[j] > 0 for j in missing):
+        return mean, (f"joint(s) {names} were not identified by the calibration and the robot file gives no "
+                      "compliance for them: their deflection is left out of the prediction")
+    ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,
+                    np.asarray(missing, int), 0)
+    X = D.model_columns(robot, q, load, (), predict=True, observed=ob)[..., : len(missing)]
+    added = np.einsum("nrp,p->nr", X, np.asarray(k, float)[missing])
+    values = ", ".join(f"{k[j]:.3g}" for j in missing)
+    return mean + added, (f"joint(s) {names} were not identified by the calibration (no load of its data turned "
+                          f"them): their deflection uses the robot file's compliance ({values} rad/(N m)), whose "
+                          "error the sd does not include; measure loads that turn them")
 
 
 #: a backlash joint whose (total) torque is within this fraction of the row's largest torque of zero: its state is
