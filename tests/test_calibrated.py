@@ -596,3 +596,11 @@ def test_a_joint_the_calibration_did_not_identify_moves_with_the_robot_file_s_co
     assert np.allclose(partial.displacement, full.displacement, rtol=1e-12, atol=1e-18)
     assert any("joint(s) 1 were not identified by the calibration" in n and "whose error the sd does not include" in n
                for n in partial.notes), partial.notes
+    # the next round's O_t leaves that joint's error out when the test load turns it (tau_1 = J_1^T F != 0), and
+    # says so; the full calibration gives no such note
+    from stiffcal.api import plan_next_round
+
+    assert any("the test load turns joint(s) 1, which the calibration did not identify" in n
+               for n in plan_next_round(path, [60, 30], [0, -300], experiments=2)["notes"])
+    assert not any("test load turns" in n for n in plan_next_round(calibrated_file[1], [60, 30], [0, -300],
+                                                                   experiments=2)["notes"])

@@ -583,7 +583,7 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     pool, Xp, Xt, scale = D.plan_regressors(robot, causes, test_pose, test_load, ob, step_deg)
     prior_s = prior / np.outer(scale, scale)
     with_old = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=prior_s)
-    notes = []
+    notes = _unidentified_at_test_pose(robot, cal, test_pose, test_load)
     fresh = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
     if not np.isfinite(fresh.value):
         notes.append(f"{m} new poses alone cannot identify the model's {Xp.shape[-1]} parameters: O_t_fresh is "
@@ -599,6 +599,22 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     return NextRound(pool[with_old.indices], sigma**2 * with_old.value, float(np.trace(Xt_raw @ cov_rr @ Xt_raw.T)),
                      sigma**2 * fresh.value, sigma**2 * bound, pool[keep], w[keep] / w[keep].sum(), float(gap),
                      tuple(names), np.diag(post), len(pool), causes, sigma, tuple(notes))
+
+
+def _unidentified_at_test_pose(robot: Robot, cal, test_pose: np.ndarray, test_load: np.ndarray) -> list[str]:
+    """A note when the test load turns a joint the calibration did not identify: the next round's O_t (of the
+    calibrated model's parameters) leaves that joint's compliance error out, and its measurements do not identify
+    it either (they are taken under the test load's kind of loading only where it turns the joint)."""
+    from .discrepancy import torques
+
+    tau = torques(robot, np.atleast_2d(test_pose), np.atleast_2d(test_load))[0]
+    turned = [robot.joint_names[j] for j in range(robot.n_joints)
+              if j not in cal.k_joints and abs(tau[j]) > 1e-9 * max(np.abs(tau).max(), 1e-300)]
+    if not turned:
+        return []
+    return [f"the test load turns joint(s) {', '.join(turned)}, which the calibration did not identify: O_t, "
+            "O_t_prior and O_t_fresh leave out the error of their compliance (the deflection there rests on the robot "
+            "file's value); a plan that identifies them needs loads that turn them (stiffcal design without --prior)"]
 
 
 def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: int | None = None) -> dict:
