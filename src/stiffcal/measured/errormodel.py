@@ -362,11 +362,9 @@ def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
                          "between them, give each return a visit label of its own (the robot's return error is "
                          "modelled per visit)")
     if f["reference"] is not None and exact.size:
-        noisy = ~f["exact"]
-        keys = {(int(c), int(t), str(r)) for c, t, r in zip(f["config"], f["target"], f["reference"])}
-        held = {(int(f["config"][i]), int(f["target"][i]), str(f["reference"][i])) for i in exact}
-        orphan = sorted({k[2] for k in keys - held
-                         if any(noisy & (f["config"] == k[0]) & (f["reference"] == k[2]))})
+        def keys(rows):  # (configuration, target, reference label) of each row
+            return {(int(f["config"][i]), int(f["target"][i]), str(f["reference"][i])) for i in rows}
+        orphan = sorted({label for _, _, label in keys(np.flatnonzero(~f["exact"])) - keys(exact)})
         if orphan:
             notes.append(f"reference label(s) {', '.join(orphan[:5])}{' ...' if len(orphan) > 5 else ''} have no "
                          "exact-zero row while other labels do: a typo? Their rows are taken as measured from an "
