@@ -764,32 +764,43 @@ def _fitted_variance(robot: Robot, q: np.ndarray, params: np.ndarray, p: float,
 
 def _held_out_shift(fit: GammaFit, s2: np.ndarray, Z: np.ndarray, df: np.ndarray) -> np.ndarray:
     """(k,): for each of the k variances s2 the GLM ``fit`` was fitted to (on df, covariates Z (k, c)), its log-variance
-    from the GLM refitted without it minus its fitted one (leave-one-out). The k refits run together, each by the
-    GLM's own iterations (Fisher scoring, whose weights are the df for a Gamma GLM with a log link: McCullagh &
-    Nelder 1989, sec. 2.5) started from the full fit, until no coefficient moves by more than 1e-12 (at most
-    GAMMA_MAXITER steps); 0 for all when there are no more variances than coefficients, 0 for one whose refit is
-    singular. A variance that came out above its fit pulled the fit towards itself: held out, its predicted variance
-    is lower and its weight higher."""
+    from the GLM refitted without it minus its fitted one (leave-one-out). The refits run together, :data:`LOO_CHUNK`
+    at a time (memory k x LOO_CHUNK, not k x k), each by the GLM's own iterations (Fisher scoring, whose weights are
+    the df for a Gamma GLM with a log link: McCullagh & Nelder 1989, sec. 2.5) started from the full fit, until no
+    coefficient moves by more than 1e-12 (at most GAMMA_MAXITER steps); 0 for all when there are no more variances
+    than coefficients, 0 for one whose refit is singular. A variance that came out above its fit pulled the fit
+    towards itself: held out, its predicted variance is lower and its weight higher."""
     k, c = Z.shape
     if k <= c + 1:
         return np.zeros(k)
-    # (k + 1, k): refit i weighs every variance but its own; the last row, all of them (the full fit, iterated to
-    # the same fixed point as the refits, so that their difference holds no stopping error of either)
-    W = df[None, :] * np.vstack([~np.eye(k, dtype=bool), np.ones((1, k), bool)])
+    return np.concatenate([_refit_shifts(fit, s2, Z, df, np.arange(i, min(i + LOO_CHUNK, k)))
+                           for i in range(0, k, LOO_CHUNK)])
+
+
+#: how many leave-one-out refits of :func:`_held_out_shift` run together (10^5 rows may hold 10^4 configurations)
+LOO_CHUNK = 512
+
+
+def _refit_shifts(fit: GammaFit, s2: np.ndarray, Z: np.ndarray, df: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """:func:`_held_out_shift` of the variances ``out`` (indices): their refits and the full fit, iterated together."""
+    k, c = Z.shape
+    # (len(out) + 1, k): refit i weighs every variance but out[i]; the last row, all of them (the full fit, iterated
+    # to the same fixed point as the refits, so that their difference holds no stopping error of either)
+    W = df[None, :] * np.vstack([np.arange(k)[None, :] != out[:, None], np.ones((1, k), bool)])
     A = np.einsum("ij,jc,jd->icd", W, Z, Z)
     ok = np.linalg.cond(A) < 1e12
     A[~ok] = np.eye(c)
-    B = np.tile(fit.params, (k + 1, 1))
+    B = np.tile(fit.params, (len(out) + 1, 1))
     for _ in range(GAMMA_MAXITER):
-        eta = B @ Z.T  # (k + 1, k): each refit's linear predictor at every variance
+        eta = B @ Z.T  # each refit's linear predictor at every variance
         z = eta + s2[None, :] / np.exp(eta) - 1.0  # the working response
         new = np.linalg.solve(A, np.einsum("ij,jc,ij->ic", W, Z, z)[..., None])[..., 0]
         done = np.abs(new - B).max() <= 1e-12 * max(1.0, np.abs(B).max())
         B = new
         if done:
             break
-    shift = np.einsum("ic,ic->i", Z, B[:k] - B[k])
-    return np.where(ok[:k] & ok[k], shift, 0.0)
+    shift = np.einsum("ic,ic->i", Z[out], B[:-1] - B[-1])
+    return np.where(ok[:-1] & ok[-1], shift, 0.0)
 
 
 def position_covariates(robot: Robot, q: np.ndarray) -> np.ndarray:
@@ -1885,17 +1896,22 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
 
 def _after_loads(pre: Prepared) -> tuple[np.ndarray, np.ndarray]:
     """(the unloaded rows with noise that follow a loaded row of their visit, as indices into the error model's
-    unloaded rows (M_a,); the loaded row each follows, the last before it in time (M_a,), into ``pre.m``)."""
+    unloaded rows (M_a,), ascending; the loaded row each follows, the last before it in time (M_a,), into ``pre.m``;
+    of loaded rows read at the same time, the first). One sort of every model row by visit, time, unloaded before
+    loaded at the same time, loaded by descending index: the last loaded row before an unloaded one is then it."""
     st = pre.error.structure
-    N, M = st.n_loaded, len(st.zero_index)
-    rows, prev = [], []
-    for m in range(M):
-        r = N + m
-        before = np.flatnonzero((st.visit[:N] == st.visit[r]) & (st.time[:N] < st.time[r]))
-        if before.size:
-            rows.append(m)
-            prev.append(int(before[np.argmax(st.time[before])]))
-    return np.array(rows, int), np.array(prev, int)
+    N, R = st.n_loaded, st.n_rows
+    loaded = np.arange(R) < N
+    order = np.lexsort((np.where(loaded, -np.arange(R), 0), loaded, st.time, st.visit))
+    at = np.where(loaded[order], np.arange(R), -1)
+    last = np.maximum.accumulate(at)  # in sorted order: the position of the last loaded row so far
+    pos = np.empty(R, int)
+    pos[order] = np.arange(R)
+    queries = np.arange(N, R)
+    before = last[pos[queries]]
+    prev = np.where(before >= 0, order[np.maximum(before, 0)], -1)
+    found = (prev >= 0) & (st.visit[np.maximum(prev, 0)] == st.visit[queries])
+    return queries[found] - N, prev[found]
 
 
 def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
