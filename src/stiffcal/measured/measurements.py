@@ -797,14 +797,13 @@ _CONTROL = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\x7f]")
 def _check_text(row: list[str], names: list[str], line_no: int, source: str) -> None:
     """Raise :class:`InputError` naming the row and column of the first control character in ``row`` (a NUL in a
     pose_id would otherwise make a configuration's rows two configurations, silently)."""
-    if _CONTROL.search("".join(row)) is None:
+    if _CONTROL.search("".join(row)) is None:  # one search a row; the cell only when there is one
         return
-    j = next(j for j, cell in enumerate(row) if _CONTROL.search(cell))
-    ch = _CONTROL.search(row[j]).group()
+    j, found = next((j, m) for j, m in enumerate(map(_CONTROL.search, row)) if m)
     where = f"row {line_no}" + (f" (data row {line_no - 2})" if line_no > 1 else "") + (
         f", column {names[j]}" if line_no > 1 and j < len(names) else "")
-    raise InputError(f"a control character (U+{ord(ch):04X}) in a cell: expected text (numbers, labels), not a "
-                     "binary or damaged file; remove it, or write the file again from its source", source=source,
+    raise InputError(f"a control character (U+{ord(found.group()):04X}) in a cell: expected text (numbers, labels), "
+                     "not a binary or damaged file; remove it, or write the file again from its source", source=source,
                      field=where)
 
 
@@ -830,15 +829,12 @@ def _not_utf8(path, source: str) -> InputError:
     raw = Path(path).read_bytes()
     try:
         raw.decode("utf-8")
-        where = None
     except UnicodeDecodeError as err:
-        where = err
-    if where is None:
-        return InputError("not UTF-8 text", source=source)
-    row = raw.count(b"\n", 0, where.start) + 1
-    return InputError(f"not UTF-8 text: byte 0x{raw[where.start]:02x} (a file saved as Latin-1 or Windows-1252, "
-                      "whose degree sign or accented letters UTF-8 cannot read?); save it as UTF-8", source=source,
-                      field=f"row {row}")
+        row = raw.count(b"\n", 0, err.start) + 1
+        return InputError(f"not UTF-8 text: byte 0x{raw[err.start]:02x} (a file saved as Latin-1 or Windows-1252, "
+                          "whose degree sign or accented letters UTF-8 cannot read?); save it as UTF-8",
+                          source=source, field=f"row {row}")
+    return InputError("not UTF-8 text", source=source)
 
 
 def _header_and_rows(path, line: str, source: str, max_rows: int | None, hint: str) -> list[str]:
