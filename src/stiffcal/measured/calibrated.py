@@ -174,8 +174,7 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
     cal = _calibration(robot)
     q = np.atleast_2d(np.asarray(q, float))
     load = np.atleast_2d(np.asarray(load, float))
-    X = columns(robot, q, load, target, orientation)
-    mean = np.einsum("nrp,p->nr", X, cal.theta)
+    X, mean, unidentified = _motion(robot, cal, q, load, target, orientation)
     cov = np.einsum("nrp,pq,nsq->nrs", X, cal.cov, X)
     sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
     d = robot.task_dim
@@ -184,8 +183,7 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
         notes.append("the robot file has no calibration section: the predictions use its compliances_rad_per_Nm "
                      "alone, with no extension and no uncertainty (sd 0); give the calibrated.yaml that stiffcal "
                      "discrepancy writes")
-    mean, note = _with_unidentified_joints(robot, cal, q, load, target, orientation, mean)
-    notes += [note] if note else []
+    notes += [unidentified] if unidentified else []
     if not all(cal.estimable):
         notes.append("some parameters of the calibrated model were not determined by its data (their minimum-norm "
                      "values are used): predictions far from the data's poses may carry an error the standard "
@@ -257,9 +255,10 @@ def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = 
     x = np.asarray(robot.fk(q), float)
     J = robot.jacobian(q)
     q1 = q - _pinv_step(J, pred.displacement)
+    cal = _calibration(robot)
 
-    def error(qc):
-        return np.asarray(robot.fk(qc), float) + predict(robot, qc, load).displacement - x
+    def error(qc):  # the predicted position error at qc (the prediction's mean alone: no covariance, no notes)
+        return np.asarray(robot.fk(qc), float) + _motion(robot, cal, qc, load)[1][:, : robot.task_dim] - x
 
     e1 = np.linalg.norm(error(q1), axis=1)
     qc = q1.copy()
@@ -287,6 +286,15 @@ def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = 
                      "correction (q1_cmd_deg; the iteration ended further from the nominal point than either)")
     return Compensation(q, load, pred.displacement, pred.sd, band95(pred.cov), x, x - pred.displacement, q1, qc,
                         residual, e1, its, done, tuple(notes))
+
+
+def _motion(robot: Robot, cal, q: np.ndarray, load: np.ndarray, target=None, orientation: bool = False):
+    """(the calibration's regressors X (N, r, p), the predicted motion (N, r) of what each row measures, the note on
+    joints the calibration did not identify or None): :func:`predict`'s mean, without its covariance and notes."""
+    X = columns(robot, q, load, target, orientation)
+    mean, note = _with_unidentified_joints(robot, cal, q, load, target, orientation,
+                                           np.einsum("nrp,p->nr", X, cal.theta))
+    return X, mean, note
 
 
 def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, mean):
