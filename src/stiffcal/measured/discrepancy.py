@@ -1916,30 +1916,38 @@ def _after_loads(pre: Prepared) -> tuple[np.ndarray, np.ndarray]:
 
 def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
     """(``diagnostics.return_to_zero`` or None, note): do the unloaded rows read after a load come back to zero? The
-    F-test, on those rows alone (weighted by the noise model; a common shift of the zero point allowed), of the
-    catalogue's backlash regressors of the load before each (the joint's motion times the sign of its torque): a
-    gear that stays where the load pushed it (friction holding a backlash) leaves them there, and the rows' shared
-    errors then take the jump for the reference reading's, so that the catalogue's backlash (a jump from the gap's
-    centre that unloading undoes) may not be named. Tool-point positions only (None otherwise, or with fewer
-    rows than regressors)."""
+    F-test, on those rows alone (weighted by the noise model; a common shift of the zero point allowed), of each
+    loaded joint's motion times the sign of the total torque of the load before (the weight's included) and of
+    its motion alone (the flank the gear rested on before the load, the same at every configuration approached
+    from the same side): a gear that stays where the load pushed it (friction holding a backlash) leaves them
+    there, and the rows' shared errors then take the jump for the reference reading's, so that the catalogue's
+    backlash (a jump from the gap's centre that unloading undoes) may not be named. ``jump_rad``: per joint the
+    coefficient of the signed motion, half the jump between the gap's flanks [rad]. Tool-point positions only, under
+    forces or wrenches (None otherwise, or with fewer rows than regressors)."""
     st = pre.error.structure
-    if st.time is None or not len(st.zero_index) or pre.meas.zero_rot is not None or not pre.ob.default:
+    if st.time is None or not len(st.zero_index) or pre.meas.zero_rot is not None or pre.ob.orientation \
+            or pre.ob.used() != (TOOL_TARGET,):
         return None, None
     rows, prev = _after_loads(pre)
     d = robot.task_dim
-    load = load_of(pre.m)[prev]
-    if not rows.size or not _plain(load, robot, None):
+    if not rows.size:
         return None, None
+    load = load_of(pre.m)[prev]
     w = pre.w0[st.zero_index[rows]]
-    X = cause_columns("backlash", robot, pre.m.q[prev], load) * w[:, None, None]
-    joints = np.flatnonzero(np.abs(X).max(axis=(0, 1)) > 0)
+    q = pre.m.q[prev]
+    tau = torques(robot, q, load)
+    if robot.masses is not None:
+        tau = tau + robot.gravity_torques(q)
+    joints = np.flatnonzero(np.abs(tau).max(axis=0) > 1e-9 * max(np.abs(tau).max(), 1e-300))
+    motion = robot.jacobian(q)[..., joints] * w[:, None, None]
+    X = np.concatenate([motion * np.sign(tau[:, None, joints]), motion], axis=-1)
     y = (pre.meas.zero_dp[st.zero_index[rows]] * w[:, None]).ravel()
     shift = _stack(np.broadcast_to(np.eye(d), (len(rows), d, d)) * w[:, None, None])
-    f0, f1 = fit(shift, y), fit(np.hstack([shift, _stack(X[..., joints])]), y)
+    f0, f1 = fit(shift, y), fit(np.hstack([shift, _stack(X)]), y)
     if not joints.size or f1.rank <= f0.rank or f1.df <= 0:
         return None, None
     p = f_test(f0.rss, f0.df, f1.rss, f1.df, f1.rss / f1.df, f1.df)
-    jumps = {robot.joint_names[j]: float(b) for j, b in zip(joints, f1.beta[d:])}
+    jumps = {robot.joint_names[j]: float(b) for j, b in zip(joints, f1.beta[d:d + joints.size])}
     out = {"p_value": p, "n_rows": int(len(rows)), "jump_rad": jumps}
     if p > alpha:
         return out, None

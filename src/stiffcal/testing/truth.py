@@ -48,7 +48,11 @@ class Truth:
     modulation: (n,) relative change of each joint's compliance with its own angle,
     k_i (1 + modulation_i cos q_i) (a gear whose stiffness varies over its turn; outside the catalogue);
     load_tilt: (3,) [rad] the real load is the logged one turned by this small rotation vector (a pulley or a
-    hanging fixture that does not pull where the log says; outside the catalogue).
+    hanging fixture that does not pull where the log says; outside the catalogue);
+    held_gap: (n,) [rad] a backlash held by friction (outside the catalogue): the gear rests on one flank of its
+    gap and moves to the other only when the total torque passes ``held_torque`` (n,) [N m] towards it, so an
+    unloaded reading after a load keeps the jump (:func:`gear_sides`); the joint's offset is held_gap/2 times
+    the side (+-1). Needs a :class:`LabLog` (the readings' order); :func:`deflection` ignores it.
     The joint laws act on the total torque, the load's plus the arm's own weight (:func:`self_weight_torques`),
     and a row's deflection is the difference between the loaded and the unloaded state at the same pose.
     """
@@ -63,6 +67,8 @@ class Truth:
     drift: np.ndarray | None = None
     modulation: np.ndarray | None = None
     load_tilt: np.ndarray | None = None
+    held_gap: np.ndarray | None = None
+    held_torque: np.ndarray | None = None
     extra: dict = field(default_factory=dict)
 
 
@@ -604,10 +610,39 @@ def _reading_motion(robot: Robot, log: LabLog, dq: np.ndarray) -> np.ndarray:
     return np.hstack([disp[:, :d], (rot[:, 2:] if d == 2 else rot)]) if log.orientation else disp[:, :d]
 
 
+def gear_sides(robot: Robot, truth: Truth, log: LabLog) -> np.ndarray:
+    """(R, n): the flank (+1 or -1) each joint's gear rests on at every reading of ``log`` under a backlash held by
+    friction (``truth.held_gap``, ``truth.held_torque``). At the start of a visit the weight's torque sets the
+    flank where it exceeds the friction torque; elsewhere the gear is on its + flank (every configuration is
+    approached from the same side: the drive's last motion pushes the gear there). Reading by reading in time
+    order, a total torque (the weight's plus the load's, :func:`joint_torques` of the real, tilted load) beyond
+    +-held_torque moves the gear to that flank; a smaller one leaves it where it was, so the unloaded reading
+    after a load keeps the load's flank while its weight cannot bring it back."""
+    hold = np.broadcast_to(np.asarray(truth.held_torque, float), (robot.n_joints,))
+    weight = self_weight_torques(robot, log.r_q)
+    load = np.zeros_like(weight)
+    on = log.r_loaded
+    if on.any():
+        load[on] = joint_torques(robot, log.r_q[on], _tilted(robot, truth, log.r_force[on]),
+                                 None if log.r_moment is None else log.r_moment[on])
+    push = np.sign(weight + load) * (np.abs(weight + load) > hold)  # (R, n): where the torque moves the gear
+    start = np.where(np.abs(weight) > hold, np.sign(weight), 1.0)
+    sides = np.empty_like(weight)
+    side = None
+    previous = -1
+    for r in np.lexsort((np.arange(len(log.r_q)), log.r_order, log.r_visit)):
+        if log.r_visit[r] != previous:
+            side, previous = start[r], log.r_visit[r]
+        side = np.where(push[r] != 0, push[r], side)
+        sides[r] = side
+    return sides
+
+
 def reading_means(robot: Robot, truth: Truth, log: LabLog) -> np.ndarray:
     """(R, d (+ d_r)): every reading's noise-free value less the target's unloaded position at its commanded
     pose, without the pose errors of the returns: the deflection of a loaded reading (:func:`deflection`), the
-    measuring system's offset (loaded readings) and drift (over the clock of the readings, [s])."""
+    measuring system's offset (loaded readings) and drift (over the clock of the readings, [s]), and the offset of
+    a backlash held by friction (every reading, :func:`gear_sides`)."""
     width = robot.task_dim * 1 + ((1 if robot.task_dim == 2 else 3) if log.orientation else 0)
     out = np.zeros((len(log.r_q), width))
     on = log.r_loaded
@@ -621,6 +656,8 @@ def reading_means(robot: Robot, truth: Truth, log: LabLog) -> np.ndarray:
         out[on, :d] += np.asarray(truth.offset, float)
     if truth.drift is not None:
         out[:, :d] += log.r_time[:, None] * np.asarray(truth.drift, float)
+    if truth.held_gap is not None:
+        out += _reading_motion(robot, log, 0.5 * np.asarray(truth.held_gap, float) * gear_sides(robot, truth, log))
     return out
 
 
