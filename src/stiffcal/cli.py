@@ -107,6 +107,7 @@ def design(args) -> dict | list:
     import tempfile
 
     from .api import design as run
+    from .model.robot import load_robot
 
     ms = experiment_values(args.experiments)
     if args.prior is not None:
@@ -114,11 +115,12 @@ def design(args) -> dict | list:
             raise InputError("expected one M with --prior", field="--experiments")
         return next_round(args, ms[0])
     cache = _cache_dir(args)
+    robot = load_robot(args.robot) if len(ms) > 1 else args.robot  # several M: the robot file read once
     with tempfile.TemporaryDirectory(prefix="stiffcal-design-") if cache is None and len(ms) > 1 else \
             contextlib.nullcontext(cache) as folder, _plans_progress(args, ms) as progress:
         out = []  # several M share one approximate design, even with --no-cache
         for m in ms:
-            out.append(run(args.robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=m,
+            out.append(run(robot, args.test_pose_deg, args.force_N, wrench=args.wrench, experiments=m,
                            criterion=args.criterion, sigma=1.0 if args.sigma is None else args.sigma,
                            targets=args.targets, orientation=args.orientation, sigma_rad=args.sigma_rad,
                            test_target=args.test_target, orientation_length_m=args.orientation_length_m,

@@ -18,6 +18,8 @@ The JSON schemas are package data in ``src/stiffcal/schemas/`` (so an installed 
 
 from __future__ import annotations
 
+import copy
+import functools
 import math
 import re
 from pathlib import Path
@@ -33,7 +35,13 @@ MAX_DEPTH = 20
 
 
 def load_schema(name: str) -> dict:
-    """Return the parsed schema ``src/stiffcal/schemas/<name>.schema.yaml``."""
+    """Return the parsed schema ``src/stiffcal/schemas/<name>.schema.yaml`` (a copy of the one parsed at the first
+    call: a study reads its robot file once per M)."""
+    return copy.deepcopy(_parsed_schema(name))
+
+
+@functools.lru_cache(maxsize=None)
+def _parsed_schema(name: str) -> dict:
     return _parse((SCHEMA_DIR / f"{name}.schema.yaml").read_text(encoding="utf-8"), str(SCHEMA_DIR / name))
 
 
