@@ -38,8 +38,10 @@ from stiffcal.measured import discrepancy as D
 from stiffcal.testing import rates as R
 
 ROOT = Path(__file__).resolve().parents[1]
-#: effects added to the matrix after its first runs
+#: effects and protocols added to the matrix after its first runs (their cells come after the others', which keep
+#: their seeds)
 LATE = ("held_backlash",)
+LATE_PROTOCOLS = ("gauge +-axes 3 deg off axis, reference per visit, half revisited",)
 PAIRS = {"2-link": ("backlash", "measurement_offset"), "3-link": ("joint_coupling", "nonlinear_joint_stiffness"),
          "6-axis": ("link_compliance", "backlash")}
 
@@ -61,7 +63,9 @@ def main(seeds: int = 20, alpha: float = 0.01, jobs: int = 1, clean_seeds: int |
     clean_seeds = seeds if clean_seeds is None else clean_seeds
     wanted = None if not only else [w.strip() for w in only.split("|" if "|" in only else ",") if w.strip()]
     grid = [(arm, protocol) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
-            if wanted is None or any(w in protocol for w in wanted)]
+            if (wanted is None or any(w in protocol for w in wanted)) and protocol not in LATE_PROTOCOLS]
+    grid += [(arm, protocol) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
+             if (wanted is None or any(w in protocol for w in wanted)) and protocol in LATE_PROTOCOLS]
     if effects_only:  # the cells of these effects and the clean ones
         chosen = [e for e in effects_only.split(",") if e != "clean"]
         cells = [(arm, protocol, effects) for arm, protocol in grid

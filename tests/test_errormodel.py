@@ -755,3 +755,24 @@ def test_a_held_backlash_from_the_simulator_is_warned_of_over_seeds(tmp_path):
         pre = D.prepare(robot, read_measurements(path, robot), 0.01)
         warned += D._return_diagnostic(robot, pre, 0.01)[0]["p_value"] <= 0.01
     assert warned >= 8
+
+
+@pytest.mark.parametrize("arm", ["2-link", "6-axis"])
+def test_a_hand_held_gauge_pushes_off_the_axis_it_logs(arm):
+    """The simulator's hand-held gauge held off its axis (Protocol.gauge_angle_deg): every loaded row logs the push
+    along a base axis while its reading was taken under a force of the same magnitude turned off it, by angles whose
+    RMS is the protocol's (3 deg; Monte Carlo over 12 configurations' pushes), about an axis normal to the push."""
+    robot = R.robots(ROOT)[arm]
+    pr = replace(R.PROTOCOLS["gauge +-axes, reference per visit, half revisited"], gauge_angle_deg=3.0)
+    log = T.lab_log(robot, pr, np.random.default_rng(5), 12)
+    on = log.loaded
+    logged, real = log.force[on], log.r_force[log.reading[on]]
+    assert np.count_nonzero(logged, axis=1).max() == 1  # along one base axis, as logged
+    assert np.allclose(np.linalg.norm(real, axis=1), np.linalg.norm(logged, axis=1), rtol=1e-12)
+    cos = np.einsum("nd,nd->n", real, logged) / np.linalg.norm(logged, axis=1) ** 2
+    angle = np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    lo, hi = np.sqrt(stats.chi2.ppf([0.001, 0.999], len(angle)) / len(angle)) * 3.0
+    assert lo < np.sqrt(np.mean(angle**2)) < hi
+    plain = T.lab_log(robot, R.PROTOCOLS["gauge +-axes, reference per visit, half revisited"],
+                      np.random.default_rng(5), 12)
+    assert np.array_equal(plain.force[plain.loaded], plain.r_force[plain.reading[plain.loaded]])

@@ -1919,16 +1919,23 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
     F-test, on those rows alone (weighted by the noise model; a common shift of the zero point allowed), of each
     loaded joint's motion times the sign of the total torque of the load before (the weight's included) and of
     its motion alone (the flank the gear rested on before the load, the same at every configuration approached
-    from the same side): a gear that stays where the load pushed it (friction holding a backlash) leaves them
-    there, and the rows' shared errors then take the jump for the reference reading's, so that the catalogue's
-    backlash (a jump from the gap's centre that unloading undoes) may not be named. ``jump_rad``: per joint the
-    coefficient of the signed motion, half the jump between the gap's flanks [rad]. Tool-point positions only, under
-    forces or wrenches (None otherwise, or with fewer rows than regressors)."""
+    from the same side; the rows of a revisit measured against an earlier visit's reference are left out: their
+    return error moves the joints too, and the test would read it as the gear): a gear that stays where the load
+    pushed it (friction holding a backlash) leaves them there, and the rows' shared errors then take the jump for
+    the reference reading's, so that the catalogue's backlash (a jump from the gap's centre that unloading undoes)
+    may not be named. ``jump_rad``: per joint the coefficient of the signed motion, half the jump between the
+    gap's flanks [rad]; ``jump_rad_sd`` its standard error (large where a joint's signed and plain motions look
+    alike on these rows). Tool-point positions only, under forces or wrenches (None otherwise, or with fewer rows
+    than regressors)."""
     st = pre.error.structure
     if st.time is None or not len(st.zero_index) or pre.meas.zero_rot is not None or pre.ob.orientation \
             or pre.ob.used() != (TOOL_TARGET,):
         return None, None
     rows, prev = _after_loads(pre)
+    away = [c.label for c in st.components if c.name == "return"]
+    if away:  # a revisit's rows carry its pose error along the joints' motion, shared with its other rows: left out
+        keep = away[0][st.n_loaded + rows] < 0
+        rows, prev = rows[keep], prev[keep]
     d = robot.task_dim
     if not rows.size:
         return None, None
@@ -1947,8 +1954,11 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
     if not joints.size or f1.rank <= f0.rank or f1.df <= 0:
         return None, None
     p = f_test(f0.rss, f0.df, f1.rss, f1.df, f1.rss / f1.df, f1.df)
-    jumps = {robot.joint_names[j]: float(b) for j, b in zip(joints, f1.beta[d:d + joints.size])}
-    out = {"p_value": p, "n_rows": int(len(rows)), "jump_rad": jumps}
+    span = slice(d, d + joints.size)
+    jumps = {robot.joint_names[j]: float(b) for j, b in zip(joints, f1.beta[span])}
+    sd = np.sqrt(np.maximum(np.diag(f1.cov_unscaled)[span], 0.0) * f1.rss / f1.df)
+    out = {"p_value": p, "n_rows": int(len(rows)), "jump_rad": jumps,
+           "jump_rad_sd": {robot.joint_names[j]: float(v) for j, v in zip(joints, sd)}}
     if p > alpha:
         return out, None
     size = ", ".join(f"joint {name} {b:.2g} rad" for name, b in jumps.items())

@@ -91,6 +91,11 @@ PROTOCOLS = {
     "one hanging mass, reference per visit, 2 passes": T.Protocol(
         "one hanging mass, reference per visit, 2 passes", magnitudes_N=(490.3,), repeats=1, reference="visit",
         passes=2, shuffle=True, zero_rows=True, return_to_zero=True, repeatability_m=1e-5, timestamps=True),
+    # a hand-held gauge is never held exactly along the axis the log names: each push 3 degrees off it (RMS)
+    "gauge +-axes 3 deg off axis, reference per visit, half revisited": T.Protocol(
+        "gauge +-axes 3 deg off axis, reference per visit, half revisited", loads="gauge", magnitudes_N=(300.0,),
+        repeats=1, reference="visit", passes=2, revisit_fraction=0.5, shuffle=True, relabel=True, return_to_zero=True,
+        repeatability_m=1e-5, timestamps=True, gauge_angle_deg=3.0),
 }
 
 #: the targets (tracker SMRs on the last link) of the arms of the matrix, in the tip frame [m]

@@ -299,7 +299,9 @@ class Protocol:
     configuration at every magnitude), ``"random"`` (one random direction and magnitude per configuration) or
     ``"gauge"`` (a hand-held force gauge pushing along +-x, +-y (+-z) of the base frame, each push its own
     force within +-``gauge_spread`` of the magnitude, the gauge's zero reading logged with the unloaded rows:
-    forces of about ``gauge_zero_N``, below a load cell's resolution); magnitudes_N [N]; lever_m: the loads
+    forces of about ``gauge_zero_N``, below a load cell's resolution; ``gauge_angle_deg`` > 0: the hand holds the
+    gauge off the axis it logs, each push turned by a random angle of that RMS [deg] about a random axis normal to
+    it, its magnitude the one logged); magnitudes_N [N]; lever_m: the loads
     hang from a loading bar at this distance [m] from the tool point (a random horizontal direction per
     configuration; a planar arm: along x), ``bar_sides`` 2: on both ends of the bar (moments of both signs).
 
@@ -354,6 +356,7 @@ class Protocol:
     repeatability_m: float = 0.0
     gauge_spread: float = 0.05
     gauge_zero_N: float = 0.15
+    gauge_angle_deg: float = 0.0
     timestamps: bool = False
 
 
@@ -533,20 +536,36 @@ def lab_log(robot: Robot, protocol: Protocol, rng: np.random.Generator, n_config
         F, M = loads[c]
         for _ in range(1 if protocol.interleaved else protocol.repeats):
             for i in range(len(F)):
-                load = (F[i], None if M is None else M[i])
+                load = (_held_off(F[i], protocol.gauge_angle_deg, rng), None if M is None else M[i])
                 if protocol.reference == "reading":
                     ref = rd.read(v, *zero, False)
                     if protocol.unloaded_rows or protocol.zero_rows:
                         rd.log(ref, ref, exact=True)
                 elif protocol.unloaded_rows:
                     rd.log(rd.read(v, *zero, False), ref)
-                rd.log(rd.read(v, *load, True), ref)
+                rd.log(rd.read(v, *load, True), ref, logged_force=F[i] if protocol.gauge_angle_deg else None)
         if protocol.return_to_zero and protocol.reference != "reading":
             logged = None
             if protocol.loads == "gauge":  # the gauge's own zero reading, below a load cell's resolution
                 logged = rng.normal(0.0, protocol.gauge_zero_N, d)
             rd.log(rd.read(v, *zero, False), ref, logged_force=logged)
     return _assemble(robot, protocol, rng, configs, visits, rd, [names[t] for t in targets], names, bars is not None)
+
+
+def _held_off(force: np.ndarray, angle_deg: float, rng: np.random.Generator) -> np.ndarray:
+    """The force (d,) [N] a hand applies when it means ``force``: turned by a normal random angle of RMS
+    ``angle_deg`` about a random axis normal to it (in the plane for a planar arm); ``force`` itself for 0."""
+    if not angle_deg:
+        return force
+    d = len(force)
+    axis = np.array([0.0, 0.0, 1.0]) if d == 2 else random_directions(rng, 1, 3)[0]
+    turn = np.cross(axis, as_xyz(force))
+    norm = np.linalg.norm(turn)
+    if norm == 0:
+        return force
+    angle = np.radians(angle_deg) * rng.normal()
+    real = as_xyz(force) * np.cos(angle) + turn / norm * np.linalg.norm(force) * np.sin(angle)
+    return real[:d]
 
 
 def _assemble(robot, protocol, rng, configs, visits, rd: _Readings, measured, names, has_moment) -> LabLog:
