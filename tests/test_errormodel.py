@@ -776,3 +776,57 @@ def test_a_hand_held_gauge_pushes_off_the_axis_it_logs(arm):
     plain = T.lab_log(robot, R.PROTOCOLS["gauge +-axes, reference per visit, half revisited"],
                       np.random.default_rng(5), 12)
     assert np.array_equal(plain.force[plain.loaded], plain.r_force[plain.reading[plain.loaded]])
+
+
+def _another_labs_log(path, seed: int, ret_sd: float = 1e-5) -> Path:
+    """A clean log of the paper's arm from a fresh user's own simulator (numpy only, condensed): 30-40 configurations
+    (|q2| > 10 deg), two shuffled passes, the first visit of a configuration an exact-zero reference row, the second
+    measured against that reference with the robot back within ``ret_sd`` [rad] per joint; at each visit hanging
+    masses of 100, 200 and 300 N and a return-to-zero row; 5-10 um of tracker noise per reading; k = (1, 2) urad/N m."""
+    rng = np.random.default_rng(seed)
+    links, k = np.array([0.6, 0.4]), np.array([1e-6, 2e-6])
+
+    def tip(q):
+        a = np.cumsum(q)
+        return np.array([links @ np.cos(a), links @ np.sin(a)])
+
+    sigma = rng.uniform(5e-6, 10e-6)
+    n = int(rng.integers(30, 41))
+    cfgs = []
+    while len(cfgs) < n:
+        qd = rng.uniform([-170.0, -150.0], [170.0, 150.0])
+        if abs(qd[1]) > 10:
+            cfgs.append(np.round(qd, 3))
+    lines, refs, t = ["pose_id,q1_deg,q2_deg,fx_N,fy_N,dx_m,dy_m,timestamp_s"], {}, 0.0
+    for c in [*rng.permutation(n), *rng.permutation(n)]:
+        qd = cfgs[c]
+        q, t = np.radians(qd), t + 60.0
+        rows = []
+        if c in refs:
+            q = q + rng.normal(0.0, ret_sd, 2)
+        else:
+            refs[c] = tip(q) + rng.normal(0.0, sigma, 2)
+            rows.append((0.0, (0.0, 0.0)))
+        for m in (100.0, 200.0, 300.0, 0.0):
+            a = np.cumsum(q)
+            tau = -m * np.array([links @ np.cos(a), links[1] * np.cos(a[1])])  # J^T (0, -m)
+            rows.append((-m, tip(q + k * tau) + rng.normal(0.0, sigma, 2) - refs[c]))
+        for f, d in rows:
+            t += 20.0
+            lines.append(f"C{c + 1:02d},{qd[0]:.3f},{qd[1]:.3f},0.0,{f:.1f},{float(d[0])!r},{float(d[1])!r},{t:.0f}")
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    return path
+
+
+def test_return_rows_of_revisits_measured_against_an_earlier_reference_raise_no_false_warning(tmp_path, paper_robot):
+    """A reference per configuration, the second pass measured against the first visit's reference, a
+    return-to-zero reading ending every visit, clean data from another lab's simulator (:func:`_another_labs_log`):
+    the revisits' return rows carry the return's pose error along the joints' motion, which the return-to-zero test
+    took for a held gear (5 of 20 seeds warned at 1 %); over 20 seeds at most 1 warns now."""
+    warned = 0
+    for seed in range(1, 21):
+        path = _another_labs_log(tmp_path / f"c{seed}.csv", seed)
+        pre = D.prepare(paper_robot, read_measurements(path, paper_robot), 0.01)
+        out = D._return_diagnostic(paper_robot, pre, 0.01)[0]
+        warned += out is not None and out["p_value"] <= 0.01
+    assert warned <= 1

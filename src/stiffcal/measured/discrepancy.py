@@ -1919,8 +1919,9 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
     F-test, on those rows alone (weighted by the noise model; a common shift of the zero point allowed), of each
     loaded joint's motion times the sign of the total torque of the load before (the weight's included) and of
     its motion alone (the flank the gear rested on before the load, the same at every configuration approached
-    from the same side; the rows of a revisit measured against an earlier visit's reference are left out: their
-    return error moves the joints too, and the test would read it as the gear): a gear that stays where the load
+    from the same side; where the error model finds a return error, the rows of a revisit measured against an
+    earlier visit's reference are left out: that error moves the joints too, and the test would read it as the
+    gear): a gear that stays where the load
     pushed it (friction holding a backlash) leaves them there, and the rows' shared errors then take the jump for
     the reference reading's, so that the catalogue's backlash (a jump from the gap's centre that unloading undoes)
     may not be named. ``jump_rad``: per joint the coefficient of the signed motion, half the jump between the
@@ -1932,7 +1933,7 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
             or pre.ob.used() != (TOOL_TARGET,):
         return None, None
     rows, prev = _after_loads(pre)
-    away = [c.label for c in st.components if c.name == "return"]
+    away = [c.label for c, lam in zip(st.components, pre.error.ratios) if c.name == "return" and lam > 0]
     if away:  # a revisit's rows carry its pose error along the joints' motion, shared with its other rows: left out
         keep = away[0][st.n_loaded + rows] < 0
         rows, prev = rows[keep], prev[keep]
