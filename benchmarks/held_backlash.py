@@ -22,6 +22,7 @@ from pathlib import Path
 
 from scipy import stats
 
+from rates_discrepancy import _children_cpu
 from stiffcal.testing import rates as R
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -83,12 +84,7 @@ def main(seeds: int = 30, clean: int = 100, jobs: int = 1) -> None:
         lo, hi = stats.binomtest(t["warnings"], t["clean"]).proportion_ci(0.95)
         print(f"{protocol:62s} named {t['named']:3d}/{t['powered']:3d}; clean: warnings {t['warnings']}/{t['clean']} "
               f"(95 % CI {lo:.1%}-{hi:.1%}), false alarms {t['alarms']}")
-    cpu = time.process_time() - start
-    if jobs > 1:
-        import resource
-        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-        cpu += usage.ru_utime + usage.ru_stime
-    print(f"CPU {cpu:.0f} s")
+    print(f"CPU {time.process_time() - start + (sum(_children_cpu()) if jobs > 1 else 0.0):.0f} s")
 
 
 if __name__ == "__main__":

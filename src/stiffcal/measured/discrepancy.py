@@ -1871,11 +1871,13 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
       nominal model, with the angle it finds, and whether the chosen causes add anything beyond it (warned when
       they do not: the tilt then explains the data as well as they do);
     - ``return_to_zero``: whether the unloaded rows read after a load keep a jump that follows its joint torques'
-      signs (:func:`_return_diagnostic`: a backlash that stays where the load pushed it).
+      signs (:func:`_return_diagnostic`: a backlash that stays where the load pushed it);
+    - ``load_scatter``: whether the rows scatter more where a push turned off its logged direction would move the
+      tool more (:func:`_scatter_diagnostic`: a hand-held gauge held off its axis).
     Returns (dict, notes)."""
     m = pre.m
     out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
-                 "extended_not_better_held_out": False, "return_to_zero": None}
+                 "extended_not_better_held_out": False, "return_to_zero": None, "load_scatter": None}
     notes = []
     loads = m.structure()["loads_per_configuration"]
     if loads["max"] == 1:
@@ -1890,6 +1892,8 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, alpha)
     notes += [note] if note else []
     out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
+    notes += [note] if note else []
+    out["load_scatter"], note = _scatter_diagnostic(robot, pre, chosen, f, alpha)
     notes += [note] if note else []
     return out, notes
 
@@ -1969,6 +1973,47 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
                  "backlash is a jump from the gap's centre that unloading undoes; here the rows' shared errors take "
                  "the jump for their reference reading's, so the verdict may not name it: push each joint to one "
                  "side of its gap before the reference reading (a preload), or measure loads of both signs")
+
+
+def _scatter_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
+    """(``diagnostics.load_scatter`` or None, note): does the load's direction scatter push by push (a hand-held
+    gauge held off the axis it logs, a mass that swings)? A push turned by a small random angle theta adds the
+    deflection of the turned part of the load, C(q) (a x F) theta for the axes a normal to F (C the nominal model's
+    compliance at the pose, :func:`nominal_columns` with the nominal fit's compliances), so the rows' squared
+    residuals grow with s = sum_a |C (a x F)|^2 / (d - 1), their expectation sigma^2 (1 - h) + theta_rms^2 s: Koenker's
+    studentised score test of the squared residual norms of the chosen model's whitened rows against s (n R^2 on
+    one degree of freedom, one-sided; Koenker 1981, *J. Econometrics* 17), and theta_rms from the slope. Loaded rows
+    of the tool point's position under forces only (None otherwise, or with fewer than 8 loaded rows)."""
+    m, des = pre.m, pre.des
+    N, d = m.n_rows, des.d
+    if pre.ob.orientation or pre.ob.used() != (TOOL_TARGET,) or m.has_moment or N < 8:
+        return None, None
+    k = fit(des.X0, des.y).beta
+    axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
+    s = np.zeros(N)
+    for a in axes:
+        turned = np.cross(a, as_xyz(m.force))[:, : robot.task_dim]
+        s += (np.einsum("ndp,p->nd", nominal_columns(robot, m.q, turned, pre.ob), k) ** 2).sum(axis=1)
+    s = s * pre.w**2 / max(robot.task_dim - 1, 1)
+    resid = (des.y - des.model(chosen) @ f.beta).reshape(N, d)
+    q = (resid**2).sum(axis=1)
+    if np.ptp(s) <= 0 or not np.any(q > 0):
+        return None, None
+    A = np.column_stack([np.ones(N), s])
+    coef, *_ = np.linalg.lstsq(A, q, rcond=None)
+    explained = q - q.mean()
+    r2 = 1.0 - float(np.sum((q - A @ coef) ** 2)) / float(explained @ explained)
+    half = 0.5 * float(dist.chi2_sf(N * max(r2, 0.0), 1))
+    p = half if coef[1] > 0 else 1.0 - half
+    angle = float(np.degrees(np.sqrt(max(coef[1], 0.0))))
+    out = {"p_value": p, "angle_rms_deg": angle}
+    if p > alpha:
+        return out, None
+    return out, (f"the rows scatter more where a load turned off its logged direction would move the tool more "
+                 f"(score test p = {p:.2g}; as if each push were turned by about {angle:.2g} deg RMS): a load whose "
+                 "direction scatters push by push (a hand-held gauge held off its axis, a swinging mass) adds noise "
+                 "that the tests do not model, and a cause may be named for it; hold the gauge in a guide, or log the "
+                 "force's direction with a 3-axis load cell")
 
 
 def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):

@@ -333,10 +333,11 @@ class CaseResult:
 
     @property
     def warned(self) -> bool:
-        """A warning of ``diagnostics`` (a drift, a tilted load, a gear that does not return) at the verdict's alpha."""
+        """A warning of ``diagnostics`` (a drift, a tilted load, a gear that does not return, a load direction that
+        scatters) at the verdict's alpha."""
         v = self.verdict_with_pose_id
         diag = v.get("diagnostics") or {}
-        return any(diag.get(k) and diag[k]["p_value"] <= v["alpha"] for k in WARNING_OF.values())
+        return any(diag.get(k) and diag[k]["p_value"] <= v["alpha"] for k in (*WARNING_OF.values(), "load_scatter"))
 
 
 def simulate_case(robot: Robot, protocol: str | T.Protocol, effects: tuple[str, ...], seed: int, n_configs: int = 40,
