@@ -1918,9 +1918,30 @@ def _after_loads(pre: Prepared) -> tuple[np.ndarray, np.ndarray]:
     return queries[found] - N, prev[found]
 
 
+def _reference_shifts(em, rows: np.ndarray, d: int) -> np.ndarray:
+    """(M, d, d g): the zero-point shifts of :func:`_return_diagnostic`'s rows (indices into the error model ``em``'s
+    unloaded rows): one for every reference reading that two or more of them were taken from (they share its error:
+    several unloaded rows in one visit, or a reference per configuration), one shared by the rest (each alone on its
+    reference, the rows independent). The reference reading of a row: of the error structure's components that
+    group rows by the reading they were taken from (``reference``, or, inferred from the row order, ``visit`` and
+    ``configuration``), the coarsest that the error model finds (a ratio above 0), else ``reference``."""
+    st = em.structure
+    found = [(c.n_groups, c.label) for c, lam in zip(st.components, em.ratios)
+             if c.name in ("reference", "visit", "configuration") and lam > 0]
+    found += [(np.inf, c.label) for c in st.components if c.name == "reference"]
+    label = min(found, key=lambda g: g[0])[1] if found else None
+    group = np.full(len(rows), -1) if label is None else label[st.n_loaded + rows]
+    names, counts = np.unique(group[group >= 0], return_counts=True)
+    _, which = np.unique(np.where(np.isin(group, names[counts > 1]), group, -1), return_inverse=True)
+    S = np.zeros((len(rows), d, which.max() + 1, d))
+    S[np.arange(len(rows)), :, which.ravel(), :] = np.eye(d)
+    return S.reshape(len(rows), d, -1)
+
+
 def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
     """(``diagnostics.return_to_zero`` or None, note): do the unloaded rows read after a load come back to zero? The
-    F-test, on those rows alone (weighted by the noise model; a common shift of the zero point allowed), of each
+    F-test, on those rows alone (weighted by the noise model; shifts of the zero point allowed, one per reference
+    reading that several of them share, :func:`_reference_shifts`), of each
     loaded joint's motion times the sign of the total torque of the load before (the weight's included) and of
     its motion alone (the flank the gear rested on before the load, the same at every configuration approached
     from the same side; where the error model finds a return error, the rows of a revisit measured against an
@@ -1954,12 +1975,12 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
     motion = robot.jacobian(q)[..., joints] * w[:, None, None]
     X = np.concatenate([motion * np.sign(tau[:, None, joints]), motion], axis=-1)
     y = (pre.meas.zero_dp[st.zero_index[rows]] * w[:, None]).ravel()
-    shift = _stack(np.broadcast_to(np.eye(d), (len(rows), d, d)) * w[:, None, None])
+    shift = _stack(_reference_shifts(pre.error, rows, d) * w[:, None, None])
     f0, f1 = fit(shift, y), fit(np.hstack([shift, _stack(X)]), y)
     if not joints.size or f1.rank <= f0.rank or f1.df <= 0:
         return None, None
     p = f_test(f0.rss, f0.df, f1.rss, f1.df, f1.rss / f1.df, f1.df)
-    span = slice(d, d + joints.size)
+    span = slice(shift.shape[1], shift.shape[1] + joints.size)
     jumps = {robot.joint_names[j]: float(b) for j, b in zip(joints, f1.beta[span])}
     sd = np.sqrt(np.maximum(np.diag(f1.cov_unscaled)[span], 0.0) * f1.rss / f1.df)
     out = {"p_value": p, "n_rows": int(len(rows)), "jump_rad": jumps,
