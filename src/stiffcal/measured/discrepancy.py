@@ -1941,16 +1941,15 @@ def _reference_shifts(em, rows: np.ndarray, d: int) -> np.ndarray:
 def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
     """(``diagnostics.return_to_zero`` or None, note): do the unloaded rows read after a load come back to zero? The
     F-test, on those rows alone (weighted by the noise model; shifts of the zero point allowed, one per reference
-    reading that several of them share, :func:`_reference_shifts`), of each
-    loaded joint's motion times the sign of the total torque of the load before (the weight's included) and of
-    its motion alone (the flank the gear rested on before the load, the same at every configuration approached
-    from the same side; where the error model finds a return error, the rows of a revisit measured against an
-    earlier visit's reference are left out: that error moves the joints too, and the test would read it as the
-    gear): a gear that stays where the load
-    pushed it (friction holding a backlash) leaves them there, and the rows' shared errors then take the jump for
-    the reference reading's, so that the catalogue's backlash (a jump from the gap's centre that unloading undoes)
-    may not be named. ``jump_rad``: per joint the coefficient of the signed motion, half the jump between the
-    gap's flanks [rad]; ``jump_rad_sd`` its standard error (large where a joint's signed and plain motions look
+    reading that several of them share, :func:`_reference_shifts`), of each loaded joint's motion times the sign
+    of the total torque of the load before (the weight's included) and of its motion alone (the flank the gear
+    rested on before the load, the same at every configuration approached from the same side). Where the error
+    model finds a return error, the rows of a revisit measured against an earlier visit's reference are left out:
+    that error moves the joints too, and the test would read it as the gear. A gear that stays where the load
+    pushed it (friction holding a backlash) leaves the rows there, and the rows' shared errors then take the jump
+    for the reference reading's, so that the catalogue's backlash (a jump from the gap's centre that unloading
+    undoes) may not be named. ``jump_rad``: per joint the coefficient of the signed motion, half the jump between
+    the gap's flanks [rad]; ``jump_rad_sd`` its standard error (large where a joint's signed and plain motions look
     alike on these rows). Tool-point positions only, under forces or wrenches (None otherwise, or with fewer rows
     than regressors)."""
     st = pre.error.structure
