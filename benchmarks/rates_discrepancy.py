@@ -62,10 +62,9 @@ def main(seeds: int = 20, alpha: float = 0.01, jobs: int = 1, clean_seeds: int |
     start = time.process_time()
     clean_seeds = seeds if clean_seeds is None else clean_seeds
     wanted = None if not only else [w.strip() for w in only.split("|" if "|" in only else ",") if w.strip()]
-    grid = [(arm, protocol) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
-            if (wanted is None or any(w in protocol for w in wanted)) and protocol not in LATE_PROTOCOLS]
-    grid += [(arm, protocol) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
-             if (wanted is None or any(w in protocol for w in wanted)) and protocol in LATE_PROTOCOLS]
+    grid = sorted([(arm, protocol) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
+                   if wanted is None or any(w in protocol for w in wanted)],
+                  key=lambda cell: cell[1] in LATE_PROTOCOLS)  # stable: the late protocols last, the rest in order
     if effects_only:  # the cells of these effects and the clean ones
         chosen = [e for e in effects_only.split(",") if e != "clean"]
         cells = [(arm, protocol, effects) for arm, protocol in grid

@@ -1889,11 +1889,12 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
                      "or more loads of different size per configuration")
     out["time"], note = _time_diagnostic(pre, chosen, f, alpha)
     notes += [note] if note else []
-    out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, alpha)
+    nominal = fit(pre.des.X0, pre.des.y)  # the nominal model's fit, for the tilt and the scatter
+    out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, nominal, alpha)
     notes += [note] if note else []
     out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
     notes += [note] if note else []
-    out["load_scatter"], note = _scatter_diagnostic(robot, pre, chosen, f, alpha)
+    out["load_scatter"], note = _scatter_diagnostic(robot, pre, chosen, f, nominal, alpha)
     notes += [note] if note else []
     return out, notes
 
@@ -1995,7 +1996,7 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
                  "side of its gap before the reference reading (a preload), or measure loads of both signs")
 
 
-def _scatter_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
+def _scatter_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, f0: Fit, alpha: float):
     """(``diagnostics.load_scatter`` or None, note): does the load's direction scatter push by push (a hand-held
     gauge held off the axis it logs, a mass that swings)? A push turned by a small random angle theta adds the
     deflection of the turned part of the load, C(q) (a x F) theta for the axes a normal to F (C the nominal model's
@@ -2003,17 +2004,16 @@ def _scatter_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: floa
     residuals grow with s = sum_a |C (a x F)|^2 / (d - 1), their expectation sigma^2 (1 - h) + theta_rms^2 s: Koenker's
     studentised score test of the squared residual norms of the chosen model's whitened rows against s (n R^2 on
     one degree of freedom, one-sided; Koenker 1981, *J. Econometrics* 17), and theta_rms from the slope. Loaded rows
-    of the tool point's position under forces only (None otherwise, or with fewer than 8 loaded rows)."""
+    of the tool point's position under forces only (None otherwise, or with fewer than 8 loaded rows). f0: the
+    nominal model's fit."""
     m, des = pre.m, pre.des
     N, d = m.n_rows, des.d
     if pre.ob.orientation or pre.ob.used() != (TOOL_TARGET,) or m.has_moment or N < 8:
         return None, None
-    k = fit(des.X0, des.y).beta
-    axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
+    turned = _turned_load_deflections(robot, pre, f0.beta)
     s = np.zeros(N)
-    for a in axes:
-        turned = np.cross(a, as_xyz(m.force))[:, : robot.task_dim]
-        s += (np.einsum("ndp,p->nd", nominal_columns(robot, m.q, turned, pre.ob), k) ** 2).sum(axis=1)
+    for a in range(turned.shape[-1]):
+        s += (turned[..., a] ** 2).sum(axis=1)
     s = s * pre.w**2 / max(robot.task_dim - 1, 1)
     resid = (des.y - des.model(chosen) @ f.beta).reshape(N, d)
     q = (resid**2).sum(axis=1)
@@ -2082,22 +2082,27 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
                  "re-measure the reference readings more often, or log the tracker's drift check")
 
 
-def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
-    """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`: the load turned by
-    a small angle added to the nominal model (the columns A(q, a x F) k of the nominal fit's k), its F-test and the
-    angle; then whether the chosen causes still add anything beyond it (when they do not, the tilt explains the data
-    as well as they do, and the warning says so)."""
-    m, des, noise = pre.m, pre.des, pre.noise
-    N, d = m.n_rows, des.d
-    f0 = fit(des.X0, des.y)
-    k = f0.beta
+def _turned_load_deflections(robot: Robot, pre: Prepared, k: np.ndarray) -> np.ndarray:
+    """(N, d, A) [m/rad]: the deflection A(q, a x F) k of every row's load turned about each axis a (z for a
+    planar arm, x, y, z for a spatial one; the moment, if any, left out), k the nominal fit's compliances."""
+    m = pre.m
     axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
     cols = []
     for a in axes:
         turned = np.cross(a, as_xyz(m.force))[:, : robot.task_dim]
         load = np.hstack([turned, np.zeros_like(m.moment)]) if m.has_moment else turned
         cols.append(np.einsum("ndp,p->nd", nominal_columns(robot, m.q, load, pre.ob), k))
-    T = np.stack(cols, -1) * pre.w[:, None, None]
+    return np.stack(cols, -1)
+
+
+def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, f0: Fit, alpha: float):
+    """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`: the load turned by
+    a small angle added to the nominal model (the columns A(q, a x F) k of the nominal fit's k), its F-test and the
+    angle; then whether the chosen causes still add anything beyond it (when they do not, the tilt explains the data
+    as well as they do, and the warning says so). f0: the nominal model's fit."""
+    m, des, noise = pre.m, pre.des, pre.noise
+    N, d = m.n_rows, des.d
+    T = _turned_load_deflections(robot, pre, f0.beta) * pre.w[:, None, None]
     T = (pre.error.whiten(T) if pre.error.blocks else T).reshape(N * d, -1)
     f1 = fit(np.hstack([des.X0, T]), des.y)
     if f1.rank <= f0.rank:
