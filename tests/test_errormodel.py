@@ -16,7 +16,7 @@ from stiffcal.measured import discrepancy as D
 from stiffcal.measured import errormodel as EM
 from stiffcal.testing import rates as R
 from stiffcal.testing import truth as T
-from stiffcal.measured.measurements import read_measurements
+from stiffcal.measured.measurements import Measurements, read_measurements
 from stiffcal.model.robot import load_robot, planar_robot, with_masses
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -318,6 +318,31 @@ def test_the_simulators_row_covariance_equals_a_monte_carlo_of_itself():
         a = A[where[rows]].reshape(-1, 3)
         w = W[where[rows]].reshape(-1, 3)
         assert np.allclose(w.T @ w, a.T @ np.linalg.solve(S, a))
+
+
+@pytest.mark.parametrize("arm", ["2-link", "6-axis"])
+def test_the_simulators_row_covariance_holds_the_gauges_turns(arm):
+    """stiffcal.testing.truth.row_covariance with the compliances given (the oracle's true covariance) against the
+    sample covariance of 4000 simulations of one configuration of a hand-held gauge log (3 deg off its axis), the
+    pushes turned anew each time as the simulator turns them (truth._held_off) and measured with fresh noise: within
+    5 standard errors entry by entry, and the turns' share of it over a tenth of the noise's (the term is not
+    idle)."""
+    robot = R.robots(ROOT)[arm]
+    pr = R.PROTOCOLS["gauge +-axes 3 deg off axis, reference per visit, half revisited"]
+    log = T.lab_log(robot, pr, np.random.default_rng(3), 2)
+    k = R.compliances(robot)
+    truth = T.Truth(k)
+    rows, S = T.row_covariance(robot, log, k)[0]
+    _, S0 = T.row_covariance(robot, log)[0]
+    rng = np.random.default_rng(7)
+    sims = []
+    for _ in range(4000):
+        turned = np.array([T._held_off(f, 3.0, rng) for f in log.r_force])
+        sims.append(T.measure(robot, truth, replace(log, r_force=turned), rng)[rows].ravel())
+    C = np.cov(np.array(sims).T)
+    se = np.sqrt((np.outer(np.diag(S), np.diag(S)) + S**2) / len(sims))
+    assert np.all(np.abs(C - S) < 5 * se + 1e-30)
+    assert np.trace(S - S0) > 0.1 * np.trace(S0), np.trace(S - S0) / np.trace(S0)
 
 
 def test_the_noise_weights_follow_the_trackers_distance_on_a_protocol_with_revisits(tmp_path):
@@ -832,10 +857,44 @@ def test_return_rows_of_revisits_measured_against_an_earlier_reference_raise_no_
     assert warned <= 1
 
 
+@pytest.mark.parametrize("arm", ["2-link", "6-axis"])
+def test_the_load_direction_component_is_the_covariance_of_the_simulators_turned_push(arm):
+    """The load_direction component's covariance at its RMS angle, (theta unit)^2 Z Z^T, against a Monte Carlo
+    of the simulator's hand-held gauge (truth._held_off: the push turned by 3 deg RMS about a random axis normal to
+    it, its magnitude kept), 20,000 pushes through the nominal model at a random pose: within 5 % (Frobenius; the
+    Monte Carlo's own error about 1 %, the exact turn's second-order terms 0.3 %)."""
+    robot = R.robots(ROOT)[arm]
+    rng = np.random.default_rng(11)
+    d = robot.task_dim
+    q = rng.uniform(-1.0, 1.0, (1, robot.n_joints))
+    F = rng.normal(0.0, 50.0, (1, d))
+    m = Measurements.from_arrays(q, F, np.zeros((1, d)))
+    ob = D.Observed.of(robot, m)
+    k = rng.uniform(1e-6, 1e-5, D.nominal_columns(robot, q, F, ob).shape[-1])
+    comp = EM.load_direction(D.turned_load_deflections(robot, m, ob, k), 1)
+    model = (np.radians(3.0) * comp.unit) ** 2 * comp.loading[0] @ comp.loading[0].T
+    pushes = np.array([T._held_off(F[0], 3.0, rng) for _ in range(20000)])
+    deflections = np.einsum("ndp,p->nd", D.nominal_columns(robot, np.repeat(q, len(pushes), 0), pushes, ob), k)
+    assert np.linalg.norm(np.cov(deflections.T) - model) < 0.05 * np.linalg.norm(model)
+
+
+def test_a_gauge_held_off_its_axis_names_no_cause_on_clean_data():
+    """Clean 3-link logs of the hand-held gauge held 3 deg (RMS) off the axis it logs, 30 seeds: the push's
+    scatter is a variance component of the rows' error model, so the verdict names a cause in at most 1 of 30 at
+    alpha = 1 % and its p-value is at most 0.05 in at most 4 (a binomial(30, 0.05) exceeds 4 with probability
+    0.016; the closed test's adjusted p-values are conservative). Before it was, 3 of 30 and 9 of 30."""
+    robot = R.robots(ROOT)["3-link"]
+    off = R.PROTOCOLS["gauge +-axes 3 deg off axis, reference per visit, half revisited"]
+    verdicts = [R.run_case("3-link", robot, off, (), 8000 + seed, both=False).verdict_with_pose_id
+                for seed in range(30)]
+    assert sum(v["cause"] != "none" for v in verdicts) <= 1, [v["cause"] for v in verdicts]
+    assert sum(v["p_value"] <= 0.05 for v in verdicts) <= 4, [v["p_value"] for v in verdicts]
+
+
 def test_a_gauge_held_off_its_axis_is_warned_of_and_one_held_on_it_is_not():
     """The simulator's hand-held gauge held 3 deg (RMS) off the axis it logs, clean 3-link logs: the load_scatter
-    warning is raised in at least 8 of 10 seeds, its RMS angle within a factor 2 of the truth (median); the same
-    gauge held on its axis raises it in at most 1 of 10."""
+    warning is raised in at least 8 of 10 seeds, its RMS angle's median within 20 % of the truth; the same gauge
+    held on its axis raises it in at most 1 of 10."""
     robot = R.robots(ROOT)["3-link"]
     off = R.PROTOCOLS["gauge +-axes 3 deg off axis, reference per visit, half revisited"]
     on = R.PROTOCOLS["gauge +-axes, reference per visit, half revisited"]
@@ -848,4 +907,4 @@ def test_a_gauge_held_off_its_axis_is_warned_of_and_one_held_on_it_is_not():
             warned[name] += found["p_value"] <= 0.01
             angles += [found["angle_rms_deg"]] if name == "off" else []
     assert warned["off"] >= 8 and warned["on"] <= 1, warned
-    assert 1.5 < np.median(angles) < 6.0, angles
+    assert 2.4 < np.median(angles) < 3.6, angles

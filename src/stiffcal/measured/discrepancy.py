@@ -1341,7 +1341,7 @@ def return_motion(robot: Robot, ob: Observed):
 
 
 def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.ndarray, w0: np.ndarray, rw: float,
-                    alpha: float, motion=None):
+                    alpha: float, motion=None, turn=None):
     """The rows' error model (:func:`stiffcal.measured.errormodel.estimate`: which reference reading every row was taken
     from, the errors they share, by REML) and the verdict's ``zero_point``, for the loaded rows ``keep`` (bool
     (N,)) of ``meas`` whose weighted design is ``des`` (weights w (N_kept,)), the unloaded rows weighted by
@@ -1353,8 +1353,9 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     deleted residual: a blunder must not be read as the shared error of its group), and named when its
     Bonferroni-adjusted p (times the unloaded rows still in) is at most ``alpha``, up to
     :data:`ZERO_POINT_MAX_OUTLIERS` of them (at least one); then whether the others as a whole moved from zero
-    (a drift, a disturbed target). motion: the return's loading (:func:`return_motion`; None: isotropic).
-    Returns ``(ErrorModel, zero_point)``."""
+    (a drift, a disturbed target). motion: the return's loading (:func:`return_motion`; None: isotropic); turn:
+    the loaded rows' deflections of their load turned (:func:`turned_load_deflections`; None: no load-direction
+    component). Returns ``(ErrorModel, zero_point)``."""
     from . import errormodel as EM
 
     N = int(keep.sum())
@@ -1368,7 +1369,7 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     out, p_out = [], []
 
     def model(excluded, lrt=True):
-        st = EM.reading_structure(meas, keep, excluded, motion)
+        st = EM.reading_structure(meas, keep, excluded, motion, turn)
         Y = np.vstack([Yl, zw[st.zero_index]]) if len(st.zero_index) else Yl
         weights = np.concatenate([w, w0[st.zero_index]])
         return st, Y, weights, EM.estimate(st, Y, weights, groups, Xu, lrt=lrt)
@@ -1455,13 +1456,15 @@ def error_model_notes(em) -> list[str]:
     """The verdict's notes on the rows' reference readings and the errors they share."""
     st = em.structure
     notes = list(st.notes) + list(em.notes)
-    if not em.shared:
-        if st.components:
+    shared = [(c, lam, p) for c, lam, p in zip(st.components, em.ratios, em.p_values)
+              if c.name != "load_direction"]  # the load's direction: diagnostics.load_scatter and its note
+    if not any(lam > 0 for _, lam, _ in shared):
+        if shared:
             notes.append(f"the rows' reference readings ({st.kind}; found from {st.source}) give them no shared error "
                          "beyond the noise (REML): they are fitted as independent")
         return notes
     comps = [f"per {EMKINDS[c.name]} {np.sqrt(lam * em.sigma2) * 1e6:.3g} um (p = {p:.2g})"
-             for c, lam, p in zip(st.components, em.ratios, em.p_values) if lam > 0 and p is not None]
+             for c, lam, p in shared if lam > 0 and p is not None]
     notes.append(f"the rows share the errors of their reference readings ({st.kind}; found from {st.source}; "
                  f"{st.n_visits} visits, {st.n_revisited} configurations visited more than once): "
                  + "; ".join(comps) + " RMS, estimated by REML on " + em.stage
@@ -1603,7 +1606,7 @@ def check_noise(meas: Measurements, noise: "Noise") -> None:
 
 
 def _weighted_error_model(robot: Robot, meas: Measurements, m: Measurements, keep: np.ndarray, des_all: Design,
-                          ob_full: Observed, rw: float, alpha: float):
+                          ob_full: Observed, ob: Observed, rw: float, alpha: float):
     """The noise weights and the error model of the rows kept (``m``, ``keep``), refitted together: the
     replicates' variance function first (:func:`variance_model`), then at most :data:`VARIANCE_REFITS` refits of
     the noise model on the error model's residuals (:func:`residual_variance_model`). Returns (the variance
@@ -1613,11 +1616,13 @@ def _weighted_error_model(robot: Robot, meas: Measurements, m: Measurements, kee
     vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
     held = _shift_of(vm, m.n_rows)
     motion = return_motion(robot, ob_full)
+    nominal = des_all.rows(keep)
+    turn = turned_load_deflections(robot, m, ob, fit(nominal.X0, nominal.y).beta)
 
     def weighted_fit(w):  # the rows weighted by w, their error model and its generalised least squares
         des = des_all.rows(keep).weighted(w)
         w0 = zero_weights(meas, keep, w)
-        em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion)
+        em, zp = fit_error_model(meas, keep, des, w, w0, rw, alpha, motion, turn)
         return des, w0, em, zp, gls_design(des, em)
 
     w = np.ones(m.n_rows) if vm is None else vm.weights
@@ -1682,7 +1687,8 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
         ob_all = reduced(robot, ob_all, more)
         des_all = build_design(robot, meas, ob_all)
         ob = ob_all.take(keep)
-    vm, w, weighted, w0, em, zp, des, held = _weighted_error_model(robot, meas, m, keep, des_all, ob_full, rw, alpha)
+    vm, w, weighted, w0, em, zp, des, held = _weighted_error_model(robot, meas, m, keep, des_all, ob_full, ob, rw,
+                                                                     alpha)
     factor = held_out_variance_factor(des, held)
     noise = Noise(em.sigma2 * factor, em.df, em.source, em.ss_pe, em.df_pe)
     check_noise(m, noise)
@@ -1872,8 +1878,8 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
       they do not: the tilt then explains the data as well as they do);
     - ``return_to_zero``: whether the unloaded rows read after a load keep a jump that follows its joint torques'
       signs (:func:`_return_diagnostic`: a backlash that stays where the load pushed it);
-    - ``load_scatter``: whether the rows scatter more where a push turned off its logged direction would move the
-      tool more (:func:`_scatter_diagnostic`: a hand-held gauge held off its axis).
+    - ``load_scatter``: whether the loads' direction scatters push by push, the error model's ``load_direction``
+      component (:func:`_scatter_diagnostic`: a hand-held gauge held off its axis).
     Returns (dict, notes)."""
     m = pre.m
     out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
@@ -1889,12 +1895,11 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
                      "or more loads of different size per configuration")
     out["time"], note = _time_diagnostic(pre, chosen, f, alpha)
     notes += [note] if note else []
-    nominal = fit(pre.des.X0, pre.des.y)  # the nominal model's fit, for the tilt and the scatter
-    out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, nominal, alpha)
+    out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, fit(pre.des.X0, pre.des.y), alpha)
     notes += [note] if note else []
     out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
     notes += [note] if note else []
-    out["load_scatter"], note = _scatter_diagnostic(robot, pre, chosen, f, nominal, alpha)
+    out["load_scatter"], note = _scatter_diagnostic(pre, alpha)
     notes += [note] if note else []
     return out, notes
 
@@ -1996,44 +2001,24 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
                  "side of its gap before the reference reading (a preload), or measure loads of both signs")
 
 
-def _scatter_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, f0: Fit, alpha: float):
+def _scatter_diagnostic(pre: Prepared, alpha: float):
     """(``diagnostics.load_scatter`` or None, note): does the load's direction scatter push by push (a hand-held
-    gauge held off the axis it logs, a mass that swings)? A push turned by a small random angle theta adds the
-    deflection of the turned part of the load, C(q) (a x F) theta for the axes a normal to F (C the nominal model's
-    compliance at the pose, :func:`nominal_columns` with the nominal fit's compliances), so the rows' squared
-    residuals grow with s = sum_a |C (a x F)|^2 / (d - 1), their expectation sigma^2 (1 - h) + theta_rms^2 s: Koenker's
-    studentised score test of the squared residual norms of the chosen model's whitened rows against s (n R^2 on
-    one degree of freedom, one-sided; Koenker 1981, *J. Econometrics* 17), and theta_rms from the slope. Loaded rows
-    of the tool point's position under forces only (None otherwise, or with fewer than 8 loaded rows). f0: the
-    nominal model's fit."""
-    m, des = pre.m, pre.des
-    N, d = m.n_rows, des.d
-    if pre.ob.orientation or pre.ob.used() != (TOOL_TARGET,) or m.has_moment or N < 8:
+    gauge held off the axis it logs, a mass that swings)? The rows' error model's ``load_direction`` component
+    (:func:`stiffcal.measured.errormodel.load_direction`: a push turned by a small random angle adds the deflection of
+    the turned part of the load, C(q) (a x F) theta): its likelihood-ratio p-value and the RMS angle it implies. Every
+    fit and test already allows for it (generalised least squares); the note says what it costs. None where the
+    component could not be estimated."""
+    comp = pre.error.components().get("load_direction")
+    if comp is None or not comp["estimable"] or comp["p_value"] is None:
         return None, None
-    turned = _turned_load_deflections(robot, pre, f0.beta)
-    s = np.zeros(N)
-    for a in range(turned.shape[-1]):
-        s += (turned[..., a] ** 2).sum(axis=1)
-    s = s * pre.w**2 / max(robot.task_dim - 1, 1)
-    resid = (des.y - des.model(chosen) @ f.beta).reshape(N, d)
-    q = (resid**2).sum(axis=1)
-    if np.ptp(s) <= 0 or not np.any(q > 0):
-        return None, None
-    A = np.column_stack([np.ones(N), s])
-    coef, *_ = np.linalg.lstsq(A, q, rcond=None)
-    explained = q - q.mean()
-    r2 = 1.0 - float(np.sum((q - A @ coef) ** 2)) / float(explained @ explained)
-    half = 0.5 * float(dist.chi2_sf(N * max(r2, 0.0), 1))
-    p = half if coef[1] > 0 else 1.0 - half
-    angle = float(np.degrees(np.sqrt(max(coef[1], 0.0))))
-    out = {"p_value": p, "angle_rms_deg": angle}
-    if p > alpha:
+    out = {"p_value": comp["p_value"], "angle_rms_deg": comp["angle_rms_deg"]}
+    if out["p_value"] > alpha:
         return out, None
-    return out, (f"the rows scatter more where a load turned off its logged direction would move the tool more "
-                 f"(score test p = {p:.2g}; as if each push were turned by about {angle:.2g} deg RMS): a load whose "
-                 "direction scatters push by push (a hand-held gauge held off its axis, a swinging mass) adds noise "
-                 "that the tests do not model, and a cause may be named for it; hold the gauge in a guide, or log the "
-                 "force's direction with a 3-axis load cell")
+    return out, (f"the loads' direction scatters push by push, by about {out['angle_rms_deg']:.2g} deg RMS about the "
+                 f"logged one (likelihood-ratio p = {out['p_value']:.2g}): a hand-held gauge held off its axis, a "
+                 "swinging mass? The rows' error model holds it as a variance component, so the tests and intervals "
+                 "allow for it, at a cost in power; hold the gauge in a guide, or log the force's direction with a "
+                 "3-axis load cell")
 
 
 def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
@@ -2082,16 +2067,16 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
                  "re-measure the reference readings more often, or log the tracker's drift check")
 
 
-def _turned_load_deflections(robot: Robot, pre: Prepared, k: np.ndarray) -> np.ndarray:
-    """(N, d, A) [m/rad]: the deflection A(q, a x F) k of every row's load turned about each axis a (z for a
-    planar arm, x, y, z for a spatial one; the moment, if any, left out), k the nominal fit's compliances."""
-    m = pre.m
+def turned_load_deflections(robot: Robot, m: Measurements, ob: Observed, k: np.ndarray) -> np.ndarray:
+    """(N, d, A) [m/rad]: the deflection A(q, a x F) k of every row of ``m`` (its quantities ``ob``) with its load
+    turned about each axis a (z for a planar arm, x, y, z for a spatial one; the moment, if any, left out), k the
+    nominal model's compliances (:func:`nominal_columns`)."""
     axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
     cols = []
     for a in axes:
         turned = np.cross(a, as_xyz(m.force))[:, : robot.task_dim]
         load = np.hstack([turned, np.zeros_like(m.moment)]) if m.has_moment else turned
-        cols.append(np.einsum("ndp,p->nd", nominal_columns(robot, m.q, load, pre.ob), k))
+        cols.append(np.einsum("ndp,p->nd", nominal_columns(robot, m.q, load, ob), k))
     return np.stack(cols, -1)
 
 
@@ -2102,7 +2087,7 @@ def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, f0: Fit, alpha
     as well as they do, and the warning says so). f0: the nominal model's fit."""
     m, des, noise = pre.m, pre.des, pre.noise
     N, d = m.n_rows, des.d
-    T = _turned_load_deflections(robot, pre, f0.beta) * pre.w[:, None, None]
+    T = turned_load_deflections(robot, pre.m, pre.ob, f0.beta) * pre.w[:, None, None]
     T = (pre.error.whiten(T) if pre.error.blocks else T).reshape(N * d, -1)
     f1 = fit(np.hstack([des.X0, T]), des.y)
     if f1.rank <= f0.rank:

@@ -39,7 +39,11 @@ from a misfit of the model.
   point's displacement has the variance ``lambda sigma_0^2`` per coordinate on average everywhere
   (:func:`return_loading`: the
   repeatability is stated as a distance of the tool point, ISO 9283): in metres whatever the tracker's noise,
-  and as anisotropic as the arm (a planar arm near a stretched pose hardly moves along its links).
+  and as anisotropic as the arm (a planar arm near a stretched pose hardly moves along its links);
+- ``load_direction``: a load whose direction scatters push by push about the logged one (a hand-held gauge held
+  off its axis): one effect per loaded row, the push turned by a small random angle, whose loading is the
+  deflection of the turned part of the load through the nominal model's compliance (:func:`load_direction`);
+  in radians, reported as the push's RMS angle.
 
 Rows of different configurations are independent, so the covariance is block diagonal by configuration: on
 the rows weighted by the tracker's noise model and flattened row by row, coordinate by coordinate,
@@ -93,7 +97,8 @@ RANK_RTOL = 1e-9
 KINDS = {"reference": "one known reference reading (its rows)",
          "visit": "one visit (where the reference is not known)",
          "configuration": "one configuration (where the reference is not known)",
-         "return": "the robot's return to the configuration on a visit measured against another visit's reference"}
+         "return": "the robot's return to the configuration on a visit measured against another visit's reference",
+         "load_direction": "one load (its direction scattered about the logged one: a hand-held gauge off its axis)"}
 
 
 # --- which reading each row was taken from ---------------------------------------------------------------------
@@ -104,11 +109,14 @@ class Component:
     its variance is in metres whatever the tracker's noise (the return's pose error; else relative to the
     row's noise, the reference reading's error); ``loading`` (R, w, r) or None: the motion of every row's
     measured components per unit of the group's effect (the return: the robot's joint error, through the
-    Jacobian of what the row measures), else None: one independent effect per measured component."""
+    Jacobian of what the row measures; the load's direction: the deflection of the load turned about each axis),
+    else None: one independent effect per measured component; ``unit`` [m]: the loading's scale (the effect's
+    standard deviation is sqrt(lambda) sigma / unit in the effect's own unit: rad for the load's direction)."""
     name: str
     label: np.ndarray
     absolute: bool = False
     loading: np.ndarray | None = None
+    unit: float = 1.0
 
     @property
     def n_groups(self) -> int:
@@ -295,14 +303,18 @@ def _reference_times(f: dict, visit: np.ndarray, ref: np.ndarray, known: np.ndar
     return ref_time
 
 
-def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None) -> ReadingStructure:
+def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None, turn=None) -> ReadingStructure:
     """The :class:`ReadingStructure` of the loaded rows ``keep`` (bool (N,)) of ``meas`` and its unloaded rows but
     ``zero_out`` (indices into ``zero_rows``: blunders among them), from the ``reference`` and ``visit``
     columns, the exact-zero reference rows, the ``pose_id`` labels and the time order (module docstring).
 
     motion: ``motion(q (R, n) [rad], target (R,)) -> (R, w, n)``, the motion of what each model row measures
     per unit joint error at its configuration (the return's loading, :func:`return_loading`), or None: the
-    return taken as an independent error per measured component."""
+    return taken as an independent error per measured component.
+
+    turn: (N, w, A) [m/rad] the deflection of every loaded row kept (in the order of ``keep``) per unit angle of
+    its load turned about each of A axes (:func:`stiffcal.measured.discrepancy.turned_load_deflections`): the
+    component ``load_direction``, one group per loaded row (:func:`load_direction`); None: no such component."""
     f = _file_rows(meas, np.asarray(keep, bool), zero_out)
     loaded_cfg = set(f["config"][f["loaded"]].tolist())
     at_loaded = np.array([c in loaded_cfg for c in f["config"]])
@@ -329,10 +341,13 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None) -> Readi
     loading = None if motion is None else motion(f["q"][idx], f["target"][idx])
     comps = [Component(c.name, _renumber(c.label[idx]), c.absolute, loading if c.name == "return" else None)
              for c in comps]
+    if turn is not None:
+        comps.append(load_direction(np.asarray(turn, float), len(idx)))
     comps = _pruned(comps)
     cfg = f["config"][idx]
     block = _renumber(cfg)
-    kind = _kind(f, ref, visit, known, holder) if comps else "independent"
+    kind = (_kind(f, ref, visit, known, holder) if any(c.name != "load_direction" for c in comps)
+            else "independent")  # the load's direction is no reference reading
     source = (how or ("the visit column" if f["visit"] is not None else "the row order"
                       + (" (timestamp_s)" if meas.log is not None and meas.log.has_time else "")))
     visits_at = {}
@@ -385,6 +400,27 @@ def return_loading(jacobian: np.ndarray, tool_jacobian: np.ndarray) -> np.ndarra
     return jacobian * (np.sqrt(d) / np.where(norm > 0, norm, 1.0))[:, None, None]
 
 
+def load_direction(turn: np.ndarray, n_rows: int) -> Component:
+    """The component of a load whose direction scatters push by push about the logged one (a hand-held gauge held
+    off the axis it logs, a swinging mass): a push turned by a small random angle theta about the axes a normal to
+    its force F adds the deflection C(q) (a x F) theta (C the compliance at the pose), one independent effect per
+    loaded row with the loading ``turn`` (N, w, A) [m/rad] (the first N of the ``n_rows`` model rows; zero on the
+    unloaded rows, which carry no load), scaled by c, the loadings' RMS over the rows' coordinates. A push turned by
+    theta (RMS) about a random axis normal to it adds the covariance theta_rms^2 / k C (|F|^2 I - F F^T) C^T,
+    k = A - 1 = 2 axes normal to a spatial force (k = 1 in the plane, A = 1), and the component lambda sigma^2 / c^2
+    times the same sum over the A axes: the component's unit is c / sqrt(k), so that sqrt(lambda) sigma / unit is
+    the push's RMS angle [rad] whatever its axis."""
+    N, w, A = turn.shape
+    loading = np.zeros((n_rows, w, A))
+    loading[:N] = turn
+    c = float(np.sqrt(np.sum(turn**2) / max(N * w, 1)))
+    label = np.full(n_rows, -1)
+    label[:N] = np.arange(N)
+    if not c > 0:
+        return Component("load_direction", label, absolute=True, loading=loading)
+    return Component("load_direction", label, absolute=True, loading=loading / c, unit=c / np.sqrt(max(A - 1, 1)))
+
+
 def independent(n_loaded: int) -> ReadingStructure:
     """The structure of n_loaded rows taken as independent (no shared reference, no unloaded row)."""
     t = np.arange(n_loaded, dtype=float)
@@ -394,11 +430,12 @@ def independent(n_loaded: int) -> ReadingStructure:
 
 def _pruned(comps: list[Component]) -> list[Component]:
     """The components that can share an error: some group of two or more rows (a group of one is noise of its
-    own row), each partition once (a visit that is the whole configuration is one component)."""
+    own row; but a load's direction, whose loading is not the noise's), each partition once (a visit that is the
+    whole configuration is one component)."""
     out, seen = [], []
     for c in comps:
         counts = np.bincount(c.label[c.label >= 0]) if (c.label >= 0).any() else np.zeros(0, int)
-        if not np.any(counts >= 2):
+        if not np.any(counts >= (1 if c.name == "load_direction" and np.any(c.loading) else 2)):
             continue
         key = (c.absolute, c.loading is not None, tuple(c.label.tolist()))
         if key in seen:
@@ -505,14 +542,15 @@ class _Likelihood:
             logdet += 2.0 * float(np.log(np.diagonal(L, axis1=1, axis2=2)).sum())
             a = d[None, :] * bt.ZtY  # (B, m)
             bx = d[None, :, None] * bt.ZtX  # (B, m, p)
-            sol = np.linalg.solve(C, np.concatenate([a[:, :, None], bx], axis=2))
+            Ci = np.linalg.inv(C)  # C = I + D Z^T Z D is well conditioned; inv and a product beat a stacked solve
+            sol = Ci @ np.concatenate([a[:, :, None], bx], axis=2)
             sa, sx = sol[:, :, 0], sol[:, :, 1:]
             Q -= float((a * sa).sum())
             flat = bx.reshape(-1, bx.shape[-1])
             M -= flat.T @ sx.reshape(-1, bx.shape[-1])
             b -= flat.T @ sa.reshape(-1)
             if gradient:
-                kept.append((bt, d, C, sa, sx))
+                kept.append((bt, d, Ci, sa, sx))
         logdet_M, beta = 0.0, np.zeros(self.rank)
         if self.rank:
             LM = np.linalg.cholesky(M)
@@ -525,14 +563,14 @@ class _Likelihood:
             return logdet, logdet_M, max(Q, 1e-300)
         t, u = np.zeros(len(lam)), np.zeros(len(lam))
         Minv = np.linalg.inv(M) if self.rank else np.zeros((0, 0))
-        for bt, d, C, sa, sx in kept:
+        for bt, d, Ci, sa, sx in kept:
             # Woodbury: Z^T H^-1 A = Z^T A - G D C^-1 D Z^T A, G = Z^T Z, for A = Z, y, X
             GD = bt.ZtZ * d[None, None, :]  # (B, m, m)
-            ZHZ = bt.ZtZ - GD @ np.linalg.solve(C, np.swapaxes(GD, 1, 2))
+            ZHZ = bt.ZtZ - GD @ Ci @ np.swapaxes(GD, 1, 2)
             ZHy = bt.ZtY - np.einsum("bij,bj->bi", GD, sa)
             ZHX = bt.ZtX - GD @ sx
             Pz = ZHy - ZHX @ beta  # Z^T P y (B, m)
-            tr = np.einsum("bii->bi", ZHZ) - np.einsum("bip,pq,biq->bi", ZHX, Minv, ZHX)  # diag of Z^T P Z
+            tr = np.einsum("bii->bi", ZHZ) - np.einsum("bip,bip->bi", ZHX @ Minv, ZHX)  # diag of Z^T P Z
             np.add.at(t, bt.comp, tr.sum(axis=0))
             np.add.at(u, bt.comp, -(Pz ** 2).sum(axis=0))
         return logdet, logdet_M, max(Q, 1e-300), t, u
@@ -687,6 +725,8 @@ class ErrorModel:
         for c, lam, est, p in zip(self.structure.components, self.ratios, self.estimable, self.p_values):
             out[c.name] = {"groups": c.n_groups, "what": KINDS[c.name], "ratio": float(lam),
                            "sd_m": float(np.sqrt(lam * self.sigma2)), "p_value": p, "estimable": bool(est)}
+            if c.name == "load_direction":
+                out[c.name]["angle_rms_deg"] = float(np.degrees(np.sqrt(lam * self.sigma2) / c.unit))
         return out
 
     def as_dict(self) -> dict:
@@ -713,6 +753,14 @@ def _group_columns(comp: Component, rows: np.ndarray, weights: np.ndarray, w: in
         M = np.zeros((n, len(g)))
         M[on, inv] = scale
         return kron_eye(M, w)
+    if len(g) == len(on):  # a group per row (the load's direction): the rows' SVDs at once
+        U, sv, _ = np.linalg.svd(comp.loading[rows[on]] * scale[:, None, None], full_matrices=False)
+        kept = (sv > RANK_RTOL * sv[:, :1]) & (sv > 0)  # (k, s)
+        j, t = np.nonzero(kept[np.argsort(inv)])  # groups in label order, as below
+        j = np.argsort(inv)[j]
+        out = np.zeros((n, w, len(j)))
+        out[on[j], :, np.arange(len(j))] = U[j, :, t] * sv[j, t][:, None]
+        return out.reshape(n * w, -1)
     cols = []
     for j in range(len(g)):
         mine = on[inv == j]

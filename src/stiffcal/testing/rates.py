@@ -276,11 +276,12 @@ def _cause_block(robot: Robot, log: T.LabLog, cause: str) -> np.ndarray:
 def _whitening(robot: Robot, log: T.LabLog):
     """The map A (N_noisy, w, k) -> Sigma^(-1/2) A for the true covariance of the log's noisy rows
     (:func:`stiffcal.testing.truth.row_covariance`: independent readings, each row a reading less its reference
-    reading, the returns' pose errors shared by a visit), configuration by configuration (the inverse of the
-    Cholesky factor of each block)."""
+    reading, the returns' pose errors shared by a visit, a hand-held gauge's turns about the logged loads),
+    configuration by configuration (the inverse of the Cholesky factor of each block)."""
     where = np.full(len(log.q), -1)
     where[np.flatnonzero(log.noisy)] = np.arange(int(log.noisy.sum()))
-    blocks = [(where[rows], np.linalg.inv(np.linalg.cholesky(S))) for rows, S in T.row_covariance(robot, log)]
+    blocks = [(where[rows], np.linalg.inv(np.linalg.cholesky(S)))
+              for rows, S in T.row_covariance(robot, log, compliances(robot))]
 
     def white(A):
         out = np.empty_like(A, dtype=float)

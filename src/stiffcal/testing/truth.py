@@ -376,7 +376,8 @@ class LabLog:
     None), r_target (R,) int, r_visit (R,) int, r_loaded (R,) bool, r_sigma (R,) [m], r_order (R,) int (time
     order), r_time (R,) [s] its time; visit_config (V,) int; visit_scale (V,) [rad]: the standard deviation of
     each visit's joint error (the robot's pose repeatability: :func:`measure` draws N(0, visit_scale_v^2) per
-    joint and visit); timestamps: the log has times to write."""
+    joint and visit); timestamps: the log has times to write; gauge_angle_rad [rad]: the RMS angle by which the
+    hand turned each push off its logged direction (``Protocol.gauge_angle_deg``; the turned loads are r_force)."""
 
     q: np.ndarray
     force: np.ndarray
@@ -406,6 +407,7 @@ class LabLog:
     visit_config: np.ndarray | None = None
     visit_scale: np.ndarray | None = None
     timestamps: bool = False
+    gauge_angle_rad: float = 0.0
 
     @property
     def noisy(self) -> np.ndarray:
@@ -617,7 +619,8 @@ def _assemble(robot, protocol, rng, configs, visits, rd: _Readings, measured, na
                   None if r_moment is None else r_moment[reading], None if plain else r_target[reading], names,
                   protocol.orientation, protocol.sigma_rad, r_visit[reading], clock[r_order[reading]],
                   np.array(labels), reading, reference, exact, r_q, r_force, r_moment, r_target, r_visit, r_loaded,
-                  r_sigma, r_order, clock[r_order], visit_config, scale, protocol.timestamps)
+                  r_sigma, r_order, clock[r_order], visit_config, scale, protocol.timestamps,
+                  float(np.radians(protocol.gauge_angle_deg)))
 
 
 def _reading_motion(robot: Robot, log: LabLog, dq: np.ndarray) -> np.ndarray:
@@ -706,14 +709,37 @@ def measure(robot: Robot, truth: Truth, log: LabLog, rng: np.random.Generator,
     return dp
 
 
-def row_covariance(robot: Robot, log: LabLog) -> list[tuple[np.ndarray, np.ndarray]]:
+def _turn_deflections(robot: Robot, log: LabLog, k: np.ndarray) -> np.ndarray:
+    """(R, w, A): the deflection of every reading (its target, and the rotation when logged) per radian of its
+    load turned about each axis a normal to the plane (A = 1, planar) or x, y, z (A = 3), the joints' compliances
+    ``k`` (n,) [rad/(N m)] acting on the turned force a x F (linear; the moment, if any, not turned)."""
+    d = robot.task_dim
+    axes = [np.array([0.0, 0.0, 1.0])] if d == 2 else list(np.eye(3))
+    moment = None if log.r_moment is None else np.zeros_like(log.r_moment)
+    target = None if log.target is None else log.r_target
+    cols = [deflection(robot, Truth(k), log.r_q, np.cross(a, as_xyz(log.r_force))[:, :d], moment, target,
+                       log.target_names, log.orientation) for a in axes]
+    return np.stack(cols, -1)
+
+
+def row_covariance(robot: Robot, log: LabLog, k: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
     """The true covariance of the noisy rows (every row but the exact-zero references), configuration by
     configuration: a list of ``(rows (k,), Sigma (k w, k w))`` with w the components of a row, ordered row by
     row. Rows are D times the readings, whose noise is independent (sigma per reading) and whose return
     errors J dq_v are shared by the readings of a visit (dq_v ~ N(0, s_v^2 I), s_v = ``visit_scale``),
-    so Sigma = D Sigma_readings D^T."""
+    so Sigma = D Sigma_readings D^T.
+
+    k (n,) [rad/(N m)], the joints' compliances: with a gauge held off its axis (``log.gauge_angle_rad``), the
+    covariance about the deflections of the logged loads over the hand's turns too (each loaded reading's own,
+    theta^2 / k_a sum_a t_a t_a^T, t_a its deflection per radian of the load turned about axis a,
+    :func:`_turn_deflections`, k_a = 1 planar, 2 spatial: the axes normal to the force); None: given the turns
+    (the log's r_force, as :func:`measure` simulates a fixed log)."""
     width = robot.task_dim + ((1 if robot.task_dim == 2 else 3) if log.orientation else 0)
     noise = _noise_scale(robot, width, log.r_sigma, log.sigma_rad, len(log.r_q)) ** 2
+    turn = None
+    if k is not None and log.gauge_angle_rad > 0:
+        turn = _turn_deflections(robot, log, np.asarray(k, float))
+        turn *= log.gauge_angle_rad / np.sqrt(1.0 if robot.task_dim == 2 else 2.0)
     J = None
     if np.any(log.visit_scale):
         n = robot.n_joints
@@ -735,6 +761,8 @@ def row_covariance(robot: Robot, log: LabLog) -> list[tuple[np.ndarray, np.ndarr
             Ju = J[used]  # (u, w, n)
             same = log.r_visit[used][:, None] == log.r_visit[used][None, :]
             S += np.einsum("awj,bvj,ab->awbv", Ju, Ju, same)
+        if turn is not None:
+            S[np.arange(len(used)), :, np.arange(len(used)), :] += np.einsum("uwa,uva->uwv", turn[used], turn[used])
         S = S.reshape(len(used) * width, len(used) * width)
         Dw = np.kron(D, np.eye(width))
         out.append((rows, Dw @ S @ Dw.T))
