@@ -12,7 +12,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 export OMP_NUM_THREADS ?= 1
 export MKL_NUM_THREADS ?= 1
 
-.PHONY: install report test archive lint bench derive clean
+.PHONY: install report test archive lint bench derive docs clean
 
 $(STAMP): requirements.lock pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -61,6 +61,11 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_urdf.py
 	$(BIN)/python benchmarks/bench_analysis.py
 	$(BIN)/python benchmarks/bench_pipeline.py --baseline $(PIPELINE_BASELINE)
+
+# Rewrite the docs' lists that are written from the registries (criteria, catalogue causes; tools/registry_docs.py);
+# tests/test_docs.py fails when one is stale
+docs: $(STAMP)
+	$(BIN)/python tools/registry_docs.py
 
 # Regenerate src/stiffcal/planning/_map_polynomials.py (committed) from its symbolic derivation; needs sympy.
 derive: $(STAMP)

@@ -36,9 +36,14 @@ CASES = ("3-D pushes x 2, repeated", "hanging x3, reference per visit, 2 passes"
 
 TIMER = """
 import json, sys, time, os
-from stiffcal.model.robot import load_robot
-from stiffcal.measured import discrepancy as D
-from stiffcal.measured import measurements as M
+try:
+    from stiffcal.model.robot import load_robot
+    from stiffcal.measured import discrepancy as D
+    from stiffcal.measured import measurements as M
+except ImportError:  # a baseline before the subpackages (0fbeb92)
+    from stiffcal.robot import load_robot
+    from stiffcal import discrepancy as D
+    from stiffcal import measurements as M
 robot = load_robot(sys.argv[1])
 gain = sys.argv[3] == "gain"
 qt = [20, -60, 110, 30, 45, -20]

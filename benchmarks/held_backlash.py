@@ -10,7 +10,9 @@ the cases where the exact-shape oracle has power >= 0.9, how the verdict names i
 weight brings it back), or not at all; and on clean data the return-to-zero warnings at alpha (its level) and the
 verdict's false alarms.
 
-Run: .venv/bin/python benchmarks/held_backlash.py [SEEDS] [CLEAN] [JOBS] (defaults 30, 100, 1; seeds from 40,000,000)
+Run: .venv/bin/python benchmarks/held_backlash.py [SEEDS] [CLEAN] [JOBS] [ONLY] (defaults 30, 100, 1; seeds from
+40,000,000; ONLY: parts of protocol names separated by |, a slice of the cells with the seeds they have in the
+whole run)
 """
 
 import multiprocessing
@@ -48,17 +50,18 @@ def _how(case) -> str:
     return "backlash" if case.named("held_backlash") else "missed"
 
 
-def main(seeds: int = 30, clean: int = 100, jobs: int = 1) -> None:
+def main(seeds: int = 30, clean: int = 100, jobs: int = 1, only: str | None = None) -> None:
     start = time.process_time()
     arms = R.robots(ROOT)
     # a gauge held off its axis (a protocol added later) last, so that the other cells keep their seeds
     cells = [(arm, p, effects) for late in (False, True) for arm, robot in arms.items() for p in LAB
              if p in R.protocols_for(robot) and (R.PROTOCOLS[p].gauge_angle_deg > 0) == late
              for effects in (("held_backlash",), ())]
-    tasks = [(i, *cell, seeds if cell[2] else clean) for i, cell in enumerate(cells)]
+    tasks = [(i, *cell, seeds if cell[2] else clean) for i, cell in enumerate(cells)
+             if not only or any(part in cell[1] for part in only.split("|"))]
     totals: dict = {}
     with multiprocessing.Pool(jobs) if jobs > 1 else nullcontext() as pool:
-        for (arm, protocol, effects), cases in zip(cells, (pool.imap if jobs > 1 else map)(_cell, tasks)):
+        for (_, arm, protocol, effects, _), cases in zip(tasks, (pool.imap if jobs > 1 else map)(_cell, tasks)):
             if effects:
                 powered = [c for c in cases if c.power["held_backlash"] >= 0.9]
                 how = [_how(c) for c in powered]
@@ -88,4 +91,4 @@ def main(seeds: int = 30, clean: int = 100, jobs: int = 1) -> None:
 
 
 if __name__ == "__main__":
-    main(*(int(a) for a in sys.argv[1:4]))
+    main(*(int(a) for a in sys.argv[1:4]), *sys.argv[4:5])

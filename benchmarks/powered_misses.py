@@ -19,8 +19,9 @@ in one of three classes:
 Prints per protocol: named / powered under both oracles, the mean exact-oracle power of the powered cases (the rate
 the oracle itself would reach), and the misses by class; then the totals. Seeds: 77,000,000 + 1000 x (CRC-32 of
 arm|protocol|cause mod 1000) + s, independent of the matrix's (benchmarks/rates_discrepancy.py).
-Run: .venv/bin/python benchmarks/powered_misses.py [SEEDS] [JOBS] [ALPHA]   (defaults 30 seeds, 2 processes, 0.01;
-2,700 cases, about 25 minutes of CPU at 30 seeds)
+Run: .venv/bin/python benchmarks/powered_misses.py [SEEDS] [JOBS] [ALPHA] [ONLY]   (defaults 30 seeds, 2 processes,
+0.01; 3,150 cases, about 37 minutes of CPU at 30 seeds; ONLY: parts of protocol names separated by | (a slice: "gauge"
+runs the two hand-held gauge protocols alone))
 """
 import multiprocessing
 import resource
@@ -58,17 +59,18 @@ def _case(args):
     return protocol, power, block, case.named(cause), kind
 
 
-def main(seeds: int = 30, jobs: int = 2, alpha: float = 0.01) -> None:
+def main(seeds: int = 30, jobs: int = 2, alpha: float = 0.01, only: str | None = None) -> None:
     start = time.process_time()
     arms = R.robots(ROOT)
-    tasks = [(arm, p, c, _seed(arm, p, c, s), alpha) for arm, robot in arms.items() for p in LAB
+    lab = [p for p in LAB if not only or any(part in p for part in only.split("|"))]
+    tasks = [(arm, p, c, _seed(arm, p, c, s), alpha) for arm, robot in arms.items() for p in lab
              if p in R.protocols_for(robot) for c in D.CAUSES for s in range(seeds)]
     with multiprocessing.Pool(jobs) as pool:
         out = list(pool.imap(_case, tasks, chunksize=4))
     rows = defaultdict(list)
     for r in out:
         rows[r[0]].append(r)
-    rows = {p: rows[p] for p in LAB if rows[p]} | {"all lab protocols": out}
+    rows = {p: rows[p] for p in lab if rows[p]} | {"all lab protocols": out}
     print(f"{'protocol':62s} {'exact':>15s} {'block':>15s} {'oracle':>7s}   misses: model / test / estimation")
     for protocol, rs in rows.items():
         exact = [r for r in rs if r[1] >= 0.9]
@@ -87,4 +89,4 @@ def main(seeds: int = 30, jobs: int = 2, alpha: float = 0.01) -> None:
 
 if __name__ == "__main__":
     a = sys.argv[1:]
-    main(*(int(x) for x in a[:2]), *(float(x) for x in a[2:3]))
+    main(*(int(x) for x in a[:2]), *(float(x) for x in a[2:3]), *a[3:4])

@@ -8,6 +8,8 @@ from stiffcal.model import catalogue as C
 from stiffcal.measured import discrepancy as D
 from stiffcal.model.calibration import _extension_size
 from stiffcal.model.robot import load_robot
+from stiffcal.testing import rates as R
+from stiffcal.testing import truth as T
 
 from conftest import ROOT
 
@@ -70,7 +72,31 @@ def test_joint_cause_regressors_move_the_tool_as_the_forward_kinematics_does(cau
     assert np.allclose(model, fd, rtol=1e-6, atol=1e-9 * np.abs(fd).max())
 
 
-def test_the_docs_name_every_registered_cause():
+def test_every_registered_cause_is_simulated_and_listed_in_the_docs():
+    """The simulator can hide every catalogue cause (its registry stiffcal.testing.truth.EFFECTS, in the catalogue's
+    order, so that the rate matrix measures how often each is named), and the list of docs/measured-data.md names
+    exactly the registry's causes in its order."""
+    import re
+
+    assert [e for e in T.EFFECTS if e in C.CATALOGUE] == list(C.CAUSES)
     text = (ROOT / "docs/measured-data.md").read_text(encoding="utf-8")
-    listed = text.split("- **The catalogue**:", 1)[1].split("each a physically derived", 1)[0]
-    assert [c.strip(" `,\n") for c in listed.split(",") if c.strip(" `,\n")] == list(C.CAUSES)
+    listed = text.split("<!-- registry:causes -->", 1)[1].split("<!-- /registry:causes -->", 1)[0]
+    assert re.findall(r"^  - `([a-z_]+)` \(", listed, flags=re.M) == list(C.CAUSES)
+
+
+@pytest.mark.parametrize("effect", list(T.EFFECTS))
+def test_every_simulated_effect_reaches_the_rows_of_a_case(effect):
+    """Every effect of the simulator's registry (stiffcal.testing.truth.EFFECTS) moves a case's rows, and moves
+    them as much once merged with the other effects of a case (stiffcal.testing.rates._merge) as alone: a new
+    effect's Truth field is not dropped on the way (a fresh user's new cause was: the oracle's power 1, the verdict
+    `none`). 3-link arm, hanging masses with a reference per visit and return readings, effect 2 noise RMS."""
+    robot = R.robots(ROOT)["3-link"]
+    rng = np.random.default_rng(3)
+    log = T.lab_log(robot, R.PROTOCOLS["hanging x3, reference per visit, 2 passes"], rng, 8)
+    k = R.compliances(robot)
+    base = T.Truth(k)
+    unit = T.EFFECTS[effect].unit(robot, k, rng, log)
+    alone = R._scaled_truth(effect, unit, base, robot, log, 2.0 * float(np.median(log.sigma)))
+    moved = R._effect_displacement(robot, alone, base, log)
+    assert np.sqrt(np.mean(moved**2)) > 0.5 * np.median(log.sigma)
+    assert np.array_equal(R._effect_displacement(robot, R._merge(base, alone), base, log), moved)

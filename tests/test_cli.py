@@ -105,6 +105,23 @@ def test_version(capsys):
     assert exit_.value.code == 0 and capsys.readouterr().out.strip() == f"stiffcal {stiffcal.__version__}"
 
 
+def test_python_dash_m_runs_the_command_line(root):
+    """``python -m stiffcal`` is the installed ``stiffcal`` (a fresh user's first try): its version line, and a bad
+    option's one-line message and status 2."""
+    import os
+    import subprocess
+    import sys
+
+    import stiffcal
+
+    env = {**os.environ, "PYTHONPATH": str(root / "src")}
+    ok = subprocess.run([sys.executable, "-m", "stiffcal", "--version"], capture_output=True, text=True, env=env)
+    assert ok.returncode == 0 and ok.stdout.strip() == f"stiffcal {stiffcal.__version__}"
+    bad = subprocess.run([sys.executable, "-m", "stiffcal", "design", "--experiments", "x"], capture_output=True,
+                         text=True, env=env)
+    assert bad.returncode == 2 and bad.stderr.startswith("stiffcal design: error") and "Traceback" not in bad.stderr
+
+
 def test_progress_bar_on_a_terminal_and_quiet(root):
     """A progress bar goes to stderr when it is a terminal (a pseudo-terminal here), never with --quiet."""
     import fcntl

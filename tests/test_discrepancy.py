@@ -1125,6 +1125,38 @@ def test_forces_in_kilonewtons_below_the_resolution_in_some_rows_are_refused(tmp
         assert np.all(meas.zero_dp == 0)
 
 
+def test_one_force_column_in_kilonewtons_is_refused(tmp_path, root):
+    """A fresh user's hand-held gauge log with fx_N, fy_N in newtons and fz_N in kN (pushes of about 300 N along
+    +-z written 0.3): every z push fell below the resolution and became an unloaded row of ~200 um, read as a
+    shared reference error (verdict `none`, exit 0). Refused over 10 seeds of the simulator's gauge on the 6-axis
+    arm, naming the file, fz_N, the z pushes (counted from the generated loads) and kN; the same logs in newtons
+    are read with exactly the generated unloaded rows, and so are logs whose reference rows carry a load cell's
+    reading of up to +-0.3 N in fz beside the noise (genuine zero points)."""
+    robot = R.robots(root)["6-axis"]
+    pr = R.PROTOCOLS["gauge +-axes, reference per visit, half revisited"]
+    for seed in range(10):
+        rng = np.random.default_rng(seed)
+        log = T.lab_log(robot, pr, rng, 10)
+        dp = T.measure(robot, T.Truth(R.compliances(robot)), log, rng)
+        force = log.force.copy()
+        force[:, 2] /= 1000
+        z = int(np.sum(log.loaded & (np.abs(log.force[:, 2]) > 1.0)))
+        kn = _write(tmp_path, T.lab_csv(robot, replace(log, force=force), dp), f"kn{seed}.csv")
+        with pytest.raises(InputError) as err:
+            read_measurements(kn, robot)
+        msg = str(err.value)
+        assert msg.startswith(str(kn)) and "'columns fz_N'" in msg and "fz_N looks like kN" in msg, msg
+        assert f"{z} row(s) classed as unloaded" in msg
+        meas = read_measurements(_write(tmp_path, T.lab_csv(robot, log, dp), f"n{seed}.csv"), robot)
+        assert len(meas.zero_rows) == int(np.sum(~log.loaded)) and meas.n_rows == int(np.sum(log.loaded))
+        ref = ~log.loaded
+        cell = log.force.copy()
+        cell[ref, 2] = rng.uniform(-0.3, 0.3, ref.sum())
+        meas = read_measurements(_write(tmp_path, T.lab_csv(robot, replace(log, force=cell), dp), f"c{seed}.csv"),
+                                 robot)
+        assert len(meas.zero_rows) == int(ref.sum()) and meas.n_rows == int(np.sum(log.loaded))
+
+
 def test_reference_rows_with_a_load_cell_reading_below_the_resolution_are_the_zero_point(tmp_path, paper_robot):
     """Genuine unloaded rows are not taken for kN: a soft arm under small loads (2, 5, 10 N, numbers a kN file
     could hold, compliances such that a reading of 0.3 N would deflect it by about the noise), the reference rows

@@ -113,3 +113,22 @@ def test_result_fields_in_the_docs_are_the_type_s(root, kind, heading, first_col
              for name in re.findall(r"`([a-z_0-9]+)`", line.split(" | ", 1)[0])]
     assert sorted(named) == sorted(results.documented_fields(getattr(results, kind)))
     assert len(named) == len(set(named))
+
+
+def test_the_docs_lists_written_from_the_registries_are_current(root):
+    """Every list of docs/ that is written from a registry (the criteria, the catalogue's causes; between
+    ``<!-- registry:NAME -->`` markers) is what ``make docs`` (tools/registry_docs.py) writes from the registry
+    now: a registry entry added without ``make docs`` fails here, naming the file and the block."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("registry_docs", root / "tools/registry_docs.py")
+    gen = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(gen)
+    found = set()
+    for rel in gen.FILES:
+        text = (root / rel).read_text(encoding="utf-8")
+        blocks = gen.blocks_in(text)
+        found |= set(blocks)
+        for name, content in blocks.items():
+            assert content == gen.BLOCKS[name](), f"{rel}: block {name!r} is stale: run `make docs`"
+    assert found == set(gen.BLOCKS)

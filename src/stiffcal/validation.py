@@ -13,7 +13,9 @@ one clear, bounded message per error naming the file and the field.
 * every number must be finite (``.nan`` and ``.inf`` are refused with the field named).
 
 The JSON schemas are package data in ``src/stiffcal/schemas/`` (so an installed wheel has them);
-``workflow/schemas`` is a link to that directory for the workflow's conventional layout.
+``workflow/schemas`` is a link to that directory for the workflow's conventional layout. A schema node
+``x-registry: NAME`` takes its ``enum``, and ``x-registry-default: NAME`` its ``default``, from a registry of
+:data:`REGISTRIES` (the keys in the registry's order), so that a new entry of the registry needs no schema edit.
 """
 
 from __future__ import annotations
@@ -32,6 +34,8 @@ SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
 MAX_BYTES = 1_000_000
 #: deepest nesting of lists and mappings accepted
 MAX_DEPTH = 20
+#: the registries a schema can take an ``enum`` or a ``default`` from: name -> (module, attribute holding the keys)
+REGISTRIES = {"criteria": ("stiffcal.model.criteria", "CRITERIA_KEYS")}
 
 
 def load_schema(name: str) -> dict:
@@ -42,7 +46,29 @@ def load_schema(name: str) -> dict:
 
 @functools.lru_cache(maxsize=None)
 def _parsed_schema(name: str) -> dict:
-    return _parse((SCHEMA_DIR / f"{name}.schema.yaml").read_text(encoding="utf-8"), str(SCHEMA_DIR / name))
+    return _with_registries(_parse((SCHEMA_DIR / f"{name}.schema.yaml").read_text(encoding="utf-8"),
+                                   str(SCHEMA_DIR / name)))
+
+
+def _registry_keys(name: str) -> list[str]:
+    import importlib
+
+    module, attribute = REGISTRIES[name]
+    return list(getattr(importlib.import_module(module), attribute))
+
+
+def _with_registries(node: Any) -> Any:
+    """``node`` with every ``x-registry`` / ``x-registry-default`` resolved (module docstring), recursively."""
+    if isinstance(node, list):
+        return [_with_registries(v) for v in node]
+    if not isinstance(node, dict):
+        return node
+    out = {k: _with_registries(v) for k, v in node.items() if k not in ("x-registry", "x-registry-default")}
+    if "x-registry" in node:
+        out["enum"] = _registry_keys(node["x-registry"])
+    if "x-registry-default" in node:
+        out["default"] = _registry_keys(node["x-registry-default"])
+    return out
 
 
 _INT = re.compile(r"^(?:[-+]?[0-9]+|0o[0-7]+|0x[0-9a-fA-F]+)$")

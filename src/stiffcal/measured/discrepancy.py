@@ -1,20 +1,19 @@
 """From measured deflections: what the stiffness model (eq. 2) gets wrong, why, the extended model, the gain.
 
 The nominal model is linear in the joint compliances k: dp = A(q, F) k + e (eqs. 3-4), fitted by least
-squares (eq. 6). Each candidate cause is a physically derived extension, linear in its own parameters,
-so every question is a comparison of nested linear models:
+squares (eq. 6). Each candidate cause is a physically derived extension, linear in its own parameters, an entry
+of the catalogue (:data:`stiffcal.model.catalogue.CATALOGUE`: its law in ``meaning``; docs/measured-data.md lists
+them), so every question is a comparison of nested linear models:
 
-- ``link_compliance``: Euler-Bernoulli links loaded at their distal end by the force F and the moment
-  M it transmits; with P the force across link i, L its length, r the lever from its distal end to the end
-  effector, the end effector moves by c_i [(P L^3/3 + M L^2/2) n_i + (P L^2/2 + M L) z x r], c_i = 1/(E I_i).
-- ``joint_coupling``: off-diagonal joint compliances, dq_i = sum_j k_ij tau_j: columns J_i tau_j + J_j tau_i.
-- ``nonlinear_joint_stiffness``: a compliance that changes with the torque, dq_i = k_i tau_i + g_i tau_i^3
-  (the first odd term of any symmetric law): columns J_i tau_i^3.
-- ``backlash``: a deflection of fixed size whose sign follows the torque: columns J_i sign(tau_i).
-- Both act on the total torque: with the arm's own weight known (the robot file's masses or the URDF's
-  inertias, :meth:`stiffcal.model.robot.Robot.gravity_torques`, t0) a row is the loaded state less the unloaded one,
-  columns J_i ((t0_i + tau_i)^3 - t0_i^3) and J_i (sign(t0_i + tau_i) - sign(t0_i)): a gap preloaded by the
-  weight jumps only where the load reverses the total torque.
+- a joint cause (``joint_coupling``, ``nonlinear_joint_stiffness``, ``backlash``): the joints' Jacobian columns J_i
+  weighted by its law of the joint torques (:attr:`stiffcal.model.catalogue.Cause.joint_effect`); a law that acts
+  on the total torque does so with the arm's own weight known (the robot file's masses or the URDF's inertias,
+  :meth:`stiffcal.model.robot.Robot.gravity_torques`, t0): a row is the loaded state less the unloaded one, so a
+  gap preloaded by the weight jumps only where the load reverses the total torque;
+- ``link_compliance`` (built here, :func:`_link_twists`): Euler-Bernoulli links loaded at their distal end by the
+  force F and the moment M it transmits; with P the force across link i, L its length, r the lever from its distal
+  end to the end effector, the end effector moves by c_i [(P L^3/3 + M L^2/2) n_i + (P L^2/2 + M L) z x r],
+  c_i = 1/(E I_i);
 - ``measurement_offset``: a constant bias of the measuring system: one column per axis (a property of the
   tracker, not of the robot: it does not enter predictions at a test pose).
 
@@ -22,8 +21,10 @@ Statistics (Draper & Smith, *Applied Regression Analysis*, 3rd ed., ch. 2.1 and 
 lack of fit):
 
 - The noise variance s^2 comes from the replicates (pure error: rows whose joint angles and force agree
-  within the resolutions of :mod:`stiffcal.measured.measurements`), or, without replicates, from the residuals of the
-  union of all extensions. Unloaded reference rows are the zero point and never enter it.
+  within the resolutions of :mod:`stiffcal.measured.measurements`) when they have
+  :data:`stiffcal.measured.errormodel.MIN_PURE_ERROR_DF` degrees of freedom (or as many as the union's residuals),
+  or, without them, from the residuals of the union of all extensions; the unloaded rows that carry noise join
+  either (:mod:`stiffcal.measured.errormodel`), exact-zero reference rows (the reference itself) never do.
 - Which causes the data need is decided by **closed testing** (Marcus, Peritz & Gabriel 1976, Biometrika
   63(3), 655-660; Bretz, Hothorn & Westfall, *Multiple Comparisons Using R*, 2011, sec. 2.2.3) over the
   elementary hypotheses H_c "cause c is absent" (c in the catalogue) and H_L "nothing outside the catalogue
@@ -1259,7 +1260,9 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
         notes.append(f"negative compliance ({names} rad/(N m), below zero beyond its 95 % interval): a joint "
                      "cannot push back against the load; likely causes: absolute positions instead of "
                      "displacements in the d*_m columns, unloaded minus loaded instead of loaded minus "
-                     "unloaded, or a tracker frame that does not match the robot's base frame")
+                     "unloaded, a tracker frame that does not match the robot's base frame"
+                     + (", or the forces' signs lost (every force component >= 0: magnitudes only, a push along -x "
+                        "logged as +x?)" if np.all(meas.force >= 0) else ""))
     reach = robot.reach_m
     size = np.median(np.linalg.norm(meas.dp, axis=1))
     if reach > 0 and size > MAX_DEFLECTION_OF_REACH * reach:
@@ -1457,7 +1460,7 @@ def error_model_notes(em) -> list[str]:
     st = em.structure
     notes = list(st.notes) + list(em.notes)
     shared = [(c, lam, p) for c, lam, p in zip(st.components, em.ratios, em.p_values)
-              if c.name != "load_direction"]  # the load's direction: diagnostics.load_scatter and its note
+              if c.shared]  # the load's direction: diagnostics.load_scatter and its note
     if not any(lam > 0 for _, lam, _ in shared):
         if shared:
             notes.append(f"the rows' reference readings ({st.kind}; found from {st.source}) give them no shared error "

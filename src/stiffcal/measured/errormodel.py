@@ -92,6 +92,11 @@ MAX_RATIO = 1e6
 INFLATION_NOTE = 0.1
 #: relative singular value below which a direction of a design counts as absent (as stiffcal.measured.discrepancy)
 RANK_RTOL = 1e-9
+#: fewest degrees of freedom of the replicates' pure error (and the unloaded rows) for it to be the error variance
+#: while the residuals of the union of all extensions have more: an F test at 1 % on 20 denominator degrees of
+#: freedom needs a ratio 1.2 times the one on infinitely many (8.10 against 6.63); a chance pair of replicates (a
+#: hand-held gauge's push that repeats another's force within the force resolution) gives 3
+MIN_PURE_ERROR_DF = 20
 
 
 KINDS = {"reference": "one known reference reading (its rows)",
@@ -111,12 +116,16 @@ class Component:
     measured components per unit of the group's effect (the return: the robot's joint error, through the
     Jacobian of what the row measures; the load's direction: the deflection of the load turned about each axis),
     else None: one independent effect per measured component; ``unit`` [m]: the loading's scale (the effect's
-    standard deviation is sqrt(lambda) sigma / unit in the effect's own unit: rad for the load's direction)."""
+    standard deviation is sqrt(lambda) sigma / unit in the effect's own unit: rad for the load's direction);
+    ``shared``: an error that rows share through a reading or a pose (a group of one row is then its own noise and
+    is not a component), else an effect of each row of its own (the load's direction: one group per row, which is
+    no reference reading)."""
     name: str
     label: np.ndarray
     absolute: bool = False
     loading: np.ndarray | None = None
     unit: float = 1.0
+    shared: bool = True
 
     @property
     def n_groups(self) -> int:
@@ -346,8 +355,7 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None, turn=Non
     comps = _pruned(comps)
     cfg = f["config"][idx]
     block = _renumber(cfg)
-    kind = (_kind(f, ref, visit, known, holder) if any(c.name != "load_direction" for c in comps)
-            else "independent")  # the load's direction is no reference reading
+    kind = _kind(f, ref, visit, known, holder) if any(c.shared for c in comps) else "independent"
     source = (how or ("the visit column" if f["visit"] is not None else "the row order"
                       + (" (timestamp_s)" if meas.log is not None and meas.log.has_time else "")))
     visits_at = {}
@@ -417,8 +425,9 @@ def load_direction(turn: np.ndarray, n_rows: int) -> Component:
     label = np.full(n_rows, -1)
     label[:N] = np.arange(N)
     if not c > 0:
-        return Component("load_direction", label, absolute=True, loading=loading)
-    return Component("load_direction", label, absolute=True, loading=loading / c, unit=c / np.sqrt(max(A - 1, 1)))
+        return Component("load_direction", label, absolute=True, loading=loading, shared=False)
+    return Component("load_direction", label, absolute=True, loading=loading / c, unit=c / np.sqrt(max(A - 1, 1)),
+                     shared=False)
 
 
 def independent(n_loaded: int) -> ReadingStructure:
@@ -429,13 +438,13 @@ def independent(n_loaded: int) -> ReadingStructure:
 
 
 def _pruned(comps: list[Component]) -> list[Component]:
-    """The components that can share an error: some group of two or more rows (a group of one is noise of its
-    own row; but a load's direction, whose loading is not the noise's), each partition once (a visit that is the
-    whole configuration is one component)."""
+    """The components that can be estimated: a shared error with some group of two or more rows (a group of one
+    is noise of its own row), an effect of each row's own (``shared`` False) with some nonzero loading; each
+    partition once (a visit that is the whole configuration is one component)."""
     out, seen = [], []
     for c in comps:
         counts = np.bincount(c.label[c.label >= 0]) if (c.label >= 0).any() else np.zeros(0, int)
-        if not np.any(counts >= (1 if c.name == "load_direction" and np.any(c.loading) else 2)):
+        if not np.any(counts >= (2 if c.shared else 1)) or not (c.shared or np.any(c.loading)):
             continue
         key = (c.absolute, c.loading is not None, tuple(c.label.tolist()))
         if key in seen:
@@ -861,7 +870,8 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     K = len(structure.components)
     w = Y.shape[1]
     blocks = _block_arrays(structure, Y, groups, X_union, weights, drift)
-    replicated = np.bincount(groups).max(initial=0) >= 2 if len(groups) else False
+    paired = np.bincount(groups).max(initial=0) >= 2 if len(groups) else False
+    df_pe = (N - len(np.unique(groups)) + R - N) * w if paired else 0  # before whitening
     lam = np.zeros(K)
     estimable = np.zeros(K, bool)
     pvals: list = [None] * K
@@ -878,6 +888,11 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     for i, k in enumerate(est):
         pvals[k] = _lrt(lik, lam_u, ll_u, i, None) if lrt else None
     sigma2 = lik.sigma2(lam_u)
+    replicated = paired and df_pe >= min(MIN_PURE_ERROR_DF, lik.df)
+    if paired and not replicated:
+        notes.append(f"the replicates leave only {df_pe} degrees of freedom of pure error (fewer than "
+                     f"{MIN_PURE_ERROR_DF}): the noise is estimated from the residuals of the union of all extensions "
+                     f"({lik.df} degrees of freedom) instead, and the lack of fit is tested as without replicates")
     stage = "the residuals of the union of all extensions" + (", with the unloaded rows" if R > N else "")
     source = ("replicates (pure error)" + (" and the unloaded rows" if R > N else "") if replicated
               else "residuals of the union of all extensions" + (" and the unloaded rows" if R > N else ""))

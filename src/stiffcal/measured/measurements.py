@@ -715,7 +715,8 @@ KN_COMPLIANCE_FACTOR = 5.0
 
 def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, angle_res, force_res, moment_res,
                                   force_cols, source) -> None:
-    """Refuse forces given in kN under N columns when only some rows fall below the force resolution.
+    """Refuse forces given in kN under N columns (all of them, or some columns beside others in N) when only some
+    rows fall below the force resolution.
 
     Rows classed unloaded (``unloaded`` (N,) bool) whose force is not zero are loads below the resolution, not the
     zero point, when all of: every force magnitude is at most :data:`KN_MAX_FORCE` (numbers typical of kN); their
@@ -729,16 +730,27 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
     about zero; rows of exactly zero displacement, a reference by definition, carry no noise) or, with no noise
     estimate, at least 5 % of the loaded rows' median displacement. Genuine
     reference rows (zero force, or a load cell's reading below the resolution with a displacement within the
-    noise) pass. q_deg (N, n) [deg]; force, dp (N, d); moment (N, d_m) or None; target (N,) int."""
+    noise) pass. With some force columns above :data:`KN_MAX_FORCE` (in N) and others not (kN?), the rows classed
+    unloaded that are pushed through the latter only (exactly zero in the former: a load cell's zero reading has
+    some of every component) must deflect within :data:`KN_COMPLIANCE_FACTOR` of 1000 times
+    what the compliance of the rows loaded through the former gives for their number. q_deg (N, n) [deg]; force,
+    dp (N, d); moment (N, d_m) or None; target (N,) int."""
     from . import distributions as dist
 
     fmag, dmag = np.linalg.norm(force, axis=1), np.linalg.norm(dp, axis=1)
     small = np.flatnonzero(unloaded & (fmag > 0))
     big = ~unloaded & (np.abs(force).max(axis=1) > force_res)
-    if small.size == 0 or not big.any() or fmag.max() > KN_MAX_FORCE:
+    top = np.abs(force).max(axis=0)
+    kn, newton = (top > 0) & (top <= KN_MAX_FORCE), top > KN_MAX_FORCE  # columns with numbers typical of kN, of N
+    scale = 1.0
+    if newton.any():  # some columns in kN: the small rows pushed through them only, at 1000 times their number
+        big &= np.all(np.abs(force[:, kn]) <= force_res, axis=1)  # the compliance from the other columns' loads
+        small = small[~np.any(force[np.ix_(small, newton)] != 0, axis=1)]  # not a load cell's zero reading
+        scale = 1000.0
+    if small.size == 0 or not big.any():
         return
     compliance = float(np.median(dmag[big] / fmag[big]))
-    ratio = float(np.median(dmag[small] / (compliance * fmag[small]))) if compliance > 0 else 0.0
+    ratio = float(np.median(dmag[small] / (compliance * scale * fmag[small]))) if compliance > 0 else 0.0
     if not 1 / KN_COMPLIANCE_FACTOR <= ratio <= KN_COMPLIANCE_FACTOR:
         return
     d = dp.shape[1]
@@ -761,13 +773,19 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
         noise = f", beyond the noise of {np.sqrt(sigma2) * 1e6:.3g} um"
     elif np.median(dmag[small]) < 0.05 * np.median(dmag[big]):
         return
+    cols = [c for c, k in zip(force_cols, kn) if k or scale == 1.0]
+    others = [c for c, k in zip(force_cols, newton) if k]
+    why = (f"every force is at most {fmag.max():g} N: the forces look like kN labelled N; give them in newtons "
+           "(x 1000), or lower the force resolution" if scale == 1.0 else
+           f"column(s) {', '.join(cols)} hold at most {np.abs(force[:, kn]).max():g} N while {', '.join(others)} "
+           f"reach {top[newton].max():g} N: {', '.join(cols)} look{'s' if len(cols) == 1 else ''} like kN labelled "
+           "N; give every force in newtons")
     raise InputError(
         f"{small.size} row(s) classed as unloaded ({_rows_text(small)}) carry forces of {fmag[small].min():g} to "
         f"{fmag[small].max():g} N, below the force resolution of {force_res:g} N, yet deflect as the loaded rows do "
-        f"under such forces ({np.median(dmag[small]) * 1e6:.3g} um in the median, {ratio:.2g} times what the loaded "
-        f"rows' compliance gives{noise}): they are loads, not the zero point, and every force is at most "
-        f"{fmag.max():g} N: the forces look like kN labelled N; give them in newtons (x 1000), or lower the force "
-        "resolution", source=source, field=f"columns {', '.join(force_cols)}")
+        f"under {'such forces' if scale == 1.0 else '1000 times such forces'} ({np.median(dmag[small]) * 1e6:.3g} um "
+        f"in the median, {ratio:.2g} times what the loaded rows' compliance gives{noise}): they are loads, not the "
+        f"zero point, and {why}", source=source, field=f"columns {', '.join(cols)}")
 
 
 #: what a measured-data file beyond MAX_MEASURED_ROWS should do instead

@@ -17,15 +17,16 @@ import numpy as np
 class Cause:
     """One catalogue cause.
 
-    name: its key (the verdict's, the calibrated file's); meaning: one line for the docs; kind: ``"joint"`` (its
-    regressors are the joints' Jacobian columns weighted by a function of the joint torques, :attr:`joint_effect`),
-    ``"link"`` (link bending, :func:`stiffcal.measured.discrepancy._link_twists`) or ``"measurement"`` (the measuring
-    system's, one bias per measured axis: not in predictions of the robot's deflection); names: ``names(robot,
-    rotation)`` the parameters' names with units (``rotation``: the names of the measured rotation axes' extra
-    parameters, for a measurement cause); joint_effect: ``(J (N, k, n), tau (N, n) [N m], t0 (N, n) [N m]) ->
-    (N, k, p)``, the rows' regressors from the joints' Jacobian columns J, the load's joint torques tau and the
-    arm's own weight's t0 (zero without masses); preloaded: it acts on the total torque t0 + tau (a row then sees
-    the loaded state less the unloaded one)."""
+    name: its key (the verdict's, the calibrated file's); meaning: its law in one line (the docs' list of causes
+    is written from it: ``make docs``); kind: ``"joint"`` (its regressors are the joints' Jacobian columns weighted
+    by a function of the joint torques, :attr:`joint_effect`), ``"link"`` (link bending,
+    :func:`stiffcal.measured.discrepancy._link_twists`) or ``"measurement"`` (the measuring system's, one bias per
+    measured axis: not in predictions of the robot's deflection); names: ``names(robot, rotation)`` the parameters'
+    names with units (``rotation``: the names of the measured rotation axes' extra parameters, for a measurement
+    cause); joint_effect: ``(J (N, k, n), tau (N, n) [N m], t0 (N, n) [N m]) -> (N, k, p)``, the rows' regressors
+    from the joints' Jacobian columns J, the load's joint torques tau and the arm's own weight's t0 (zero without
+    masses); preloaded: it acts on the total torque t0 + tau (a row then sees the loaded state less the unloaded
+    one)."""
     name: str
     meaning: str
     kind: str
@@ -69,10 +70,13 @@ CATALOGUE: dict[str, Cause] = {c.name: c for c in (
     Cause("joint_coupling", "the joints' compliances are coupled: dq_i = sum_j k_ij tau_j", "joint",
           lambda robot, rotation: [f"k{a}{b}_rad/(N m)" for i, a in enumerate(robot.joint_columns(""))
                                    for b in robot.joint_columns("")[i + 1:]], _coupling),
-    Cause("nonlinear_joint_stiffness", "a compliance that changes with the torque: dq_i = k_i tau_i + g_i tau_i^3",
-          "joint", lambda robot, rotation: [f"g{i + 1}_rad/(N m)^3" for i in range(robot.n_joints)], _cubic,
+    Cause("nonlinear_joint_stiffness",
+          ("a compliance that changes with the torque: dq_i = k_i tau_i + g_i ((t0_i + tau_i)^3 - t0_i^3), "
+           "t0 the arm's own weight's torque (zero without masses)"), "joint",
+          lambda robot, rotation: [f"g{i + 1}_rad/(N m)^3" for i in range(robot.n_joints)], _cubic,
           preloaded=True),
-    Cause("backlash", "a deflection of fixed size whose sign follows the torque: b_i sign(tau_i)", "joint",
+    Cause("backlash", ("a gear's gap: dq_i = b_i (sign(t0_i + tau_i) - sign(t0_i)), a jump of b_i (half the gap) "
+                       "either way where the load reverses the total torque"), "joint",
           lambda robot, rotation: [f"b{i + 1}_rad" for i in range(robot.n_joints)], _backlash, preloaded=True),
     Cause("measurement_offset", "the tracker's bias: one per measured position axis (and rotation axis)",
           "measurement", _offset_names),

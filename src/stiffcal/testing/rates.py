@@ -23,6 +23,7 @@ expected verdict is ``unexplained``.
 
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -35,10 +36,10 @@ from . import truth as T
 from ..measured.measurements import read_measurements
 from ..model.robot import Robot, load_robot, planar_robot, with_masses, with_targets
 
-#: the effects a case can hide; the last four (:data:`OUTSIDE`) are outside the catalogue
-EFFECTS = ("link_compliance", "joint_coupling", "nonlinear_joint_stiffness", "backlash", "measurement_offset",
-           "drift", "modulation", "tilted_load", "held_backlash")
-OUTSIDE = ("drift", "modulation", "tilted_load", "held_backlash")
+#: the effects a case can hide (the simulator's registry, :data:`stiffcal.testing.truth.EFFECTS`): the catalogue's
+#: causes, then those outside the catalogue (:data:`OUTSIDE`)
+EFFECTS = tuple(T.EFFECTS)
+OUTSIDE = tuple(e for e in EFFECTS if e not in D.CAUSES)
 #: the warning of ``diagnostics`` that names an effect outside the catalogue
 WARNING_OF = {"drift": "time", "tilted_load": "load_direction", "held_backlash": "return_to_zero"}
 #: the catalogue cause that also names an effect outside it: a backlash held by friction is the catalogue's backlash
@@ -139,38 +140,9 @@ def protocols_for(robot: Robot) -> list[str]:
 
 
 def _unit_truth(effect: str, robot: Robot, k: np.ndarray, rng: np.random.Generator, log: T.LabLog) -> T.Truth:
-    """A truth with the effect at an arbitrary size (scaled afterwards by :func:`_scaled_truth`)."""
-    n, d = robot.n_joints, robot.task_dim
-    if effect == "measurement_offset":
-        return T.Truth(k, offset=T.random_directions(rng, 1, d)[0] * 1e-5)
-    if effect == "joint_coupling":
-        i, j = sorted(rng.choice(n, 2, replace=False))
-        c = np.zeros((n, n))
-        c[i, j] = c[j, i] = 0.1 * np.sqrt(k[i] * k[j]) * rng.choice([-1.0, 1.0])
-        return T.Truth(k, coupling=c)
-    if effect == "nonlinear_joint_stiffness":
-        on = log.loaded
-        weight = T.self_weight_torques(robot, log.q)
-        load = T.joint_torques(robot, log.q[on], log.force[on], None if log.moment is None else log.moment[on])
-        tau = np.abs(np.vstack([load + weight[on], weight])).max(axis=0)  # the largest total torque
-        return T.Truth(k, tau_max=np.maximum(tau, 1e-9) / 0.3)
-    if effect == "backlash":
-        return T.Truth(k, gap=np.full(n, 1e-5))
-    if effect == "link_compliance":
-        return T.Truth(k, link_bending=np.full(robot.n_segments, 1e-7))
-    if effect == "drift":
-        return T.Truth(k, drift=T.random_directions(rng, 1, d)[0] * 1e-7)
-    if effect == "modulation":
-        return T.Truth(k, modulation=rng.uniform(0.05, 0.15, n) * rng.choice([-1.0, 1.0], n))
-    if effect == "tilted_load":  # a pulley or a fixture that pulls a few degrees off the logged direction
-        axis = T.random_directions(rng, 1, 3)[0] if d == 3 else np.array([0.0, 0.0, 1.0])
-        return T.Truth(k, load_tilt=axis * np.radians(1.0))
-    if effect == "held_backlash":  # friction of a fifth of the joint's typical load torque holds the gear
-        on = log.loaded
-        load = T.joint_torques(robot, log.q[on], log.force[on], None if log.moment is None else log.moment[on])
-        return T.Truth(k, held_gap=np.full(n, 1e-5), held_torque=np.maximum(0.2 * np.median(np.abs(load), axis=0),
-                                                                             1e-9))
-    raise ValueError(effect)
+    """A truth with the effect at an arbitrary size (scaled afterwards by :func:`_scaled_truth`;
+    :data:`stiffcal.testing.truth.EFFECTS`)."""
+    return T.EFFECTS[effect].unit(robot, k, rng, log)
 
 
 def _effect_displacement(robot, truth: T.Truth, base: T.Truth, log: T.LabLog) -> np.ndarray:
@@ -194,12 +166,7 @@ def _scaled_truth(effect: str, truth: T.Truth, base: T.Truth, robot, log, target
     """Scale the effect's parameter so that the RMS of its displacement, less what the nominal model absorbs
     (its projection on the nominal columns), is ``target_rms`` [m]."""
     def with_scale(s: float) -> T.Truth:
-        if effect == "nonlinear_joint_stiffness":  # tau_max / s: a stronger softening, not linear in s
-            return replace(truth, tau_max=truth.tau_max / s)
-        field = {"measurement_offset": "offset", "joint_coupling": "coupling", "backlash": "gap",
-                 "link_compliance": "link_bending", "drift": "drift", "modulation": "modulation",
-                 "tilted_load": "load_tilt", "held_backlash": "held_gap"}[effect]
-        return replace(truth, **{field: getattr(truth, field) * s})
+        return T.EFFECTS[effect].scaled(truth, s)
 
     X0 = D._stack(_columns(robot, log))
     Q = np.linalg.qr(X0)[0]
@@ -208,7 +175,7 @@ def _scaled_truth(effect: str, truth: T.Truth, base: T.Truth, robot, log, target
         e = _effect_displacement(robot, with_scale(s), base, log).ravel()
         return float(np.sqrt(np.mean((e - Q @ (Q.T @ e)) ** 2)))
 
-    if effect != "nonlinear_joint_stiffness":
+    if T.EFFECTS[effect].linear:
         return with_scale(target_rms / rms(1.0))
     lo, hi = 1e-6, 3.0  # tau_max = max|tau| / (0.3 s) stays above the largest torque for s < 3.33
     if rms(hi) < target_rms:
@@ -385,11 +352,11 @@ def run_case(robot_name: str, robot: Robot, protocol: str, effects: tuple[str, .
 
 
 def _merge(a: T.Truth, b: T.Truth) -> T.Truth:
-    """The truth with the effects of both (the fields b sets that a does not)."""
-    fields = {f: getattr(b, f) for f in ("coupling", "tau_max", "gap", "link_bending", "offset", "drift", "modulation",
-                                         "load_tilt", "held_gap", "held_torque")
-              if getattr(b, f) is not None}
-    return replace(a, **fields)
+    """The truth with the effects of both: every effect field (a :class:`stiffcal.testing.truth.Truth` field whose
+    default is None: absent) that b sets, over a's."""
+    set_by_b = {f.name: getattr(b, f.name) for f in dataclasses.fields(T.Truth)
+                if f.default is None and getattr(b, f.name) is not None}
+    return replace(a, **set_by_b)
 
 
 def rates(results: list[CaseResult], min_power: float = 0.9, oracle: str = "exact") -> dict:

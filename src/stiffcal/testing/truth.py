@@ -22,7 +22,8 @@ rotation of the tool; every joint deflection dq_j turns everything beyond joint 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -301,7 +302,10 @@ class Protocol:
     force within +-``gauge_spread`` of the magnitude, the gauge's zero reading logged with the unloaded rows:
     forces of about ``gauge_zero_N``, below a load cell's resolution; ``gauge_angle_deg`` > 0: the hand holds the
     gauge off the axis it logs, each push turned by a random angle of that RMS [deg] about a random axis normal to
-    it, its magnitude the one logged); magnitudes_N [N]; lever_m: the loads
+    it, its magnitude the one logged; ``gauge_each_push`` (default): every visit and repeat pushes anew, its forces
+    drawn again (a hand reaching 300 N +- the spread each time: two pushes are replicates only by chance, within
+    the force resolution), else the configuration's pushes are read again as they were on every visit and repeat
+    (an actuator's: replicates)); magnitudes_N [N]; lever_m: the loads
     hang from a loading bar at this distance [m] from the tool point (a random horizontal direction per
     configuration; a planar arm: along x), ``bar_sides`` 2: on both ends of the bar (moments of both signs).
 
@@ -357,6 +361,7 @@ class Protocol:
     gauge_spread: float = 0.05
     gauge_zero_N: float = 0.15
     gauge_angle_deg: float = 0.0
+    gauge_each_push: bool = True
     timestamps: bool = False
 
 
@@ -536,7 +541,10 @@ def lab_log(robot: Robot, protocol: Protocol, rng: np.random.Generator, n_config
             if logs_unloaded:  # the later visit's start, against the configuration's reference
                 rd.log(rd.read(v, *zero, False), ref)
         F, M = loads[c]
-        for _ in range(1 if protocol.interleaved else protocol.repeats):
+        for r in range(1 if protocol.interleaved else protocol.repeats):
+            again = r > 0 or any(c == c0 for c0, _ in visits[:v])
+            if protocol.loads == "gauge" and protocol.gauge_each_push and again:
+                F = configuration_loads(protocol, d, rng)  # pushed anew
             for i in range(len(F)):
                 load = (_held_off(F[i], protocol.gauge_angle_deg, rng), None if M is None else M[i])
                 if protocol.reference == "reading":
@@ -795,3 +803,75 @@ def lab_csv(robot: Robot, log: LabLog, dp: np.ndarray, pose_id: bool = True, tim
             + [f"{v:.9e}" for v in dp[r, :d]] + ([f"{v:.12e}" for v in dp[r, d:]] if log.orientation else [])
         lines.append(",".join(cells))
     return "\n".join(lines) + "\n"
+
+
+# --- the effects a case can hide: a registry (a catalogue cause, or an effect outside the catalogue) ------------
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect the simulator can hide in a log, an entry of :data:`EFFECTS`: ``name`` (a catalogue cause's
+    name, :data:`stiffcal.model.catalogue.CATALOGUE`, or an effect outside the catalogue); ``field``: the
+    :class:`Truth` field that holds it; ``unit(robot, k, rng, log) -> Truth``: a truth with the compliances k and
+    the effect at an arbitrary size (the rate matrix scales it to a displacement it draws); ``linear``: the
+    effect's displacement is linear in the field (scaled by multiplying it), else :meth:`scaled` is not linear in
+    its factor (the rate matrix then searches the factor)."""
+    name: str
+    field: str
+    unit: Callable
+    linear: bool = True
+
+    def scaled(self, truth: Truth, s: float) -> Truth:
+        """``truth`` with this effect s times as strong (a nonlinear stiffness: tau_max / s, a stronger
+        softening)."""
+        if self.field == "tau_max":
+            return replace(truth, tau_max=truth.tau_max / s)
+        return replace(truth, **{self.field: getattr(truth, self.field) * s})
+
+
+def _load_torques(robot: Robot, log: LabLog) -> np.ndarray:
+    on = log.loaded
+    return joint_torques(robot, log.q[on], log.force[on], None if log.moment is None else log.moment[on])
+
+
+def _coupled_pair(robot: Robot, k: np.ndarray, rng: np.random.Generator, log: LabLog) -> Truth:
+    n = robot.n_joints
+    i, j = sorted(rng.choice(n, 2, replace=False))
+    c = np.zeros((n, n))
+    c[i, j] = c[j, i] = 0.1 * np.sqrt(k[i] * k[j]) * rng.choice([-1.0, 1.0])
+    return Truth(k, coupling=c)
+
+
+def _softening(robot: Robot, k: np.ndarray, rng: np.random.Generator, log: LabLog) -> Truth:
+    weight = self_weight_torques(robot, log.q)
+    tau = np.abs(np.vstack([_load_torques(robot, log) + weight[log.loaded], weight])).max(axis=0)  # the largest
+    return Truth(k, tau_max=np.maximum(tau, 1e-9) / 0.3)
+
+
+def _tilt(robot: Robot, k: np.ndarray, rng: np.random.Generator, log: LabLog) -> Truth:
+    """A pulley or a fixture that pulls a few degrees off the logged direction."""
+    axis = random_directions(rng, 1, 3)[0] if robot.task_dim == 3 else np.array([0.0, 0.0, 1.0])
+    return Truth(k, load_tilt=axis * np.radians(1.0))
+
+
+def _friction_held(robot: Robot, k: np.ndarray, rng: np.random.Generator, log: LabLog) -> Truth:
+    """Friction of a fifth of the joint's typical load torque holds the gear."""
+    held = np.maximum(0.2 * np.median(np.abs(_load_torques(robot, log)), axis=0), 1e-9)
+    return Truth(k, held_gap=np.full(robot.n_joints, 1e-5), held_torque=held)
+
+
+#: the effects a case can hide, the catalogue's causes first (in the catalogue's order), then those outside it
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    Effect("link_compliance", "link_bending",
+           lambda robot, k, rng, log: Truth(k, link_bending=np.full(robot.n_segments, 1e-7))),
+    Effect("joint_coupling", "coupling", _coupled_pair),
+    Effect("nonlinear_joint_stiffness", "tau_max", _softening, linear=False),
+    Effect("backlash", "gap", lambda robot, k, rng, log: Truth(k, gap=np.full(robot.n_joints, 1e-5))),
+    Effect("measurement_offset", "offset",
+           lambda robot, k, rng, log: Truth(k, offset=random_directions(rng, 1, robot.task_dim)[0] * 1e-5)),
+    Effect("drift", "drift",
+           lambda robot, k, rng, log: Truth(k, drift=random_directions(rng, 1, robot.task_dim)[0] * 1e-7)),
+    Effect("modulation", "modulation", lambda robot, k, rng, log: Truth(
+        k, modulation=rng.uniform(0.05, 0.15, robot.n_joints) * rng.choice([-1.0, 1.0], robot.n_joints))),
+    Effect("tilted_load", "load_tilt", _tilt),
+    Effect("held_backlash", "held_gap", _friction_held),
+)}
