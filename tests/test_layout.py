@@ -90,3 +90,23 @@ print(json.dumps(out))
         new = "stiffcal." + moved[old]
         assert same and name == new and spec == new, old
         assert len(warned) == 1 and new in warned[0], (old, warned)
+
+
+#: the longest function the package holds, docstring included [lines] (issue 26: long functions split into named
+#: stages)
+MAX_FUNCTION_LINES = 60
+
+
+def test_no_function_of_the_package_is_longer_than_its_limit():
+    """Every function and method of src/stiffcal (the generated _map_polynomials.py aside) is at most
+    MAX_FUNCTION_LINES lines, its docstring included; the message names the longest."""
+    long = []
+    for name, path in _modules().items():
+        if name.endswith("_map_polynomials"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = node.end_lineno - node.lineno + 1
+                if lines > MAX_FUNCTION_LINES:
+                    long.append((lines, f"{name}.{node.name}"))
+    assert not long, f"split into named stages: {sorted(long, reverse=True)}"

@@ -334,9 +334,9 @@ def rivals_from_verdict(robot: Robot, meas: Measurements, verdict: dict,
     combos = list(dict.fromkeys(_combination(c) for c in combos))
     testable = [c for c in D.CAUSES if c not in verdict["absorbed_by_nominal"]]
     lof = 1 if verdict.get("lack_of_fit_adjusted_p") is not None else 0
-    pure = verdict["nominal"]["sigma_source"].startswith("replicates")
-    rm = RivalModels(robot, old, pre.w, (), _combination(verdict["causes"]), float(verdict["nominal"]["sigma_m"]),
-                     int(verdict["nominal"]["sigma_df"]), pure, float(verdict["alpha"]), verdict, ob, pre.error)
+    noise = pre.noise  # the error variance of the analysis's tests; pure error when the replicates gave it
+    rm = RivalModels(robot, old, pre.w, (), _combination(verdict["causes"]), float(np.sqrt(noise.s2)), int(noise.df),
+                     noise.df_pe > 0, float(verdict["alpha"]), verdict, ob, pre.error)
     y = rm.old_y()
     models = []
     for S in combos:

@@ -735,8 +735,6 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
     some of every component) must deflect within :data:`KN_COMPLIANCE_FACTOR` of 1000 times
     what the compliance of the rows loaded through the former gives for their number. q_deg (N, n) [deg]; force,
     dp (N, d); moment (N, d_m) or None; target (N,) int."""
-    from . import distributions as dist
-
     fmag, dmag = np.linalg.norm(force, axis=1), np.linalg.norm(dp, axis=1)
     small = np.flatnonzero(unloaded & (fmag > 0))
     big = ~unloaded & (np.abs(force).max(axis=1) > force_res)
@@ -753,22 +751,11 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
     ratio = float(np.median(dmag[small] / (compliance * scale * fmag[small]))) if compliance > 0 else 0.0
     if not 1 / KN_COMPLIANCE_FACTOR <= ratio <= KN_COMPLIANCE_FACTOR:
         return
-    d = dp.shape[1]
-    ref = unloaded & (fmag == 0) & np.any(dp != 0, axis=1)  # reference rows that carry noise
-    rest = np.flatnonzero(~(unloaded & (fmag == 0)))
-    group = replicate_groups(q_deg[rest], force[rest], angle_res, force_res / 1000,  # the resolution if in kN
-                             None if moment is None else moment[rest], moment_res / 1000, target[rest])
-    sums = np.zeros((group.max(initial=-1) + 1, d))
-    np.add.at(sums, group, dp[rest])
-    means = sums / np.bincount(group, minlength=len(sums))[:, None]
-    ss = float(np.sum((dp[rest] - means[group]) ** 2) + np.sum(dp[ref] ** 2))
-    df = d * (len(rest) - len(means) + int(ref.sum()))
+    sigma2, df = _noise_at_kn_resolutions(q_deg, force, moment, dp, target, unloaded, angle_res, force_res,
+                                          moment_res)
     noise = ""
-    if df > 0 and ss > 0:
-        sigma2 = ss / df
-        k = (small.size + 1) // 2  # the median's order statistic: F(X_(k)) ~ Beta(k, m - k + 1) under the noise
-        median = dist.chi2_ppf(dist.beta_ppf(0.995, k, small.size - k + 1), d) / d  # of ||dp||^2 / (d sigma^2)
-        if np.sort(dmag[small] ** 2)[k - 1] / (d * sigma2) <= median / (dist.chi2_ppf(0.005, df) / df):
+    if df > 0 and sigma2 > 0:
+        if not _beyond_noise(dmag[small], dp.shape[1], sigma2, df):
             return
         noise = f", beyond the noise of {np.sqrt(sigma2) * 1e6:.3g} um"
     elif np.median(dmag[small]) < 0.05 * np.median(dmag[big]):
@@ -786,6 +773,36 @@ def _check_loads_below_resolution(q_deg, force, moment, dp, target, unloaded, an
         f"under {'such forces' if scale == 1.0 else '1000 times such forces'} ({np.median(dmag[small]) * 1e6:.3g} um "
         f"in the median, {ratio:.2g} times what the loaded rows' compliance gives{noise}): they are loads, not the "
         f"zero point, and {why}", source=source, field=f"columns {', '.join(cols)}")
+
+
+def _noise_at_kn_resolutions(q_deg, force, moment, dp, target, unloaded, angle_res, force_res,
+                             moment_res) -> tuple[float, int]:
+    """(sigma^2 [m^2], df): the pure error of the replicate groups at the force and moment resolutions divided by
+    1000 (as they would be for kN), pooled with the unloaded rows of zero force about zero (rows of exactly zero
+    displacement, a reference by definition, carry no noise); (0, 0) where there is none."""
+    d = dp.shape[1]
+    zero_force = unloaded & (np.linalg.norm(force, axis=1) == 0)
+    ref = zero_force & np.any(dp != 0, axis=1)  # reference rows that carry noise
+    rest = np.flatnonzero(~zero_force)
+    group = replicate_groups(q_deg[rest], force[rest], angle_res, force_res / 1000,
+                             None if moment is None else moment[rest], moment_res / 1000, target[rest])
+    sums = np.zeros((group.max(initial=-1) + 1, d))
+    np.add.at(sums, group, dp[rest])
+    means = sums / np.bincount(group, minlength=len(sums))[:, None]
+    ss = float(np.sum((dp[rest] - means[group]) ** 2) + np.sum(dp[ref] ** 2))
+    df = d * (len(rest) - len(means) + int(ref.sum()))
+    return (ss / df, df) if df > 0 else (0.0, 0)
+
+
+def _beyond_noise(dmag: np.ndarray, d: int, sigma2: float, df: int) -> bool:
+    """Whether the median of the rows' ||dp||^2 / (d sigma^2) (dmag (m,) [m] their displacements' norms) is above
+    what noise gives at a level of at most 1 %: Bonferroni over its order statistic through the Beta distribution
+    at 0.5 % and the estimate sigma^2 ~ sigma^2 chi2(df) / df at 0.5 %."""
+    from . import distributions as dist
+
+    k = (dmag.size + 1) // 2  # the median's order statistic: F(X_(k)) ~ Beta(k, m - k + 1) under the noise
+    median = dist.chi2_ppf(dist.beta_ppf(0.995, k, dmag.size - k + 1), d) / d  # of ||dp||^2 / (d sigma^2)
+    return bool(np.sort(dmag**2)[k - 1] / (d * sigma2) > median / (dist.chi2_ppf(0.005, df) / df))
 
 
 #: what a measured-data file beyond MAX_MEASURED_ROWS should do instead
