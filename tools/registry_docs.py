@@ -26,9 +26,9 @@ def criteria_block() -> str:
     sense and formula."""
     from stiffcal.model.criteria import CRITERIA
 
-    rows = ["| key | criterion | optimum | formula (information matrix A^T A; singular values sigma_1 >= ... >= "
-            "sigma_s) |",
-            "|---|---|---|---|"]
+    rows = ["A: the observation matrices A_i of the m poses stacked (eqs. 5-6), A^T A the information matrix; "
+            "sigma_1 >= ... >= sigma_s: the singular values of A; A_t: the test pose's; d[X]: the diagonal of X.", "",
+            "| key | criterion | optimum | formula |", "|---|---|---|---|"]
     rows += [f"| `{c.key}` | {c.label} | {c.sense} | `{c.formula}` |" for c in CRITERIA.values()]
     return "\n".join(rows)
 
