@@ -98,6 +98,7 @@ def test_every_list_of_criteria_is_the_registry_s(root):
     keys = set(criteria.CRITERIA_KEYS)
     crit = load_schema("config")["properties"]["study"]["properties"]["criteria"]
     assert set(crit["items"]["enum"]) == keys and set(crit["default"]) == keys
+    assert crit["default"][:9] == ["t", "a", "d", "g", "mdc", "o1", "o2", "o3", "o4"] and crit["default"][-1] == "ot"
     design = build_parser()._subparsers._group_actions[0].choices["design"]
     (help_text,) = [a.help for a in design._actions if "--criterion" in a.option_strings]
     assert set(help_text.split(" (")[0].split()) == keys

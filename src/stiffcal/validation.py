@@ -14,8 +14,8 @@ one clear, bounded message per error naming the file and the field.
 
 The JSON schemas are package data in ``src/stiffcal/schemas/`` (so an installed wheel has them);
 ``workflow/schemas`` is a link to that directory for the workflow's conventional layout. A schema node
-``x-registry: NAME`` takes its ``enum``, and ``x-registry-default: NAME`` its ``default``, from a registry of
-:data:`REGISTRIES` (the keys in the registry's order), so that a new entry of the registry needs no schema edit.
+``x-registry: NAME`` takes its ``enum`` (the keys in the registry's order), and ``x-registry-default: NAME`` its
+``default``, from a registry of :data:`REGISTRIES`, so that a new entry of the registry needs no schema edit.
 """
 
 from __future__ import annotations
@@ -34,8 +34,9 @@ SCHEMA_DIR = Path(__file__).resolve().parent / "schemas"
 MAX_BYTES = 1_000_000
 #: deepest nesting of lists and mappings accepted
 MAX_DEPTH = 20
-#: the registries a schema can take an ``enum`` or a ``default`` from: name -> (module, attribute holding the keys)
-REGISTRIES = {"criteria": ("stiffcal.model.criteria", "CRITERIA_KEYS")}
+#: the registries a schema can take an ``enum`` or a ``default`` from: name -> (module, attribute holding the keys,
+#: attribute holding the default)
+REGISTRIES = {"criteria": ("stiffcal.model.criteria", "CRITERIA_KEYS", "STUDY_DEFAULT")}
 
 
 def load_schema(name: str) -> dict:
@@ -50,11 +51,11 @@ def _parsed_schema(name: str) -> dict:
                                    str(SCHEMA_DIR / name)))
 
 
-def _registry_keys(name: str) -> list[str]:
+def _registry_keys(name: str, default: bool = False) -> list[str]:
     import importlib
 
-    module, attribute = REGISTRIES[name]
-    return list(getattr(importlib.import_module(module), attribute))
+    module, keys, default_keys = REGISTRIES[name]
+    return list(getattr(importlib.import_module(module), default_keys if default else keys))
 
 
 def _with_registries(node: Any) -> Any:
@@ -67,7 +68,7 @@ def _with_registries(node: Any) -> Any:
     if "x-registry" in node:
         out["enum"] = _registry_keys(node["x-registry"])
     if "x-registry-default" in node:
-        out["default"] = _registry_keys(node["x-registry-default"])
+        out["default"] = _registry_keys(node["x-registry-default"], default=True)
     return out
 
 

@@ -90,6 +90,11 @@ CRITERIA: dict[str, Criterion] = {
 TABLE1: dict[str, Criterion] = {k: c for k, c in CRITERIA.items() if k != "ot"}
 
 CRITERIA_KEYS = tuple(CRITERIA)
+#: the paper's criteria in the order of Table 2's rows
+TABLE2_ORDER = ("t", "a", "d", "g", "mdc", "o1", "o2", "o3", "o4")
+#: the config's default ``study.criteria`` (the order of the tables' rows): Table 2's order, any other registered
+#: criterion after them, O_t last
+STUDY_DEFAULT = (*TABLE2_ORDER, *(k for k in CRITERIA if k not in (*TABLE2_ORDER, "ot")), "ot")
 
 #: criteria built on the inverse of the information matrix: +inf for a singular plan when optimising
 NEEDS_INVERSE = frozenset(k for k, c in CRITERIA.items() if c.needs_inverse)
