@@ -78,9 +78,9 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
 
 def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     """The calibrated robot file (module docstring) as a YAML document for ``out_dir``: the robot file's own
-    keys (the paths of a URDF and of a cell's SRDF made relative to ``out_dir``), ``compliances_rad_per_Nm``
-    replaced when every joint's is identified and positive (else the file's own, or none), and the
-    ``calibration`` section."""
+    keys (a URDF given directly: a robot file of kind ``urdf`` naming it and its frames; the paths of a URDF and of
+    a cell's SRDF made relative to ``out_dir``), ``compliances_rad_per_Nm`` replaced when every joint's is
+    identified and positive (else the file's own, or none), and the ``calibration`` section."""
     import os
 
     from ..validation import read_yaml
@@ -88,7 +88,12 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     if not Path(robot.source).is_file():
         raise InputError("the calibrated model is written beside the robot file it came from: give the robot as a "
                          "file", field="robot")
-    doc = dict(read_yaml(robot.source))
+    if robot.source.lower().endswith(".urdf") and robot.urdf_info:  # a URDF read directly (load_robot)
+        doc = {"name": Path(robot.source).stem, "kind": "urdf", "urdf": Path(robot.source).name,
+               "base_frame": robot.urdf_info["base_frame"], "tip_frame": robot.urdf_info["tip_frame"]}
+    else:
+        doc = dict(read_yaml(robot.source))
+
     def moved(path):  # a file the robot file names, from the new file's folder
         return os.path.relpath((Path(robot.source).parent / path).resolve(), Path(out_dir).resolve())
 
@@ -589,7 +594,9 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     prior, p_r, causes = prior_information(cal, sigma)
     ob = D.Observed(robot.target_names, None, False, 1.0, np.asarray(cal.k_joints, int), cal.n_offsets)
     pool, Xp, Xt, scale = D.plan_regressors(robot, causes, test_pose, test_load, ob, step_deg)
-    prior_s = prior / np.outer(scale, scale)
+    live = (np.abs(Xp).max(axis=(0, 1)) > 0) | (np.abs(Xt).max(axis=0) > 0)
+    prior_s = _marginal(prior / np.outer(scale, scale), live)
+    Xp, Xt, scale = Xp[..., live], Xt[:, live], scale[live]
     with_old = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=prior_s)
     notes = _unidentified_at_test_pose(robot, cal, test_pose, test_load)
     fresh = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
@@ -600,13 +607,25 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     W = Xt.T @ Xt
     bound, w, gap = prior_design_bound(P, prior_s, W, m)
     cov_rr = cal.cov[:p_r, :p_r]
-    post = sigma**2 * np.linalg.inv(prior_s + P[with_old.indices].sum(axis=0)) / np.outer(scale, scale)
+    post = np.diag(cov_rr).copy()  # a parameter that no pose and not the test pose moves keeps its variance
+    post[live] = np.diag(sigma**2 * np.linalg.inv(prior_s + P[with_old.indices].sum(axis=0)) / np.outer(scale, scale))
     keep = w > 1e-4 * w.max()
     names = cal.names[:p_r]
     Xt_raw = Xt * scale
-    return NextRound(pool[with_old.indices], sigma**2 * with_old.value, float(np.trace(Xt_raw @ cov_rr @ Xt_raw.T)),
-                     sigma**2 * fresh.value, sigma**2 * bound, pool[keep], w[keep] / w[keep].sum(), float(gap),
-                     tuple(names), np.diag(post), len(pool), causes, sigma, tuple(notes))
+    prior_ot = float(np.trace(Xt_raw @ cov_rr[np.ix_(live, live)] @ Xt_raw.T))
+    return NextRound(pool[with_old.indices], sigma**2 * with_old.value, prior_ot, sigma**2 * fresh.value,
+                     sigma**2 * bound, pool[keep], w[keep] / w[keep].sum(), float(gap), tuple(names), post, len(pool),
+                     causes, sigma, tuple(notes))
+
+
+def _marginal(information: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """The information on the parameters ``keep`` (p,) bool with the others marginalised out: the Schur complement
+    I_kk - I_kd I_dd^+ I_dk (the others are then unknown; here they are the parameters that no candidate pose and
+    not the test pose moves: a backlash of a joint whose axis passes through the measured point)."""
+    if keep.all():
+        return information
+    kk, kd, dd = information[np.ix_(keep, keep)], information[np.ix_(keep, ~keep)], information[np.ix_(~keep, ~keep)]
+    return kk - kd @ np.linalg.pinv(dd, hermitian=True) @ kd.T
 
 
 def _unidentified_at_test_pose(robot: Robot, cal, test_pose: np.ndarray, test_load: np.ndarray) -> list[str]:

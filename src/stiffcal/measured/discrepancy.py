@@ -160,13 +160,30 @@ def torques(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
     return observation_torques(robot, q, force)
 
 
-def _twists(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray:
+def _twists(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray, still=None) -> np.ndarray:
     """(N, 6, p): the rigid motion of the tool at the tool point (v [m], w [rad]) per unit parameter of a
-    robot cause (the nominal model as cause ``"nominal"``), under the wrench ``load`` (N, d + d_m)."""
+    robot cause (the nominal model as cause ``"nominal"``), under the wrench ``load`` (N, d + d_m); ``still``
+    (n,) bool: joints whose motion is taken as zero (:func:`_still_joints`)."""
     if cause == "link_compliance":
         return _link_twists(robot, q, load)
-    return joint_columns(cause, tool_twists(robot, q)[0], observation_torques(robot, q, load),
-                         _preload(cause, robot, q))
+    J6 = tool_twists(robot, q)[0]
+    if still is not None and still.any():
+        J6 = np.where(still, 0.0, J6)
+    return joint_columns(cause, J6, observation_torques(robot, q, load), _preload(cause, robot, q))
+
+
+#: a joint whose motion of every measured quantity is at most this fraction of the largest joint's moves nothing
+#: (its axis passes through the measured point: what is left is round-off, ~1e-16 of the others)
+JOINT_MOTION_RTOL = 1e-12
+
+
+def _still_joints(motion: np.ndarray) -> np.ndarray:
+    """(n,) bool: the joints whose motion of the measured quantities, ``motion`` (N, r, n) per unit rotation,
+    is round-off (:data:`JOINT_MOTION_RTOL`): a joint cause's columns for them are set to zero, so that a
+    parameter of a joint that moves nothing is not estimated from round-off (a tool point on the last axis gave a
+    backlash of -2.6e6 rad)."""
+    norm = np.sqrt(np.einsum("nrj,nrj->j", motion, motion))
+    return norm <= JOINT_MOTION_RTOL * norm.max() if norm.max() > 0 else np.ones(motion.shape[-1], bool)
 
 
 def _preload(cause: str, robot: Robot, q: np.ndarray) -> np.ndarray | None:
@@ -190,8 +207,12 @@ def _general_columns(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray, 
         eye[d:, d:] *= observed.rad_weight
         return np.broadcast_to(eye, (len(q),) + eye.shape).copy()
     R = robot.tool_frame(q)[0]
-    X = observe(robot, _twists(cause, robot, q, load), R, observed.offsets(robot, len(q)), observed.orientation,
-                observed.rad_weight)
+    offsets = observed.offsets(robot, len(q))
+    still = None
+    if cause != "nominal" and cause != "link_compliance":
+        still = _still_joints(observe(robot, tool_twists(robot, q)[0], R, offsets, observed.orientation,
+                                      observed.rad_weight))
+    X = observe(robot, _twists(cause, robot, q, load, still), R, offsets, observed.orientation, observed.rad_weight)
     return X[..., observed.model_params(robot)] if cause == "nominal" else X
 
 
@@ -251,7 +272,10 @@ def cause_columns(cause: str, robot: Robot, q: np.ndarray, force: np.ndarray,
         return np.broadcast_to(np.eye(d), (len(q), d, d)).copy()
     if cause == "nominal":
         raise ValueError(f"unknown cause {cause!r}")
-    return joint_columns(cause, robot.jacobian(q), torques(robot, q, force), _preload(cause, robot, q))
+    J = robot.jacobian(q)
+    still = _still_joints(J)
+    return joint_columns(cause, np.where(still, 0.0, J) if still.any() else J, torques(robot, q, force),
+                         _preload(cause, robot, q))
 
 
 def model_columns(robot: Robot, q: np.ndarray, force: np.ndarray, causes=(), predict: bool = False,
