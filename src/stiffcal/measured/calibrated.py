@@ -304,8 +304,9 @@ def _motion(robot: Robot, cal, q: np.ndarray, load: np.ndarray, target=None, ori
 
 def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, mean):
     """(mean, note): the predicted motion ``mean`` (N, r) plus that of the joints the calibration did not identify
-    (no load of its data turned them), each with the robot file's compliance where it has one (the calibrated file
-    keeps the original's); their error is not in the sd, which the note says. None: every joint identified."""
+    (their compliance deflected no measured point of its data), each with the robot file's compliance where it has
+    one (the calibrated file keeps the original's); their error is not in the sd, which the note says. None: every
+    joint identified."""
     from . import discrepancy as D
 
     missing = [j for j in range(robot.n_joints) if j not in cal.k_joints]
@@ -321,9 +322,10 @@ def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, m
     X = D.model_columns(robot, q, load, (), predict=True, observed=ob)[..., : len(missing)]
     added = np.einsum("nrp,p->nr", X, np.asarray(k, float)[missing])
     values = ", ".join(f"{k[j]:.3g}" for j in missing)
-    return mean + added, (f"joint(s) {names} were not identified by the calibration (no load of its data turned "
-                          f"them): their deflection uses the robot file's compliance ({values} rad/(N m)), whose "
-                          "error the sd does not include; measure loads that turn them")
+    return mean + added, (f"joint(s) {names} were not identified by the calibration (their compliance deflected no "
+                          "measured point of its data: no load turned them, or their axis passes through the "
+                          f"measured point): their deflection uses the robot file's compliance ({values} rad/(N m)), "
+                          "whose error the sd does not include; measure loads that turn them at points they move")
 
 
 #: a backlash joint whose (total) torque is within this fraction of the row's largest torque of zero: its state is
