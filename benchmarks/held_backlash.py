@@ -11,8 +11,8 @@ weight brings it back), or not at all; and on clean data the return-to-zero warn
 verdict's false alarms.
 
 Run: .venv/bin/python benchmarks/held_backlash.py [SEEDS] [CLEAN] [JOBS] [ONLY] (defaults 30, 100, 1; seeds from
-40,000,000; ONLY: parts of protocol names separated by |, a slice of the cells with the seeds they have in the
-whole run)
+40,000,000; ONLY: parts of protocol names, as rates_discrepancy.py's, a slice of the cells with the seeds they have
+in the whole run)
 """
 
 import multiprocessing
@@ -24,7 +24,7 @@ from pathlib import Path
 
 from scipy import stats
 
-from rates_discrepancy import _children_cpu
+from rates_discrepancy import _children_cpu, protocol_filter
 from stiffcal.testing import rates as R
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -58,7 +58,7 @@ def main(seeds: int = 30, clean: int = 100, jobs: int = 1, only: str | None = No
              if p in R.protocols_for(robot) and (R.PROTOCOLS[p].gauge_angle_deg > 0) == late
              for effects in (("held_backlash",), ())]
     tasks = [(i, *cell, seeds if cell[2] else clean) for i, cell in enumerate(cells)
-             if not only or any(part in cell[1] for part in only.split("|"))]
+             if protocol_filter(only)(cell[1])]
     totals: dict = {}
     with multiprocessing.Pool(jobs) if jobs > 1 else nullcontext() as pool:
         for (_, arm, protocol, effects, _), cases in zip(tasks, (pool.imap if jobs > 1 else map)(_cell, tasks)):

@@ -20,8 +20,8 @@ Prints per protocol: named / powered under both oracles, the mean exact-oracle p
 the oracle itself would reach), and the misses by class; then the totals. Seeds: 77,000,000 + 1000 x (CRC-32 of
 arm|protocol|cause mod 1000) + s, independent of the matrix's (benchmarks/rates_discrepancy.py).
 Run: .venv/bin/python benchmarks/powered_misses.py [SEEDS] [JOBS] [ALPHA] [ONLY]   (defaults 30 seeds, 2 processes,
-0.01; 3,150 cases, about 37 minutes of CPU at 30 seeds; ONLY: parts of protocol names separated by | (a slice: "gauge"
-runs the two hand-held gauge protocols alone))
+0.01; 3,150 cases, about 37 minutes of CPU at 30 seeds; ONLY: parts of protocol names, as rates_discrepancy.py's (a
+slice: "gauge" runs the two hand-held gauge protocols alone))
 """
 import multiprocessing
 import resource
@@ -32,6 +32,7 @@ import zlib
 from collections import defaultdict
 from pathlib import Path
 
+from rates_discrepancy import protocol_filter
 from stiffcal.measured import discrepancy as D
 from stiffcal.testing import rates as R
 
@@ -62,7 +63,7 @@ def _case(args):
 def main(seeds: int = 30, jobs: int = 2, alpha: float = 0.01, only: str | None = None) -> None:
     start = time.process_time()
     arms = R.robots(ROOT)
-    lab = [p for p in LAB if not only or any(part in p for part in only.split("|"))]
+    lab = [p for p in LAB if protocol_filter(only)(p)]
     tasks = [(arm, p, c, _seed(arm, p, c, s), alpha) for arm, robot in arms.items() for p in lab
              if p in R.protocols_for(robot) for c in D.CAUSES for s in range(seeds)]
     with multiprocessing.Pool(jobs) as pool:

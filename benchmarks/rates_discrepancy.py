@@ -56,14 +56,21 @@ def _cell(args):
     return cases
 
 
+def protocol_filter(only: str | None):
+    """``picked(protocol) -> bool`` for an ONLY argument (module docstring): comma-separated parts of protocol
+    names, or separated by | when a part holds a comma; None or empty: every protocol."""
+    wanted = [w.strip() for w in only.split("|" if "|" in only else ",") if w.strip()] if only else []
+    return lambda protocol: not wanted or any(w in protocol for w in wanted)
+
+
 def main(seeds: int = 20, alpha: float = 0.01, jobs: int = 1, clean_seeds: int | None = None,
          only: str | None = None, effects_only: str | None = None) -> None:
     arms = R.robots(ROOT)
     start = time.process_time()
     clean_seeds = seeds if clean_seeds is None else clean_seeds
-    wanted = None if not only else [w.strip() for w in only.split("|" if "|" in only else ",") if w.strip()]
+    picked = protocol_filter(only)
     grid = sorted([(arm, protocol) for arm, robot in arms.items() for protocol in R.protocols_for(robot)
-                   if wanted is None or any(w in protocol for w in wanted)],
+                   if picked(protocol)],
                   key=lambda cell: cell[1] in LATE_PROTOCOLS)  # stable: the late protocols last, the rest in order
     if effects_only:  # the cells of these effects and the clean ones
         chosen = [e for e in effects_only.split(",") if e != "clean"]

@@ -160,15 +160,14 @@ def torques(robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
     return observation_torques(robot, q, force)
 
 
-def _twists(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray, still=None) -> np.ndarray:
+def _twists(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray, J6: np.ndarray | None = None) -> np.ndarray:
     """(N, 6, p): the rigid motion of the tool at the tool point (v [m], w [rad]) per unit parameter of a
-    robot cause (the nominal model as cause ``"nominal"``), under the wrench ``load`` (N, d + d_m); ``still``
-    (n,) bool: joints whose motion is taken as zero (:func:`_still_joints`)."""
+    robot cause (the nominal model as cause ``"nominal"``), under the wrench ``load`` (N, d + d_m); J6 (N, 6, n):
+    the joints' twists at the tool point (default :func:`stiffcal.model.observation.tool_twists`; the joints that
+    move nothing measured zeroed, :func:`_still_joints`)."""
     if cause == "link_compliance":
         return _link_twists(robot, q, load)
-    J6 = tool_twists(robot, q)[0]
-    if still is not None and still.any():
-        J6 = np.where(still, 0.0, J6)
+    J6 = tool_twists(robot, q)[0] if J6 is None else J6
     return joint_columns(cause, J6, observation_torques(robot, q, load), _preload(cause, robot, q))
 
 
@@ -208,11 +207,12 @@ def _general_columns(cause: str, robot: Robot, q: np.ndarray, load: np.ndarray, 
         return np.broadcast_to(eye, (len(q),) + eye.shape).copy()
     R = robot.tool_frame(q)[0]
     offsets = observed.offsets(robot, len(q))
-    still = None
+    J6 = None
     if cause != "nominal" and cause != "link_compliance":
-        still = _still_joints(observe(robot, tool_twists(robot, q)[0], R, offsets, observed.orientation,
-                                      observed.rad_weight))
-    X = observe(robot, _twists(cause, robot, q, load, still), R, offsets, observed.orientation, observed.rad_weight)
+        J6 = tool_twists(robot, q)[0]
+        still = _still_joints(observe(robot, J6, R, offsets, observed.orientation, observed.rad_weight))
+        J6 = np.where(still, 0.0, J6) if still.any() else J6
+    X = observe(robot, _twists(cause, robot, q, load, J6), R, offsets, observed.orientation, observed.rad_weight)
     return X[..., observed.model_params(robot)] if cause == "nominal" else X
 
 

@@ -175,7 +175,7 @@ def _scaled_truth(effect: str, truth: T.Truth, base: T.Truth, robot, log, target
         e = _effect_displacement(robot, with_scale(s), base, log).ravel()
         return float(np.sqrt(np.mean((e - Q @ (Q.T @ e)) ** 2)))
 
-    if T.EFFECTS[effect].linear:
+    if not T.EFFECTS[effect].inverse:
         return with_scale(target_rms / rms(1.0))
     lo, hi = 1e-6, 3.0  # tau_max = max|tau| / (0.3 s) stays above the largest torque for s < 3.33
     if rms(hi) < target_rms:

@@ -812,20 +812,19 @@ class Effect:
     """One effect the simulator can hide in a log, an entry of :data:`EFFECTS`: ``name`` (a catalogue cause's
     name, :data:`stiffcal.model.catalogue.CATALOGUE`, or an effect outside the catalogue); ``field``: the
     :class:`Truth` field that holds it; ``unit(robot, k, rng, log) -> Truth``: a truth with the compliances k and
-    the effect at an arbitrary size (the rate matrix scales it to a displacement it draws); ``linear``: the
-    effect's displacement is linear in the field (scaled by multiplying it), else :meth:`scaled` is not linear in
-    its factor (the rate matrix then searches the factor)."""
+    the effect at an arbitrary size (the rate matrix scales it to a displacement it draws); ``inverse``: the field
+    is a limit that the effect grows as it shrinks (a softening joint's tau_max), so :meth:`scaled` divides it and
+    the effect's displacement is not linear in the factor (the rate matrix then searches the factor), else the
+    displacement is linear in the field (multiplied)."""
     name: str
     field: str
     unit: Callable
-    linear: bool = True
+    inverse: bool = False
 
     def scaled(self, truth: Truth, s: float) -> Truth:
-        """``truth`` with this effect s times as strong (a nonlinear stiffness: tau_max / s, a stronger
-        softening)."""
-        if self.field == "tau_max":
-            return replace(truth, tau_max=truth.tau_max / s)
-        return replace(truth, **{self.field: getattr(truth, self.field) * s})
+        """``truth`` with this effect s times as strong (the field times s, or divided by s when ``inverse``)."""
+        value = getattr(truth, self.field)
+        return replace(truth, **{self.field: value / s if self.inverse else value * s})
 
 
 def _load_torques(robot: Robot, log: LabLog) -> np.ndarray:
@@ -864,7 +863,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("link_compliance", "link_bending",
            lambda robot, k, rng, log: Truth(k, link_bending=np.full(robot.n_segments, 1e-7))),
     Effect("joint_coupling", "coupling", _coupled_pair),
-    Effect("nonlinear_joint_stiffness", "tau_max", _softening, linear=False),
+    Effect("nonlinear_joint_stiffness", "tau_max", _softening, inverse=True),
     Effect("backlash", "gap", lambda robot, k, rng, log: Truth(k, gap=np.full(robot.n_joints, 1e-5))),
     Effect("measurement_offset", "offset",
            lambda robot, k, rng, log: Truth(k, offset=random_directions(rng, 1, robot.task_dim)[0] * 1e-5)),
