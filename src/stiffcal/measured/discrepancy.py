@@ -59,7 +59,7 @@ import numpy as np
 
 from ..model.catalogue import CATALOGUE, CAUSES, MEASUREMENT_CAUSES  # noqa: F401  (the catalogue; part of this module)
 from ..model.catalogue import joint_columns
-from ..planning.problem import is_sampled, sample_joint_space
+from ..planning.problem import joint_space_pool
 from . import distributions as dist
 from ..errors import InputError
 from ..jsonsafe import json_safe
@@ -493,28 +493,25 @@ def check_identifiable(robot: Robot, meas: Measurements, observed: Observed | No
         raise InputError(f"expected at least {n} equations for the {n} joint compliances, got {N * d} "
                          f"({N} loaded measurements of {d} coordinates)", source=meas.source)
     X = _stack(nominal_columns(robot, meas.q, load_of(meas), ob))
-    f = fit(X, observations(meas, ob).ravel())
-    if f.rank == n:
-        return np.zeros(0, int)
-    scale = np.linalg.norm(X, axis=0)
-    zero = scale <= RANK_RTOL * scale.max() if scale.max() > 0 else np.ones(n, bool)
+    scale = np.linalg.norm(X, axis=0)  # a column of round-off (a tool point on the last axis: 1e-20 of the others)
+    zero = scale <= RANK_RTOL * scale.max() if scale.max() > 0 else np.ones(n, bool)  # is zero, whatever its scaled
+    rest = np.flatnonzero(~zero)                                                     # fit's rank says
+    rank = fit(X[:, rest], observations(meas, ob).ravel()).rank if len(rest) else 0
+    if len(rest) and rank == len(rest):
+        return params[zero]
     names = [robot.joint_names[int(j)] for j in params[zero]]
     unloaded = (f"joint{'s' if len(names) > 1 else ''} {', '.join(map(str, names))} never "
                 "deflect(s) the measured point under these loads (e.g. a vertical axis under hanging weights)")
     refuse = (f"the measurement plan cannot identify the {n} joint compliances: its information matrix has rank "
-              f"{f.rank}; ")
+              f"{rank}; ")
     if zero.all():
         raise InputError(f"{refuse}{unloaded}, so no compliance is left to identify; measure other poses or load "
                          "directions", source=meas.source)
-    if f.rank < n - int(zero.sum()):
-        rest = np.flatnonzero(~zero)
-        Xr = X[:, rest] / scale[rest]
-        v = np.linalg.svd(Xr)[2][-1]
-        joints = [robot.joint_names[int(params[rest[j]])] for j in np.flatnonzero(np.abs(v) > 0.1)]
-        which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
-        raise InputError(f"{refuse}{which}{'; ' + unloaded if names else ''}; measure other poses or load "
-                         "directions", source=meas.source)
-    return params[zero]
+    v = np.linalg.svd(X[:, rest] / scale[rest])[2][-1]
+    joints = [robot.joint_names[int(params[rest[j]])] for j in np.flatnonzero(np.abs(v) > 0.1)]
+    which = f"the compliances of joints {', '.join(map(str, joints))} act only in a fixed combination"
+    raise InputError(f"{refuse}{which}{'; ' + unloaded if names else ''}; measure other poses or load "
+                     "directions", source=meas.source)
 
 
 def reduced(robot: Robot, observed: Observed, dropped) -> Observed:
@@ -2785,12 +2782,7 @@ def candidate_poses(robot: Robot, step_deg: float = 10.0) -> np.ndarray:
     """(K, n) [rad]: the candidate poses of the plans for measured data (:func:`optimal_plan`,
     :func:`stiffcal.measured.calibrated.next_round`): a step_deg grid within the joint limits (4096 quasi-random poses
     for 4+ joints), those the robot's cell allows. Raises :class:`InputError` when the cell allows none."""
-    if is_sampled(robot, step_deg):
-        pool = sample_joint_space(robot, 12, seed=0)  # a grid would be too large: 4096 quasi-random poses
-    else:
-        lims = np.degrees(robot.joint_limits_rad)
-        axes = [np.arange(lo, hi + 1e-9, step_deg) for lo, hi in lims]
-        pool = np.radians(np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, robot.n_joints))
+    pool = joint_space_pool(robot, step_deg, 12)  # 4096 quasi-random poses where a grid would be too large
     if robot.cell is not None:  # only the poses the robot can take in its cell (stiffcal.model.workcell)
         from ..model.workcell import feasible
 

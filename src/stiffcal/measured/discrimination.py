@@ -76,7 +76,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from . import discrepancy as D
-from ..planning.problem import grid_size, is_sampled, joint_grids, sample_joint_space, sampled_minimise
+from ..planning.problem import is_sampled, joint_grids, joint_space_pool, sampled_minimise
 from ..errors import InputError
 from ..jsonsafe import json_safe
 from .measurements import Measurements
@@ -231,11 +231,7 @@ def pose_pool(robot: Robot, step_deg: float | None = None, log2_count: int = 12)
     (default step :data:`POOL_STEP_DEG`), or ``2**log2_count`` scrambled-Sobol poses
     (:func:`stiffcal.planning.problem.sample_joint_space`) when the grid would be too large (4+ joints). No symmetry
     reduction: a constant measurement offset is not invariant under the mirror copy of a pose."""
-    step = step_deg or POOL_STEP_DEG.get(robot.n_joints, 30.0)
-    if is_sampled(robot, step) or grid_size(robot, step) > 200_000:
-        return sample_joint_space(robot, log2_count, seed=0)
-    grids = joint_grids(robot, step)
-    return np.stack(np.meshgrid(*grids, indexing="ij"), -1).reshape(-1, robot.n_joints)
+    return joint_space_pool(robot, step_deg or POOL_STEP_DEG.get(robot.n_joints, 30.0), log2_count, max_grid=200_000)
 
 
 # --- the rival models of a verdict --------------------------------------------------------------------------

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .problem import (SAMPLES_LOG2, Problem, angle_diff, grid_local_minima, into_limits, is_sampled, joint_grids,
-                     sample_joint_space, _is_full_turn, _turn_start)
+                     joint_space_pool, sample_joint_space, _is_full_turn, _turn_start)
 from ..model.robot import Robot
 from ..model.stiffness import pose_information
 from ..threads import single_threaded
@@ -76,11 +76,8 @@ def candidate_pool(robot: Robot, step_deg: float, problem: Problem | None = None
     poses (:meth:`stiffcal.planning.problem.Problem.feasible`); :class:`InputError` when none is."""
     if problem is not None and problem.candidates is not None:
         return _feasible_only(problem.candidates, robot, problem, "of the candidate file")
-    if is_sampled(robot, step_deg):
-        return _feasible_only(sample_joint_space(robot, POOL_LOG2, seed=0), robot, problem)
-    grids = joint_grids(robot, step_deg)
-    q = np.stack(np.meshgrid(*grids, indexing="ij"), -1).reshape(-1, robot.n_joints)
-    if not has_planar_symmetry(robot, problem):
+    q = joint_space_pool(robot, step_deg, POOL_LOG2)
+    if is_sampled(robot, step_deg) or not has_planar_symmetry(robot, problem):
         return _feasible_only(q, robot, problem)
     eps = 1e-12
     rest = q[:, 1:]

@@ -322,6 +322,18 @@ def sample_joint_space(robot: Robot, log2_count: int = SAMPLES_LOG2, seed: int =
     return start + u * span
 
 
+def joint_space_pool(robot: Robot, step_deg: float, log2_count: int, max_grid: int | None = None) -> np.ndarray:
+    """The project's one builder of candidate poses (K, n) [rad] over the joint space: the grid of
+    :func:`joint_grids` at ``step_deg`` or, when :func:`is_sampled` (or the grid exceeds ``max_grid`` nodes),
+    ``2**log2_count`` scrambled-Sobol poses (:func:`sample_joint_space`, seed 0). Neither symmetry nor a cell is
+    applied here: the planner's pool (:func:`stiffcal.planning.certificate.candidate_pool`), the discrimination
+    pool and the measured-data plan's poses filter it for what they need."""
+    if is_sampled(robot, step_deg) or (max_grid is not None and grid_size(robot, step_deg) > max_grid):
+        return sample_joint_space(robot, log2_count, seed=0)
+    grids = joint_grids(robot, step_deg)
+    return np.stack(np.meshgrid(*grids, indexing="ij"), -1).reshape(-1, robot.n_joints)
+
+
 def grid_local_minima(values: np.ndarray, periodic: list[bool]) -> np.ndarray:
     """Boolean mask of grid nodes no worse than their 2n axis neighbours (finite values only).
 
