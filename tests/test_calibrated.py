@@ -350,6 +350,25 @@ def test_next_round_ot_against_the_information_added_by_hand(tmp_path):
     assert nr.O_t < nr.O_t_prior and nr.O_t < nr.O_t_fresh
 
 
+def test_next_round_prior_is_infinite_where_the_test_pose_moves_an_undetermined_parameter(tmp_path):
+    """A fresh user's iiwa: the data never reversed joint 3's torque, so its backlash was not determined (its
+    covariance row zero), and the test load reverses it; the old data's error there was reported as finite and
+    the next round then 'raised' it. Here b2 of the 2-link calibration is made undetermined the same way: with
+    any finite variance v of b2 the prior's O_t is tr(X_t Cov_v X_t^T), which grows without bound in v (checked
+    by hand), so O_t_prior is infinite, with a note, and the plan's O_t finite (with every parameter determined
+    the prior is tr(X_t Cov X_t^T): test_next_round_ot_against_the_information_added_by_hand)."""
+    robot = _calibrated_2link(tmp_path)
+    cal = robot.calibration
+    cov = cal.cov.copy()
+    cov[3, :], cov[:, 3] = 0.0, 0.0
+    flat = replace(robot, calibration=replace(cal, cov=cov, estimable=(True, True, True, False)))
+    nr = C.next_round(flat, QT, FT, 3)
+    Xt = _by_hand(robot, QT, FT)[0]
+    assert np.abs(Xt[:, 3]).max() > 0
+    assert nr.O_t_prior == np.inf and np.isfinite(nr.O_t)
+    assert any("did not determine" in n and "O_t_prior is infinite" in n for n in nr.notes)
+
+
 def test_next_round_with_no_prior_is_the_plan_without_old_data(tmp_path):
     """The exchange with a zero prior is the exchange without one (the same plan and value); a prior that
     carries almost nothing (the covariance times 1e12) gives the O_t of the best plan without old data, which is

@@ -1351,3 +1351,18 @@ def test_a_joint_the_loads_turn_only_by_round_off_is_not_identifiable(tmp_path):
     assert np.all(np.abs(np.array(nom["k"]) - k[:5]) < 1.5 * np.array(nom["k_ci95"]))
     assert all(x is not None and np.isfinite(x) for key, x in v["next_round"].items() if key.startswith("rms_"))
     assert 5 not in load_robot(tmp_path / "out" / "calibrated.yaml").calibration.k_joints  # it reloads (predict)
+
+
+def test_in_row_space_against_the_rank_of_the_stacked_matrix(rng):
+    """Estimable predictions (Searle 1971, sec. 5.4): C b is estimable iff rank [X; C] = rank X, computed here on
+    integer matrices (exact ranks), for designs whose columns differ in scale by 1e8 (scaled as the fit scales
+    them), with a zero column."""
+    for _ in range(30):
+        B = rng.integers(-3, 4, (12, 4)).astype(float)
+        X = np.hstack([B, B[:, :2] @ rng.integers(-2, 3, (2, 2)), np.zeros((12, 1))])  # rank 4 of 7
+        C = rng.integers(-3, 4, (2, 7)).astype(float)
+        if rng.random() < 0.5:  # a combination of X's rows: estimable
+            C = rng.integers(-2, 3, (2, 12)).astype(float) @ X
+        expect = np.linalg.matrix_rank(np.vstack([X, C])) == np.linalg.matrix_rank(X)
+        units = np.array([1e-6, 1.0, 1e2, 1e-3, 1.0, 1e2, 1.0])
+        assert D.in_row_space(X * units, C * units) == expect

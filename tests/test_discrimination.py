@@ -460,6 +460,10 @@ def test_plan_keeps_the_moments_of_the_data(lab3):
     assert plan["certificate"]["psi_max_moment_Nm"] is not None
     same = [m for m in out["models"] if m["causes"] == verdict["causes"]][0]
     assert same["rss_m2"] == pytest.approx(verdict["extended"]["rss"], rel=1e-9)
+    ext = verdict["extended"]  # its parameters are the verdict's, name by name (null where the verdict's are)
+    assert same["parameter_names"] == verdict["nominal"]["k_names"] + ext["parameter_names"]
+    for got, want in zip(same["parameters"], ext["k"] + ext["parameters"]):
+        assert (got is None) == (want is None) and (got is None or got == pytest.approx(want, rel=1e-6, abs=1e-15))
     # the verdict's advice names a load the lab applies: force and moment
     assert all("moment" in text for text in verdict["separation"].values())
 

@@ -615,9 +615,25 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     names = cal.names[:p_r]
     Xt_raw = Xt * scale
     prior_ot = float(np.trace(Xt_raw @ cov_rr[np.ix_(live, live)] @ Xt_raw.T))
+    undetermined = [names[j] for j in np.flatnonzero(live)[_moves_undetermined(cal, Xt, live)]]
+    if undetermined:
+        prior_ot = np.inf
+        notes.append(f"the test pose's deflection depends on {', '.join(undetermined)}, which the calibration's data "
+                     "did not determine (its estimable flags): O_t_prior is infinite (rms_prior_m null), the old data "
+                     "alone do not predict it")
     return NextRound(pool[with_old.indices], sigma**2 * with_old.value, prior_ot, sigma**2 * fresh.value,
                      sigma**2 * bound, pool[keep], w[keep] / w[keep].sum(), float(gap), tuple(names), post, len(pool),
                      causes, sigma, tuple(notes))
+
+
+def _moves_undetermined(cal: Calibration, Xt: np.ndarray, live: np.ndarray) -> np.ndarray:
+    """(p_live,) bool: the parameters (of ``live``) that the calibration's data did not determine (its estimable
+    flags) and whose column of the test pose's scaled regressor Xt (d, p_live) is not round-off. A parameter
+    undetermined alone but determined in a sum with another (a group of the verdict's ``not_estimable``) counts
+    too: the prior then errs on the safe side."""
+    flags = np.array(cal.estimable, bool)[: len(live)][live]
+    size = np.abs(Xt).max(axis=0)
+    return ~flags & (size > 1e-9 * max(size.max(), 1e-300))
 
 
 def _marginal(information: np.ndarray, keep: np.ndarray) -> np.ndarray:

@@ -1879,6 +1879,12 @@ def _gain_notes(robot: Robot, gain: dict | None, diagnostics: dict, ext: list, d
                          "test load, measuring what the data measured) does not identify every parameter of the "
                          f"extended model ({', '.join(ext)}): its information matrix is singular, so its O_t is "
                          "infinite")
+    if gain is not None and "test_pose_rms_extended_m" in gain and gain["test_pose_rms_extended_m"] is None:
+        notes.append(f"gain's test-pose errors are null: the extended model's ({', '.join(ext)}) deflection at the "
+                     "test pose depends on parameters these data do not determine (extended.not_estimable: e.g. a "
+                     "backlash of a joint whose total torque the data never reverse, which the test load reverses), "
+                     "so its error there is not known; measure configurations that load those joints as the test "
+                     "load does")
     if len(dropped) and gain is not None and "test_pose_rms_nominal_m" in gain:
         tau = torques(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force))[0]
         turned = [robot.joint_names[int(j)] for j in dropped if abs(tau[j]) > RANK_RTOL * np.abs(tau).max()]
@@ -2302,6 +2308,20 @@ class Confounded:
     relations: int
 
 
+def in_row_space(X: np.ndarray, C: np.ndarray) -> bool:
+    """Whether every row of C (k, p) lies in the row space of the design X (N, p), so that the predictions C b
+    are estimable (Searle, *Linear Models*, 1971, sec. 5.4): X's columns scaled to unit norm (and C's
+    contragrediently) and the rank decided as :func:`estimability` decides it, each row's distance from the row
+    space within :data:`ESTIMABLE_TOL` of its length."""
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    s, Vt = np.linalg.svd(X / scale, full_matrices=False)[1:]
+    V = Vt[s > RANK_RTOL * s[0]] if s.size and s[0] > 0 else np.zeros((0, X.shape[1]))
+    Cs = np.atleast_2d(C) / scale
+    off = Cs - (Cs @ V.T) @ V
+    return bool(np.all(np.linalg.norm(off, axis=1) <= ESTIMABLE_TOL * np.maximum(np.linalg.norm(Cs, axis=1), 1e-300)))
+
+
 def estimability(X: np.ndarray) -> tuple[np.ndarray, list[Confounded]]:
     """Which parameters of the linear model y = X b + e (X (N, p)) the data determine: b_j is estimable when
     the unit vector e_j lies in the row space of X (some linear combination of the observations has expectation
@@ -2590,13 +2610,15 @@ def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict 
         at_tool = ob.at_tool(robot)
         Xt0 = nominal_columns(robot, qt, ft, at_tool)[0]
         Xt1 = model_columns(robot, qt, ft, causes, predict=True, observed=at_tool)[0]
-        f0, f1 = fit(des.X0, des.y), fit(des.model(causes), des.y)
+        X1 = des.model(causes)
+        f0, f1 = fit(des.X0, des.y), fit(X1, des.y)
         bias = Xt1 @ f1.beta - Xt0 @ f0.beta  # the extended model taken as the truth
         var0 = s2 * np.trace(Xt0 @ f0.cov_unscaled @ Xt0.T)
         var1 = s2 * np.trace(Xt1 @ f1.cov_unscaled @ Xt1.T)
-        out.update({"test_pose_rms_nominal_m": float(np.sqrt(bias @ bias + var0)),
-                    "test_pose_rms_extended_m": float(np.sqrt(var1)),
-                    "test_pose_model_error_m": float(np.linalg.norm(bias))})
+        known = in_row_space(X1, Xt1)  # else the prediction rests on parameters the data do not determine
+        out.update({"test_pose_rms_nominal_m": float(np.sqrt(bias @ bias + var0)) if known else None,
+                    "test_pose_rms_extended_m": float(np.sqrt(var1)) if known else None,
+                    "test_pose_model_error_m": float(np.linalg.norm(bias)) if known else None})
         plan, ot_ext = optimal_plan(robot, causes, qt[0], ft[0], observed=ob)
         plan_nom, _ = optimal_plan(robot, (), qt[0], ft[0], m=len(plan), observed=ob)
         Xn = pose_rows(robot, np.radians(plan_nom), ft[0], causes, ob)

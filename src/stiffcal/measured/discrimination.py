@@ -1196,6 +1196,19 @@ def _session_json(s: Session, res: Discrimination) -> dict:
     return out
 
 
+def _parameters_json(rm: RivalModels, m: Rival, unknown: list[int]) -> dict:
+    """A model's ``parameter_names`` and ``parameters`` [SI] (the joint compliances of the robot's parameters,
+    then each cause's, as :func:`stiffcal.measured.discrepancy.parameter_names` names them), null for a
+    compliance the data cannot identify (``unknown``) and for a parameter the old data do not determine (not
+    estimable, :func:`stiffcal.measured.discrepancy.estimability`: its minimum-norm value is round-off)."""
+    ob = rm.observed or D.Observed()
+    names = [rm.robot.joint_columns("k")[int(j)] for j in ob.model_params(rm.robot)]
+    names += [n for c in m.causes for n in D.parameter_names(c, rm.robot, ob)]
+    ok = D.estimability(rm.old_rows(m.causes))[0]
+    return {"parameter_names": names,
+            "parameters": [None if i in unknown or not ok[i] else float(b) for i, b in enumerate(m.beta)]}
+
+
 def to_json(res: Discrimination, data: str | None = None) -> dict:
     """The JSON-ready dict of a :class:`Discrimination` (fields in docs/measured-data.md); no NaN or inf."""
     rm = res.rivals
@@ -1203,9 +1216,13 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
     names = {i: list(m.causes) for i, m in enumerate(models)}
     unknown = [i for i, j in enumerate(rm.robot.params) if j + 1 in rm.verdict["nominal"]["not_identifiable_joints"]]
     which = ", ".join(rm.robot.joint_names[rm.robot.params[i]] for i in unknown)
+    absent = [rm.robot.joint_names[j - 1] for j in rm.verdict["nominal"]["not_identifiable_joints"]
+              if j - 1 not in rm.robot.params]
     notes = list(res.notes) + ([f"the data cannot identify the compliance of joint(s) {which} (the verdict's "
                                 "not_identifiable_joints): its parameter is null in models; every model keeps it as an "
                                 "unknown, so its value does not change the plan or its power"] if unknown else [])
+    notes += [f"joint(s) {', '.join(absent)} (the verdict's not_identifiable_joints) move no measured point: the "
+              "models have no parameter of theirs (parameter_names)"] if absent else []
     out = {"robot": rm.robot.source, "data": data, "alpha": rm.alpha, "sigma_m": rm.sigma, "noise_df": rm.noise_df,
            "experiments": res.m, "repeats": res.repeats, "truth_mode": res.truth,
            "loads": {"kind": res.loads.kind, "spec": res.loads.spec, "description": res.loads.describe(),
@@ -1217,8 +1234,7 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
                        "significant_on_its_own": [c for c, t in rm.verdict["tests"].items() if t["significant"]],
                        "false_alarm_possible": false_alarm_possible(rm.verdict)},
            "models": [{"causes": list(m.causes), "role": "truth" if i == 0 else "rival", "rss_m2": m.rss,
-                       "parameters": [None if i in unknown else float(b) for i, b in enumerate(m.beta)],
-                       "bonferroni_share": m.multiplicity}
+                       **_parameters_json(rm, m, unknown), "bonferroni_share": m.multiplicity}
                       for i, m in enumerate(models)],
            "separable": res.separable,
            "separability": [{"truth": names[s.truth], "rival": names[s.rival], "separable": s.separable,
