@@ -63,7 +63,7 @@ from ..planning.problem import joint_space_pool
 from . import distributions as dist
 from ..errors import InputError
 from ..jsonsafe import json_safe
-from .measurements import Measurements, rows_by_label, rows_by_value
+from .measurements import Measurements, check_displacement_size, rows_by_label, rows_by_value
 from ..model.observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
                           tool_twists)
 from ..model.observation import torques as observation_torques
@@ -79,8 +79,6 @@ RANK_RTOL = 1e-9
 #: plausible end-effector compliance of a serial robot [m/N]: industrial arms are of order 1e-6 m/N (about
 #: 1 N/um), collaborative and light arms up to about 1e-5; see the review of Appl. Sci. 2022, 12(17), 8719
 PLAUSIBLE_COMPLIANCE_M_PER_N = (1e-9, 1e-4)
-#: largest displacement, as a fraction of the reach, that an elasto-static (small-deflection) model describes
-MAX_DEFLECTION_OF_REACH = 0.02
 
 
 # --- regressors ----------------------------------------------------------------------------------------
@@ -1270,41 +1268,78 @@ def lack_of_fit_test(robot: Robot, meas: Measurements, des: Design, noise: Noise
 
 def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarray,
                  observed: Observed | None = None) -> list[str]:
-    """Remarks on identified compliances that are not physical (negative, or far outside what serial robots
-    have) and on displacements too large for an elasto-static model, each with its likely cause."""
-    notes = []
+    """Check the nominal model's identified compliances k (p,) [rad/(N m)] with their 95 % half-widths k_ci
+    against physics. Raises :class:`InputError` (no verdict is written) when the data cannot be deflections of
+    a serial robot: identified compliances below zero beyond their intervals and none above (the robot yields
+    against the loads), displacements too large for deflections
+    (:func:`stiffcal.measured.measurements.check_displacement_size`), or an end-effector compliance outside
+    :data:`PLAUSIBLE_COMPLIANCE_M_PER_N`; each message names the likely cause.
+    Returns notes on what is only doubtful: some compliances negative, or all about g = 9.81 (or 1000) times
+    the robot file's own (masses in kg logged as newtons, millimetres as metres)."""
     ob = observed or Observed.of(robot, meas)
     params = ob.model_params(robot)
+    names = robot.joint_columns("k")
+    cols = "columns fx_N.. and dx_m.."
     neg = [i for i in range(len(k)) if k[i] + k_ci[i] < 0]
+    pos = [i for i in range(len(k)) if k[i] - k_ci[i] > 0]
+    causes = ("likely causes: displacements logged as unloaded minus loaded instead of loaded minus unloaded, "
+              "forces logged with the opposite sign (the force on the tool, not the tool's on the gauge)"
+              + (", or the forces' signs lost (every force component >= 0: magnitudes only, a push along -x logged "
+                 "as +x?)" if np.all(meas.force >= 0) else "") + ", a tracker frame that does not match the robot's "
+              "base frame, or absolute positions instead of displacements")
+    if neg and not pos:
+        raise InputError(f"no identified joint compliance is above zero beyond its 95 % interval and "
+                         f"{'every one' if len(neg) == len(k) else f'{len(neg)} of {len(k)}'} below it "
+                         f"({', '.join(f'{names[int(params[i])]} = {k[i]:.3g}' for i in neg)} rad/(N m)): the robot "
+                         f"would yield against the loads, which no elastic robot does; {causes}",
+                         source=meas.source, field=cols)
+    check_displacement_size(robot, meas.dp, [f"d{a}_m" for a in "xyz"[: robot.task_dim]], meas.source)
+    c = _end_effector_compliance(robot, meas, k, ob) if np.all(k >= 0) else None
+    lo, hi = PLAUSIBLE_COMPLIANCE_M_PER_N
+    if c is not None and not lo <= c <= hi:
+        unit = ("millimetres in columns labelled metres, or forces in kN labelled N?" if c > hi else
+                "micrometres in columns labelled metres, or forces in mN labelled N?")
+        where = "above" if c > hi else "below"
+        raise InputError(f"the end-effector compliance is {c:.3g} m/N in the median, far {where} serial robots"
+                         f" ({lo:g}-{hi:g} m/N; industrial arms about 1e-6): {unit}", source=meas.source,
+                         field=cols)
+    notes = []
     if neg:
-        names = ", ".join(f"{robot.joint_columns('k')[int(params[i])]} = {k[i]:.3g}" for i in neg)
-        notes.append(f"negative compliance ({names} rad/(N m), below zero beyond its 95 % interval): a joint "
-                     "cannot push back against the load; likely causes: absolute positions instead of "
-                     "displacements in the d*_m columns, unloaded minus loaded instead of loaded minus "
-                     "unloaded, a tracker frame that does not match the robot's base frame"
-                     + (", or the forces' signs lost (every force component >= 0: magnitudes only, a push along -x "
-                        "logged as +x?)" if np.all(meas.force >= 0) else ""))
-    reach = robot.reach_m
-    size = np.median(np.linalg.norm(meas.dp, axis=1))
-    if reach > 0 and size > MAX_DEFLECTION_OF_REACH * reach:
-        notes.append(f"the displacements are {100 * size / reach:.3g} % of the reach ({reach:.3g} m) in the median: "
-                     "far more than an elastic deflection; likely causes: absolute positions instead of "
-                     "displacements, or millimetres in columns labelled metres")
+        notes.append(f"negative compliance ({', '.join(f'{names[int(params[i])]} = {k[i]:.3g}' for i in neg)} "
+                     "rad/(N m), below zero beyond its 95 % interval): a joint cannot push back against the load; "
+                     + causes)
+    return notes + _scale_notes(robot, k, params)
+
+
+def _end_effector_compliance(robot: Robot, meas: Measurements, k: np.ndarray, ob: Observed) -> float | None:
+    """The median over the loaded rows of |predicted deflection| / |F| [m/N] under compliances k; None without a
+    force."""
     pred = np.einsum("ndp,p->nd", nominal_columns(robot, meas.q, load_of(meas), ob), k)[:, : robot.task_dim]
     fmag = np.linalg.norm(meas.force, axis=1)
     ok = fmag > 0
-    if ok.any() and np.all(k >= 0):
-        c = float(np.median(np.linalg.norm(pred[ok], axis=1) / fmag[ok]))
-        lo, hi = PLAUSIBLE_COMPLIANCE_M_PER_N
-        if c > hi:
-            notes.append(f"the end-effector compliance is {c:.3g} m/N in the median, far above serial robots "
-                         f"({lo:g}-{hi:g} m/N; industrial arms about 1e-6): millimetres in columns labelled "
-                         "metres, or forces in kN labelled N?")
-        elif 0 < c < lo:
-            notes.append(f"the end-effector compliance is {c:.3g} m/N in the median, far below serial robots "
-                         f"({lo:g}-{hi:g} m/N): micrometres in columns labelled metres, or forces in mN "
-                         "labelled N?")
-    return notes
+    return float(np.median(np.linalg.norm(pred[ok], axis=1) / fmag[ok])) if ok.any() else None
+
+
+#: (factor, what it suggests) for compliances that are the robot file's times a unit factor
+_UNIT_FACTORS = ((9.80665, "masses in kg logged as newtons (fz_N = 10 for a 10 kg mass)"),
+                 (1 / 9.80665, "forces in kgf or daN logged as newtons"),
+                 (1e3, "millimetres logged as metres, or forces in kN logged as newtons"),
+                 (1e-3, "micrometres logged as millimetres, or forces in mN"))
+
+
+def _scale_notes(robot: Robot, k: np.ndarray, params: np.ndarray) -> list[str]:
+    """A note when every identified compliance is within 15 % of one unit factor times the robot file's own
+    (``compliances_rad_per_Nm``; none without them)."""
+    ref = getattr(robot, "compliances", None)
+    if ref is None or len(k) < 2 or np.any(k <= 0):
+        return []
+    ratio = k / np.asarray(ref, float)[np.asarray(params, int)]
+    for factor, what in _UNIT_FACTORS:
+        if np.all(np.abs(ratio / factor - 1.0) < 0.15):
+            return [f"every identified compliance is about {factor:.4g} times the robot file's compliances_rad_per_Nm "
+                    f"(ratios {ratio.min():.3g}-{ratio.max():.3g}): {what}? If the file's values are only a guess, "
+                    "ignore this note"]
+    return []
 
 
 #: at most this fraction of the unloaded rows (and at least one) is named as standing out (a few blunders)

@@ -524,10 +524,11 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
                               source)
     _check_loads_below_resolution(q_deg, force, moment if groups["moment"] else None, dp, target, unloaded,
                                   angle_resolution_deg, force_resolution_N, moment_resolution_Nm, cols[n:n + d], source)
-    _check_displacement_size(robot, dp[~unloaded], cols[n + d:n + 2 * d], source)
+    check_displacement_size(robot, dp[~unloaded], cols[n + d:n + 2 * d], source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
-    notes += _angle_notes(q_deg, cols[:n], robot) + _duplicate_notes(df, loaded)
+    notes += _angle_notes(q_deg, cols[:n], robot, source)
+    notes += _duplicate_notes(df, loaded[np.any(dp[loaded] != 0, axis=1)], cols[n + d:n + 2 * d], source)  # not zeros
     if zero.size:
         notes.append(f"{zero.size} unloaded row(s) ({_rows_text(zero)}) taken as the zero point, not as "
                      "measurements")
@@ -635,11 +636,12 @@ def _pose_labels(df, source: str) -> tuple[np.ndarray | None, list[str]]:
 
 
 #: a median displacement of the loaded rows above this fraction of the arm's reach is refused: no serial robot deflects
-#: that far elastically (absolute positions, or a unit 1000 too small; between 2 % and this the analysis notes it)
-MAX_DISPLACEMENT_OF_REACH = 0.10
+#: that far elastically, and an elasto-static (small-deflection) model would not describe it (absolute positions,
+#: or a unit 1000 too small)
+MAX_DISPLACEMENT_OF_REACH = 0.02
 
 
-def _check_displacement_size(robot: Robot, dp: np.ndarray, columns: list[str], source: str) -> None:
+def check_displacement_size(robot: Robot, dp: np.ndarray, columns: list[str], source: str) -> None:
     """Raise :class:`InputError` when the loaded rows' displacements ``dp`` (N, d) [m] are, in the median, more than
     :data:`MAX_DISPLACEMENT_OF_REACH` of the robot's reach: not deflections."""
     reach = robot.reach_m
@@ -933,18 +935,20 @@ RADIANS_MAX_DEG = 3.2
 RADIANS_MIN_ROWS = 10
 
 
-def _angle_notes(q_deg: np.ndarray, cols: list[str], robot: Robot) -> list[str]:
-    """Notes on joint angles that look wrong: every angle within +-RADIANS_MAX_DEG deg over many rows of a robot
-    whose joints range much wider (radians in degree columns), and angles outside the robot file's joint
-    limits (rows and joints named)."""
+def _angle_notes(q_deg: np.ndarray, cols: list[str], robot: Robot, source: str) -> list[str]:
+    """Notes on joint angles outside the robot file's joint limits (rows and joints named). Raises
+    :class:`InputError` when every angle is within +-RADIANS_MAX_DEG deg over many rows of a robot whose joints
+    range much wider: radians in degree columns (a calibration whose every pose is within 3 degrees of zero
+    could not tell the joints apart anyway)."""
     notes = []
     lims = np.degrees(robot.joint_limits_rad)
     span = float(np.max(lims[:, 1] - lims[:, 0]))
     if (len(q_deg) >= RADIANS_MIN_ROWS and np.all(np.abs(q_deg) <= RADIANS_MAX_DEG) and np.ptp(q_deg) > 0
             and span > 10 * RADIANS_MAX_DEG):
-        notes.append(f"the joint angles ({', '.join(cols)}) are all within +-{RADIANS_MAX_DEG:g} deg over "
-                     f"{len(q_deg)} rows while the robot's joints range over up to {span:.0f} deg: the angles look "
-                     "like radians; give them in degrees (x 180/pi)")
+        raise InputError(f"expected joint angles in degrees, but they are all within +-{RADIANS_MAX_DEG:g} deg over "
+                         f"{len(q_deg)} rows while the robot's joints range over up to {span:.0f} deg: the angles look "
+                         "like radians; give them in degrees (x 180/pi)", source=source,
+                         field=f"columns {', '.join(cols)}")
     if robot.has_joint_limits:
         tol = 1e-6
         for j, col in enumerate(cols):
@@ -958,9 +962,16 @@ def _angle_notes(q_deg: np.ndarray, cols: list[str], robot: Robot) -> list[str]:
     return notes
 
 
-def _duplicate_notes(df, loaded: np.ndarray) -> list[str]:
+#: exact copies of loaded rows refused as a log pasted twice: at least this many and this share of the loaded rows
+PASTED_ROWS = (2, 0.05)
+
+
+def _duplicate_notes(df, loaded: np.ndarray, displacement_columns: list[str], source: str) -> list[str]:
     """A note naming loaded rows that repeat an earlier row exactly in every column (a row pasted twice?);
-    they are kept as replicates. Unloaded rows are left out: a reference row of zeros repeats naturally."""
+    they are kept as replicates. Unloaded rows are left out: a reference row of zeros repeats naturally.
+    Raises :class:`InputError` when the copies are a block (at least :data:`PASTED_ROWS`: two rows and 5 % of the
+    loaded ones) or repeat a timestamp: no tracker reads the same displacement twice to the last digit, and kept as
+    replicates they would make a noise estimate of zero spread (a log pasted twice gave a confident false cause)."""
     sub = df.iloc[loaded].apply(lambda c: c.str.strip())
     again = np.flatnonzero(sub.duplicated(keep="first").to_numpy())
     if again.size == 0:
@@ -972,6 +983,15 @@ def _duplicate_notes(df, loaded: np.ndarray) -> list[str]:
     pairs = [(int(loaded[first[key[i]]]), int(loaded[i])) for i in again]
     text = "; ".join(f"row {b + 2} (data row {b}) repeats row {a + 2} (data row {a})" for a, b in pairs[:_MAX_LISTED])
     more = f" and {len(pairs) - _MAX_LISTED} more" if len(pairs) > _MAX_LISTED else ""
+    timed = "timestamp_s" in df.columns
+    if timed or (len(pairs) >= PASTED_ROWS[0] and len(pairs) >= PASTED_ROWS[1] * len(loaded)):
+        when = ", the time included" if timed else ""
+        raise InputError(f"expected each loaded row to be a reading of its own, but {len(pairs)} of the "
+                         f"{len(loaded)} loaded rows repeat an earlier row exactly in every column{when} "
+                         f"({text}{more}): exact copies of earlier readings (the same readings pasted twice, or "
+                         "replicates written as their average?); no tracker reads the same displacement twice to the "
+                         "last digit: remove the copies, or give every reading", source=source,
+                         field=f"columns {', '.join(displacement_columns)}")
     return [f"{len(pairs)} loaded row(s) repeat an earlier row exactly in every column ({text}{more}): a row pasted "
             "twice? They are kept as replicates"]
 
