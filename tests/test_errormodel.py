@@ -952,3 +952,18 @@ def test_a_chance_pair_of_replicates_is_not_the_noise_estimate(tmp_path):
         assert a_pair == pytest.approx(a_none, rel=0.02), found
         angles.append(a_pair)
     assert 2.4 < np.median(angles) < 3.6, angles
+
+
+def test_the_drift_rate_has_a_standard_error_that_covers_a_zero_drift():
+    """diagnostics.time's rate comes with its standard error (a fresh user read rates of 110-400 um/h on logs whose
+    drift test was not significant as findings): on clean logs (no drift; a reference per configuration with
+    revisits) every coordinate's rate is within 3.5 standard errors of zero, and the z-values scatter as the
+    standard normal's do (RMS within 0.5-1.6 over 6 seeds x 2 coordinates)."""
+    arm = R.robots(ROOT)["2-link"]
+    protocol = "hanging x3, reference per configuration, half revisited"
+    z = []
+    for s in range(6):
+        t = R.run_case("2-link", arm, protocol, (), 300 + s).verdict_with_pose_id["diagnostics"]["time"]
+        z += [r / sd for r, sd in zip(t["rate_m_per_h"], t["rate_sd_m_per_h"])]
+    z = np.array(z)
+    assert np.all(np.abs(z) < 3.5) and 0.5 < np.sqrt(np.mean(z**2)) < 1.6, z

@@ -347,12 +347,14 @@ def _unset_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) ->
     total = tau if t0 is None else tau + t0
     scale = np.abs(tau).max(axis=1, keepdims=True) + (0.0 if t0 is None else np.abs(t0).max(axis=1, keepdims=True))
     gaps = {j: cal.theta[cal.names.index(f"b{j + 1}_rad")] for j in range(robot.n_joints)
-            if f"b{j + 1}_rad" in cal.names}  # the catalogue's backlash parameters (stiffcal.model.catalogue)
+            if f"b{j + 1}_rad" in cal.names  # the catalogue's backlash parameters (stiffcal.model.catalogue)
+            and cal.estimable[cal.names.index(f"b{j + 1}_rad")]}  # a round-off value of one the data did not determine
+    #                                                                 is no jump (the notes say it is undetermined)
     unset = {j: np.flatnonzero(np.abs(total[:, j]) <= UNSET_TORQUE_FRACTION * scale[:, 0]) for j in gaps}
     unset = {j: rows for j, rows in unset.items() if rows.size and abs(gaps[j]) > 0}
     if not unset:
         return []
-    where = "; ".join(f"joint {robot.joint_names[j]} (b = {gaps[j]:.3g} rad) at data row(s) "
+    where = "; ".join(f"joint {robot.joint_names[j]} (b = {gaps[j]:.3g} rad) at row(s) (0-based) "
                       f"{', '.join(str(int(r)) for r in rows[:5])}{' ...' if rows.size > 5 else ''}"
                       for j, rows in unset.items())
     return [f"a joint with backlash carries no torque under the load: {where}; the load does not set on which side "

@@ -2116,11 +2116,13 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
         X = des.model(chosen)
         f0, f1 = fit(X, des.y), fit(np.hstack([X, CL.reshape(N * d, pos)]), des.y)
         if f1.rank > f0.rank:
-            tests["drift"] = (f1.beta[X.shape[1]:], f_test(f0.rss, f0.df, f1.rss, f1.df, em.sigma2, em.df))
+            sd = np.sqrt(em.sigma2 * np.clip(np.diag(f1.cov_unscaled)[X.shape[1]:], 0.0, None))
+            tests["drift"] = (f1.beta[X.shape[1]:], sd, f_test(f0.rss, f0.df, f1.rss, f1.df, em.sigma2, em.df))
     if not tests:
         return None, None
-    (rate, p), = tests.values()
-    out = {"p_value": p, "rate_m_per_h": None if rate is None else [float(r) * 3600 for r in rate],
+    (rate, sd, p), = tests.values()
+    out = {"p_value": p, "rate_m_per_h": [float(r) * 3600 for r in rate],
+           "rate_sd_m_per_h": [float(v) * 3600 for v in sd],
            "clock": "timestamp_s" if pre.meas.log is not None and pre.meas.log.has_time else "row order"}
     if p > alpha:
         return out, None
