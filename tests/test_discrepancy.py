@@ -408,11 +408,11 @@ def test_masses_in_kg_logged_as_newtons_are_noted_against_the_robot_files_compli
     assert not any("times the robot file's" in n for n in D.analyse(robot, meas, gain=False)["notes"])
 
 
-def test_absolute_positions_instead_of_displacements_are_flagged(paper_robot):
+def test_absolute_positions_instead_of_displacements_are_refused(paper_robot):
     meas = _simulated(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), 0)
     absolute = Measurements.from_arrays(meas.q, meas.force, paper_robot.fk(meas.q) + meas.dp, config=meas.config)
-    v = D.analyse(paper_robot, absolute, gain=False)
-    assert any("absolute positions" in n for n in v["notes"])
+    with pytest.raises(InputError, match="absolute positions"):
+        D.analyse(paper_robot, absolute, gain=False)
 
 
 @pytest.mark.parametrize("kind", ["one force direction", "one configuration", "every row a replicate",
