@@ -594,6 +594,20 @@ def test_a_pose_outside_the_joint_limits_is_refused_in_a_path(tmp_path):
     assert np.allclose(np.degrees(C.read_poses(path, robot).q), [[10, 150, 30]])
 
 
+def test_a_path_in_radians_under_degree_columns_is_refused(tmp_path, rng):
+    """A fresh user's path written in radians under q*_deg was predicted silently (every pose within 3 deg of zero);
+    refused as the measured-data reader refuses it; the same path in degrees is read."""
+    robot = load_robot(ROOT / "tests/data/lab/lab_3r.yaml")
+    q = rng.uniform(-2.5, 2.5, (12, 3))
+    path = tmp_path / "path.csv"
+    rows = lambda qq: "".join(f"{a:.6f},{b:.6f},{c:.6f},0,-100\n" for a, b, c in qq)  # noqa: E731
+    path.write_text("q1_deg,q2_deg,q3_deg,fx_N,fy_N\n" + rows(q), encoding="utf-8")
+    with pytest.raises(C.InputError, match=r"path.csv.*columns q1_deg, q2_deg, q3_deg.*look like radians"):
+        C.read_poses(path, robot)
+    path.write_text("q1_deg,q2_deg,q3_deg,fx_N,fy_N\n" + rows(np.degrees(q)), encoding="utf-8")
+    assert np.allclose(C.read_poses(path, robot).q, q, atol=1e-7)
+
+
 def test_a_joint_the_calibration_did_not_identify_moves_with_the_robot_file_s_compliance(tmp_path, calibrated_file):
     """The calibration without joint 1 (as when no load of the data turned it), the file's compliances_rad_per_Nm
     kept: the prediction adds joint 1's deflection J_1 k_1 J_1^T F with the file's k_1, so its mean equals the full

@@ -428,6 +428,7 @@ def read_poses(path, robot: Robot) -> PoseFile:
         raise InputError("no poses (the file has a header only)", source=source)
     values = M._numbers(df, qcols + fcols + (mcols if have else []), source)
     n = robot.n_joints
+    M._angle_notes(values[:, :n], qcols, robot, source)  # radians in degree columns are refused, as in measured data
     q = np.radians(values[:, :n])
     outside = np.argwhere(robot.outside_limits(q))
     if outside.size:
