@@ -529,7 +529,7 @@ def test_a_backlash_joint_without_torque_is_named_in_predictions(calibrated_file
     the joint rests, and the prediction's note says so; at (60, 10) deg the load sets it and no note is given."""
     robot = load_robot(calibrated_file[1])
     unset = C.predict(robot, np.radians([[60.0, 30.0]]), np.array([[0.0, -300.0]]))
-    assert any("a joint with backlash carries no torque under the load" in n and "data row(s) 0" in n
+    assert any("a joint with backlash carries no torque under the load" in n and "row(s) (0-based) 0" in n
                for n in unset.notes), unset.notes
     set_ = C.predict(robot, np.radians([[60.0, 10.0]]), np.array([[0.0, -300.0]]))
     assert not any("carries no torque" in n for n in set_.notes)

@@ -1294,6 +1294,7 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
                          f"would yield against the loads, which no elastic robot does; {causes}",
                          source=meas.source, field=cols)
     check_displacement_size(robot, meas.dp, [f"d{a}_m" for a in "xyz"[: robot.task_dim]], meas.source)
+    _check_rotation_unit(robot, meas, ob)
     c = _end_effector_compliance(robot, meas, k, ob) if np.all(k >= 0) else None
     lo, hi = PLAUSIBLE_COMPLIANCE_M_PER_N
     if c is not None and not lo <= c <= hi:
@@ -1309,6 +1310,38 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
                      "rad/(N m), below zero beyond its 95 % interval): a joint cannot push back against the load; "
                      + causes)
     return notes + _scale_notes(robot, k, params)
+
+
+#: the nominal model's residual RMS, in units of the noise, beyond which a note asks for the frames and units
+GROSS_MISFIT = 10.0
+#: the compliances the rotations imply, over those the positions imply, beyond this factor either way: refused
+MAX_ROTATION_UNIT_RATIO = 20.0
+
+
+def _check_rotation_unit(robot: Robot, meas: Measurements, ob: Observed) -> None:
+    """Raise :class:`InputError` when the rotation columns disagree with the positions by a unit factor: the joint
+    compliances fitted to the rotations alone over those fitted to the positions alone (the joints both determine,
+    each positive), in the median, beyond :data:`MAX_ROTATION_UNIT_RATIO` either way (degrees labelled radians give
+    57.3, mrad 1000). Nothing without rotation columns."""
+    if meas.rot is None:
+        return
+    params = ob.model_params(robot)
+    fits = []
+    for rows in (slice(0, robot.task_dim), slice(robot.task_dim, None)):
+        X = nominal_columns(robot, meas.q, load_of(meas), replace(ob, rad_weight=1.0, params=params))[:, rows]
+        y = observations(meas, replace(ob, rad_weight=1.0))[:, rows]
+        fits.append((fit(_stack(X), y.ravel()).beta, estimability(_stack(X))[0]))
+    (kp, okp), (kr, okr) = fits
+    both = okp & okr & (kp > 0) & (kr > 0)
+    if both.sum() < 2:
+        return
+    ratio = float(np.median(kr[both] / kp[both]))
+    if not 1 / MAX_ROTATION_UNIT_RATIO <= ratio <= MAX_ROTATION_UNIT_RATIO:
+        cols = Observed(orientation=True).component_names(robot)[robot.task_dim:]
+        raise InputError(f"expected the tool's rotations in radians, but they imply joint compliances {ratio:.3g} "
+                         "times those the positions imply (the median over the joints both determine): the rotations "
+                         "in degrees (57.3), mrad (1000) or urad (1e6) in columns labelled radians, or the positions' "
+                         "unit off?", source=meas.source, field=f"columns {', '.join(f'{c}_rad' for c in cols)}")
 
 
 def _end_effector_compliance(robot: Robot, meas: Measurements, k: np.ndarray, ob: Observed) -> float | None:
@@ -1874,6 +1907,12 @@ def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: floa
     m, ob, noise, vm = pre.m, pre.ob, pre.noise, pre.vm
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
     notes = plausibility(robot, m, f0.beta, k_ci, ob)
+    misfit = float(np.sqrt(f0.rss / f0.df)) / sigma if f0.df > 0 and sigma > 0 else 0.0
+    if misfit > GROSS_MISFIT:
+        notes.insert(0, f"the nominal model leaves residuals {misfit:.3g} times the noise (RMS): a misfit this large "
+                        "is rarely an effect of the catalogue's size; check first that the loads and displacements are "
+                        "in the base frame and in N, N m, m and rad (a wrench in the tool frame, a unit off), then "
+                        "read the causes and warnings below")
     params = ob.model_params(robot)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
                "k_names": [robot.joint_columns("k")[int(j)] for j in params],
@@ -2069,6 +2108,10 @@ def _return_diagnostic(robot: Robot, pre: Prepared, alpha: float):
                  "side of its gap before the reference reading (a preload), or measure loads of both signs")
 
 
+#: an RMS angle [deg] of the load's direction beyond which the scatter component is no small-angle scatter
+MAX_SCATTER_DEG = 30.0
+
+
 def _scatter_diagnostic(pre: Prepared, alpha: float, tilt: np.ndarray | None = None):
     """(``diagnostics.load_scatter`` or None, note): does the load's direction scatter push by push (a hand-held
     gauge held off the axis it logs, a mass that swings)? The rows' error model's ``load_direction`` component
@@ -2089,6 +2132,10 @@ def _scatter_diagnostic(pre: Prepared, alpha: float, tilt: np.ndarray | None = N
     out = {"p_value": comp["p_value"], "angle_rms_deg": comp["angle_rms_deg"]}
     if out["p_value"] is None or out["p_value"] > alpha:
         return out, None
+    if out["angle_rms_deg"] > MAX_SCATTER_DEG:
+        return out, (f"the rows' error model takes {out['angle_rms_deg']:.3g} deg RMS of scatter of the loads' "
+                     "direction, far beyond a small-angle scatter of a load: not a gauge held off its axis but a model "
+                     "that misfits these rows (the loads' frame or units?)")
     return out, (f"the loads' direction scatters push by push, by about {out['angle_rms_deg']:.2g} deg RMS about the "
                  f"logged one (likelihood-ratio p = {out['p_value']:.2g}): a hand-held gauge held off its axis, a "
                  "swinging mass? The rows' error model holds it as a variance component, so the tests and intervals "

@@ -525,6 +525,8 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
     _check_loads_below_resolution(q_deg, force, moment if groups["moment"] else None, dp, target, unloaded,
                                   angle_resolution_deg, force_resolution_N, moment_resolution_Nm, cols[n:n + d], source)
     check_displacement_size(robot, dp[~unloaded], cols[n + d:n + 2 * d], source)
+    if groups["moment"]:
+        _check_lever(robot, force, moment, force_resolution_N, moment_resolution_Nm, groups["moment"], source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
     notes += _angle_notes(q_deg, cols[:n], robot, source)
@@ -651,6 +653,29 @@ def check_displacement_size(robot: Robot, dp: np.ndarray, columns: list[str], so
                          f"but the loaded rows' displacements are {size:.3g} m in the median, {100 * size / reach:.3g} "
                          f"% of the arm's reach ({reach:.3g} m): no serial robot deflects that far elastically; "
                          "absolute positions, or millimetres in columns labelled metres?", source=source,
+                         field=f"columns {', '.join(columns)}")
+
+
+#: a median lever |M| / |F| of the rows loaded by both above this many times the arm's reach is refused
+MAX_LEVER_OF_REACH = 10.0
+
+
+def _check_lever(robot: Robot, force: np.ndarray, moment: np.ndarray, force_resolution_N: float,
+                 moment_resolution_Nm: float, columns: list[str], source: str) -> None:
+    """Raise :class:`InputError` when the rows loaded by a force and a moment have, in the median, a lever arm
+    |M| / |F| above :data:`MAX_LEVER_OF_REACH` times the robot's reach: a loading bar's lever is a fraction of the
+    arm, so the moments are likely in N mm (a 1000 N force and 200 N m logged as 200000)."""
+    both = (np.linalg.norm(force, axis=1) > force_resolution_N) & \
+        (np.linalg.norm(moment, axis=1) > moment_resolution_Nm)
+    reach = robot.reach_m
+    if not both.any() or reach <= 0:
+        return
+    lever = float(np.median(np.linalg.norm(moment[both], axis=1) / np.linalg.norm(force[both], axis=1)))
+    if lever > MAX_LEVER_OF_REACH * reach:
+        raise InputError(f"expected moments in N m, but the rows loaded by a force and a moment have a lever "
+                         f"|M| / |F| of {lever:.3g} m in the median, {lever / reach:.3g} times the arm's reach "
+                         f"({reach:.3g} m): no loading bar is that long; moments in N mm labelled N m (divide by "
+                         "1000)?", source=source,
                          field=f"columns {', '.join(columns)}")
 
 
