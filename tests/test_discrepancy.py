@@ -1416,3 +1416,20 @@ def test_rotations_and_moments_in_another_unit_are_refused(tmp_path, column, fac
         D.analyse(robot, read_measurements(bad, robot), 0.01, gain=False)
     if column == "rx_rad":  # the ratio it states is the unit's factor, within the noise's 10 %
         assert abs(float(re.search(words, str(err.value)).group(1)) / factor - 1) < 0.1
+
+
+def test_the_p_value_is_about_the_principal_cause_not_a_second_causes_stand_ins():
+    """A fresh user's 6-DoF log with a tracker offset (tests/data/newuser/kr210_6dof_offset_s2.csv): the verdict
+    names measurement_offset and beside it link_compliance, for which joint_coupling and backlash stand in equally
+    well. The statement said "the data need at least one of {measurement_offset, joint_coupling, backlash}", as if
+    the offset could be replaced, and left link_compliance out; the p-value is the offset's own (it cannot be
+    replaced), and the statement names the second cause with its stand-ins."""
+    robot = load_robot(Path(__file__).resolve().parents[1] / "config/robots/kuka_kr210_r2700.yaml")
+    v = D.analyse(robot, read_measurements(NEWUSER / "kr210_6dof_offset_s2.csv", robot), 0.01, gain=False)
+    assert v["cause"] == "measurement_offset" and v["causes"][1:] == ["link_compliance"]
+    assert all("measurement_offset" in S for S in v["equivalent_combinations"])
+    assert v["p_value_of"] == ["measurement_offset"]
+    assert v["p_value"] == v["tests"]["measurement_offset"]["adjusted_p_value"]
+    statement = v["p_value_statement"]
+    assert "at least one of" not in statement and "link_compliance (or, equally well, " in statement
+    assert all(c in statement.split("link_compliance (or, equally well, ")[1] for c in ("joint_coupling", "backlash"))

@@ -1848,7 +1848,8 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     out = {"cause": cause, "causes": ranked, "indistinguishable_from": indistinct,
            "equivalent_combinations": [sorted(S, key=CAUSES.index) for S in alternatives],
            "p_value": p_value, "p_value_of": p_of,
-           "p_value_statement": p_value_statement(cause, p_of, p_value, sel.adjusted, alpha),
+           "p_value_statement": p_value_statement(cause, p_of, p_value, sel.adjusted, alpha)
+           + _further_causes(ranked, p_of, alternatives),
            "alpha": alpha, "structure": meas.structure() | {"n_rows_used": int(m.n_rows)},
            "nominal": nominal, "tests": tests,
            "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
@@ -1889,12 +1890,12 @@ def _named_causes(sel: Selection, chosen: frozenset, alternatives: list, alone: 
     if sel.unexplained:
         cause, p_value, p_of = "unexplained", sel.adjusted["lack_of_fit"], ["lack_of_fit"]
     elif ranked:
-        cause = ranked[0]
-        p_of = [cause, *indistinct]
+        cause = ranked[0]  # the causes that take its place in an equally good combination (not those that take
+        p_of = [cause, *sorted({c for S in alternatives if cause not in S for c in S - chosen}, key=CAUSES.index)]
         others = sorted((c for c in testable if c not in p_of), key=lambda c: (alone[c], CAUSES.index(c)))
         while sel.adjusted_p(p_of) > alpha and others:  # the principal cause is not needed on its own: name the
             p_of.append(others.pop(0))                   # fewest causes of which the data need at least one
-        indistinct = sorted(p_of[1:], key=CAUSES.index)
+        indistinct = sorted(set(indistinct) | set(p_of[1:]), key=CAUSES.index)  # another member's place)
         p_value = sel.adjusted_p(p_of)
     else:
         cause, p_value, p_of = "none", (sel.adjusted_p(testable) if testable else 1.0), list(testable)
@@ -2240,6 +2241,19 @@ def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
                  f"(F-test p = {p:.2g}{beyond}): the load's real direction may differ from the logged one (a pulley, a "
                  "tilted fixture, a frame mismatch between the load cell and the tracker?); no catalogue cause "
                  "describes it" + (f", and {label} may only absorb it" if chosen else ""))
+
+
+def _further_causes(ranked: list[str], p_of: list[str], alternatives: list) -> str:
+    """The p-value statement's second sentence when ``causes`` holds more than the principal cause and its
+    stand-ins: the others, each with the causes that take its place in an equally good combination."""
+    rest = [c for c in ranked if c not in p_of]
+    if not rest:
+        return ""
+    parts = []
+    for c in rest:
+        swaps = sorted({x for S in alternatives if c not in S for x in S - set(ranked)}, key=CAUSES.index)
+        parts.append(c + (f" (or, equally well, {' or '.join(swaps)}: equivalent_combinations)" if swaps else ""))
+    return f"; beside it the smallest combination holds {', '.join(parts)} (how much each is needed: causes' order)"
 
 
 def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dict, alpha: float) -> str:
