@@ -428,7 +428,7 @@ def read_poses(path, robot: Robot) -> PoseFile:
         raise InputError("no poses (the file has a header only)", source=source)
     values = M._numbers(df, qcols + fcols + (mcols if have else []), source)
     n = robot.n_joints
-    M._angle_notes(values[:, :n], qcols, robot, source)  # radians in degree columns are refused, as in measured data
+    M.check_angles(values[:, :n], qcols, robot, source)  # radians in degree columns are refused, as in measured data
     q = np.radians(values[:, :n])
     outside = np.argwhere(robot.outside_limits(q))
     if outside.size:
@@ -676,6 +676,7 @@ def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarra
     _, p_r, _ = prior_information(cal, cal.sigma_m)
     m = m or int(np.ceil(p_r / robot.task_dim)) + 1
     nr = next_round(robot, test_pose, test_load, m)
+
     def rms(ot):  # null where the plan does not identify the model (O_t infinite, or below zero by round-off)
         return float(np.sqrt(ot)) if np.isfinite(ot) and ot >= 0 else None
 

@@ -2000,14 +2000,13 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
                      "or more loads of different size per configuration")
     out["time"], note = _time_diagnostic(pre, chosen, f, alpha)
     notes += [note] if note else []
-    out["load_direction"], note = _tilt_diagnostic(robot, pre, chosen, f, alpha)
+    turned = turned_load_deflections(robot, m, pre.ob, fit(pre.des.X0, pre.des.y).beta) * pre.w[:, None, None]
+    out["load_direction"], note = _tilt_diagnostic(pre, turned, chosen, alpha)
     notes += [note] if note else []
     out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
     notes += [note] if note else []
     tilted = out["load_direction"] is not None and out["load_direction"]["p_value"] <= alpha
-    tilt = turned_load_deflections(robot, m, pre.ob, fit(pre.des.X0, pre.des.y).beta) * pre.w[:, None, None] \
-        if tilted else None
-    out["load_scatter"], note = _scatter_diagnostic(pre, alpha, tilt)
+    out["load_scatter"], note = _scatter_diagnostic(pre, alpha, turned if tilted else None)
     notes += [note] if note else []
     return out, notes
 
@@ -2212,16 +2211,15 @@ def turned_load_deflections(robot: Robot, m: Measurements, ob: Observed, k: np.n
     return np.stack(cols, -1)
 
 
-def _tilt_diagnostic(robot: Robot, pre: Prepared, chosen, f: Fit, alpha: float):
+def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, chosen, alpha: float):
     """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`: the load turned by
-    a small angle added to the nominal model (the columns A(q, a x F) k of the nominal fit's k), its F-test and the
-    angle; then whether the chosen causes still add anything beyond it (when they do not, the tilt explains the data
-    as well as they do, and the warning says so)."""
+    a small angle added to the nominal model (``turned`` (N, w, 3), weighted: the columns A(q, a x F) k of the nominal
+    fit's k, :func:`turned_load_deflections`), its F-test and the angle; then whether the chosen causes still add
+    anything beyond it (when they do not, the tilt explains the data as well as they do, and the warning says so)."""
     m, des, noise = pre.m, pre.des, pre.noise
     N, d = m.n_rows, des.d
     f0 = fit(des.X0, des.y)
-    T = turned_load_deflections(robot, pre.m, pre.ob, f0.beta) * pre.w[:, None, None]
-    T = (pre.error.whiten(T) if pre.error.blocks else T).reshape(N * d, -1)
+    T = (pre.error.whiten(turned) if pre.error.blocks else turned).reshape(N * d, -1)
     f1 = fit(np.hstack([des.X0, T]), des.y)
     if f1.rank <= f0.rank:
         return None, None

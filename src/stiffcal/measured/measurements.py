@@ -529,7 +529,7 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
         _check_lever(robot, force, moment, force_resolution_N, moment_resolution_Nm, groups["moment"], source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
-    notes += _angle_notes(q_deg, cols[:n], robot, source)
+    notes += check_angles(q_deg, cols[:n], robot, source)
     notes += _duplicate_notes(df, loaded[np.any(dp[loaded] != 0, axis=1)], cols[n + d:n + 2 * d], source)  # not zeros
     if zero.size:
         notes.append(f"{zero.size} unloaded row(s) ({_rows_text(zero)}) taken as the zero point, not as "
@@ -960,7 +960,7 @@ RADIANS_MAX_DEG = 3.2
 RADIANS_MIN_ROWS = 10
 
 
-def _angle_notes(q_deg: np.ndarray, cols: list[str], robot: Robot, source: str) -> list[str]:
+def check_angles(q_deg: np.ndarray, cols: list[str], robot: Robot, source: str) -> list[str]:
     """Notes on joint angles outside the robot file's joint limits (rows and joints named). Raises
     :class:`InputError` when every angle is within +-RADIANS_MAX_DEG deg over many rows of a robot whose joints
     range much wider: radians in degree columns (a calibration whose every pose is within 3 degrees of zero
