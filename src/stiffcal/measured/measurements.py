@@ -524,13 +524,10 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
                               source)
     _check_loads_below_resolution(q_deg, force, moment if groups["moment"] else None, dp, target, unloaded,
                                   angle_resolution_deg, force_resolution_N, moment_resolution_Nm, cols[n:n + d], source)
-    check_displacement_size(robot, dp[~unloaded], cols[n + d:n + 2 * d], source)
-    if groups["moment"]:
-        _check_lever(robot, force, moment, force_resolution_N, moment_resolution_Nm, groups["moment"], source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
-    notes += check_angles(q_deg, cols[:n], robot, source)
-    notes += _duplicate_notes(df, loaded[np.any(dp[loaded] != 0, axis=1)], cols[n + d:n + 2 * d], source)  # not zeros
+    notes += _unit_checks(robot, df, q_deg, force, moment, dp, loaded, cols, groups["moment"],
+                          (force_resolution_N, moment_resolution_Nm), source)
     if zero.size:
         notes.append(f"{zero.size} unloaded row(s) ({_rows_text(zero)}) taken as the zero point, not as "
                      "measurements")
@@ -654,6 +651,19 @@ def check_displacement_size(robot: Robot, dp: np.ndarray, columns: list[str], so
                          f"% of the arm's reach ({reach:.3g} m): no serial robot deflects that far elastically; "
                          "absolute positions, or millimetres in columns labelled metres?", source=source,
                          field=f"columns {', '.join(columns)}")
+
+
+def _unit_checks(robot: Robot, df, q_deg, force, moment, dp, loaded: np.ndarray, cols: list[str], moment_cols,
+                 resolutions, source: str) -> list[str]:
+    """The reader's checks of the data's units (each raises :class:`InputError` naming the columns): the
+    displacements' size against the reach, the moments' lever against the reach, angles in radians, a log pasted
+    twice; returns the notes of the doubtful (angles outside the limits, a row repeated once)."""
+    n, d = robot.n_joints, force_dim(robot)
+    check_displacement_size(robot, dp[loaded], cols[n + d:n + 2 * d], source)
+    if moment_cols:
+        _check_lever(robot, force, moment, *resolutions, moment_cols, source)
+    notes = check_angles(q_deg, cols[:n], robot, source)
+    return notes + _duplicate_notes(df, loaded[np.any(dp[loaded] != 0, axis=1)], cols[n + d:n + 2 * d], source)
 
 
 #: a median lever |M| / |F| of the rows loaded by both above this many times the arm's reach is refused
