@@ -1433,3 +1433,5 @@ def test_the_p_value_is_about_the_principal_cause_not_a_second_causes_stand_ins(
     statement = v["p_value_statement"]
     assert "at least one of" not in statement and "link_compliance (or, equally well, " in statement
     assert all(c in statement.split("link_compliance (or, equally well, ")[1] for c in ("joint_coupling", "backlash"))
+    # each stand-in's separation advice is about the cause it stands in for
+    assert all("link_compliance" in v["separation"][c] for c in ("joint_coupling", "backlash"))

@@ -1855,7 +1855,7 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
            "lack_of_fit_adjusted_p": sel.adjusted.get("lack_of_fit"),
            "absorbed_by_nominal": [c for c in CAUSES if c not in testable],
            "outlier_rows": [int(meas.rows[r]) for r in pre.blunders],
-           "separation": {c: separation_advice(robot, ranked[0] if ranked else c, c, meas,
+           "separation": {c: separation_advice(robot, _stood_in_for(c, ranked, alternatives), c, meas,
                                                observed=pre.ob_full.take(pre.keep)) for c in indistinct},
            "zero_point": pre.zero_point, "error_model": pre.error.as_dict(), "notes": notes}
     ext = sorted(chosen, key=CAUSES.index) if ranked else []
@@ -2239,6 +2239,17 @@ def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, chosen, alpha: float):
                  f"(F-test p = {p:.2g}{beyond}): the load's real direction may differ from the logged one (a pulley, a "
                  "tilted fixture, a frame mismatch between the load cell and the tracker?); no catalogue cause "
                  "describes it" + (f", and {label} may only absorb it" if chosen else ""))
+
+
+def _stood_in_for(c: str, ranked: list[str], alternatives: list) -> str:
+    """The member of ``causes`` (``ranked``) whose place ``c`` takes in an equally good combination (the principal
+    cause when none is found, or ``c`` itself without causes): the pair its separation advice is about."""
+    for S in alternatives:
+        if c in S:
+            out = [m for m in ranked if m not in S]
+            if out:
+                return out[0]
+    return ranked[0] if ranked else c
 
 
 def _further_causes(ranked: list[str], p_of: list[str], alternatives: list) -> str:
