@@ -115,3 +115,13 @@ def test_the_real_package_closure_holds_every_module_a_step_imports():
     assert {"measured.discrepancy", "measured.errormodel", "measured.measurements", "model.robot"} <= modules
     assert not any(m == "testing" or m.startswith("testing.") for m in modules)  # the simulator is not production code
     assert all(codeversion._file(m) is not None for m in modules)
+
+
+def test_the_measured_data_steps_do_not_depend_on_the_maps():
+    """A fresh user edited a maps-only module and saw every discrepancy and discriminate job rerun (the data set's
+    test pose came from the config module, which imports the maps); docs/workflow.md says such an edit reruns the
+    map jobs, the comparison and the report."""
+    codeversion.forget()
+    for step in ("discrepancy", "discriminate"):
+        modules = codeversion.step_closure([step])[1]
+        assert not {"planning.maps", "planning._map_solver", "workflow.config"} & modules, step

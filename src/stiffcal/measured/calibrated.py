@@ -665,13 +665,15 @@ def _unidentified_at_test_pose(robot: Robot, cal, test_pose: np.ndarray, test_lo
             "file's value); a plan that identifies them needs loads that turn them (stiffcal design without --prior)"]
 
 
-def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: int | None = None) -> dict:
+def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray,
+                       m: int | None = None) -> tuple[dict, list[str]]:
     """The verdict's ``next_round``: :func:`next_round` of m poses (default: the fewest that identify the model's
     parameters alone, plus one, as :func:`stiffcal.measured.discrepancy.optimal_plan`) as RMS errors [m] at the test
     pose: ``rms_prior_m`` (the data's alone), ``rms_next_m`` (with the plan's m poses added), ``rms_fresh_m`` (the best
     m poses without the data), each null when its O_t is not finite (m poses alone cannot identify the model), and
     ``lower_bound_rms_m``;
-    ``experiments``, ``poses_deg``."""
+    ``experiments``, ``poses_deg``; and the notes of :func:`next_round` (a test load that turns a joint the
+    calibration did not identify, a test pose that moves a parameter it did not determine), for the verdict's."""
     cal = robot.calibration
     _, p_r, _ = prior_information(cal, cal.sigma_m)
     m = m or int(np.ceil(p_r / robot.task_dim)) + 1
@@ -680,9 +682,10 @@ def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarra
     def rms(ot):  # null where the plan does not identify the model (O_t infinite, or below zero by round-off)
         return float(np.sqrt(ot)) if np.isfinite(ot) and ot >= 0 else None
 
-    return {"experiments": m, "poses_deg": np.degrees(nr.poses).round(3).tolist(),
-            "rms_prior_m": rms(nr.O_t_prior), "rms_next_m": rms(nr.O_t), "rms_fresh_m": rms(nr.O_t_fresh),
-            "lower_bound_rms_m": float(np.sqrt(max(nr.lower_bound, 0.0)))}
+    return ({"experiments": m, "poses_deg": np.degrees(nr.poses).round(3).tolist(),
+             "rms_prior_m": rms(nr.O_t_prior), "rms_next_m": rms(nr.O_t), "rms_fresh_m": rms(nr.O_t_fresh),
+             "lower_bound_rms_m": float(np.sqrt(max(nr.lower_bound, 0.0)))},
+            [f"next_round: {n}" for n in nr.notes])
 
 
 def machining_path(robot: Robot, test_pose: np.ndarray, count: int = 41, span_deg: float = 20.0) -> np.ndarray:

@@ -2891,8 +2891,8 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
     nominal = replace(robot, calibration=calibrated.from_analysis(robot, pre, {**verdict, "extended": None}))
     machining = {"test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
                  **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
-    return replace(verdict, next_round=calibrated.next_round_summary(model, test_pose, test_force),
-                   machining_path=machining), cal
+    summary, notes = calibrated.next_round_summary(model, test_pose, test_force)
+    return replace(verdict, next_round=summary, machining_path=machining, notes=[*verdict.notes, *notes]), cal
 
 
 def _write_figures(robot: Robot, meas: Measurements, verdict: dict, cal, label: str, out) -> None:

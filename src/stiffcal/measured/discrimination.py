@@ -1220,7 +1220,9 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
               if j - 1 not in rm.robot.params]
     notes = list(res.notes) + ([f"the data cannot identify the compliance of joint(s) {which} (the verdict's "
                                 "not_identifiable_joints): its parameter is null in models; every model keeps it as an "
-                                "unknown, so its value does not change the plan or its power"] if unknown else [])
+                                "unknown, so its value does not change the discriminating plan or its power; ot_plan's "
+                                "O_t leaves its error out where the test load turns it (the robot file's value stands "
+                                "in)"] if unknown else [])
     notes += [f"joint(s) {', '.join(absent)} (the verdict's not_identifiable_joints) move no measured point: the "
               "models have no parameter of theirs (parameter_names)"] if absent else []
     out = {"robot": rm.robot.source, "data": data, "alpha": rm.alpha, "sigma_m": rm.sigma, "noise_df": rm.noise_df,

@@ -138,7 +138,7 @@ def fill_defaults(config: dict) -> dict:
     """``config`` (checked by :func:`check_config`) with every optional key of the schema filled in, in place and
     returned, so that rules and the report's template never meet a missing key: the schema's ``default``,
     the documented derived defaults (``measured_data[].force_N`` and ``moment_Nm``: the study's; its
-    ``test_pose_deg`` is left None when not given, :func:`data_set_test_pose` resolves it;
+    ``test_pose_deg`` is left None when not given, :func:`stiffcal.workflow.pipeline._test_pose_rad` resolves it;
     ``studies[].draw_m``: the largest of ``m_values``; ``plans`` and ``measured_data[].discriminate``: every
     default), and None for a key whose documented default is "none" (``moment_Nm``, ``sigma_rad``, a
     ``sigma_m`` estimated from the data, ``plans.pool_step_deg``, ``discriminate.loads``, ``maps``), an empty list
@@ -157,14 +157,6 @@ def fill_defaults(config: dict) -> dict:
             if entry[key] is None:
                 entry[key] = copy.deepcopy(study[key])
     return config
-
-
-def data_set_test_pose(entry: dict, study: dict, n_joints: int) -> list | None:
-    """A measured data set's test pose [deg]: its own ``test_pose_deg``, else the study's when the data set's robot
-    has as many joints (n_joints), else None (the gain's test-pose figures are then left out)."""
-    if entry.get("test_pose_deg") is not None:
-        return entry["test_pose_deg"]
-    return study["test_pose_deg"] if len(study["test_pose_deg"]) == n_joints else None
 
 
 def _fill(doc, schema: dict) -> None:

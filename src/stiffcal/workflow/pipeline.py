@@ -416,13 +416,15 @@ def map_figures(maps_by_figure: dict, out_pngs: dict, pairs_npz: str | None = No
 
 
 def _test_pose_rad(p: dict, robot):
-    """A data set's test pose [rad] (:func:`stiffcal.workflow.config.data_set_test_pose`: its own, else the study's,
-    ``study_test_pose_deg``, when the robot has that many joints), or None."""
+    """A data set's test pose [rad]: its own ``test_pose_deg``, else the study's (``study_test_pose_deg``) when the
+    data set's robot has as many joints, else None (the gain's test-pose figures are then left out). Here, not in
+    :mod:`stiffcal.workflow.config`, whose imports (the maps, the studies) would make every measured-data job rerun
+    after an edit of them."""
     import numpy as np
 
-    from .config import data_set_test_pose
-
-    pose = data_set_test_pose(p, {"test_pose_deg": p["study_test_pose_deg"]}, robot.n_joints)
+    pose = p.get("test_pose_deg")
+    if pose is None and len(p["study_test_pose_deg"]) == robot.n_joints:
+        pose = p["study_test_pose_deg"]
     return None if pose is None else np.radians(np.asarray(pose, float))
 
 
