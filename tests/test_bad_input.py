@@ -357,3 +357,19 @@ def test_a_job_stops_when_its_snakemake_process_is_killed(tmp_path):
     proc.wait()
     gone, alive = psutil.wait_procs([job], timeout=5)
     assert gone and not alive
+
+
+def test_a_misspelt_config_key_is_named_with_the_key_it_looks_like():
+    """A fresh user's typos: `sigmam:` was named as "unknown field(s) "'sigmam'"" (quoted twice) and a top-level
+    `monte_carol:` only as a missing 'monte_carlo'; both now name the misspelling and the key it looks like."""
+    from stiffcal.validation import validate
+
+    cfg = DEFAULT_CONFIG
+    typo = {**cfg, "study": {**cfg["study"], "sigmam": 1.0}}
+    with pytest.raises(InputError, match=r"field 'study': unknown field\(s\) 'sigmam' \('sigmam': did you mean "
+                                         r"'sigma_m'\?\); allowed: "):
+        validate(typo, "config", "my.yaml")
+    top = {("monte_carol" if k == "monte_carlo" else k): v for k, v in cfg.items()}
+    with pytest.raises(InputError, match=r"missing required field\(s\) 'monte_carlo' \('monte_carol': did you mean "
+                                         r"'monte_carlo'\?\)"):
+        validate(top, "config", "my.yaml")

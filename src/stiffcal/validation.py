@@ -209,6 +209,14 @@ def validate(document: Any, schema_name: str, source: str, prefix: str = "") -> 
     raise InputError(_explain(error), source=source, field=where)
 
 
+def _spelling(given: list[str], expected: list[str]) -> str:
+    """' (did you mean ...?)' for the given keys that look like misspellings of expected ones (difflib), else ''."""
+    import difflib
+
+    pairs = [(g, m[0]) for g in given if (m := difflib.get_close_matches(g, expected, n=1, cutoff=0.75))]
+    return f" ({'; '.join(f'{g!r}: did you mean {e!r}?' for g, e in pairs)})" if pairs else ""
+
+
 def _explain(error) -> str:
     """Turn a jsonschema error into 'expected ..., got ...' wording (the value shown is cut to a few dozen
     characters)."""
@@ -216,11 +224,14 @@ def _explain(error) -> str:
     got = f"got {short_repr(error.instance)}"
     if error.validator == "required":
         missing = [k for k in v if k not in error.instance]
-        return f"missing required field(s) {', '.join(repr(k) for k in missing)}"
+        extra = [str(k) for k in error.instance if str(k) not in error.schema.get("properties", {})]
+        return f"missing required field(s) {', '.join(repr(k) for k in missing)}" + _spelling(extra, missing)
     if error.validator == "additionalProperties":
-        extra = sorted(map(str, set(error.instance) - set(error.schema.get("properties", {}))))
-        allowed = ", ".join(sorted(error.schema.get("properties", {})))
-        return f"unknown field(s) {short_repr(', '.join(repr(k) for k in extra))}; allowed: {allowed}"
+        known = sorted(error.schema.get("properties", {}))
+        extra = sorted(map(str, set(error.instance) - set(known)))
+        names = ", ".join(repr(k) for k in extra)
+        return (f"unknown field(s) {names if len(names) <= 80 else names[:77] + '...'}"
+                f"{_spelling(extra, known)}; allowed: {', '.join(known)}")
     if error.validator == "enum":
         return f"expected one of {', '.join(repr(x) for x in v)}, {got}"
     if error.validator == "type":

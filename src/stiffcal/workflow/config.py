@@ -233,8 +233,8 @@ def _check_measured_entry(config: dict, entry: dict, where: str, study, root, so
     _check_lab_loads(entry, data_robot, source, where)
     force = entry.get("force_N", config["study"]["force_N"])
     moment = entry.get("moment_Nm", config["study"].get("moment_Nm"))
-    field = f"{where}.force_N" if "force_N" in entry else "study.force_N"
-    mfield = f"{where}.moment_Nm" if "moment_Nm" in entry else "study.moment_Nm"
+    field = f"{where}.force_N" + ("" if "force_N" in entry else " (not given: the study's force_N, its default)")
+    mfield = f"{where}.moment_Nm" + ("" if "moment_Nm" in entry else " (not given: the study's moment_Nm, its default)")
     from ..measured.measurements import check_noise_levels
 
     check_noise_levels("sigma_m" in entry, "sigma_rad" in entry, source, f"{where}.")
