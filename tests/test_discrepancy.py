@@ -1391,7 +1391,7 @@ def test_in_row_space_against_the_rank_of_the_stacked_matrix(rng):
 @pytest.mark.parametrize("column, factor, words", [
     ("rx_rad", 180 / np.pi, r"columns rx_rad, ry_rad, rz_rad.*rotations in radians.*compliances ([0-9.e+]+) times"),
     ("rx_rad", 1e3, r"columns rx_rad, ry_rad, rz_rad.*rotations in radians.*compliances ([0-9.e+]+) times.*mrad"),
-    ("mx_Nm", 1e3, r"columns mx_Nm, my_Nm, mz_Nm.*moments in N m.*lever.*N mm")])
+    ("mx_Nm", 1e3, r"columns mx_Nm, my_Nm, mz_Nm.*moments in N m.*divided by 1000.*N mm")])
 def test_rotations_and_moments_in_another_unit_are_refused(tmp_path, column, factor, words):
     """A fresh user's 6-DoF probe log (a loading bar's wrenches, the tool's orientation) with the rotations in
     degrees or mrad under *_rad columns, or the moments in N mm under *_Nm: each was analysed to a confident

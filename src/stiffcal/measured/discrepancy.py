@@ -1270,9 +1270,10 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
                  observed: Observed | None = None) -> list[str]:
     """Check the nominal model's identified compliances k (p,) [rad/(N m)] with their 95 % half-widths k_ci
     against physics. Raises :class:`InputError` (no verdict is written) when the data cannot be deflections of
-    a serial robot: identified compliances below zero beyond their intervals and none above (the robot yields
-    against the loads), displacements too large for deflections
-    (:func:`stiffcal.measured.measurements.check_displacement_size`), or an end-effector compliance outside
+    a serial robot: identified compliances below zero beyond their intervals (two or more, and half of them) and
+    none above (the robot yields against the loads), rotations or moments in another unit, displacements too
+    large for deflections (:func:`stiffcal.measured.measurements.check_displacement_size`), or an end-effector
+    compliance outside
     :data:`PLAUSIBLE_COMPLIANCE_M_PER_N`; each message names the likely cause.
     Returns notes on what is only doubtful: some compliances negative, or all about g = 9.81 (or 1000) times
     the robot file's own (masses in kg logged as newtons, millimetres as metres)."""
@@ -1287,14 +1288,15 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
               + (", or the forces' signs lost (every force component >= 0: magnitudes only, a push along -x logged "
                  "as +x?)" if np.all(meas.force >= 0) else "") + ", a tracker frame that does not match the robot's "
               "base frame, or absolute positions instead of displacements")
-    if neg and not pos:
+    check_displacement_size(robot, meas.dp, [f"d{a}_m" for a in "xyz"[: robot.task_dim]], meas.source)
+    _check_rotation_unit(robot, meas, ob)  # a unit off first: it can make compliances negative too
+    _check_moment_unit(robot, meas, ob)
+    if len(neg) >= max(2, len(k) // 2) and not pos:  # not one chance negative among compliances nothing determines
         raise InputError(f"no identified joint compliance is above zero beyond its 95 % interval and "
                          f"{'every one' if len(neg) == len(k) else f'{len(neg)} of {len(k)}'} below it "
                          f"({', '.join(f'{names[int(params[i])]} = {k[i]:.3g}' for i in neg)} rad/(N m)): the robot "
                          f"would yield against the loads, which no elastic robot does; {causes}",
                          source=meas.source, field=cols)
-    check_displacement_size(robot, meas.dp, [f"d{a}_m" for a in "xyz"[: robot.task_dim]], meas.source)
-    _check_rotation_unit(robot, meas, ob)
     c = _end_effector_compliance(robot, meas, k, ob) if np.all(k >= 0) else None
     lo, hi = PLAUSIBLE_COMPLIANCE_M_PER_N
     if c is not None and not lo <= c <= hi:
@@ -1342,6 +1344,26 @@ def _check_rotation_unit(robot: Robot, meas: Measurements, ob: Observed) -> None
                          "times those the positions imply (the median over the joints both determine): the rotations "
                          "in degrees (57.3), mrad (1000) or urad (1e6) in columns labelled radians, or the positions' "
                          "unit off?", source=meas.source, field=f"columns {', '.join(f'{c}_rad' for c in cols)}")
+
+
+def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed) -> None:
+    """Raise :class:`InputError` when the nominal model fits the data ten times better (residual sum of squares)
+    with the moments divided by 1000: moments in N mm in columns labelled N m (a 1000 N force with 200 N m logged
+    as 200000). Nothing without moments. (A lever |M| / |F| would misread a pure moment logged beside a load
+    cell's small force readings.)"""
+    if not meas.has_moment:
+        return
+    d = force_dim(robot)
+    rss = []
+    for scale in (1.0, 1e-3):
+        load = load_of(meas).copy()
+        load[:, d:] *= scale
+        rss.append(fit(_stack(nominal_columns(robot, meas.q, load, ob)), observations(meas, ob).ravel()).rss)
+    if rss[1] < 0.1 * rss[0]:
+        cols = [f"m{a}_Nm" for a in ("z" if robot.planar else "xyz")]
+        raise InputError(f"expected moments in N m, but the nominal model fits the data {rss[0] / rss[1]:.3g} times "
+                         "better (residual sum of squares) with them divided by 1000: moments in N mm labelled N m?",
+                         source=meas.source, field=f"columns {', '.join(cols)}")
 
 
 def _end_effector_compliance(robot: Robot, meas: Measurements, k: np.ndarray, ob: Observed) -> float | None:

@@ -526,8 +526,7 @@ def read_measurements(path: str | Path, robot: Robot, angle_resolution_deg: floa
                                   angle_resolution_deg, force_resolution_N, moment_resolution_Nm, cols[n:n + d], source)
     loaded = np.flatnonzero(~unloaded)
     zero = np.flatnonzero(unloaded)
-    notes += _unit_checks(robot, df, q_deg, force, moment, dp, loaded, cols, groups["moment"],
-                          (force_resolution_N, moment_resolution_Nm), source)
+    notes += _unit_checks(robot, df, q_deg, dp, loaded, cols, source)
     if zero.size:
         notes.append(f"{zero.size} unloaded row(s) ({_rows_text(zero)}) taken as the zero point, not as "
                      "measurements")
@@ -653,40 +652,15 @@ def check_displacement_size(robot: Robot, dp: np.ndarray, columns: list[str], so
                          field=f"columns {', '.join(columns)}")
 
 
-def _unit_checks(robot: Robot, df, q_deg, force, moment, dp, loaded: np.ndarray, cols: list[str], moment_cols,
-                 resolutions, source: str) -> list[str]:
+def _unit_checks(robot: Robot, df, q_deg, dp, loaded: np.ndarray, cols: list[str], source: str) -> list[str]:
     """The reader's checks of the data's units (each raises :class:`InputError` naming the columns): the
-    displacements' size against the reach, the moments' lever against the reach, angles in radians, a log pasted
-    twice; returns the notes of the doubtful (angles outside the limits, a row repeated once)."""
+    displacements' size against the reach, angles in radians, a log pasted twice; returns the notes of the
+    doubtful (angles outside the limits, a row repeated once). The moments' and rotations' units are checked
+    against the model by the analysis (:func:`stiffcal.measured.discrepancy.plausibility`)."""
     n, d = robot.n_joints, force_dim(robot)
     check_displacement_size(robot, dp[loaded], cols[n + d:n + 2 * d], source)
-    if moment_cols:
-        _check_lever(robot, force, moment, *resolutions, moment_cols, source)
     notes = check_angles(q_deg, cols[:n], robot, source)
     return notes + _duplicate_notes(df, loaded[np.any(dp[loaded] != 0, axis=1)], cols[n + d:n + 2 * d], source)
-
-
-#: a median lever |M| / |F| of the rows loaded by both above this many times the arm's reach is refused
-MAX_LEVER_OF_REACH = 10.0
-
-
-def _check_lever(robot: Robot, force: np.ndarray, moment: np.ndarray, force_resolution_N: float,
-                 moment_resolution_Nm: float, columns: list[str], source: str) -> None:
-    """Raise :class:`InputError` when the rows loaded by a force and a moment have, in the median, a lever arm
-    |M| / |F| above :data:`MAX_LEVER_OF_REACH` times the robot's reach: a loading bar's lever is a fraction of the
-    arm, so the moments are likely in N mm (a 1000 N force and 200 N m logged as 200000)."""
-    both = (np.linalg.norm(force, axis=1) > force_resolution_N) & \
-        (np.linalg.norm(moment, axis=1) > moment_resolution_Nm)
-    reach = robot.reach_m
-    if not both.any() or reach <= 0:
-        return
-    lever = float(np.median(np.linalg.norm(moment[both], axis=1) / np.linalg.norm(force[both], axis=1)))
-    if lever > MAX_LEVER_OF_REACH * reach:
-        raise InputError(f"expected moments in N m, but the rows loaded by a force and a moment have a lever "
-                         f"|M| / |F| of {lever:.3g} m in the median, {lever / reach:.3g} times the arm's reach "
-                         f"({reach:.3g} m): no loading bar is that long; moments in N mm labelled N m (divide by "
-                         "1000)?", source=source,
-                         field=f"columns {', '.join(columns)}")
 
 
 def _unloaded_rows(force: np.ndarray, moment: np.ndarray, force_resolution_N: float, moment_resolution_Nm: float,
