@@ -711,18 +711,38 @@ def _lab_file(tmp_path, name, edit, src="lab_3r_coupling.csv"):
 
 
 def test_angles_in_radians_in_degree_columns_are_named(tmp_path):
-    """The UR10 file with its joint angles written in radians under q_*_deg: refused, saying they look like radians
-    (every |q| < 3.2 deg over 160 rows of a robot whose joints range over 720 deg; before, a note beside a verdict);
-    the original file has no such note."""
+    """The UR10 file with its joint angles written in radians under q_*_deg: read with a note that they look like
+    radians (every |q| < 3.2 deg over 160 rows of a robot whose joints range over 720 deg), and refused by the
+    analysis, whose nominal model then misfits grossly (before, a verdict beside the note); the original file has
+    no such note. Poses truly within 3 deg of the zero pose are analysed (the next test)."""
     robot = load_robot(LAB_DIR / "ur10.yaml")
 
     def to_rad(header, rows):
         cols = [i for i, c in enumerate(header) if c.startswith("q_")]
         return header, [[f"{np.radians(float(v)):.6f}" if i in cols else v for i, v in enumerate(r)] for r in rows]
 
-    with pytest.raises(InputError, match=r"rad.csv.*columns q_shoulder_pan_joint_deg.*160 rows.*look like radians"):
-        read_measurements(_lab_file(tmp_path, "rad.csv", to_rad, "ur10_bar.csv"), robot)
+    meas = read_measurements(_lab_file(tmp_path, "rad.csv", to_rad, "ur10_bar.csv"), robot)
+    assert any("q_shoulder_pan_joint_deg" in n and "160 rows" in n and "look like radians" in n for n in meas.notes)
+    with pytest.raises(InputError, match=r"rad.csv.*columns q_shoulder_pan_joint_deg.*80 rows.*misfits.*look "
+                                         r"like radians"):
+        D.analyse(robot, meas, 0.01, gain=False)
     assert not any("radians" in n for n in read_measurements(LAB_DIR / "ur10_bar.csv", robot).notes)
+
+
+def test_poses_within_three_degrees_of_a_bent_home_pose_are_analysed(rng):
+    """A fresh user's 6-axis arm measured within +-3 deg of its zero pose (bent by its DH offsets) was refused as
+    "radians in degree columns": the data are valid, the nominal model fits them (no refusal), and the compliances
+    are within their intervals of the truth in at least 5 of the 6 joints."""
+    robot = R.robots(Path(__file__).resolve().parents[1])["6-axis"]
+    q = np.radians(rng.uniform(-3.0, 3.0, (40, robot.n_joints)))
+    q = np.repeat(q, 3, axis=0)
+    f = np.tile([[600.0, 0.0, 0.0], [0.0, 600.0, 0.0], [0.0, 0.0, -600.0]], (40, 1))
+    k = R.compliances(robot)
+    dp = T.simulate(robot, T.Truth(k), q, f, 1e-5, rng)
+    v = D.analyse(robot, Measurements.from_arrays(q, f, dp), 0.01, gain=False)
+    nom = v["nominal"]
+    inside = np.abs(np.array(nom["k"]) - k[np.array(nom["k_joints"]) - 1]) <= np.array(nom["k_ci95"])
+    assert inside.sum() >= len(inside) - 1, (nom["k"], nom["k_ci95"])
 
 
 def test_forces_in_kilonewtons_are_suspected_when_every_row_looks_unloaded(tmp_path):
@@ -1435,3 +1455,33 @@ def test_the_p_value_is_about_the_principal_cause_not_a_second_causes_stand_ins(
     assert all(c in statement.split("link_compliance (or, equally well, ")[1] for c in ("joint_coupling", "backlash"))
     # each stand-in's separation advice is about the cause it stands in for
     assert all("link_compliance" in v["separation"][c] for c in ("joint_coupling", "backlash"))
+
+
+def test_valid_logs_that_looked_like_unit_mistakes_are_analysed(tmp_path, paper_robot):
+    """Two valid logs a fresh user found refused: (a) pure moments from a torque wrench on the 6-axis arm with a
+    load cell reading 2 N of force noise beside them (the end-effector compliance divided the moment's deflection
+    by that noise: 1.2e-4 m/N, "forces in kN?"); (b) five replicates per (pose, load) printed to 1 um with 1 um of
+    noise and no timestamps, where readings coincide by chance (refused as "a log pasted twice"). Both are analysed
+    now, the compliances within their intervals of the truth (all but one joint)."""
+    robot = R.robots(Path(__file__).resolve().parents[1])["6-axis"]
+    rng = np.random.default_rng(11)
+    k = R.compliances(robot)
+    q = np.repeat(np.radians(rng.uniform(-120, 120, (12, robot.n_joints))), 6, axis=0)
+    m = np.tile(np.vstack([300.0 * np.eye(3), -300.0 * np.eye(3)]), (12, 1))
+    force = rng.normal(0.0, 2.0, (len(q), 3))
+    dp = T.simulate(robot, T.Truth(k), q, force, 1e-5, rng, moment=m)
+    v = D.analyse(robot, Measurements.from_arrays(q, force, dp, moment=m), 0.01, gain=False)
+    nom = v["nominal"]
+    inside = np.abs(np.array(nom["k"]) - k[np.array(nom["k_joints"]) - 1]) <= np.array(nom["k_ci95"])
+    assert inside.sum() >= len(inside) - 1, (nom["k"], nom["k_ci95"])
+    kp = np.array([1.6e-6, 3.3e-6])
+    qd = np.repeat(rng.uniform(-150, 150, (9, 2)), 20, axis=0)
+    f = np.tile(np.repeat([[20.0, 0.0], [-20.0, 0.0], [0.0, 20.0], [0.0, -20.0]], 5, axis=0), (9, 1))
+    dp = np.round(T.simulate(paper_robot, T.Truth(kp), np.radians(qd), f, 1e-6, rng), 6)
+    path = tmp_path / "coarse.csv"
+    rows = [f"{a:.4f},{b:.4f},{c:g},{d:g},{x:.6f},{y:.6f}\n" for (a, b), (c, d), (x, y) in zip(qd, f, dp)]
+    path.write_text("q1_deg,q2_deg,fx_N,fy_N,dx_m,dy_m\n" + "".join(rows), encoding="utf-8")
+    meas = read_measurements(path, paper_robot)
+    assert any("repeat an earlier row exactly" in n for n in meas.notes)  # some readings coincide by chance
+    v = D.analyse(paper_robot, meas, 0.01, gain=False)
+    assert np.all(np.abs(np.array(v["nominal"]["k"]) - kp) <= 2 * np.array(v["nominal"]["k_ci95"]))

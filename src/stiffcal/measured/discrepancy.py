@@ -63,7 +63,7 @@ from ..planning.problem import joint_space_pool
 from . import distributions as dist
 from ..errors import InputError
 from ..jsonsafe import json_safe
-from .measurements import Measurements, check_displacement_size, rows_by_label, rows_by_value
+from .measurements import Measurements, check_displacement_size, looks_like_radians, rows_by_label, rows_by_value
 from ..model.observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
                           tool_twists)
 from ..model.observation import torques as observation_torques
@@ -1316,6 +1316,10 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
 
 #: the nominal model's residual RMS, in units of the noise, beyond which a note asks for the frames and units
 GROSS_MISFIT = 10.0
+#: ... and beyond which joint angles that look like radians (all within 3.2 deg of zero) are refused as radians
+RADIANS_MISFIT = 3.0
+#: ... or whose lack of fit has a p-value below this
+RADIANS_LACK_OF_FIT_P = 1e-6
 #: the compliances the rotations imply, over those the positions imply, beyond this factor either way: refused
 MAX_ROTATION_UNIT_RATIO = 20.0
 
@@ -1367,9 +1371,12 @@ def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed) -> None:
 
 
 def _end_effector_compliance(robot: Robot, meas: Measurements, k: np.ndarray, ob: Observed) -> float | None:
-    """The median over the loaded rows of |predicted deflection| / |F| [m/N] under compliances k; None without a
-    force."""
-    pred = np.einsum("ndp,p->nd", nominal_columns(robot, meas.q, load_of(meas), ob), k)[:, : robot.task_dim]
+    """The median over the rows with a force of |C(q) F| / |F| [m/N] under compliances k (the force's part of the
+    load alone: a pure moment beside a load cell's small force readings would otherwise divide the moment's
+    deflection by the force's noise); None without a force."""
+    load = load_of(meas).copy()
+    load[:, force_dim(robot):] = 0.0
+    pred = np.einsum("ndp,p->nd", nominal_columns(robot, meas.q, load, ob), k)[:, : robot.task_dim]
     fmag = np.linalg.norm(meas.force, axis=1)
     ok = fmag > 0
     return float(np.median(np.linalg.norm(pred[ok], axis=1) / fmag[ok])) if ok.any() else None
@@ -1931,6 +1938,13 @@ def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: floa
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
     notes = plausibility(robot, m, f0.beta, k_ci, ob)
     misfit = float(np.sqrt(f0.rss / f0.df)) / sigma if f0.df > 0 and sigma > 0 else 0.0
+    misfits = misfit > RADIANS_MISFIT or (lof_nominal is not None and lof_nominal < RADIANS_LACK_OF_FIT_P)
+    why = looks_like_radians(np.degrees(m.q), robot) if misfits else None
+    if why:
+        lof = "" if lof_nominal is None else f", lack of fit p = {lof_nominal:.2g}"
+        raise InputError(f"expected joint angles in degrees, but {why}, and the nominal model misfits them (residuals "
+                         f"{misfit:.3g} times the noise{lof}): the angles look like radians; give them in degrees (x "
+                         "180/pi)", source=m.source, field=f"columns {', '.join(robot.joint_columns('q', '_deg'))}")
     if misfit > GROSS_MISFIT:
         notes.insert(0, f"the nominal model leaves residuals {misfit:.3g} times the noise (RMS): a misfit this large "
                         "is rarely an effect of the catalogue's size; check first that the loads and displacements are "

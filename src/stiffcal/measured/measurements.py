@@ -659,7 +659,7 @@ def _unit_checks(robot: Robot, df, q_deg, dp, loaded: np.ndarray, cols: list[str
     against the model by the analysis (:func:`stiffcal.measured.discrepancy.plausibility`)."""
     n, d = robot.n_joints, force_dim(robot)
     check_displacement_size(robot, dp[loaded], cols[n + d:n + 2 * d], source)
-    notes = check_angles(q_deg, cols[:n], robot, source)
+    notes = check_angles(q_deg, cols[:n], robot, source, refuse=False)
     return notes + _duplicate_notes(df, loaded[np.any(dp[loaded] != 0, axis=1)], cols[n + d:n + 2 * d], source)
 
 
@@ -944,20 +944,31 @@ RADIANS_MAX_DEG = 3.2
 RADIANS_MIN_ROWS = 10
 
 
-def check_angles(q_deg: np.ndarray, cols: list[str], robot: Robot, source: str) -> list[str]:
-    """Notes on joint angles outside the robot file's joint limits (rows and joints named). Raises
-    :class:`InputError` when every angle is within +-RADIANS_MAX_DEG deg over many rows of a robot whose joints
-    range much wider: radians in degree columns (a calibration whose every pose is within 3 degrees of zero
-    could not tell the joints apart anyway)."""
-    notes = []
-    lims = np.degrees(robot.joint_limits_rad)
-    span = float(np.max(lims[:, 1] - lims[:, 0]))
+def looks_like_radians(q_deg: np.ndarray, robot: Robot) -> str | None:
+    """Why the joint angles q_deg (N, n) [deg] look like radians (every angle within +-RADIANS_MAX_DEG deg over
+    RADIANS_MIN_ROWS rows or more, of a robot whose joints range over more than ten times that), else None."""
+    span = float(np.max(np.degrees(robot.joint_limits_rad[:, 1] - robot.joint_limits_rad[:, 0])))
     if (len(q_deg) >= RADIANS_MIN_ROWS and np.all(np.abs(q_deg) <= RADIANS_MAX_DEG) and np.ptp(q_deg) > 0
             and span > 10 * RADIANS_MAX_DEG):
-        raise InputError(f"expected joint angles in degrees, but they are all within +-{RADIANS_MAX_DEG:g} deg over "
-                         f"{len(q_deg)} rows while the robot's joints range over up to {span:.0f} deg: the angles look "
-                         "like radians; give them in degrees (x 180/pi)", source=source,
-                         field=f"columns {', '.join(cols)}")
+        return (f"they are all within +-{RADIANS_MAX_DEG:g} deg over {len(q_deg)} rows while the robot's joints range "
+                f"over up to {span:.0f} deg")
+    return None
+
+
+def check_angles(q_deg: np.ndarray, cols: list[str], robot: Robot, source: str, refuse: bool = True) -> list[str]:
+    """Notes on joint angles outside the robot file's joint limits (rows and joints named), and on angles that
+    :func:`looks_like_radians`: with ``refuse`` (a path to predict or compensate) an :class:`InputError`, else a
+    note (measured data: poses within 3 degrees of a bent home pose are valid; the analysis refuses them when
+    the model also misfits, :func:`stiffcal.measured.discrepancy.plausibility`)."""
+    notes = []
+    lims = np.degrees(robot.joint_limits_rad)
+    why = looks_like_radians(q_deg, robot)
+    if why and refuse:
+        raise InputError(f"expected joint angles in degrees, but {why}: the angles look like radians; give them in "
+                         "degrees (x 180/pi)", source=source, field=f"columns {', '.join(cols)}")
+    if why:
+        notes.append(f"the joint angles ({', '.join(cols)}) look like radians: {why}; if they are, give them in "
+                     "degrees (x 180/pi)")
     if robot.has_joint_limits:
         tol = 1e-6
         for j, col in enumerate(cols):
@@ -978,9 +989,11 @@ PASTED_ROWS = (2, 0.05)
 def _duplicate_notes(df, loaded: np.ndarray, displacement_columns: list[str], source: str) -> list[str]:
     """A note naming loaded rows that repeat an earlier row exactly in every column (a row pasted twice?);
     they are kept as replicates. Unloaded rows are left out: a reference row of zeros repeats naturally.
-    Raises :class:`InputError` when the copies are a block (at least :data:`PASTED_ROWS`: two rows and 5 % of the
-    loaded ones) or repeat a timestamp: no tracker reads the same displacement twice to the last digit, and kept as
-    replicates they would make a noise estimate of zero spread (a log pasted twice gave a confident false cause)."""
+    Raises :class:`InputError` when the copies repeat a timestamp, or are a block (at least :data:`PASTED_ROWS`:
+    two rows and 5 % of the loaded ones, 80 % of them at one distance from their originals; replicates printed at a
+    coarse resolution coincide by chance, at scattered distances): no tracker reads the same displacement twice to
+    the last digit, and kept as replicates the copies would make a noise estimate of zero spread (a log pasted
+    twice gave a confident false cause)."""
     sub = df.iloc[loaded].apply(lambda c: c.str.strip())
     again = np.flatnonzero(sub.duplicated(keep="first").to_numpy())
     if again.size == 0:
@@ -993,7 +1006,9 @@ def _duplicate_notes(df, loaded: np.ndarray, displacement_columns: list[str], so
     text = "; ".join(f"row {b + 2} (data row {b}) repeats row {a + 2} (data row {a})" for a, b in pairs[:_MAX_LISTED])
     more = f" and {len(pairs) - _MAX_LISTED} more" if len(pairs) > _MAX_LISTED else ""
     timed = "timestamp_s" in df.columns
-    if timed or (len(pairs) >= PASTED_ROWS[0] and len(pairs) >= PASTED_ROWS[1] * len(loaded)):
+    shift = np.bincount([b - a for a, b in pairs]).max()  # a pasted block repeats rows at one distance
+    if timed or (len(pairs) >= PASTED_ROWS[0] and len(pairs) >= PASTED_ROWS[1] * len(loaded)
+                 and shift >= 0.8 * len(pairs)):
         when = ", the time included" if timed else ""
         raise InputError(f"expected each loaded row to be a reading of its own, but {len(pairs)} of the "
                          f"{len(loaded)} loaded rows repeat an earlier row exactly in every column{when} "
