@@ -181,3 +181,19 @@ def test_joint_frames_and_tool_frame_give_the_6d_jacobian_of_any_tip_point(kind,
             np.testing.assert_allclose(axes[:, j], _rotation_vector(Rp @ np.swapaxes(Rm, -1, -2)) / (2 * h), atol=1e-8)
     tool = np.zeros(3) if robot.tool_m is None else robot.tool_m
     np.testing.assert_allclose((p + R @ tool)[:, :robot.task_dim], robot.fk(q), atol=1e-14)
+
+
+def test_angles_at_a_limit_are_printed_within_it(rng):
+    """A fresh user's strict check found poses at the Panda's 2.8973 rad limit printed as 166.003062 deg, 2.9e-10
+    rad past it (rounding outward); round_within rounds a value past a limit to the limit rounded inward, and
+    leaves every other value as np.round gives it (checked against np.round on random angles within the limits)."""
+    from stiffcal.model.robot import round_within
+
+    lim = np.degrees([[-2.8973, 2.8973], [-1.7628, 1.7628]])
+    at = np.array([[lim[0, 1], lim[1, 0]]])
+    out = round_within(at, lim)
+    assert np.all(np.radians(out) <= np.radians(lim[:, 1])) and np.all(np.radians(out) >= np.radians(lim[:, 0]))
+    assert np.all(np.abs(out - at) <= 1e-6)
+    inner = rng.uniform(lim[:, 0] + 1e-3, lim[:, 1] - 1e-3, (1000, 2))
+    np.testing.assert_array_equal(round_within(inner, lim), np.round(inner, 6) + 0.0)
+    np.testing.assert_array_equal(round_within(inner, None, 3), np.round(inner, 3) + 0.0)

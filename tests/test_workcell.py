@@ -672,3 +672,30 @@ def test_the_cell_s_engine_is_shared_by_equal_geometry_and_rebuilt_for_any_other
     q = np.radians([[-20.0, 0.0]])  # the tip 0.34 m below the base, 0.68 m once scaled: the floor is at -0.5 m
     assert feasible(robot, q)[0] and not feasible(longer, q)[0]
     assert feasible(robot, q)[0]  # asked again after the long arm's engine was built: still the short arm's answer
+
+
+def test_the_next_round_plans_in_the_cell_the_data_were_analysed_in(tmp_path):
+    """A fresh user's Panda: `discrepancy --cell` wrote a calibrated.yaml without the cell, and `design --prior` with
+    a robot file without a cell planned poses through the table. The calibrated file keeps the cell given apart,
+    and a next round whose robot file has none plans in the prior's, with a note; every pose passes the
+    dense-sample check written here. Limits wider than the robot file's are refused (a plan beyond them cannot
+    be run), on the command line and in the API."""
+    robot_file = tmp_path / "arm.yaml"
+    robot_file.write_text(PLANAR_CELL.split("cell:")[0])
+    cell_file = tmp_path / "cell.yaml"
+    cell_file.write_text("\n".join(line[2:] for line in PLANAR_CELL.split("cell:\n")[1].splitlines()) + "\n")
+    out = tmp_path / "out"
+    stiffcal.analyse_measurements(str(robot_file), str(ROOT / "data/synthetic_paper_2r.csv"), cell=str(cell_file),
+                                  out=str(out), test_pose_deg=[60, 30], force_N=[0, -300], figures=False)
+    import yaml
+
+    doc = yaml.safe_load((out / "calibrated.yaml").read_text())
+    assert doc["cell"]["floor_m"] == -0.1 and doc["cell"]["boxes"][0]["name"] == "fixture"
+    res = stiffcal.plan_next_round(str(out / "calibrated.yaml"), [60, 30], [0, -300], experiments=3,
+                                   robot=str(robot_file))
+    assert any("the prior's" in n and "is the next round's" in n for n in res["notes"])
+    robot = load_robot(robot_file)
+    for pose in res["poses_deg"]:
+        assert _planar_violations(_points_along(robot, pose)) == (False, False), pose
+    with pytest.raises(InputError, match=r"joint_limits_deg\[1\].*within joint 2's robot file's limits \[-150, 150\]"):
+        stiffcal.design(robot_file, [60, 30], [0, -1], joint_limits_deg=[[-180, 180], [-170, 170]])

@@ -28,7 +28,7 @@ from .errors import InputError, short_repr
 from .jsonsafe import _json_number, json_safe  # noqa: F401  (re-exported: part of this module's API)
 from .measured.results import DiscriminationPlan, Verdict
 from .limits import (MAX_DESIGN_EXPERIMENTS, MAX_DISCRIMINATE_EXPERIMENTS, MAX_FORCE_N, MAX_MOMENT_NM, MIN_LOAD)
-from .model.robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot
+from .model.robot import MAX_JOINT_ANGLE_DEG, TOOL_TARGET, Robot, load_robot, round_within
 
 __all__ = ["DesignResult", "design", "analyse_measurements", "load_robot", "float_list"]
 
@@ -174,15 +174,15 @@ class DesignResult:
         return json_safe({
             "criterion": self.criterion, "criterion_label": self.criterion_label, "robot": self.robot,
             "joint_names": list(self.joint_names), "experiments": self.experiments,
-            "poses_deg": [[round(float(a), 6) + 0.0 for a in p] for p in self.poses_deg],
+            "poses_deg": round_within(self.poses_deg, self.joint_limits_deg).tolist(),
             "O_t": _json_number(self.O_t), "O_t_star": self.O_t_star, "chi": _json_number(self.chi),
             "cov_diag": [_json_number(v) for v in self.cov_diag],
             "lower_bound": self.lower_bound,
             "gap": None if self.gap is None else _json_number(self.gap),
             "lower_bound_converged": self.lower_bound_converged,
-            "optimal_set_deg": [[round(float(a), 6) + 0.0 for a in p] for p in self.optimal_set_deg],
+            "optimal_set_deg": round_within(self.optimal_set_deg, self.joint_limits_deg).tolist(),
             "degenerate": self.degenerate,
-            "approximate_design": {"support_deg": np.round(d["support_deg"], 6).tolist(),
+            "approximate_design": {"support_deg": round_within(d["support_deg"], self.joint_limits_deg).tolist(),
                                    "weights": np.round(d["weights"], 9).tolist(),
                                    "equivalence_gap": d["equivalence_gap"], "converged": d["converged"]},
             "notes": list(self.notes), "sigma": self.sigma, "seed": self.seed,
@@ -892,6 +892,11 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
                              f"against {', '.join(robot.joint_names)} of the robot", source=prior.source,
                              field="prior")
         robot = replace(robot, calibration=C.from_dict(prior.calibration.to_dict(), robot, prior.source))
+    inherited = []
+    if cell is None and robot.cell is None and prior.cell is not None:  # the prior's cell, not none at all
+        robot = replace(robot, cell=prior.cell)
+        inherited.append(f"the robot file has no cell: the prior's ({prior.cell.describe()}) is the next round's; "
+                         "give --cell to plan in another")
     robot = _placed(robot, joint_limits_deg, cell)
     force, moment, field_ = load_arguments(robot, force_N, wrench)
     q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG), force,
@@ -902,16 +907,17 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     load = np.r_[force, [] if moment is None else moment]
     with one_blas_thread():
         nr = C.next_round(robot, np.radians(q_t), load, m, sigma, seed=seed)
+    limits = np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None
     return json_safe({
         "robot": robot.name, "prior": prior.source, "experiments": m, "causes": list(nr.causes),
-        "joint_names": list(robot.joint_names), "poses_deg": np.degrees(nr.poses).round(6).tolist(),
+        "joint_names": list(robot.joint_names), "poses_deg": round_within(np.degrees(nr.poses), limits).tolist(),
         "O_t": nr.O_t, "O_t_prior": nr.O_t_prior, "O_t_fresh": nr.O_t_fresh,
         "rms_m": math.sqrt(nr.O_t), "rms_prior_m": math.sqrt(nr.O_t_prior), "rms_fresh_m": math.sqrt(nr.O_t_fresh)
         if math.isfinite(nr.O_t_fresh) else math.inf, "lower_bound": nr.lower_bound,
         "gap": nr.O_t / nr.lower_bound - 1.0 if nr.lower_bound > 0 else None,
         "lower_bound_over": f"every plan of {m} of the {nr.pool_size} candidate poses, with the old information added",
-        "approximate_design": {"support_deg": np.degrees(nr.support).round(6).tolist(),
+        "approximate_design": {"support_deg": round_within(np.degrees(nr.support), limits).tolist(),
                                "weights": nr.weights.tolist(), "equivalence_gap": nr.equivalence_gap},
         "parameter_names": list(nr.names), "cov_diag": nr.cov_diag.tolist(), "sigma_m": nr.sigma_m, "seed": seed,
         "test_pose_deg": q_t.tolist(), "force_N": force.tolist(),
-        "moment_Nm": None if moment is None else np.asarray(moment).tolist(), "notes": list(nr.notes)})
+        "moment_Nm": None if moment is None else np.asarray(moment).tolist(), "notes": inherited + list(nr.notes)})

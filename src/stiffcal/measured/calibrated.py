@@ -81,6 +81,7 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     keys (a URDF given directly: a robot file of kind ``urdf`` naming it and its frames; the paths of a URDF and of
     a cell's SRDF made relative to ``out_dir``), ``compliances_rad_per_Nm`` replaced when every joint's is
     identified and positive (else the file's own, or none), and the ``calibration`` section."""
+    import json
     import os
 
     from ..validation import read_yaml
@@ -99,6 +100,8 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
 
     if doc.get("kind") == "urdf":
         doc["urdf"] = moved(doc["urdf"])
+    if robot.cell is not None and "cell" not in doc:  # a cell given apart (--cell): the next round plans in it too
+        doc["cell"] = json.loads(robot.cell.spec)
     if isinstance(doc.get("cell"), dict) and doc["cell"].get("srdf"):
         doc["cell"] = {**doc["cell"], "srdf": moved(doc["cell"]["srdf"])}
     doc.pop("calibration", None)
@@ -682,7 +685,10 @@ def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarra
     def rms(ot):  # null where the plan does not identify the model (O_t infinite, or below zero by round-off)
         return float(np.sqrt(ot)) if np.isfinite(ot) and ot >= 0 else None
 
-    return ({"experiments": m, "poses_deg": np.degrees(nr.poses).round(3).tolist(),
+    from ..model.robot import round_within
+
+    limits = np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None
+    return ({"experiments": m, "poses_deg": round_within(np.degrees(nr.poses), limits, 3).tolist(),
              "rms_prior_m": rms(nr.O_t_prior), "rms_next_m": rms(nr.O_t), "rms_fresh_m": rms(nr.O_t_fresh),
              "lower_bound_rms_m": float(np.sqrt(max(nr.lower_bound, 0.0)))},
             [f"next_round: {n}" for n in nr.notes])

@@ -67,7 +67,7 @@ from .measurements import Measurements, check_displacement_size, looks_like_radi
 from ..model.observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
                           tool_twists)
 from ..model.observation import torques as observation_torques
-from ..model.robot import TOOL_TARGET, Robot, as_xyz
+from ..model.robot import TOOL_TARGET, Robot, as_xyz, round_within
 from .errormodel import INFLATION_NOTE
 from .errormodel import KINDS as EMKINDS
 from .errormodel import flat_index
@@ -2785,9 +2785,10 @@ def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict 
         scale = np.sqrt(np.mean(Xn**2, axis=(0, 1)))
         scale[scale == 0] = 1.0
         ot_nom_plan = _ot_of(Xn / scale, Xt1 / scale)
-        out.update({"optimal_plan_extended_deg": plan.round(3).tolist(),
+        limits = np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None
+        out.update({"optimal_plan_extended_deg": round_within(plan, limits, 3).tolist(),
                     "optimal_plan_extended_rms_m": float(np.sqrt(s2 * ot_ext)),
-                    "nominal_plan_deg": plan_nom.round(3).tolist(),
+                    "nominal_plan_deg": round_within(plan_nom, limits, 3).tolist(),
                     "nominal_plan_under_extended_rms_m": float(np.sqrt(s2 * ot_nom_plan))})
     return out
 

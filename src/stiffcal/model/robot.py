@@ -758,10 +758,24 @@ def with_gravity(robot: Robot, gravity, src: str, field: str = "gravity") -> Rob
     return replace(robot, gravity=tuple(float(v) for v in g / np.linalg.norm(g)))
 
 
+def round_within(deg, limits_deg, decimals: int = 6) -> np.ndarray:
+    """Joint angles deg (..., n) [deg] rounded to ``decimals``, a value the rounding would put past its joint's limit
+    (limits_deg (n, 2) [deg], or None) held at the limit rounded inward: a pose at a limit is printed within it
+    (a controller checks its limits strictly). -0.0 is written 0.0."""
+    out = np.round(np.asarray(deg, float), decimals)
+    if limits_deg is not None:
+        f = 10.0 ** decimals
+        lim = np.asarray(limits_deg, float)
+        out = np.clip(out, np.ceil(lim[:, 0] * f - 1e-6) / f, np.floor(lim[:, 1] * f + 1e-6) / f)
+    return out + 0.0
+
+
 def narrowed_limits(robot: Robot, limits_deg, src: str | None, field: str = "joint_limits_deg",
-                    within_urdf: bool = False) -> Robot:
+                    within_urdf: bool = True) -> Robot:
     """``robot`` with the joint limits ``limits_deg`` (n [lower, upper] pairs [deg], within +-720); with
-    ``within_urdf``, each within its URDF joint's own limits (a robot file narrows a URDF's limits). Raises
+    ``within_urdf`` (always, but for a robot file's own first limits), each within the robot's limits of that
+    joint where it has any (a URDF's, or the robot file's: limits given in a robot file over a URDF, in a study or
+    on the command line narrow them, never widen them: a plan beyond the arm's own limits cannot be run). Raises
     :class:`InputError` naming ``src`` and ``field``."""
     if isinstance(limits_deg, np.ndarray):
         limits_deg = limits_deg.tolist()
@@ -786,10 +800,11 @@ def narrowed_limits(robot: Robot, limits_deg, src: str | None, field: str = "joi
                              f"[{lo:g}, {hi:g}]", source=src, field=f"{field}[{j}]")
         if within_urdf and robot.limited[j]:
             ulo, uhi = np.degrees(robot.joint_limits_rad[j])
+            whose = "URDF" if robot.kind == "urdf" else "robot file's"
             if lo < ulo - 1e-9 or hi > uhi + 1e-9:
-                raise InputError(f"expected limits within joint {robot.joint_names[j]}'s URDF limits [{ulo:g}, "
-                                 f"{uhi:g}] deg (a robot file narrows them), got [{lo:g}, {hi:g}]", source=src,
-                                 field=f"{field}[{j}]")
+                raise InputError(f"expected limits within joint {robot.joint_names[j]}'s {whose} limits [{ulo:g}, "
+                                 f"{uhi:g}] deg (joint_limits_deg narrows them, never widens them), got [{lo:g}, "
+                                 f"{hi:g}]", source=src, field=f"{field}[{j}]")
         lim.append((lo, hi))
     return replace(robot, joint_limits_rad=np.radians(np.array(lim)), has_joint_limits=True, unlimited_joints=())
 
