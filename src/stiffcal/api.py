@@ -860,6 +860,32 @@ def _write_whole(path: Path, text: str) -> None:
     tmp.replace(path)
 
 
+def _next_round_robot(prior, robot, joint_limits_deg, cell):
+    """(the prior, the robot the next round measures with the prior's calibration, placed in its limits and cell,
+    notes) of :func:`plan_next_round`; the prior's cell when neither the robot nor ``cell`` gives one."""
+    from dataclasses import replace
+
+    from .measured import calibrated as C
+
+    prior = _robot(prior)
+    if getattr(prior, "calibration", None) is None:
+        raise InputError("expected a calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy): this one has "
+                         "no calibration section", source=prior.source, field="prior")
+    robot = prior if robot is None else _robot(robot)
+    if robot is not prior:
+        if robot.joint_names != prior.joint_names:
+            raise InputError(f"the prior is a calibration of another robot: joints {', '.join(prior.joint_names)} "
+                             f"against {', '.join(robot.joint_names)} of the robot", source=prior.source,
+                             field="prior")
+        robot = replace(robot, calibration=C.from_dict(prior.calibration.to_dict(), robot, prior.source))
+    notes = []
+    if cell is None and robot.cell is None and prior.cell is not None:  # the prior's cell, not none at all
+        robot = replace(robot, cell=prior.cell)
+        notes.append(f"the robot file has no cell: the prior's ({prior.cell.describe()}) is the next round's; "
+                     "give --cell to plan in another")
+    return prior, _placed(robot, joint_limits_deg, cell), notes
+
+
 def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1,
                     sigma_m: float | None = None, joint_limits_deg=None, cell=None, seed: int = 0,
                     robot=None) -> dict:
@@ -875,29 +901,11 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     prior's own file). Returns the JSON of docs/contracts.md ("The calibrated model"):
     ``poses_deg``, ``O_t``, ``O_t_prior``, ``O_t_fresh``, ``lower_bound``, ``gap``, ... [m^2]. Raises
     :class:`InputError` for bad arguments or a robot without a calibration."""
-    from dataclasses import replace
-
     from .measured import calibrated as C
     from .planning.study import check_test_inputs
     from .threads import one_blas_thread
 
-    prior = _robot(prior)
-    if getattr(prior, "calibration", None) is None:
-        raise InputError("expected a calibrated robot file (DIR/calibrated.yaml of stiffcal discrepancy): this one has "
-                         "no calibration section", source=prior.source, field="prior")
-    robot = prior if robot is None else _robot(robot)
-    if robot is not prior:
-        if robot.joint_names != prior.joint_names:
-            raise InputError(f"the prior is a calibration of another robot: joints {', '.join(prior.joint_names)} "
-                             f"against {', '.join(robot.joint_names)} of the robot", source=prior.source,
-                             field="prior")
-        robot = replace(robot, calibration=C.from_dict(prior.calibration.to_dict(), robot, prior.source))
-    inherited = []
-    if cell is None and robot.cell is None and prior.cell is not None:  # the prior's cell, not none at all
-        robot = replace(robot, cell=prior.cell)
-        inherited.append(f"the robot file has no cell: the prior's ({prior.cell.describe()}) is the next round's; "
-                         "give --cell to plan in another")
-    robot = _placed(robot, joint_limits_deg, cell)
+    prior, robot, inherited = _next_round_robot(prior, robot, joint_limits_deg, cell)
     force, moment, field_ = load_arguments(robot, force_N, wrench)
     q_t = check_test_inputs(robot, float_list(test_pose_deg, "test_pose_deg", limit=MAX_JOINT_ANGLE_DEG), force,
                             "test_pose_deg", field_, None, moment, field_)
