@@ -1175,8 +1175,12 @@ def _split(load: np.ndarray, d: int):
 
 
 def _session_json(s: Session, res: Discrimination) -> dict:
-    forces, moments = _split(s.forces_N, res.rivals.robot.task_dim)
-    out = {"poses_deg": (np.round(s.poses_deg, 4) + 0.0).tolist(), "forces_N": forces, "moments_Nm": moments,
+    from ..model.robot import round_within
+
+    robot = res.rivals.robot
+    forces, moments = _split(s.forces_N, robot.task_dim)
+    limits = np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None
+    out = {"poses_deg": round_within(s.poses_deg, limits, 4).tolist(), "forces_N": forces, "moments_Nm": moments,
            "repeats": s.repeats, "t_criterion_m2": float(s.deltas.min()) if len(s.deltas) else None,
            "power": s.power(res.pairs, res.rivals.models) if res.pairs else None, "tests": _tests(s.powers),
            "O_t_m2": s.o_t, "O_t_rms_m": None if s.o_t is None else float(np.sqrt(s.o_t))}
@@ -1186,7 +1190,6 @@ def _session_json(s: Session, res: Discrimination) -> dict:
         points[key] = points.get(key, 0) + s.repeats
     out["points"] = [{"pose_deg": list(p), "force_N": list(f), "moment_Nm": None if mo is None else list(mo),
                       "count": c} for (p, f, mo), c in points.items()]
-    robot = res.rivals.robot
     if robot.cell is not None:  # how far each pose keeps from the cell and from itself
         from ..model.workcell import clearance
 
