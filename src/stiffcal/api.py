@@ -515,7 +515,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
         loads=None if meas_loads is None else meas_loads.spec,
         loads_N=None if meas_loads is None else meas_loads.wrenches,
         cell=None if robot.cell is None else robot.cell.describe(),
-        joint_limits_deg=np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None)
+        joint_limits_deg=robot.limits_deg)
 
 
 def _load_words(problem) -> str:
@@ -915,16 +915,16 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     load = np.r_[force, [] if moment is None else moment]
     with one_blas_thread():
         nr = C.next_round(robot, np.radians(q_t), load, m, sigma, seed=seed)
-    limits = np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None
     return json_safe({
         "robot": robot.name, "prior": prior.source, "experiments": m, "causes": list(nr.causes),
-        "joint_names": list(robot.joint_names), "poses_deg": round_within(np.degrees(nr.poses), limits).tolist(),
+        "joint_names": list(robot.joint_names),
+        "poses_deg": round_within(np.degrees(nr.poses), robot.limits_deg).tolist(),
         "O_t": nr.O_t, "O_t_prior": nr.O_t_prior, "O_t_fresh": nr.O_t_fresh,
         "rms_m": math.sqrt(nr.O_t), "rms_prior_m": math.sqrt(nr.O_t_prior), "rms_fresh_m": math.sqrt(nr.O_t_fresh)
         if math.isfinite(nr.O_t_fresh) else math.inf, "lower_bound": nr.lower_bound,
         "gap": nr.O_t / nr.lower_bound - 1.0 if nr.lower_bound > 0 else None,
         "lower_bound_over": f"every plan of {m} of the {nr.pool_size} candidate poses, with the old information added",
-        "approximate_design": {"support_deg": round_within(np.degrees(nr.support), limits).tolist(),
+        "approximate_design": {"support_deg": round_within(np.degrees(nr.support), robot.limits_deg).tolist(),
                                "weights": nr.weights.tolist(), "equivalence_gap": nr.equivalence_gap},
         "parameter_names": list(nr.names), "cov_diag": nr.cov_diag.tolist(), "sigma_m": nr.sigma_m, "seed": seed,
         "test_pose_deg": q_t.tolist(), "force_N": force.tolist(),

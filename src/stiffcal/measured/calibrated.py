@@ -687,8 +687,7 @@ def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarra
 
     from ..model.robot import round_within
 
-    limits = np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None
-    return ({"experiments": m, "poses_deg": round_within(np.degrees(nr.poses), limits, 3).tolist(),
+    return ({"experiments": m, "poses_deg": round_within(np.degrees(nr.poses), robot.limits_deg, 3).tolist(),
              "rms_prior_m": rms(nr.O_t_prior), "rms_next_m": rms(nr.O_t), "rms_fresh_m": rms(nr.O_t_fresh),
              "lower_bound_rms_m": float(np.sqrt(max(nr.lower_bound, 0.0)))},
             [f"next_round: {n}" for n in nr.notes])

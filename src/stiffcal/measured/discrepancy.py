@@ -2468,15 +2468,21 @@ class Confounded:
     relations: int
 
 
+def _scaled_row_space(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(scale (p,), V (r, p)): X's column norms (1 for a zero column) and an orthonormal basis of the row space of
+    X / scale, the rank decided as :func:`fit` decides it (singular values below RANK_RTOL of the largest absent)."""
+    scale = np.linalg.norm(X, axis=0)
+    scale[scale == 0] = 1.0
+    s, Vt = np.linalg.svd(X / scale, full_matrices=False)[1:]
+    return scale, (Vt[s > RANK_RTOL * s[0]] if s.size else np.zeros((0, X.shape[1])))
+
+
 def in_row_space(X: np.ndarray, C: np.ndarray) -> bool:
     """Whether every row of C (k, p) lies in the row space of the design X (N, p), so that the predictions C b
     are estimable (Searle, *Linear Models*, 1971, sec. 5.4): X's columns scaled to unit norm (and C's
     contragrediently) and the rank decided as :func:`estimability` decides it, each row's distance from the row
     space within :data:`ESTIMABLE_TOL` of its length."""
-    scale = np.linalg.norm(X, axis=0)
-    scale[scale == 0] = 1.0
-    s, Vt = np.linalg.svd(X / scale, full_matrices=False)[1:]
-    V = Vt[s > RANK_RTOL * s[0]] if s.size and s[0] > 0 else np.zeros((0, X.shape[1]))
+    scale, V = _scaled_row_space(X)
     Cs = np.atleast_2d(C) / scale
     off = Cs - (Cs @ V.T) @ V
     return bool(np.all(np.linalg.norm(off, axis=1) <= ESTIMABLE_TOL * np.maximum(np.linalg.norm(Cs, axis=1), 1e-300)))
@@ -2494,10 +2500,7 @@ def estimability(X: np.ndarray) -> tuple[np.ndarray, list[Confounded]]:
     from scipy.sparse.csgraph import connected_components
 
     p = X.shape[1]
-    scale = np.linalg.norm(X, axis=0)
-    scale[scale == 0] = 1.0
-    s, Vt = np.linalg.svd(X / scale, full_matrices=False)[1:]
-    V = Vt[s > RANK_RTOL * s[0]] if s.size else np.zeros((0, p))
+    scale, V = _scaled_row_space(X)
     null = np.eye(p) - V.T @ V  # projector on the null space, in the scaled parameters
     ok = np.sqrt(np.clip(np.diag(null), 0.0, None)) <= ESTIMABLE_TOL
     bad = np.flatnonzero(~ok)
@@ -2785,10 +2788,9 @@ def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict 
         scale = np.sqrt(np.mean(Xn**2, axis=(0, 1)))
         scale[scale == 0] = 1.0
         ot_nom_plan = _ot_of(Xn / scale, Xt1 / scale)
-        limits = np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None
-        out.update({"optimal_plan_extended_deg": round_within(plan, limits, 3).tolist(),
+        out.update({"optimal_plan_extended_deg": round_within(plan, robot.limits_deg, 3).tolist(),
                     "optimal_plan_extended_rms_m": float(np.sqrt(s2 * ot_ext)),
-                    "nominal_plan_deg": round_within(plan_nom, limits, 3).tolist(),
+                    "nominal_plan_deg": round_within(plan_nom, robot.limits_deg, 3).tolist(),
                     "nominal_plan_under_extended_rms_m": float(np.sqrt(s2 * ot_nom_plan))})
     return out
 

@@ -1179,8 +1179,8 @@ def _session_json(s: Session, res: Discrimination) -> dict:
 
     robot = res.rivals.robot
     forces, moments = _split(s.forces_N, robot.task_dim)
-    limits = np.degrees(robot.joint_limits_rad) if robot.has_joint_limits else None
-    out = {"poses_deg": round_within(s.poses_deg, limits, 4).tolist(), "forces_N": forces, "moments_Nm": moments,
+    out = {"poses_deg": round_within(s.poses_deg, robot.limits_deg, 4).tolist(), "forces_N": forces,
+           "moments_Nm": moments,
            "repeats": s.repeats, "t_criterion_m2": float(s.deltas.min()) if len(s.deltas) else None,
            "power": s.power(res.pairs, res.rivals.models) if res.pairs else None, "tests": _tests(s.powers),
            "O_t_m2": s.o_t, "O_t_rms_m": None if s.o_t is None else float(np.sqrt(s.o_t))}

@@ -333,6 +333,12 @@ class Robot:
         return self.n_joints + self.kind_spec.tool_segment
 
     @property
+    def limits_deg(self) -> np.ndarray | None:
+        """(n, 2) [deg]: the joint limits, None for a robot file without limits (what printed poses keep within,
+        :func:`round_within`)."""
+        return np.degrees(self.joint_limits_rad) if self.has_joint_limits else None
+
+    @property
     def limited(self) -> np.ndarray:
         """(n,) bool: the joints that have limits (a file without limits has none; a URDF's continuous joints,
         ``unlimited_joints``, turn endlessly and have none either)."""
