@@ -699,3 +699,31 @@ def test_the_next_round_plans_in_the_cell_the_data_were_analysed_in(tmp_path):
         assert _planar_violations(_points_along(robot, pose)) == (False, False), pose
     with pytest.raises(InputError, match=r"joint_limits_deg\[1\].*within joint 2's robot file's limits \[-150, 150\]"):
         stiffcal.design(robot_file, [60, 30], [0, -1], joint_limits_deg=[[-180, 180], [-170, 170]])
+
+
+def test_limits_given_apart_are_kept_in_the_calibrated_file_and_bound_the_next_round(tmp_path):
+    """Noticed last stop: `discrepancy --joint-limits-deg` analysed the data within narrowed limits but wrote a
+    calibrated.yaml without them, and `design --prior` planned the next round over the whole range. The file keeps
+    them; a next round whose robot file is wider plans within the prior's (with a note); limits that are the file's
+    own are not written (a URDF's continuous joint stays continuous)."""
+    import yaml
+
+    robot_file = tmp_path / "arm.yaml"
+    robot_file.write_text(PLANAR_CELL.split("cell:")[0])
+    narrow = [[-100.0, 100.0], [-120.0, 120.0]]
+    out = tmp_path / "out"
+    stiffcal.analyse_measurements(str(robot_file), str(ROOT / "data/synthetic_paper_2r.csv"), joint_limits_deg=narrow,
+                                  out=str(out), test_pose_deg=[60, 30], force_N=[0, -300], figures=False)
+    doc = yaml.safe_load((out / "calibrated.yaml").read_text())
+    assert doc["joint_limits_deg"] == narrow
+    assert np.allclose(load_robot(out / "calibrated.yaml").limits_deg, narrow, rtol=0, atol=1e-9)
+    res = stiffcal.plan_next_round(str(out / "calibrated.yaml"), [60, 30], [0, -300], experiments=3,
+                                   robot=str(robot_file))
+    assert any("the prior's joint limits narrow" in n and "joints 1, 2" in n for n in res["notes"]), res["notes"]
+    q = np.asarray(res["poses_deg"])
+    assert np.all(q >= np.array(narrow)[:, 0]) and np.all(q <= np.array(narrow)[:, 1]), q
+    own = tmp_path / "own"
+    stiffcal.analyse_measurements(str(robot_file), str(ROOT / "data/synthetic_paper_2r.csv"), out=str(own),
+                                  test_pose_deg=[60, 30], force_N=[0, -300], figures=False)
+    assert yaml.safe_load((own / "calibrated.yaml").read_text()).get("joint_limits_deg") == \
+        yaml.safe_load(robot_file.read_text()).get("joint_limits_deg")

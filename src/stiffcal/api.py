@@ -883,7 +883,32 @@ def _next_round_robot(prior, robot, joint_limits_deg, cell):
         robot = replace(robot, cell=prior.cell)
         notes.append(f"the robot file has no cell: the prior's ({prior.cell.describe()}) is the next round's; "
                      "give --cell to plan in another")
+    if joint_limits_deg is None and robot is not prior and prior.has_joint_limits:
+        robot, note = _within_prior_limits(robot, prior)
+        notes += note
     return prior, _placed(robot, joint_limits_deg, cell), notes
+
+
+def _within_prior_limits(robot, prior):
+    """(``robot`` within the prior's joint limits too, notes): a next round measured by another robot file
+    stays where the prior's data were taken unless ``joint_limits_deg`` is given."""
+    import numpy as np
+
+    from .model.robot import narrowed_limits
+
+    own = robot.limits_deg if robot.has_joint_limits else np.degrees(robot.joint_limits_rad)
+    both = np.column_stack([np.maximum(own[:, 0], prior.limits_deg[:, 0]),
+                            np.minimum(own[:, 1], prior.limits_deg[:, 1])])
+    if np.any(both[:, 0] >= both[:, 1]):
+        joints = [robot.joint_names[j] for j in np.flatnonzero(both[:, 0] >= both[:, 1])]
+        return robot, [f"the prior's joint limits and the robot file's do not overlap (joints {', '.join(joints)}): "
+                       "the next round plans within the robot file's"]
+    if np.allclose(both, own, rtol=0, atol=1e-9):
+        return robot, []
+    joints = [robot.joint_names[j] for j in np.flatnonzero(np.any(np.abs(both - own) > 1e-9, axis=1))]
+    return narrowed_limits(robot, both, prior.source, "joint_limits_deg"), [
+        f"the prior's joint limits narrow the robot file's (joints {', '.join(joints)}): the next round plans within "
+        "them; give --joint-limits-deg to plan within others"]
 
 
 def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1,

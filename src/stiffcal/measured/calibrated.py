@@ -2,7 +2,8 @@
 compensate a path, and handed to the next round.
 
 ``stiffcal discrepancy`` writes ``DIR/calibrated.yaml``: the robot file it analysed, every key kept (a URDF arm
-keeps its URDF, referred to from the new file's folder), with ``compliances_rad_per_Nm`` replaced by the
+keeps its URDF, referred to from the new file's folder; a cell and joint limits given apart are added), with
+``compliances_rad_per_Nm`` replaced by the
 identified joint compliances and a ``calibration`` section holding the model the verdict chose
 (:class:`Calibration`: the extension's causes and parameters with their units, the covariance of every
 parameter, the noise, the rows' error model and where it all came from: the data file and its SHA-256, the
@@ -78,9 +79,10 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
 
 def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     """The calibrated robot file (module docstring) as a YAML document for ``out_dir``: the robot file's own
-    keys (a URDF given directly: a robot file of kind ``urdf`` naming it and its frames; the paths of a URDF and of
-    a cell's SRDF made relative to ``out_dir``), ``compliances_rad_per_Nm`` replaced when every joint's is
-    identified and positive (else the file's own, or none), and the ``calibration`` section."""
+    keys (a URDF given directly: a robot file of kind ``urdf`` naming it and its frames; a cell and joint limits
+    given apart added; the paths of a URDF and of a cell's SRDF made relative to ``out_dir``),
+    ``compliances_rad_per_Nm`` replaced when every joint's is identified and positive (else the file's own, or
+    none), and the ``calibration`` section."""
     import json
     import os
 
@@ -102,6 +104,9 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
         doc["urdf"] = moved(doc["urdf"])
     if robot.cell is not None and "cell" not in doc:  # a cell given apart (--cell): the next round plans in it too
         doc["cell"] = json.loads(robot.cell.spec)
+    limits = _limits_given_apart(robot)
+    if limits is not None:  # limits given apart (--joint-limits-deg): the next round plans within them too
+        doc["joint_limits_deg"] = limits
     if isinstance(doc.get("cell"), dict) and doc["cell"].get("srdf"):
         doc["cell"] = {**doc["cell"], "srdf": moved(doc["cell"]["srdf"])}
     doc.pop("calibration", None)
@@ -111,6 +116,18 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     doc["name"] = f"{doc['name']} (calibrated)" if not str(doc["name"]).endswith("(calibrated)") else doc["name"]
     doc["calibration"] = cal.to_dict()
     return doc
+
+
+def _limits_given_apart(robot: Robot) -> list | None:
+    """The joint limits [deg] (n [lower, upper] pairs, rounded to 1e-9) of ``robot`` where they differ from its
+    file's (narrowed by an argument), else None."""
+    from ..model.robot import load_robot
+
+    own = load_robot(robot.source)
+    same = own.has_joint_limits and np.allclose(own.joint_limits_rad, robot.joint_limits_rad, rtol=0, atol=1e-12)
+    if robot.has_joint_limits and not same:
+        return np.round(robot.limits_deg, 9).tolist()
+    return None
 
 
 def write_calibrated(robot: Robot, cal: Calibration, out_dir) -> Path:
