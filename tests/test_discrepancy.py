@@ -1438,6 +1438,28 @@ def test_rotations_and_moments_in_another_unit_are_refused(tmp_path, column, fac
         assert abs(float(re.search(words, str(err.value)).group(1)) / factor - 1) < 0.1
 
 
+def test_pure_moments_in_N_mm_are_named_against_the_robot_files_compliances(tmp_path):
+    """Noticed last stop: a loading bar's pure moments (no force) logged in N mm under *_Nm columns scale every
+    compliance by 1/1000 and fit as well as in N m, so no misfit shows it; against the robot file's own compliances
+    the note names the moments (it named only micrometres and mN). The log in N m gets no such note."""
+    robot = R.robots(Path(__file__).resolve().parents[1])["6-axis"]
+    k = R.compliances(robot)
+    robot = replace(robot, compliances=k)
+    rng = np.random.default_rng(3)
+    log = T.lab_log(robot, R.PROTOCOLS["loading bar x3, reference per visit, 2 passes"], rng, 20)
+    log = replace(log, force=np.zeros_like(log.force), r_force=np.zeros_like(log.r_force))
+    lines = T.lab_csv(robot, log, T.measure(robot, T.Truth(k), log, rng)).splitlines()
+    cols = [i for i, c in enumerate(lines[0].split(",")) if c in ("mx_Nm", "my_Nm", "mz_Nm")]
+    for factor in (1.0, 1e3):
+        rows = [",".join(f"{float(v) * factor:.9g}" if i in cols else v for i, v in enumerate(r.split(",")))
+                for r in lines[1:]]
+        path = tmp_path / f"moments_{factor:g}.csv"
+        path.write_text("\n".join([lines[0]] + rows) + "\n", encoding="utf-8")
+        notes = D.analyse(robot, read_measurements(path, robot), 0.01, gain=False)["notes"]
+        named = [n for n in notes if "about 0.001 times the robot file's" in n and "moments in N mm" in n]
+        assert len(named) == (factor > 1), notes
+
+
 def test_the_p_value_is_about_the_principal_cause_not_a_second_causes_stand_ins():
     """A fresh user's 6-DoF log with a tracker offset (tests/data/newuser/kr210_6dof_offset_s2.csv): the verdict
     names measurement_offset and beside it link_compliance, for which joint_coupling and backlash stand in equally

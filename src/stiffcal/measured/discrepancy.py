@@ -1386,7 +1386,7 @@ def _end_effector_compliance(robot: Robot, meas: Measurements, k: np.ndarray, ob
 _UNIT_FACTORS = ((9.80665, "masses in kg logged as newtons (fz_N = 10 for a 10 kg mass)"),
                  (1 / 9.80665, "forces in kgf or daN logged as newtons"),
                  (1e3, "millimetres logged as metres, or forces in kN logged as newtons"),
-                 (1e-3, "micrometres logged as millimetres, or forces in mN"))
+                 (1e-3, "micrometres logged as millimetres, forces in mN, or moments in N mm logged as N m"))
 
 
 def _scale_notes(robot: Robot, k: np.ndarray, params: np.ndarray) -> list[str]:
