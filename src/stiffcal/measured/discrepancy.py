@@ -1489,7 +1489,7 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     zw = z * w0[:, None] if len(z) else z.reshape(0, d)
     out, p_out = [], []
 
-    def model(excluded, lrt=True):
+    def model(excluded, lrt="deferred"):
         st = EM.reading_structure(meas, keep, excluded, motion, turn)
         Y = np.vstack([Yl, zw[st.zero_index]]) if len(st.zero_index) else Yl
         weights = np.concatenate([w, w0[st.zero_index]])
@@ -1734,6 +1734,8 @@ def _weighted_error_model(robot: Robot, meas: Measurements, m: Measurements, kee
     model or None, the weights (N,), the weighted design, the unloaded rows' weights, the error model, the
     zero-point summary, the whitened (GLS) design, the rows' held-out shifts (N,) of every variance function the
     weights took, summed: :func:`held_out_variance_factor`)."""
+    from . import errormodel as EM
+
     vm = variance_model(robot, m, des_all.rows(keep).y.reshape(-1, des_all.d))
     held = _shift_of(vm, m.n_rows)
     motion = return_motion(robot, ob_full)
@@ -1757,7 +1759,7 @@ def _weighted_error_model(robot: Robot, meas: Measurements, m: Measurements, kee
         held = held + _shift_of(step, m.n_rows)
         vm = VarianceModel(w, step.p_value if vm is None else vm.p_value, float(w.max() / w.min()), held)
         weighted, w0, em, zp, des = weighted_fit(w)
-    return vm, w, weighted, w0, em, zp, des, held
+    return vm, w, weighted, w0, EM.with_tests(em), zp, des, held
 
 
 def _shift_of(vm: VarianceModel | None, n: int) -> np.ndarray:

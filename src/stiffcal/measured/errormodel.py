@@ -692,6 +692,8 @@ class ErrorModel:
     notes: tuple[str, ...] = ()
     zero_y: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     inflation: float = 0.0
+    #: ``estimate(..., lrt="deferred")``: the callable that computes (p_values, inflation) (:func:`with_tests`)
+    pending: object = field(default=None, repr=False, compare=False)
 
     @property
     def shared(self) -> bool:
@@ -863,7 +865,9 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     (N,) the loaded rows' replicate groups; X_union (N, w, p): the loaded rows' regressors of the union of
     every catalogue cause, weighted; drift (R, w, k): further fixed effects on every model row, in every stage (a
     tracker's drift, so that it is not read as a shared error); lrt: compute each component's likelihood-ratio
-    p-value (else None) and, without a drift, the variance inflation (:func:`variance_inflation`; else 0).
+    p-value (else None) and, without a drift, the variance inflation (:func:`variance_inflation`; else 0);
+    ``"deferred"``: not yet, but when :func:`with_tests` is called on the result (the same numbers; a fit that
+    may be refitted pays for them once).
     Raises :class:`InputError` when no degree of freedom is left for the noise.
     """
     N, R = structure.n_loaded, structure.n_rows
@@ -885,8 +889,12 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     lam_u, ll_u = _maximise(lik, len(est))
     lam[est] = lam_u
     estimable[est] = True
-    for i, k in enumerate(est):
-        pvals[k] = _lrt(lik, lam_u, ll_u, i, None) if lrt else None
+
+    def tests() -> tuple[tuple, float]:  # the components' likelihood-ratio p-values and the variance inflation
+        for i, k in enumerate(est):
+            pvals[k] = _lrt(lik, lam_u, ll_u, i, None)
+        return tuple(pvals), variance_inflation(blocks, lam) if drift is None else 0.0
+
     sigma2 = lik.sigma2(lam_u)
     replicated = paired and df_pe >= min(MIN_PURE_ERROR_DF, lik.df)
     if paired and not replicated:
@@ -902,7 +910,18 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
                          "data (the fixed effects absorb it): it is left out")
     em = _finish(structure, blocks, lam, estimable, tuple(pvals), stage, sigma2, None if replicated else lik.df,
                  source, w, notes, Y[N:])
-    return replace(em, inflation=variance_inflation(blocks, lam)) if drift is None and lrt else em
+    if lrt == "deferred":
+        return replace(em, pending=tests)
+    return with_tests(replace(em, pending=tests)) if lrt else em
+
+
+def with_tests(em: ErrorModel) -> ErrorModel:
+    """``em`` with the tests :func:`estimate` deferred (``lrt="deferred"``): each component's likelihood-ratio
+    p-value and the variance inflation; ``em`` itself when none are pending."""
+    if em.pending is None:
+        return em
+    pvals, inflation = em.pending()
+    return replace(em, p_values=pvals, inflation=inflation, pending=None)
 
 
 def _lrt(lik: _Likelihood, lam: np.ndarray, ll: float, i: int, sigma2, fixed: dict | None = None) -> float:
