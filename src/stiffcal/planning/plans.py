@@ -210,6 +210,9 @@ def _general_scores(M: np.ndarray, Xt: np.ndarray) -> np.ndarray:
 
 #: eigenvalue ratio of the information of the other poses above which the Woodbury identity is used
 WOODBURY_MIN_RATIO = 1e-8
+#: a Woodbury score below this times kappa^2 trace(W R) may have lost more than about 1e-9 of its value to
+#: cancellation (1e9 eps, :func:`_woodbury_scores`)
+WOODBURY_CANCELLATION = 1e9 * np.finfo(float).eps
 #: a candidate whose information matrix M_c has ``1 / (||M_c^-1||_F trace M_c)`` (a lower bound on its
 #: eigenvalue ratio) at most this is rescored by the general path
 DIRECT_MIN_RATIO = 1e-7
@@ -262,14 +265,31 @@ def exchange_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.
 
 
 def _woodbury_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
-    """The Woodbury path of :func:`exchange_scores` for one M_rest (p, p) -> (K,)."""
+    """The Woodbury path of :func:`exchange_scores` for one M_rest (p, p) -> (K,). The score is a difference,
+    ``trace(W R)`` less the candidate's gain, and R = M_rest^-1 is large along a direction the other poses barely
+    hold: measured against exact arithmetic its error is below eps kappa^2 trace(W R), kappa the condition of
+    M_rest scaled to a unit diagonal, and reached 1e-3 trace(W R) at kappa 3e5 (a score of -22.5 for a true 1.63
+    that the exchange took). A candidate whose score is below :data:`WOODBURY_CANCELLATION` kappa^2 trace(W R)
+    (more than about 1e-9 of it possibly lost) is rescored by the direct path; all of them where that bound
+    reaches trace(W R)."""
+    scale = 1.0 / np.sqrt(np.diag(M_rest))
+    ev = np.linalg.eigvalsh(M_rest * np.outer(scale, scale))
+    bound = WOODBURY_CANCELLATION * (ev[-1] / ev[0]) ** 2 if ev[0] > 0 else np.inf
+    if not bound < 1.0:
+        return _direct_scores(forms, M_rest, Xt)
     R = np.linalg.inv(M_rest)
     W = Xt.T @ Xt
     RWR = R @ W @ R
     d = forms.d
     SG = (np.stack([vech(R), vech(RWR)]) @ forms.quad).reshape(2, d * (d + 1) // 2, -1)
+    total = float(np.trace(W @ R))
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.trace(W @ R) - _inverse_traces(SG[0] + vech(np.eye(d))[:, None], SG[1], d, norm=False)[0]
+        out = total - _inverse_traces(SG[0] + vech(np.eye(d))[:, None], SG[1], d, norm=False)[0]
+    lost = ~(out >= bound * total)  # NaN too
+    if lost.any():
+        out[lost] = _direct_scores(PoolForms(forms.info[lost], forms.vech[:, lost], None, d, forms.max_trace),
+                                   M_rest, Xt)
+    return out
 
 
 def _direct_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
