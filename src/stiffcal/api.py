@@ -911,6 +911,11 @@ def _within_prior_limits(robot, prior):
         "them; give --joint-limits-deg to plan within others"]
 
 
+def _root(ot: float) -> float:
+    """sqrt(O_t) [m] of an O_t [m^2]: inf for inf (written "inf", docs/contracts.md), 0 for a round-off below zero."""
+    return math.sqrt(max(ot, 0.0)) if math.isfinite(ot) else math.inf
+
+
 def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1,
                     sigma_m: float | None = None, joint_limits_deg=None, cell=None, seed: int = 0,
                     robot=None) -> dict:
@@ -945,8 +950,8 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
         "joint_names": list(robot.joint_names),
         "poses_deg": round_within(np.degrees(nr.poses), robot.limits_deg).tolist(),
         "O_t": nr.O_t, "O_t_prior": nr.O_t_prior, "O_t_fresh": nr.O_t_fresh,
-        "rms_m": math.sqrt(nr.O_t), "rms_prior_m": math.sqrt(nr.O_t_prior), "rms_fresh_m": math.sqrt(nr.O_t_fresh)
-        if math.isfinite(nr.O_t_fresh) else math.inf, "lower_bound": nr.lower_bound,
+        "rms_m": _root(nr.O_t), "rms_prior_m": _root(nr.O_t_prior), "rms_fresh_m": _root(nr.O_t_fresh),
+        "lower_bound": nr.lower_bound,
         "gap": nr.O_t / nr.lower_bound - 1.0 if nr.lower_bound > 0 else None,
         "lower_bound_over": f"every plan of {m} of the {nr.pool_size} candidate poses, with the old information added",
         "approximate_design": {"support_deg": round_within(np.degrees(nr.support), robot.limits_deg).tolist(),
