@@ -637,3 +637,51 @@ def test_a_joint_the_calibration_did_not_identify_moves_with_the_robot_file_s_co
                for n in plan_next_round(path, [60, 30], [0, -300], experiments=2)["notes"])
     assert not any("test load turns" in n for n in plan_next_round(calibrated_file[1], [60, 30], [0, -300],
                                                                    experiments=2)["notes"])
+
+
+def test_a_joint_no_hanging_mass_turns_has_no_extension_parameter_and_its_rows_are_not_determined(tmp_path):
+    """A fresh user's Kinova Jaco2 (example-robot-data's URDF, pinned in requirements-test.lock) under hanging
+    masses, a nonlinear stiffness in joint 2: joint 1 (a vertical axis) is turned only by round-off (1e-13 of the
+    others), and its cubic term's column (tau^3: 1e-35) was fitted to g1 = 1.5e28 +- 3e28 rad/(N m)^3, marked
+    estimable, written into calibrated.yaml, which `predict` then refused. Now g1 is not estimable (null) and every
+    other parameter is finite and small; the calibrated file predicts, and a row whose load turns joint 1 (a
+    sideways push) is flagged not determined: against the simulator its error is many times its sd, while a
+    hanging load's is within it."""
+    from real_arms import ARMS as REAL, robots_dir
+
+    if robots_dir() is None:
+        pytest.skip("example-robot-data is not installed (requirements-test.lock)")
+    import stiffcal
+
+    urdf, _, base, tip, tool, _, _ = REAL["jaco2"]
+    robot_file = tmp_path / "jaco2.yaml"
+    robot_file.write_text(f"name: jaco2\nkind: urdf\nurdf: {robots_dir() / urdf}\nbase_frame: {base}\n"
+                          f"tip_frame: {tip}\ntool_m: {tool}\n", encoding="utf-8")
+    robot = load_robot(robot_file)
+    k = np.array([2e-4, 1e-4, 1.5e-4, 4e-4, 4e-4, 5e-4])
+    rng = np.random.default_rng(5)
+    log = T.lab_log(robot, R.PROTOCOLS["hanging x3, reference per visit, 2 passes"], rng, 16)
+    tau = T.joint_torques(robot, log.q, log.force) + T.self_weight_torques(robot, log.q)
+    tau_max = np.full(robot.n_joints, np.inf)
+    tau_max[1] = 3.0 * np.abs(tau[:, 1]).max()
+    truth = T.Truth(k, tau_max=tau_max)
+    data = tmp_path / "hanging.csv"
+    data.write_text(T.lab_csv(robot, log, T.measure(robot, truth, log, rng)), encoding="utf-8")
+    out = tmp_path / "out"
+    v = stiffcal.analyse_measurements(str(robot_file), str(data), out=str(out), figures=False)
+    assert v["nominal"]["not_identifiable_joints"] == [1]
+    assert "nonlinear_joint_stiffness" in v["causes"]
+    ext = v["extended"]
+    names = ext["parameter_names"]
+    assert names[0].startswith("g1") and ext["parameters"][0] is None
+    assert any(g["parameters"] == [names[0]] for g in ext["not_estimable"])
+    assert all(abs(b) < 1e-3 for b in ext["parameters"][1:])
+    calibrated = load_robot(out / "calibrated.yaml")
+    q = np.repeat(log.q[:1], 2, axis=0)
+    loads = np.array([[0.0, 0.0, -40.0], [30.0, 0.0, 0.0]])
+    pred = C.predict(calibrated, q, loads)
+    assert pred.determined.tolist() == [True, False]
+    assert any("1 of 2 row(s) (determined False)" in n for n in pred.notes)
+    error = np.abs(pred.displacement - T.deflection(robot, truth, q, loads)).max(axis=1)
+    sd = pred.sd.max(axis=1)
+    assert error[0] < 4 * sd[0] and error[1] > 10 * sd[1], (error, sd)

@@ -150,7 +150,9 @@ class Prediction:
     """Predicted deflections: q (N, n) [rad]; load (N, d (+ d_m)) [N (, N m)]; displacement (N, d) [m] of each
     row's target and its standard deviation sd (N, d) [m] from the parameters' covariance; rotation (N, d_r)
     [rad] and rotation_sd with the orientation (else None); cov (N, r, r): the covariance of each row's prediction
-    (positions, then rotations) [m^2, m rad, rad^2]; targets (N,) names; causes: the extension applied; notes."""
+    (positions, then rotations) [m^2, m rad, rad^2]; targets (N,) names; causes: the extension applied; notes;
+    determined (N,) bool: the row's prediction rests only on what the calibration's data determined
+    (:func:`determined_rows`; where not, its error can be far above sd)."""
     q: np.ndarray
     load: np.ndarray
     displacement: np.ndarray
@@ -161,6 +163,7 @@ class Prediction:
     targets: tuple
     causes: tuple
     notes: tuple = ()
+    determined: np.ndarray | None = None
 
 
 def _calibration(robot: Robot) -> Calibration:
@@ -223,8 +226,35 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
     notes += _unset_backlash_notes(robot, cal, q, load)
     names = robot.target_names
     tnames = tuple(names[t] for t in (np.zeros(len(q), int) if target is None else np.asarray(target, int)))
+    ok = determined_rows(robot, cal, q, load, X)
+    if not ok.all():
+        notes.append(f"{int((~ok).sum())} of {len(ok)} row(s) (determined False) rest on what the calibration's data "
+                     "did not determine (a joint they did not identify that the row's load turns, or a parameter "
+                     "they did not determine that the row moves): their error can be far above sd")
     return Prediction(q, load, mean[:, :d], sd[:, :d], mean[:, d:] if orientation else None,
-                      sd[:, d:] if orientation else None, cov, tnames, cal.causes, tuple(notes))
+                      sd[:, d:] if orientation else None, cov, tnames, cal.causes, tuple(notes), ok)
+
+
+def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """(N,) bool: the rows whose prediction rests only on what the calibration's data determined: no joint the
+    calibration did not identify (:attr:`Calibration.k_joints`) is turned by the row's load (its torque above
+    round-off: 1e-9 of the row's largest), and no parameter it did not
+    determine (its estimable flag) has a column of X (N, r, p) above 1e-9 of the row's largest (scaled by the
+    parameter's standard deviation, so that units do not decide)."""
+    from . import discrepancy as D
+
+    n = robot.n_joints
+    missing = np.array([j for j in range(n) if j not in cal.k_joints], int)
+    ok = np.ones(len(q), bool)
+    if missing.size:
+        tau = np.abs(D.torques(robot, q, load))
+        ok &= ~np.any(tau[:, missing] > 1e-9 * tau.max(axis=1, keepdims=True), axis=1)
+    undetermined = ~np.asarray(cal.estimable, bool)[: X.shape[-1]]
+    if undetermined.any():
+        sd = np.sqrt(np.clip(np.diag(cal.cov), 0.0, None))[: X.shape[-1]]
+        size = np.abs(X).max(axis=1) * np.where(sd > 0, sd, 1.0)  # (N, p)
+        ok &= ~np.any(size[:, undetermined] > 1e-9 * size.max(axis=1, keepdims=True), axis=1)
+    return ok
 
 
 @dataclass(frozen=True)
@@ -238,7 +268,8 @@ class Compensation:
     (N, n) [rad]: q - J^+ dp(q); q_corrected (N, n) [rad]: the joint angles whose deflected tool point is the
     nominal one (iterated; a row that does not converge keeps the better of q_first and q when the iteration ended
     further away); residual_m (N,): the predicted error left at q_corrected;
-    first_order_residual_m (N,): that of q_first; iterations (N,) int; converged (N,) bool."""
+    first_order_residual_m (N,): that of q_first; iterations (N,) int; converged (N,) bool; determined (N,) bool:
+    as :class:`Prediction`'s (where False, the band does not hold the model's error)."""
     q: np.ndarray
     load: np.ndarray
     deflection: np.ndarray
@@ -253,6 +284,7 @@ class Compensation:
     iterations: np.ndarray
     converged: np.ndarray
     notes: tuple = ()
+    determined: np.ndarray | None = None
 
 
 def _no_worse(q, q1, qc, e0, e1, residual, done) -> tuple[np.ndarray, np.ndarray, int]:
@@ -310,7 +342,7 @@ def compensate(robot: Robot, q: np.ndarray, load: np.ndarray, iterations: int = 
         notes.append(f"{kept} pose(s) that did not converge are left at the better of the first-order step and no "
                      "correction (q1_cmd_deg; the iteration ended further from the nominal point than either)")
     return Compensation(q, load, pred.displacement, pred.sd, band95(pred.cov), x, x - pred.displacement, q1, qc,
-                        residual, e1, its, done, tuple(notes))
+                        residual, e1, its, done, tuple(notes), pred.determined)
 
 
 def _motion(robot: Robot, cal, q: np.ndarray, load: np.ndarray, target=None, orientation: bool = False):
@@ -481,7 +513,7 @@ def _cells(values: np.ndarray, fmt: str) -> list:
 
 def prediction_csv(robot: Robot, poses: PoseFile, pred: Prediction) -> str:
     """The pose file with the prediction's columns appended: ``dx_m`` .. and ``sd_dx_m`` .. (and ``rx_rad`` ..,
-    ``sd_rx_rad`` .. with the orientation)."""
+    ``sd_rx_rad`` .. with the orientation), and ``determined`` (True/False: :func:`determined_rows`)."""
     d = robot.task_dim
     axes = "xyz"[:d]
     head = list(poses.columns) + [f"d{a}_m" for a in axes] + [f"sd_d{a}_m" for a in axes]
@@ -490,8 +522,10 @@ def prediction_csv(robot: Robot, poses: PoseFile, pred: Prediction) -> str:
         rot = "z" if d == 2 else "xyz"
         head += [f"r{a}_rad" for a in rot] + [f"sd_r{a}_rad" for a in rot]
         parts += [_cells(pred.rotation, ".12e"), _cells(pred.rotation_sd, ".3e")]
+    head.append("determined")
     _check_new_columns(poses, head, poses.source)
-    rows = [list(t) + sum((p[i] for p in parts), []) for i, t in enumerate(poses.text)]
+    rows = [list(t) + sum((p[i] for p in parts), []) + [str(bool(pred.determined[i]))]
+            for i, t in enumerate(poses.text)]
     return _csv(head, rows)
 
 
@@ -506,14 +540,15 @@ def compensation_csv(robot: Robot, poses: PoseFile, comp: Compensation) -> str:
     q1 = [c[:-4] + "_first_deg" for c in robot.joint_columns("q", "_deg")]
     head = list(poses.columns) + [f"d{a}_m" for a in axes] + [f"sd_d{a}_m" for a in axes] + ["band95_m"] + \
         [f"{a}_m" for a in axes] + [f"{a}_cmd_m" for a in axes] + qc + q1 + \
-        ["residual_m", "first_order_residual_m", "iterations", "converged"]
+        ["residual_m", "first_order_residual_m", "iterations", "converged", "determined"]
     parts = [_cells(comp.deflection, ".9e"), _cells(comp.sd, ".3e"), _cells(comp.band95_m[:, None], ".3e"),
              _cells(comp.target_m, ".9f"),
              _cells(comp.corrected_target_m, ".9f"), _cells(np.degrees(comp.q_corrected), ".6f"),
              _cells(np.degrees(comp.q_first), ".6f"), _cells(comp.residual_m[:, None], ".3e"),
              _cells(comp.first_order_residual_m[:, None], ".3e")]
     _check_new_columns(poses, head, poses.source)
-    rows = [list(t) + sum((p[i] for p in parts), []) + [str(int(comp.iterations[i])), str(bool(comp.converged[i]))]
+    rows = [list(t) + sum((p[i] for p in parts), []) + [str(int(comp.iterations[i])), str(bool(comp.converged[i])),
+                                                        str(bool(comp.determined[i]))]
             for i, t in enumerate(poses.text)]
     return _csv(head, rows)
 
@@ -685,6 +720,12 @@ def _unidentified_at_test_pose(robot: Robot, cal, test_pose: np.ndarray, test_lo
             "file's value); a plan that identifies them needs loads that turn them (stiffcal design without --prior)"]
 
 
+def rms(ot: float) -> float | None:
+    """sqrt(O_t) [m] of an O_t [m^2]; None (null) where the plan does not identify the model (O_t infinite, or
+    below zero by round-off)."""
+    return float(np.sqrt(ot)) if np.isfinite(ot) and ot >= 0 else None
+
+
 def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray,
                        m: int | None = None) -> tuple[dict, list[str]]:
     """The verdict's ``next_round``: :func:`next_round` of m poses (default: the fewest that identify the model's
@@ -698,10 +739,6 @@ def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarra
     _, p_r, _ = prior_information(cal, cal.sigma_m)
     m = m or int(np.ceil(p_r / robot.task_dim)) + 1
     nr = next_round(robot, test_pose, test_load, m)
-
-    def rms(ot):  # null where the plan does not identify the model (O_t infinite, or below zero by round-off)
-        return float(np.sqrt(ot)) if np.isfinite(ot) and ot >= 0 else None
-
     from ..model.robot import round_within
 
     return ({"experiments": m, "poses_deg": round_within(np.degrees(nr.poses), robot.limits_deg, 3).tolist(),

@@ -108,7 +108,22 @@ def joint_columns(cause: str, J: np.ndarray, tau: np.ndarray, preload: np.ndarra
     entry = CATALOGUE.get(cause)
     if entry is None or entry.joint_effect is None:
         raise ValueError(f"unknown cause {cause!r}")
-    return entry.joint_effect(J, tau, np.zeros_like(tau) if preload is None else preload)
+    return entry.joint_effect(J, unturned_to_zero(tau), np.zeros_like(tau) if preload is None else preload)
+
+
+#: a joint whose load torque is at most this fraction of the largest joint's over every row is not turned by the
+#: loads (a vertical axis under hanging weights: what is left is round-off, ~1e-13 of the others)
+TORQUE_RTOL = 1e-9
+
+
+def unturned_to_zero(tau: np.ndarray) -> np.ndarray:
+    """The load torques tau (N, n) [N m] with the joints the loads never turn (their torque over every row at most
+    :data:`TORQUE_RTOL` of the largest joint's) set to exactly zero: a cause's parameter of such a joint (a
+    nonlinear stiffness on tau^3: 1e-35 of the others) would otherwise be estimated from round-off (a fresh
+    user's Jaco2 under hanging masses: g1 = 1.5e28 +- 3e28 rad/(N m)^3, written into calibrated.yaml)."""
+    norm = np.sqrt(np.einsum("nj,nj->j", tau, tau))
+    unturned = norm <= TORQUE_RTOL * norm.max() if norm.max() > 0 else np.ones(tau.shape[-1], bool)
+    return np.where(unturned, 0.0, tau) if unturned.any() else tau
 
 
 def extension_size(cause: str, robot, n_offsets: int) -> int:
