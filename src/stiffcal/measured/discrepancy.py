@@ -1316,7 +1316,7 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
 
 #: the nominal model's residual RMS, in units of the noise, beyond which a note asks for the frames and units
 GROSS_MISFIT = 10.0
-#: ... and beyond which joint angles that look like radians (all within 3.2 deg of zero) are refused as radians
+#: ... and beyond which joint angles that look like radians (all within 6.4 deg of zero) are refused as radians
 RADIANS_MISFIT = 3.0
 #: ... or whose lack of fit has a p-value below this
 RADIANS_LACK_OF_FIT_P = 1e-6

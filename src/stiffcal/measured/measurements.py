@@ -939,8 +939,9 @@ def _header_and_rows(path, line: str, source: str, max_rows: int | None, hint: s
     return names
 
 
-#: angles all within this magnitude [deg] over at least RADIANS_MIN_ROWS rows look like radians
-RADIANS_MAX_DEG = 3.2
+#: angles all within this magnitude [deg] over at least RADIANS_MIN_ROWS rows look like radians (a full turn in
+#: radians, 2 pi: controllers that report 0 .. 2 pi, such as a Kinova's, as well as -pi .. pi)
+RADIANS_MAX_DEG = 6.4
 RADIANS_MIN_ROWS = 10
 
 
