@@ -408,6 +408,24 @@ def test_masses_in_kg_logged_as_newtons_are_noted_against_the_robot_files_compli
     assert not any("times the robot file's" in n for n in D.analyse(robot, meas, gain=False)["notes"])
 
 
+def test_an_arm_softer_than_the_range_is_analysed_when_its_robot_file_says_so(paper_robot):
+    """A fresh user's assistive arm (Jaco2 at 1e-3..5e-3 rad/(N m), 7.7e-4 m/N) was refused as "millimetres or
+    kN", with no way to analyse it. The refusal (which now also names masses in kg logged as newtons) says how: the
+    robot file's nominal compliances; with them (within a factor of 10 of the data's) the data are analysed and the
+    compliances found within their intervals; a robot file whose values are 100 times off does not lift it."""
+    k0 = np.array([1.5e-6, 3e-6])
+    stiff = _simulated(paper_robot, T.Truth(k0), 0)
+    k = 1000.0 * k0  # the same deflections under loads 1000 times smaller
+    meas = Measurements.from_arrays(stiff.q, stiff.force / 1000.0, stiff.dp, config=stiff.config)
+    with pytest.raises(InputError, match=r"far above serial robots.*masses in kg logged as newtons.*give its nominal "
+                                         r"compliances_rad_per_Nm in the robot file"):
+        D.analyse(paper_robot, meas, gain=False)
+    v = D.analyse(replace(paper_robot, compliances=2.0 * k), meas, gain=False)
+    assert np.all(np.abs(np.array(v["nominal"]["k"]) - k) <= np.array(v["nominal"]["k_ci95"]))
+    with pytest.raises(InputError, match="far above serial robots"):
+        D.analyse(replace(paper_robot, compliances=k / 100), meas, gain=False)
+
+
 def test_absolute_positions_instead_of_displacements_are_refused(paper_robot):
     meas = _simulated(paper_robot, T.Truth(np.array([1.5e-6, 3e-6])), 0)
     absolute = Measurements.from_arrays(meas.q, meas.force, paper_robot.fk(meas.q) + meas.dp, config=meas.config)

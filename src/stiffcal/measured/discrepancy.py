@@ -1273,8 +1273,8 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
     a serial robot: identified compliances below zero beyond their intervals (two or more, and half of them) and
     none above (the robot yields against the loads), rotations or moments in another unit, displacements too
     large for deflections (:func:`stiffcal.measured.measurements.check_displacement_size`), or an end-effector
-    compliance outside
-    :data:`PLAUSIBLE_COMPLIANCE_M_PER_N`; each message names the likely cause.
+    compliance outside :data:`PLAUSIBLE_COMPLIANCE_M_PER_N` (unless the robot file's compliances give one within a
+    factor of 10 of it: an arm that soft or stiff); each message names the likely cause.
     Returns notes on what is only doubtful: some compliances negative, or all about g = 9.81 (or 1000) times
     the robot file's own (masses in kg logged as newtons, millimetres as metres)."""
     ob = observed or Observed.of(robot, meas)
@@ -1299,13 +1299,14 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
                          source=meas.source, field=cols)
     c = _end_effector_compliance(robot, meas, k, ob) if np.all(k >= 0) else None
     lo, hi = PLAUSIBLE_COMPLIANCE_M_PER_N
-    if c is not None and not lo <= c <= hi:
-        unit = ("millimetres in columns labelled metres, or forces in kN labelled N?" if c > hi else
-                "micrometres in columns labelled metres, or forces in mN labelled N?")
+    if c is not None and not lo <= c <= hi and not _as_the_robot_file_says(robot, meas, ob, c):
+        unit = ("millimetres in columns labelled metres, forces in kN labelled N, or masses in kg logged as newtons "
+                "(a factor 9.81)?" if c > hi else "micrometres in columns labelled metres, or forces in mN labelled N?")
         where = "above" if c > hi else "below"
         raise InputError(f"the end-effector compliance is {c:.3g} m/N in the median, far {where} serial robots"
-                         f" ({lo:g}-{hi:g} m/N; industrial arms about 1e-6): {unit}", source=meas.source,
-                         field=cols)
+                         f" ({lo:g}-{hi:g} m/N; industrial arms about 1e-6): {unit} If the arm is that "
+                         f"{'soft' if c > hi else 'stiff'}, give its nominal compliances_rad_per_Nm in the robot file: "
+                         "data within a factor of 10 of them are analysed", source=meas.source, field=cols)
     notes = []
     if neg:
         notes.append(f"negative compliance ({', '.join(f'{names[int(params[i])]} = {k[i]:.3g}' for i in neg)} "
@@ -1368,6 +1369,17 @@ def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed) -> None:
         raise InputError(f"expected moments in N m, but the nominal model fits the data {rss[0] / rss[1]:.3g} times "
                          "better (residual sum of squares) with them divided by 1000: moments in N mm labelled N m?",
                          source=meas.source, field=f"columns {', '.join(cols)}")
+
+
+def _as_the_robot_file_says(robot: Robot, meas: Measurements, ob: Observed, c: float) -> bool:
+    """Whether the end-effector compliance c [m/N] of the data is within a factor of 10 of the one the robot file's
+    own ``compliances_rad_per_Nm`` give (an arm softer or stiffer than :data:`PLAUSIBLE_COMPLIANCE_M_PER_N` whose
+    file says so); False without them."""
+    ref = getattr(robot, "compliances", None)
+    if ref is None:
+        return False
+    c_file = _end_effector_compliance(robot, meas, np.asarray(ref, float)[ob.model_params(robot)], ob)
+    return c_file is not None and c_file > 0 and 0.1 <= c / c_file <= 10.0
 
 
 def _end_effector_compliance(robot: Robot, meas: Measurements, k: np.ndarray, ob: Observed) -> float | None:
