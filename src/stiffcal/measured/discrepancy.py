@@ -2937,7 +2937,15 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
     from . import calibrated
 
     verdict = replace(verdict, data=str(data_path), robot=robot.source)
-    cal = calibrated.from_analysis(robot, pre, verdict, data_path)
+    if (verdict["diagnostics"] or {}).get("extended_not_better_held_out"):  # keep the model that carries to others
+        cal = calibrated.from_analysis(robot, pre, {**verdict, "extended": None}, data_path)
+        cal = replace(cal, source={**cal.source, "model": "nominal (the extended model predicts held-out "
+                                                          "configurations no better)"})
+        verdict = replace(verdict, notes=[*verdict.notes, "calibrated.yaml holds the nominal model, not the extended "
+                                          f"one ({', '.join(verdict['extended']['causes'])}): the extended model "
+                                          "predicts held-out configurations no better (gain.loco_ratio)"])
+    else:
+        cal = calibrated.from_analysis(robot, pre, verdict, data_path)
     if test_pose is None or test_force is None:
         return verdict, cal
     model = replace(robot, calibration=cal)
