@@ -373,3 +373,7 @@ def test_a_misspelt_config_key_is_named_with_the_key_it_looks_like():
     with pytest.raises(InputError, match=r"missing required field\(s\) 'monte_carlo' \('monte_carol': did you mean "
                                          r"'monte_carlo'\?\)"):
         validate(top, "config", "my.yaml")
+    # a fresh user's `alfa:` for `alpha:` (difflib's ratio 0.67: below the cutoff of 0.75 it had)
+    data = [{**cfg["measured_data"][0], "alfa": 0.05}]
+    with pytest.raises(InputError, match=r"unknown field\(s\) 'alfa' \('alfa': did you mean 'alpha'\?\)"):
+        validate({**cfg, "measured_data": data}, "config", "my.yaml")

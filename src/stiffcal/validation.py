@@ -213,7 +213,7 @@ def _spelling(given: list[str], expected: list[str]) -> str:
     """' (did you mean ...?)' for the given keys that look like misspellings of expected ones (difflib), else ''."""
     import difflib
 
-    pairs = [(g, m[0]) for g in given if (m := difflib.get_close_matches(g, expected, n=1, cutoff=0.75))]
+    pairs = [(g, m[0]) for g in given if (m := difflib.get_close_matches(g, expected, n=1, cutoff=0.6))]
     return f" ({'; '.join(f'{g!r}: did you mean {e!r}?' for g, e in pairs)})" if pairs else ""
 
 
