@@ -1,5 +1,7 @@
 """M-pose plans (Tables 4-5), the approximate design and its certificate."""
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -227,17 +229,19 @@ def test_woodbury_scores_of_a_nearly_singular_rest_against_exact_arithmetic(rng)
     """A fresh user's Jaco2 (`design --prior`, M = 3, 5 parameters): the other poses' information held a direction
     barely (eigenvalue ratio ~1e-8), the Woodbury score of a candidate that fills it cancelled to -22.5 for a true
     1.63, the exchange took it, and the CLI crashed on the square root of a negative O_t_fresh. Every candidate's
-    score against exact rational arithmetic, for other poses' information of scaled condition 1e2 .. 1e8: relative
-    error below 1e-8; and none below zero."""
+    score against exact rational arithmetic, for other poses' information of condition 1e2 .. 1e7, with the
+    parameters in units 1 .. 1e-3 apart (a base and a wrist joint's compliances): relative error below 1e-9; and
+    none below zero."""
     from stiffcal.planning.plans import pool_forms
 
     p, d = 5, 3
-    for cond in (1e2, 1e5, 1e7):
+    for units, cond in itertools.product((np.ones(p), np.logspace(0, -3, p)), (1e2, 1e5, 1e7)):
         V, _ = np.linalg.qr(rng.normal(size=(p, p)))
         M_rest = (V * np.logspace(0, -np.log10(cond), p)) @ V.T * 50.0
         weak = V[:, -1]  # the direction the other poses barely hold: the test pose and the candidates load it
         pool = rng.normal(size=(40, d, p)) + 3.0 * rng.normal(size=(40, d, 1)) * weak
         Xt = rng.normal(size=(d, p)) * 0.1 + rng.normal(size=(d, 1)) * weak
+        pool, Xt, M_rest = pool * units, Xt * units, M_rest * np.outer(units, units)
         G = Xt.T @ Xt
         fast = exchange_scores(pool_forms(pool), M_rest, Xt)
         exact = np.array([_exact_trace_of_inverse(M_rest + X.T @ X, G) for X in pool])

@@ -167,8 +167,11 @@ class PoolForms:
     info: (K, p, p) information matrices ``X_c^T X_c`` of the candidates; vech: (p(p+1)/2, K) their upper
     triangles, component first; quad: (p(p+1)/2, q_d K) with ``(vech(R) @ quad).reshape(q_d, K)`` the upper
     triangles (q_d = d(d+1)/2 entries, component first) of ``X_c R X_c^T`` for any symmetric R, for the
-    Woodbury identity when p > 3 (else None); d: rows per candidate; max_trace: the largest trace of a
-    candidate's information matrix.
+    Woodbury identity when p > 3 (else None), of the regressors scaled by ``unit`` (p,) (``X_c diag(unit)``, the
+    pool's parameters to a unit mean information: the Woodbury algebra's round-off grows with the square of
+    M_rest's condition in the coordinates it is done in, and compliances of a base and a wrist joint put 1e5
+    into it that the scaling takes out); d: rows per candidate; max_trace: the largest trace of a candidate's
+    information matrix.
     """
 
     info: np.ndarray
@@ -176,6 +179,7 @@ class PoolForms:
     quad: np.ndarray | None
     d: int
     max_trace: float = 0.0
+    unit: np.ndarray | None = None
 
 
 def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> PoolForms:
@@ -185,11 +189,15 @@ def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> P
         info = pose_information(X)
     p = info.shape[-1]
     quad, d = None, 0
+    unit = None
     if p > 3:
         if X is None:
             lam, V = np.linalg.eigh(info)
             rank = int(np.max(np.sum(lam > p * np.finfo(float).eps * np.maximum(lam[:, -1:], 0.0), axis=1)))
             X = np.swapaxes(V[..., -rank:] * np.sqrt(np.maximum(lam[:, None, -rank:], 0.0)), -1, -2)
+        mean = np.einsum("kii->i", info) / len(info)
+        unit = np.where(mean > 0, 1.0 / np.sqrt(np.where(mean > 0, mean, 1.0)), 1.0)
+        X = X * unit
         d = X.shape[-2]
         (i, j), (a, b) = np.triu_indices(d), np.triu_indices(p)
         # coefficient of R_ab (a <= b) in (X R X^T)_ij: X_ia X_jb + X_ib X_ja, halved on the diagonal a = b
@@ -199,7 +207,7 @@ def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> P
     elif X is not None:
         d = X.shape[-2]
     return PoolForms(info, np.ascontiguousarray(vech(info).T), quad, d,
-                     float(np.einsum("kii->k", info).max(initial=0.0)))
+                     float(np.einsum("kii->k", info).max(initial=0.0)), unit)
 
 
 def _general_scores(M: np.ndarray, Xt: np.ndarray) -> np.ndarray:
@@ -210,8 +218,8 @@ def _general_scores(M: np.ndarray, Xt: np.ndarray) -> np.ndarray:
 
 #: eigenvalue ratio of the information of the other poses above which the Woodbury identity is used
 WOODBURY_MIN_RATIO = 1e-8
-#: a Woodbury score below this times kappa^2 trace(W R) may have lost more than about 1e-9 of its value to
-#: cancellation (1e9 eps, :func:`_woodbury_scores`)
+#: a Woodbury score below this times kappa^2 trace(W R) (kappa: the condition of the other poses' information)
+#: may have lost more than about 1e-9 of its value to cancellation (1e9 eps, :func:`_woodbury_scores`)
 WOODBURY_CANCELLATION = 1e9 * np.finfo(float).eps
 #: a candidate whose information matrix M_c has ``1 / (||M_c^-1||_F trace M_c)`` (a lower bound on its
 #: eigenvalue ratio) at most this is rescored by the general path
@@ -265,20 +273,21 @@ def exchange_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.
 
 
 def _woodbury_scores(forms: PoolForms, M_rest: np.ndarray, Xt: np.ndarray) -> np.ndarray:
-    """The Woodbury path of :func:`exchange_scores` for one M_rest (p, p) -> (K,). The score is a difference,
-    ``trace(W R)`` less the candidate's gain, and R = M_rest^-1 is large along a direction the other poses barely
-    hold: measured against exact arithmetic its error is below eps kappa^2 trace(W R), kappa the condition of
-    M_rest scaled to a unit diagonal, and reached 1e-3 trace(W R) at kappa 3e5 (a score of -22.5 for a true 1.63
-    that the exchange took). A candidate whose score is below :data:`WOODBURY_CANCELLATION` kappa^2 trace(W R)
-    (more than about 1e-9 of it possibly lost) is rescored by the direct path; all of them where that bound
-    reaches trace(W R)."""
-    scale = 1.0 / np.sqrt(np.diag(M_rest))
-    ev = np.linalg.eigvalsh(M_rest * np.outer(scale, scale))
+    """The Woodbury path of :func:`exchange_scores` for one M_rest (p, p) -> (K,), in the pool's scaled
+    parameters (``forms.unit``). The score is a difference, ``trace(W R)`` less the candidate's gain, and R is
+    large along a direction the other poses barely hold: against exact rational arithmetic its error stayed below
+    eps kappa^2 trace(W R), kappa the condition of the (scaled) M_rest (40 information matrices of a Jaco2's pool,
+    kappa 16 .. 1e4, and the one where it reached 1e-3 trace(W R) at kappa 7e7 unscaled: a score of -22.5 for a true
+    1.63, which the exchange took). A candidate whose score is below :data:`WOODBURY_CANCELLATION` kappa^2
+    trace(W R) (more than about 1e-9 of it possibly lost) is rescored by the direct path; every candidate where
+    that bound reaches trace(W R)."""
+    Ms, Xs = M_rest * np.outer(forms.unit, forms.unit), Xt * forms.unit
+    ev = np.linalg.eigvalsh(Ms)
     bound = WOODBURY_CANCELLATION * (ev[-1] / ev[0]) ** 2 if ev[0] > 0 else np.inf
     if not bound < 1.0:
         return _direct_scores(forms, M_rest, Xt)
-    R = np.linalg.inv(M_rest)
-    W = Xt.T @ Xt
+    R = np.linalg.inv(Ms)
+    W = Xs.T @ Xs
     RWR = R @ W @ R
     d = forms.d
     SG = (np.stack([vech(R), vech(RWR)]) @ forms.quad).reshape(2, d * (d + 1) // 2, -1)
@@ -417,7 +426,8 @@ def closed_form_scores(key: str, forms: PoolForms, M_rest: np.ndarray) -> np.nda
     w = np.linalg.eigvalsh(M_rest)
     if p > 3 and forms.quad is not None and w[0] > WOODBURY_MIN_RATIO * w[-1]:
         d = forms.d
-        S = (vech(np.linalg.inv(M_rest)) @ forms.quad).reshape(d * (d + 1) // 2, -1) + vech(np.eye(d))[:, None]
+        Ms = M_rest * np.outer(forms.unit, forms.unit)  # the pool's scaled parameters (PoolForms.quad)
+        S = (vech(np.linalg.inv(Ms)) @ forms.quad).reshape(d * (d + 1) // 2, -1) + vech(np.eye(d))[:, None]
         return -np.prod(w) * _symmetric_det(S, d)
     return -_symmetric_det(vech(M_rest)[:, None] + forms.vech, p)
 
