@@ -212,10 +212,6 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
                      "alone, with no extension and no uncertainty (sd 0); give the calibrated.yaml that stiffcal "
                      "discrepancy writes")
     notes += [unidentified] if unidentified else []
-    if not all(cal.estimable):
-        notes.append("some parameters of the calibrated model were not determined by its data (their minimum-norm "
-                     "values are used): predictions far from the data's poses may carry an error the standard "
-                     "deviation does not show")
     k = cal.compliances(robot.n_joints)
     negative = [robot.joint_names[j] for j in range(robot.n_joints) if k[j] < 0]
     if negative:
@@ -238,9 +234,9 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
 def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.ndarray) -> np.ndarray:
     """(N,) bool: the rows whose prediction rests only on what the calibration's data determined: no joint the
     calibration did not identify (:attr:`Calibration.k_joints`) is turned by the row's load (its torque above
-    round-off: 1e-9 of the row's largest), and no parameter it did not
-    determine (its estimable flag) has a column of X (N, r, p) above 1e-9 of the row's largest (scaled by the
-    parameter's standard deviation, so that units do not decide)."""
+    round-off: 1e-9 of the row's largest), and no parameter it did not determine (its estimable flag; the
+    prediction uses its minimum-norm value) has a column of X (N, r, p) above 1e-9 of the row's largest (scaled by
+    the parameter's standard deviation, so that units do not decide)."""
     from . import discrepancy as D
 
     n = robot.n_joints
