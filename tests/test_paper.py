@@ -15,6 +15,7 @@ from stiffcal.model import criteria
 from stiffcal.planning import maps
 from stiffcal.paper import reproduction
 from stiffcal.paper import tables
+from stiffcal.planning.study import study_from_config
 
 L = np.array([0.6, 0.4])
 F = np.array([0.0, -1.0])
@@ -538,3 +539,25 @@ def test_comparison_columns(results, tmp_path):
     """The CSV has the documented columns (the byte-identical rerun is checked by tests/test_workflow.py)."""
     tables.write_csv(results["cmp"], tmp_path / "a.csv")
     assert list(pd.read_csv(tmp_path / "a.csv").columns) == reproduction.COLUMNS
+
+
+def test_a_study_with_fewer_criteria_compares_what_it_computed(paper_config, root, results):
+    """A fresh user's config with `study.criteria: [a, ot]` crashed the paper comparison (KeyError 'd': a number
+    of the paper's text rests on the D row). Every printed number is still listed once; those resting on rows this
+    configuration did not compute are 'not computed' with the reason, and every number the full comparison
+    reproduced from the rows kept is reproduced here too."""
+    cfg = copy.deepcopy(paper_config)
+    cfg["study"]["criteria"] = ["a", "ot"]
+    study = study_from_config(cfg, root)
+    t2 = tables.table2(study)
+    t3 = tables.table3(study, t2)
+    t4, t5 = (results[k].reset_index() for k in ("t4", "t5"))
+    cmp = reproduction.comparison_table(study, t2, t3, t4, t5, results["printed"], results["stats"], seed=0)
+    full = results["cmp"]
+    assert len(cmp) == len(full) and list(cmp.columns) == reproduction.COLUMNS
+    gone = cmp.status == "not computed"
+    assert gone.any() and (cmp[gone].table == "text").any()
+    assert cmp[gone & (cmp.table == "text")].reason.str.contains("study.criteria").all()
+    kept = cmp.status != "not computed"
+    same = cmp[kept].merge(full, on=["table", "row", "quantity"], suffixes=("", "_full"))
+    assert (same.status == same.status_full).all()

@@ -259,7 +259,10 @@ def compare_tables(study: Study, t2: pd.DataFrame, t3: pd.DataFrame, printed: di
             crit = printed[table][row].get("criteria", [row])
             ours_df, idx = (t2i, crit) if table == "table2" else (t3i, [row])
             idx = [k for k in idx if k in ours_df.index]
-            if not idx:
+            if not idx:  # a criterion this configuration did not optimise (study.criteria)
+                out.append(dict(table=table, row=row, quantity=qty, printed=pr, status="not computed",
+                                 reason="its criterion is not in this configuration's study.criteria",
+                                 meaning=_table_meaning(table, qty, line.criteria)))
                 continue
             ours = [float(ours_df.loc[k, qty]) for k in idx]
             ok = all(matches(v, pr) for v in ours)
@@ -631,6 +634,12 @@ def _figure6(statistics: pd.DataFrame | None, name: str):
     return ours, float(rows.ours.min()), float(rows.ours.max()), sorted(rows.grid_deg.astype(float))
 
 
+def _computed(frames: dict, refs) -> bool:
+    """Whether every table row the references ('table/row/quantity') name is in our tables (a configuration with
+    fewer criteria than the paper's has fewer rows)."""
+    return all(r in frames[t].index for t, r, _ in (x.split("/") for x in refs))
+
+
 def compare_text(frames: dict, printed: dict, statistics: pd.DataFrame | None = None) -> pd.DataFrame:
     """Every result number of the paper's text beside ours (columns :data:`COLUMNS`; table 'text', row the
     number's key in ``printed['text']``, quantity 'value').
@@ -663,12 +672,18 @@ def compare_text(frames: dict, printed: dict, statistics: pd.DataFrame | None = 
             def ours_of(refs):
                 return fn([float(frames[t].loc[r, q]) for t, r, q in (x.split("/") for x in refs)])
 
+            if not _computed(frames, of):
+                row.update(status="not computed", reason="a row it rests on is not in this configuration's tables "
+                                                         "(study.criteria)")
+                out.append(row)
+                continue
             ours, ms, rms = ours_of(of)
             paper = fn([float(printed[t][r][q]) for t, r, q in (x.split("/") for x in of)])[0]
             row.update(ours=ours, ours_ms=ms, ours_rms=rms, from_paper=paper)
-            if e.get("others"):
-                vals = [ours] + [ours_of(o)[0] for o in e["others"]]
-                plans = [x[0].split("/")[1] for x in [of] + e["others"]]
+            others = [o for o in e.get("others") or () if _computed(frames, o)]
+            if others:
+                vals = [ours] + [ours_of(o)[0] for o in others]
+                plans = [x[0].split("/")[1] for x in [of] + others]
                 row.update(range_low=min(vals), range_high=max(vals),
                            range_over="against plans " + ", ".join(f"({p})" for p in plans))
         ok = matches(row["ours"], pr)
