@@ -202,6 +202,20 @@ def test_urdf_arm_keeps_its_urdf(tmp_path):
     q = _poses(robot, np.random.default_rng(0), 5)
     np.testing.assert_allclose(back.fk(q), robot.fk(q), rtol=0, atol=1e-12)
     np.testing.assert_allclose(back.compliances, k, rtol=1e-15)
+    # a fresh user's robot file named its URDF by an absolute path: the calibrated file kept it absolute (it was
+    # made relative, and a copy of the file in another folder no longer found its URDF)
+    import yaml
+
+    absolute = tmp_path / "abs.yaml"
+    doc = yaml.safe_load((ROOT / "config/robots/kuka_kr210_r2700_urdf.yaml").read_text())
+    doc["urdf"] = str((ROOT / "config/robots" / doc["urdf"]).resolve())
+    absolute.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    C.write_calibrated(load_robot(absolute), _calibration(robot, [], k, np.diag(k * 0.01) ** 2), out)
+    assert yaml.safe_load((out / "calibrated.yaml").read_text())["urdf"] == doc["urdf"]
+    copy = tmp_path / "elsewhere" / "again" / "calibrated.yaml"
+    copy.parent.mkdir(parents=True)
+    copy.write_text((out / "calibrated.yaml").read_text(), encoding="utf-8")
+    np.testing.assert_allclose(load_robot(copy).fk(q), robot.fk(q), rtol=0, atol=1e-12)
 
 
 # --- compensation ----------------------------------------------------------------------------------------------

@@ -80,7 +80,8 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
 def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     """The calibrated robot file (module docstring) as a YAML document for ``out_dir``: the robot file's own
     keys (a URDF given directly: a robot file of kind ``urdf`` naming it and its frames; a cell and joint limits
-    given apart added; the paths of a URDF and of a cell's SRDF made relative to ``out_dir``),
+    given apart added; relative paths of a URDF and of a cell's SRDF made relative to ``out_dir``, absolute ones
+    kept),
     ``compliances_rad_per_Nm`` replaced when every joint's is identified and positive (else the file's own, or
     none), and the ``calibration`` section."""
     import json
@@ -97,7 +98,9 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     else:
         doc = dict(read_yaml(robot.source))
 
-    def moved(path):  # a file the robot file names, from the new file's folder
+    def moved(path):  # a file the robot file names by a relative path, from the new file's folder (absolute: kept)
+        if Path(path).is_absolute():
+            return str(path)
         return os.path.relpath((Path(robot.source).parent / path).resolve(), Path(out_dir).resolve())
 
     if doc.get("kind") == "urdf":
