@@ -566,11 +566,19 @@ def test_a_huge_extended_header_is_refused_before_it_is_read(tmp_path, monkeypat
 
 # --- provenance -------------------------------------------------------------------------------------------
 
-def test_provenance_names_pinocchio_and_flint_and_every_untracked_input(tmp_path):
+def test_provenance_names_pinocchio_and_flint_and_every_untracked_input(tmp_path, monkeypatch):
     """provenance.json names the libraries that read or computed the data (Pinocchio read every URDF,
     python-flint isolates roots in the maps) and marks inputs that are not committed: an untracked config and
-    robot file make the run dirty even when every committed file is clean."""
+    robot file make the run dirty even when every committed file is clean. Code imported from outside the work
+    tree (a fresh user's clone whose venv imported another clone's package: the report named the clone's commit)
+    makes it dirty too, and is named."""
     from importlib import metadata
+
+    package = str(Path(A.__file__).resolve().parents[1])
+    assert A.code_outside_tree(Path(package).parents[1]) is None
+    assert A.code_outside_tree(tmp_path) == package
+    assert A.run_status({}, tmp_path)["code_outside_tree"] == package
+    monkeypatch.setattr(A, "code_outside_tree", lambda root=".": None)  # below: the tree's own code
 
     def git(*args):
         subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
@@ -599,9 +607,13 @@ def test_provenance_names_pinocchio_and_flint_and_every_untracked_input(tmp_path
     assert status["commit"].endswith("-dirty") and status["untracked_inputs"] == ["lab/robot.yaml"]
     assert status["packages"]["pin"] == metadata.version("pin")
     assert A.run_status({"robot": "tracked.yaml"}, tmp_path, packages=False) == {
-        "commit": A.run_status({}, tmp_path)["commit"], "untracked_inputs": [], "modified_inputs": []}
+        "commit": A.run_status({}, tmp_path)["commit"], "untracked_inputs": [], "modified_inputs": [],
+        "code_outside_tree": None}
     assert not A.run_status({}, tmp_path)["commit"].endswith("-dirty")
     assert A.run_status({}, tmp_path, config_source="my.yaml")["commit"].endswith("-dirty")
+    monkeypatch.setattr(A, "code_outside_tree", lambda root=".": package)
+    assert A.run_status({}, tmp_path)["commit"].endswith("-dirty")
+    assert A.provenance("h", "s", "e", tmp_path, ["tracked.yaml"])["dirty"] is True
 
 
 # --- progress ----------------------------------------------------------------------------------------------

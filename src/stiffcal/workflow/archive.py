@@ -62,6 +62,18 @@ def input_status(inputs, root: str | Path = ".") -> dict[str, list[str]]:
             "modified": sorted(n for n in names if rel.get(n) in committed and rel[n] in changed)}
 
 
+def code_outside_tree(root: str | Path = ".") -> str | None:
+    """The folder of the stiffcal package this process imported when it is not inside the work tree ``root``
+    (another clone's, or an installed copy: the run's code is then not the commit's, which ``-dirty`` and this
+    path say), else None."""
+    package = Path(__file__).resolve().parents[1]
+    try:
+        package.relative_to(Path(root).resolve())
+    except ValueError:
+        return str(package)
+    return None
+
+
 def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".", inputs=()) -> dict:
     """What made the archive: commit and whether the tree was dirty, the run's inputs that git does not vouch
     for (:func:`input_status`: ``untracked_inputs``, ``modified_inputs``; any of them makes ``dirty`` true),
@@ -71,10 +83,11 @@ def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".
     root = Path(root)
     commit = git_output(["rev-parse", "HEAD"], root)
     status = input_status(inputs, root)
+    outside = code_outside_tree(root)
     dirty = None if commit is None else bool(git_output(["status", "--porcelain", "--untracked-files=no"], root)
-                                             or status["untracked"] or status["modified"])
+                                             or status["untracked"] or status["modified"] or outside)
     return {"commit": commit or "unknown", "dirty": dirty, "untracked_inputs": status["untracked"],
-            "modified_inputs": status["modified"], "python": sys.version.split()[0],
+            "modified_inputs": status["modified"], "code_outside_tree": outside, "python": sys.version.split()[0],
             "packages": package_versions(), "platform": platform.platform(), "machine": platform.machine(),
             "config_hash": config_hash, "started": started, "ended": ended,
             "source_date_epoch": source_date_epoch(root)}
@@ -82,16 +95,20 @@ def provenance(config_hash: str, started: str, ended: str, root: str | Path = ".
 
 def run_status(config, root: str | Path = ".", config_source: str | None = None, packages: bool = True) -> dict:
     """What the report and the archive's name say of a run: ``commit`` (12 hex digits, '-dirty' when the work tree
-    has changes or an input git does not vouch for), ``untracked_inputs`` and ``modified_inputs``
+    has changes or an input git does not vouch for, or the code that ran is not the tree's: ``code_outside_tree``,
+    :func:`code_outside_tree`), ``untracked_inputs`` and ``modified_inputs``
     (:func:`input_status` of ``config_source``, the config file, and :func:`config_files`), and ``packages``
     (the installed version of every library of :data:`PACKAGES`, those installed; left out with
     ``packages=False``)."""
 
     status = input_status([*config_files(config, root), *([config_source] if config_source else [])], root)
     commit = git_commit(root)
-    if commit != "unknown" and not commit.endswith("-dirty") and (status["untracked"] or status["modified"]):
+    outside = code_outside_tree(root)
+    if commit != "unknown" and not commit.endswith("-dirty") and (status["untracked"] or status["modified"]
+                                                                   or outside):
         commit += "-dirty"
-    out = {"commit": commit, "untracked_inputs": status["untracked"], "modified_inputs": status["modified"]}
+    out = {"commit": commit, "untracked_inputs": status["untracked"], "modified_inputs": status["modified"],
+           "code_outside_tree": outside}
     if packages:
         out["packages"] = {k: v for k, v in package_versions().items() if v is not None}
     return out
