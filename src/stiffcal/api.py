@@ -486,8 +486,8 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     if continuum is not None and not approx.converged:
         notes.append("over its feasible candidates, " + approx.convergence_note())
     clear, closest = None, ()
+    notes += cell_notes(robot)
     if robot.cell is not None:
-        notes += cell_notes(robot)
         c, names = clearance(robot, np.radians(poses))
         clear, closest = c, tuple(names)
         notes += _contact_note(c, names)

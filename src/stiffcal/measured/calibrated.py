@@ -643,6 +643,7 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     test_pose (n,) [rad]; test_load (d,) [N] or (d + d_m,) [N, N m]; sigma_m [m]: the new readings' noise
     (default the calibration's). Raises :class:`InputError` for a robot without a calibration."""
     from . import discrepancy as D
+    from ..model.workcell import cell_notes
     from ..planning.plans import fedorov_exchange
 
     cal = getattr(robot, "calibration", None)
@@ -660,8 +661,9 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     notes = _unidentified_at_test_pose(robot, cal, test_pose, test_load)
     fresh = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
     if not np.isfinite(fresh.value):
-        notes.append(f"{m} new poses alone cannot identify the model's {Xp.shape[-1]} parameters: O_t_fresh is "
-                     "infinite")
+        notes.append(f"{m} new poses alone cannot identify the {Xp.shape[-1]} parameters of the model that the "
+                     f"candidate poses or the test pose move (of {len(live)}): O_t_fresh is infinite")
+    notes += _shared_error_note(cal, sigma_m) + cell_notes(robot)
     P = np.einsum("kdi,kdj->kij", Xp, Xp)
     W = Xt.T @ Xt
     bound, w, gap = prior_design_bound(P, prior_s, W, m)
@@ -681,6 +683,21 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     return NextRound(pool[with_old.indices], sigma**2 * with_old.value, prior_ot, sigma**2 * fresh.value,
                      sigma**2 * bound, pool[keep], w[keep] / w[keep].sum(), float(gap), tuple(names), post, len(pool),
                      causes, sigma, tuple(notes))
+
+
+def _shared_error_note(cal: Calibration, sigma_m: float | None) -> list[str]:
+    """A note when the calibration's rows shared errors (its error model's components, by REML) and the next round's
+    noise is the calibration's sigma_m: O_t takes the new readings as independent, so it promises more than rows
+    that share a reference reading give (a fresh user's UR5: 3.41 um promised, 4.13 um reached)."""
+    parts = {k: c.get("sd_m") for k, c in ((cal.error_model or {}).get("components") or {}).items()
+             if c.get("estimable") and (c.get("sd_m") or 0.0) > 0.0}
+    if sigma_m is not None or not parts:
+        return []
+    shared = ", ".join(f"{k} {v * 1e6:.3g} um" for k, v in parts.items())
+    return [f"O_t takes the new readings as independent, with the calibration's noise sigma_m "
+            f"{cal.sigma_m * 1e6:.3g} um; its rows also shared errors ({shared} RMS: error_model.components), which "
+            "new readings from shared references will share too, so the next round's rms_m is optimistic; give "
+            "--sigma sqrt(sigma_m^2 + the shared parts^2) for a conservative plan"]
 
 
 def _moves_undetermined(cal: Calibration, Xt: np.ndarray, live: np.ndarray) -> np.ndarray:

@@ -1871,6 +1871,11 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     (:func:`_nominal_summary`), the diagnostics, the extended model, the held-out check and the gain with their
     notes (:func:`_gain_notes`)."""
     meas, m, ob, des, noise, notes = pre.meas, pre.m, pre.ob, pre.des, pre.noise, list(pre.notes)
+    if getattr(robot, "calibration", None) is not None:
+        data = (robot.calibration.source or {}).get("data") or "its data"
+        notes.insert(0, f"the robot file is a calibrated model (of {data}): these data are analysed alone, against its "
+                        "kinematics; its calibration is not combined with them (to combine rounds, analyse the logs "
+                        "together, each configuration with its own pose_id, against the robot file)")
     f0 = fit(des.X0, des.y)
     lof = lack_of_fit_test(robot, m, des, noise, pre.w, pre.error)
     sel = closed_testing(des, CAUSES, noise, lof, alpha)

@@ -1052,10 +1052,9 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
             compound = _session(critc, rm, qc, Fc, measurement)
     elif pairs:
         notes.append("no test pose: the compound plan (discrimination and O_t together) is left out")
-    if robot.cell is not None:
-        from ..model.workcell import cell_notes
+    from ..model.workcell import cell_notes
 
-        notes += [f"the cell ({robot.cell.describe()}): " + n for n in cell_notes(robot)]
+    notes += [n if robot.cell is None else f"the cell ({robot.cell.describe()}): " + n for n in cell_notes(robot)]
     return Discrimination(rm, loads, m, repeats, truth, tuple(seps), tuple(pairs), plan, cert, float(weight),
                           compound, ot_plan, ot_bound, tuple(curve), tuple(notes))
 

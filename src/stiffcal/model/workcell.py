@@ -1047,7 +1047,12 @@ def feasible(robot, q: np.ndarray, hanging=None) -> np.ndarray:
 
 
 def cell_notes(robot) -> list[str]:
-    """What the cell's engine decided about pairs (pairs not checked, checked for contact only)."""
+    """What the cell's engine decided about pairs (pairs not checked, checked for contact only); for a spatial
+    robot without a cell, that its poses are checked against the joint limits only."""
+    if robot.cell is None:
+        return [] if robot.planar else [
+            "the robot has no cell: the poses are checked against the joint limits only, not against the table, the "
+            "arm itself or obstacles (a cell in the robot file, or --cell, keeps them out)"]
     eng = engine(robot)
     return [] if eng is None else list(eng.notes)
 
