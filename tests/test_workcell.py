@@ -422,6 +422,9 @@ def test_loads_apart_from_the_test_wrench(root):
     (["--cell", "CELL:srdf: x.srdf\nlink_radius_m: 0.05\n"], "srdf"),
     (["--cell", "CELL:floor_m: 0.0\n"], "link_radius_m"),
     (["--cell", "CELL:floor_m: 5.0\nlink_radius_m: 0.05\n"], "cell"),
+    # a fresh user's wall at offset_m: -600 (millimetres meant) was accepted, and so never checked
+    (["--cell", "CELL:link_radius_m: 0.05\nboxes: [{center_m: [450, 250], size_m: [300, 200]}]\n"], "boxes[0]"),
+    (["--cell", "CELL:link_radius_m: 0.05\nfloor_m: -100\n"], "floor_m"),
     (["--candidates", "CSV:q1_deg\n10\n"], "columns"),
     (["--candidates", "CSV:q1_deg,q2_deg\n10,abc\n"], "row 2, column q2_deg"),
     (["--candidates", "CSV:q1_deg,q2_deg\n\n,\n"], "no poses"),

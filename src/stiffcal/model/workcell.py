@@ -392,12 +392,22 @@ def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
     found += [(_cylinder(c, i, planar, vec, source, prefix), f"cylinders[{i}]")
               for i, c in enumerate(doc.get("cylinders", []))]
     names = set()
+    reach = robot.reach_m
     for o, fld in found:
         if o.name in names:
             raise InputError(f"expected unique obstacle names, got {o.name!r} twice", source=source,
                              field=_at(prefix, fld))
         names.add(o.name)
+        far = float(o.sdf(np.zeros(3)))
+        if far > FAR_OBSTACLE_REACHES * reach:
+            raise InputError(f"obstacle {o.name!r} is {far:.4g} m from the base, more than {FAR_OBSTACLE_REACHES:g} "
+                             f"times the arm's reach ({reach:.3g} m): it can never touch the arm; lengths in the "
+                             "cell are in metres (millimetres given?)", source=source, field=_at(prefix, fld))
     return [o for o, _ in found]
+
+
+#: an obstacle farther from the base than this many reaches of the arm is refused (a length in mm given as m)
+FAR_OBSTACLE_REACHES = 20.0
 
 
 def _box(b: dict, i: int, planar: bool, vec, source: str, prefix: str) -> Obstacle:
