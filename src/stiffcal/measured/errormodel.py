@@ -694,6 +694,9 @@ class ErrorModel:
     inflation: float = 0.0
     #: ``estimate(..., lrt="deferred")``: the callable that computes (p_values, inflation) (:func:`with_tests`)
     pending: object = field(default=None, repr=False, compare=False)
+    #: ((Y, groups, X_union, weights), blocks): the per-configuration arrays :func:`estimate` built from those very
+    #: inputs (without a drift), reused by :func:`unloaded_tests` when it is given the same objects
+    arrays: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def shared(self) -> bool:
@@ -910,6 +913,7 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
                          "data (the fixed effects absorb it): it is left out")
     em = _finish(structure, blocks, lam, estimable, tuple(pvals), stage, sigma2, None if replicated else lik.df,
                  source, w, notes, Y[N:])
+    em = replace(em, arrays=((Y, groups, X_union, weights), blocks) if drift is None else None)
     if lrt == "deferred":
         return replace(em, pending=tests)
     return with_tests(replace(em, pending=tests)) if lrt else em
@@ -1067,7 +1071,9 @@ def unloaded_tests(em: ErrorModel, Y: np.ndarray, groups: np.ndarray, X_union: n
     and (w, df) of the tests. Y (R, w), groups (N,), X_union (N, w, p), weights (R,) as :func:`estimate`."""
     st = em.structure
     N, w = st.n_loaded, Y.shape[1]
-    blocks = _block_arrays(st, Y, groups, X_union, weights)
+    made = em.arrays
+    same = made is not None and all(a is b for a, b in zip(made[0], (Y, groups, X_union, weights)))
+    blocks = made[1] if same else _block_arrays(st, Y, groups, X_union, weights)
     roots = _full_roots(em, blocks)
     local = em.df_pe > 0  # with replicates the reference is their groups' means (the pure error's model)
     if not local:
