@@ -414,6 +414,7 @@ def test_loads_apart_from_the_test_wrench(root):
 @pytest.mark.parametrize("args, field", [
     (["--loads", "data"], "--loads"),
     (["--loads", "hanging:-1"], "--loads"),
+    (["--loads", "hanging:10,20;forces:50,0;-50,0"], "--loads"),  # two kinds: one kind per set, say how to mix
     (["--joint-limits-deg", "-180:180"], "--joint-limits-deg"),
     (["--joint-limits-deg", "-180,180,0,1"], "--joint-limits-deg[0]"),
     (["--cell", "CELL:clearance_m: -1\n"], "clearance_m"),

@@ -241,7 +241,7 @@ def discriminate(args) -> dict:
             "efficiency": cert.get("efficiency"), "power_bound": cert.get("power_bound"),
             "compound": None if not comp else {k: comp[k] for k in ("weight", "poses_deg", "forces_N", "power",
                                                                      "O_t_rms_m", "t_efficiency", "ot_efficiency")},
-            "plan": f"{args.out}/plan.json"}
+            "plan": os.path.join(args.out, "plan.json")}
 
 
 def predict(args) -> dict:

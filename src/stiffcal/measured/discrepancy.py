@@ -1309,9 +1309,10 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
                          "data within a factor of 10 of them are analysed", source=meas.source, field=cols)
     notes = []
     if neg:
-        notes.append(f"negative compliance ({', '.join(f'{names[int(params[i])]} = {k[i]:.3g}' for i in neg)} "
-                     "rad/(N m), below zero beyond its 95 % interval): a joint cannot push back against the load; "
-                     + causes)
+        listed = ", ".join(f"{names[int(params[i])]} = {k[i]:.3g}" for i in neg)
+        notes.append(f"negative compliance in the nominal model ({listed} "
+                     "rad/(N m), below zero beyond its 95 % interval): a joint cannot push back against the load; a "
+                     "cause the verdict names may explain it (its extended model's k); if none does, " + causes)
     return notes + _scale_notes(robot, k, params)
 
 

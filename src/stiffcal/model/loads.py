@@ -104,6 +104,11 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
     :data:`~stiffcal.limits.MAX_FORCE_N` (:func:`check_lab_loads`)."""
     text = "data" if spec is None else spec.strip()
     kind, _, rest = text.partition(":")
+    mixed = [k for k in ("hanging", "directions", "forces", "wrenches", "bar") if f"{k}:" in rest]
+    if mixed:
+        raise InputError(f"expected one kind of load per set, got {kind!r} and {mixed[0]!r} in {text!r}: to combine "
+                         "hanging masses with pushes, give every load as 'forces:FX,FY,FZ;...' (a mass M [N] as "
+                         "the force M along gravity; the hanging cable's path is then not checked)", field=field_name)
     g = None if gravity is None else np.asarray(gravity, float)
     if kind == "data":
         return LoadSet(_data_loads(data_forces, d, resolution_N, moment_resolution_Nm, cluster, field_name), kind,
