@@ -896,7 +896,7 @@ def _within_prior_limits(robot, prior):
 
     from .model.robot import narrowed_limits
 
-    own = robot.limits_deg if robot.has_joint_limits else np.degrees(robot.joint_limits_rad)
+    own = np.degrees(robot.joint_limits_rad)
     both = np.column_stack([np.maximum(own[:, 0], prior.limits_deg[:, 0]),
                             np.minimum(own[:, 1], prior.limits_deg[:, 1])])
     if np.any(both[:, 0] >= both[:, 1]):

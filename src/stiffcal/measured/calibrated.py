@@ -241,13 +241,14 @@ def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.nd
     prediction uses its minimum-norm value) has a column of X (N, r, p) above 1e-9 of the row's largest (scaled by
     the parameter's standard deviation, so that units do not decide)."""
     from . import discrepancy as D
+    from ..model.catalogue import TORQUE_RTOL
 
     n = robot.n_joints
     missing = np.array([j for j in range(n) if j not in cal.k_joints], int)
     ok = np.ones(len(q), bool)
-    if missing.size:
+    if missing.size:  # turned: above the round-off of the analysis's rule (catalogue.unturned_to_zero), row by row
         tau = np.abs(D.torques(robot, q, load))
-        ok &= ~np.any(tau[:, missing] > 1e-9 * tau.max(axis=1, keepdims=True), axis=1)
+        ok &= ~np.any(tau[:, missing] > TORQUE_RTOL * tau.max(axis=1, keepdims=True), axis=1)
     undetermined = ~np.asarray(cal.estimable, bool)[: X.shape[-1]]
     if undetermined.any():
         sd = np.sqrt(np.clip(np.diag(cal.cov), 0.0, None))[: X.shape[-1]]

@@ -2088,8 +2088,9 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
                      "or more loads of different size per configuration")
     out["time"], note = _time_diagnostic(pre, chosen, f, alpha)
     notes += [note] if note else []
-    turned = turned_load_deflections(robot, m, pre.ob, fit(pre.des.X0, pre.des.y).beta) * pre.w[:, None, None]
-    out["load_direction"], note = _tilt_diagnostic(pre, turned, chosen, alpha)
+    f0 = fit(pre.des.X0, pre.des.y)  # the nominal fit: the tilt's regressors and its test's null model
+    turned = turned_load_deflections(robot, m, pre.ob, f0.beta) * pre.w[:, None, None]
+    out["load_direction"], note = _tilt_diagnostic(pre, turned, f0, chosen, alpha)
     notes += [note] if note else []
     out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
     notes += [note] if note else []
@@ -2299,14 +2300,13 @@ def turned_load_deflections(robot: Robot, m: Measurements, ob: Observed, k: np.n
     return np.stack(cols, -1)
 
 
-def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, chosen, alpha: float):
+def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, f0: Fit, chosen, alpha: float):
     """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`: the load turned by
-    a small angle added to the nominal model (``turned`` (N, w, 3), weighted: the columns A(q, a x F) k of the nominal
-    fit's k, :func:`turned_load_deflections`), its F-test and the angle; then whether the chosen causes still add
+    a small angle added to the nominal model (fit ``f0``; ``turned`` (N, w, 3), weighted: the columns A(q, a x F) k of
+    its k, :func:`turned_load_deflections`), its F-test and the angle; then whether the chosen causes still add
     anything beyond it (when they do not, the tilt explains the data as well as they do, and the warning says so)."""
     m, des, noise = pre.m, pre.des, pre.noise
     N, d = m.n_rows, des.d
-    f0 = fit(des.X0, des.y)
     T = (pre.error.whiten(turned) if pre.error.blocks else turned).reshape(N * d, -1)
     f1 = fit(np.hstack([des.X0, T]), des.y)
     if f1.rank <= f0.rank:
@@ -2975,19 +2975,22 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
     from . import calibrated
 
     verdict = replace(verdict, data=str(data_path), robot=robot.source)
-    if (verdict["diagnostics"] or {}).get("extended_not_better_held_out"):  # keep the model that carries to others
-        cal = calibrated.from_analysis(robot, pre, {**verdict, "extended": None}, data_path)
-        cal = replace(cal, source={**cal.source, "model": "nominal (the extended model predicts held-out "
-                                                          "configurations no better)"})
+    worse = bool((verdict["diagnostics"] or {}).get("extended_not_better_held_out"))
+    with_test = test_pose is not None and test_force is not None
+    nominal_cal = (calibrated.from_analysis(robot, pre, {**verdict, "extended": None}, data_path if worse else None)
+                   if worse or with_test else None)  # the data's hash only where it is the file's model
+    if worse:  # keep the model that carries to other configurations
+        cal = replace(nominal_cal, source={**nominal_cal.source, "model": "nominal (the extended model predicts "
+                                                                          "held-out configurations no better)"})
         verdict = replace(verdict, notes=[*verdict.notes, "calibrated.yaml holds the nominal model, not the extended "
                                           f"one ({', '.join(verdict['extended']['causes'])}): the extended model "
                                           "predicts held-out configurations no better (gain.loco_ratio)"])
     else:
         cal = calibrated.from_analysis(robot, pre, verdict, data_path)
-    if test_pose is None or test_force is None:
+    if not with_test:
         return verdict, cal
     model = replace(robot, calibration=cal)
-    nominal = replace(robot, calibration=calibrated.from_analysis(robot, pre, {**verdict, "extended": None}))
+    nominal = replace(robot, calibration=nominal_cal)
     machining = {"test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
                  **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
     summary, notes = calibrated.next_round_summary(model, test_pose, test_force)
