@@ -405,6 +405,54 @@ def test_next_round_prior_is_infinite_where_the_test_pose_moves_an_undetermined_
     assert any("did not determine" in n and "O_t_prior is infinite" in n for n in nr.notes)
 
 
+def _schur_ot(M, Xt, nuisance):
+    """tr(X_t S^-1 X_t^T) on the parameters that are not ``nuisance`` (X_t zero on those), S = M_aa - M_an M_nn^+
+    M_na: the test pose's variance when the nuisance parameters are estimated alongside (Pukelsheim 1993, sec.
+    3.10), with the pseudo-inverse where the data do not determine them; inf where S is singular."""
+    a, n = ~nuisance, nuisance
+    S = M[np.ix_(a, a)] - M[np.ix_(a, n)] @ np.linalg.pinv(M[np.ix_(n, n)]) @ M[np.ix_(n, a)]
+    ev = np.linalg.eigvalsh(S)
+    if ev.min() <= 1e-12 * ev.max():
+        return np.inf
+    return float(np.trace(Xt[:, a] @ np.linalg.solve(S, Xt[:, a].T)))
+
+
+def test_next_round_with_an_undetermined_parameter_the_test_pose_does_not_move(tmp_path):
+    """A fresh user's Z1: the old data left backlashes undetermined that the test load does not move, no plan of a
+    few poses determined them, and the next round raised 'Singular matrix'. Here b2 of the 2-link calibration is
+    undetermined (its covariance row zero) and the test force lies along link 2 (tau_2 = 0, so X_t's b2 column is
+    zero): the test pose's variance does not depend on b2, and every plan of two candidate poses is valued by hand
+    as the Schur complement with the pseudo-inverse of b2's block (finite whether or not the plan determines b2).
+    The certified bound is below the best of them, the exchange's plan is that best, and a variance the plan
+    leaves undetermined is infinite, with a note."""
+    robot = _calibrated_2link(tmp_path)
+    cal = robot.calibration
+    cov = cal.cov.copy()
+    cov[3, :], cov[:, 3] = 0.0, 0.0
+    flat = replace(robot, calibration=replace(cal, cov=cov, estimable=(True, True, True, False)))
+    qt = np.radians([30.0, 50.0])
+    ft = 300.0 * np.array([np.cos(qt.sum()), np.sin(qt.sum())])
+    Xt = _by_hand(robot, qt, ft)[0]
+    assert np.abs(Xt[:, 3]).max() < 1e-9 * np.abs(Xt).max()
+    nr = C.next_round(flat, qt, ft, 1, step_deg=20.0)
+    pool = D.candidate_poses(robot, 20.0)
+    X = _by_hand(robot, pool, ft)
+    J = robot.jacobian(pool)  # a torque of round-off (the force along link 2 in some candidates) reverses nothing
+    tau = np.einsum("ndj,d->nj", J, ft)
+    X[..., 3] *= np.abs(tau[:, 1:2]) > 1e-9 * np.abs(tau).max(axis=1, keepdims=True)
+    P = np.einsum("kdi,kdj->kij", X, X) / nr.sigma_m**2
+    prior = np.linalg.pinv(cov)
+    nuisance = np.array([False, False, False, True])
+    ots = np.array([_schur_ot(prior + P[k], Xt, nuisance) for k in range(len(pool))])
+    assert np.isfinite(ots).any()
+    assert nr.lower_bound <= ots.min() * (1 + 1e-6)
+    np.testing.assert_allclose(nr.O_t, ots.min(), rtol=1e-6)
+    pick = int(np.argmin(np.linalg.norm(pool - nr.poses[0], axis=1)))
+    undetermined = np.abs(X[pick][:, 3]).max() == 0
+    assert (nr.cov_diag[3] == np.inf) == undetermined
+    assert undetermined == any("b2" in n and "stay undetermined" in n for n in nr.notes)
+
+
 def test_next_round_with_no_prior_is_the_plan_without_old_data(tmp_path):
     """The exchange with a zero prior is the exchange without one (the same plan and value); a prior that
     carries almost nothing (the covariance times 1e12) gives the O_t of the best plan without old data, which is

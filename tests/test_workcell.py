@@ -731,3 +731,26 @@ def test_limits_given_apart_are_kept_in_the_calibrated_file_and_bound_the_next_r
                                   test_pose_deg=[60, 30], force_N=[0, -300], figures=False)
     assert yaml.safe_load((own / "calibrated.yaml").read_text()).get("joint_limits_deg") == \
         yaml.safe_load(robot_file.read_text()).get("joint_limits_deg")
+
+
+@needs_arms
+def test_a_tip_link_named_like_its_fixed_joint_is_the_link(tmp_path):
+    """A fresh user's Unitree Z1: its URDF names a link and the fixed joint to it alike (``gripperStator``); the
+    robot file took it as the tip, and the cell's check then raised pinocchio's 'Several frames match'. The tip is
+    the link (the body frame first, as the kinematic chain reads it): the same poses are feasible, and the tool
+    point is where it is, as with the parent link link06 and the fixed joint's 0.051 m added to the tool offset."""
+    root = real_arms.robots_dir()
+    cell = ("cell:\n  floor_m: 0.0\n  clearance_m: 0.01\n  self_collision: true\n"
+            f"  srdf: {root}/z1_description/srdf/z1.srdf\n")
+    files = []
+    for tip, tool in (("gripperStator", 0.10), ("link06", 0.151)):
+        path = tmp_path / f"z1_{tip}.yaml"
+        path.write_text(f"name: z1\nkind: urdf\nurdf: {root}/z1_description/urdf/z1.urdf\nbase_frame: link00\n"
+                        f"tip_frame: {tip}\ntool_m: [{tool}, 0.0, 0.0]\n{cell}", encoding="utf-8")
+        files.append(load_robot(path))
+    from stiffcal.model.workcell import feasible
+
+    q = np.random.default_rng(3).uniform(files[0].joint_limits_rad[:, 0], files[0].joint_limits_rad[:, 1], (64, 6))
+    np.testing.assert_allclose(files[0].fk(q), files[1].fk(q), atol=1e-12)
+    ok = feasible(files[0], q)
+    assert np.array_equal(ok, feasible(files[1], q)) and 0 < ok.sum() < len(q)

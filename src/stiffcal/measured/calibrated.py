@@ -658,21 +658,28 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     live = (np.abs(Xp).max(axis=(0, 1)) > 0) | (np.abs(Xt).max(axis=0) > 0)
     prior_s = _marginal(prior / np.outer(scale, scale), live)
     Xp, Xt, scale = Xp[..., live], Xt[:, live], scale[live]
-    with_old = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=prior_s)
+    P = np.einsum("kdi,kdj->kij", Xp, Xp)
+    ridged = prior_s + _nuisance_ridge(cal, P, Xt, live)
+    with_old = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=ridged)
     notes = _unidentified_at_test_pose(robot, cal, test_pose, test_load)
     fresh = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
     if not np.isfinite(fresh.value):
         notes.append(f"{m} new poses alone cannot identify the {Xp.shape[-1]} parameters of the model that the "
                      f"candidate poses or the test pose move (of {len(live)}): O_t_fresh is infinite")
     notes += _shared_error_note(cal, sigma_m) + cell_notes(robot)
-    P = np.einsum("kdi,kdj->kij", Xp, Xp)
     W = Xt.T @ Xt
-    bound, w, gap = prior_design_bound(P, prior_s, W, m)
+    bound, w, gap = prior_design_bound(P, ridged, W, m)
     cov_rr = cal.cov[:p_r, :p_r]
     post = np.diag(cov_rr).copy()  # a parameter that no pose and not the test pose moves keeps its variance
-    post[live] = np.diag(sigma**2 * np.linalg.inv(prior_s + P[with_old.indices].sum(axis=0)) / np.outer(scale, scale))
+    post[live] = sigma**2 * _posterior_variances(prior_s + P[with_old.indices].sum(axis=0)) / scale**2
     keep = w > 1e-4 * w.max()
     names = cal.names[:p_r]
+    left = [names[j] for j in np.flatnonzero(~np.isfinite(post))]
+    if left:
+        notes.append(f"{', '.join(left)} stay undetermined with the old data and the plan's poses (their variances "
+                     "are infinite)"
+                     + ("; the test pose's deflection does not depend on them, so its O_t is finite without them"
+                        if np.isfinite(with_old.value) else ""))
     Xt_raw = Xt * scale
     prior_ot = float(np.trace(Xt_raw @ cov_rr[np.ix_(live, live)] @ Xt_raw.T))
     undetermined = [names[j] for j in np.flatnonzero(live)[_moves_undetermined(cal, Xt, live)]]
@@ -709,6 +716,38 @@ def _moves_undetermined(cal: Calibration, Xt: np.ndarray, live: np.ndarray) -> n
     flags = np.array(cal.estimable, bool)[: len(live)][live]
     size = np.abs(Xt).max(axis=0)
     return ~flags & (size > 1e-9 * max(size.max(), 1e-300))
+
+
+#: the ridge (relative to the candidates' mean information per parameter) put on the next round's nuisance
+#: parameters (:func:`_nuisance_ridge`): O_t then differs from its limit by about this fraction
+NUISANCE_RIDGE = 1e-9
+
+
+def _nuisance_ridge(cal: Calibration, P: np.ndarray, Xt: np.ndarray, live: np.ndarray) -> np.ndarray:
+    """(p_live, p_live): a diagonal ridge on the next round's nuisance parameters: those the calibration's data did
+    not determine (its estimable flags) and the test pose does not move (their column of Xt (d, p_live) round-off;
+    a backlash of a joint whose total torque the old loads never reversed and the test load does not turn). The
+    test pose's deflection X_t theta does not depend on them, so its variance is finite whether or not the new
+    poses determine them: the limit of tr(W (M + r I_n)^-1) as r -> 0, the inverse of the Schur complement
+    M_aa - M_an M_nn^+ M_na on the other parameters (Pukelsheim, *Optimal Design of Experiments*, 1993, sec. 3.10:
+    the information matrix of a parameter subsystem). A small r gives that limit to a relative r and keeps every
+    plan's M invertible for the exchange (without it, a plan that left them undetermined had an infinite O_t, and
+    the posterior variances raised). P (K, p_live, p_live): the candidates' information."""
+    flags = np.array(cal.estimable, bool)[: len(live)][live]
+    size = np.abs(Xt).max(axis=0)
+    nuisance = ~flags & ~(size > 1e-9 * max(size.max(), 1e-300))
+    mean = float(np.trace(P.mean(axis=0))) / max(P.shape[-1], 1)
+    return np.diag(np.where(nuisance, NUISANCE_RIDGE * max(mean, 1e-300), 0.0))
+
+
+def _posterior_variances(M: np.ndarray) -> np.ndarray:
+    """(p,): the diagonal of M^+ for the parameters M (p, p) (an information matrix, symmetric positive
+    semi-definite) determines, inf for those it does not (e_j outside M's range, relative rank 1e-10)."""
+    ev, U = np.linalg.eigh(0.5 * (M + M.T))
+    keep = ev > 1e-10 * max(float(ev.max(initial=0.0)), 1e-300)
+    out = (U[:, keep] ** 2) @ (1.0 / ev[keep])
+    determined = ((U[:, ~keep] ** 2).sum(axis=1) <= 1e-10) if (~keep).any() else np.ones(len(M), bool)
+    return np.where(determined, out, np.inf)
 
 
 def _marginal(information: np.ndarray, keep: np.ndarray) -> np.ndarray:

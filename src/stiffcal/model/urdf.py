@@ -281,8 +281,10 @@ def _joint_axis(model, j: int, neutral: np.ndarray) -> np.ndarray:
     return axis / np.linalg.norm(axis)
 
 
-def _frame(model, name: str, source: str, field: str) -> int:
-    """Index of the frame called ``name`` (a link's body frame first, else a joint's or another frame)."""
+def frame_index(model, name: str, source: str = "", field: str = "") -> int:
+    """Index of the frame called ``name`` (a link's body frame first, else a joint's or another frame: a URDF may
+    name a link and a fixed joint alike, where pinocchio's ``getFrameId`` without a type raises). InputError
+    naming ``field`` when there is none."""
     found = [i for i, f in enumerate(model.frames) if f.name == name]
     if not found:
         links = [f.name for f in model.frames if str(f.type).endswith("BODY")]
@@ -368,7 +370,7 @@ def read_chain(urdf_path: str | Path, base_frame: str, tip_frame: str, joints=No
     path = Path(urdf_path)
     mimic = _mimic_joints(_check_text(path, source))
     model = _build_model(path, source)
-    b, t = _frame(model, base_frame, source, "base_frame"), _frame(model, tip_frame, source, "tip_frame")
+    b, t = frame_index(model, base_frame, source, "base_frame"), frame_index(model, tip_frame, source, "tip_frame")
     jb, jt = model.frames[b].parentJoint, model.frames[t].parentJoint
     below_base, to_tip = _ancestors(model, jb), _ancestors(model, jt)
     if to_tip[:len(below_base)] != below_base:

@@ -52,6 +52,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .urdf import frame_index
 
 #: 2**PROBE_LOG2 random poses within the joint limits decide which pairs are always in collision
 PROBE_LOG2 = 8
@@ -734,7 +735,7 @@ def _urdf_geometry(robot):
                 os.dup2(sys_err, 2)
                 os.close(sys_err)
         moving = {model.getJointId(n) for n in info["joints"]}
-        tip_joint = model.frames[model.getFrameId(info["tip_frame"])].parentJoint
+        tip_joint = model.frames[frame_index(model, info["tip_frame"])].parentJoint
         bodies = []
         for i, g in enumerate(geom.geometryObjects):
             support = set(model.supports[g.parentJoint])
@@ -776,7 +777,7 @@ class MeshEngine(_Base):
         geom = geom0.copy()
         data = model.createData()
         pin.framesForwardKinematics(model, data, full_configuration(robot, model, np.zeros((1, robot.n_joints)))[0])
-        T_wb = data.oMf[model.getFrameId(robot.urdf_info["base_frame"])]
+        T_wb = data.oMf[frame_index(model, robot.urdf_info["base_frame"])]
         self.bodies = bodies
         pairs, margins, labels = [], [], []
         if cell.self_collision:
@@ -952,7 +953,7 @@ class MeshEngine(_Base):
         model = self.model
         pin.framesForwardKinematics(model, data, full_configuration(self.robot, model,
                                                                     np.zeros((1, self.robot.n_joints)))[0])
-        return data.oMf[model.getFrameId(self.robot.urdf_info["base_frame"])]
+        return data.oMf[frame_index(model, self.robot.urdf_info["base_frame"])]
 
     def distances(self, q):
         """(N, checks) signed distances [m] of every checked pair and their names (mesh distances: slow,
