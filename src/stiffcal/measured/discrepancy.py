@@ -1912,6 +1912,8 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
         progress.advance()
     out["diagnostics"], more = diagnostics(robot, pre, chosen, sel.fits[chosen], alpha)
     notes += more
+    if out["diagnostics"]["outside_catalogue"] and ranked:
+        out.update(_outside_verdict(out["diagnostics"], ranked))
     out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
     held = held_out(robot, pre, ext) if gain else None
     out["held_out"] = None if held is None else held.as_dict()
@@ -1923,6 +1925,21 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
         resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
         out["residual_structure"] = residual_structure(robot, m, resid)
     return Verdict(**out, robot=robot.source)
+
+
+def _outside_verdict(diag: dict, ranked: list[str]) -> dict:
+    """The verdict's cause, p-value and statement when an effect outside the catalogue explains the data as well as
+    the causes it named (``diagnostics.outside_catalogue``: a load turned from its logged direction, whose test
+    against the nominal model is significant and beyond which the named causes add nothing): ``unexplained``, the
+    p-value that effect's test, the named causes only absorbing it (they stay in ``causes``; calibrated.yaml holds
+    the nominal model)."""
+    tilt = diag["load_direction"]
+    label = "+".join(ranked)
+    return {"cause": "unexplained", "p_value": tilt["p_value"], "p_value_of": ["load_direction"],
+            "p_value_statement": f"p = {tilt['p_value']:.2g} of 'the load acts in its logged direction' "
+                                 f"(diagnostics.load_direction: turned by {tilt['angle_deg']:.2g} deg): something the "
+                                 f"catalogue does not describe explains the data, and {label} adds nothing beyond it "
+                                 f"(p = {tilt['chosen_beyond_p']:.2g}): the catalogue's causes only absorb it"}
 
 
 def _named_causes(sel: Selection, chosen: frozenset, alternatives: list, alone: dict, noise: Noise, alpha: float):
@@ -2072,11 +2089,14 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     - ``return_to_zero``: whether the unloaded rows read after a load keep a jump that follows its joint torques'
       signs (:func:`_return_diagnostic`: a backlash that stays where the load pushed it);
     - ``load_scatter``: whether the loads' direction scatters push by push, the error model's ``load_direction``
-      component (:func:`_scatter_diagnostic`: a hand-held gauge held off its axis).
+      component (:func:`_scatter_diagnostic`: a hand-held gauge held off its axis);
+    - ``outside_catalogue``: ``"load_direction"`` when the turned load is significant and the chosen causes add
+      nothing beyond it (the verdict is then ``unexplained``: :func:`_outside_verdict`), else None.
     Returns (dict, notes)."""
     m = pre.m
     out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
-                 "extended_not_better_held_out": False, "return_to_zero": None, "load_scatter": None}
+                 "extended_not_better_held_out": False, "return_to_zero": None, "load_scatter": None,
+                 "outside_catalogue": None}
     notes = []
     loads = m.structure()["loads_per_configuration"]
     if loads["max"] == 1:
@@ -2090,8 +2110,13 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     notes += [note] if note else []
     f0 = fit(pre.des.X0, pre.des.y)  # the nominal fit: the tilt's regressors and its test's null model
     turned = turned_load_deflections(robot, m, pre.ob, f0.beta) * pre.w[:, None, None]
-    out["load_direction"], note = _tilt_diagnostic(pre, turned, f0, chosen, alpha)
+    unknown = (turned_on_dropped(robot, m, pre.ob_full.take(pre.keep), pre.dropped) * pre.w[:, None, None]
+               if len(pre.dropped) else turned[..., :0])
+    out["load_direction"], note = _tilt_diagnostic(pre, turned, unknown, f0, chosen, alpha)
     notes += [note] if note else []
+    tilt = out["load_direction"]
+    if tilt is not None and tilt["p_value"] <= alpha and (tilt["chosen_beyond_p"] or 0.0) > alpha:
+        out["outside_catalogue"] = "load_direction"
     out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
     notes += [note] if note else []
     tilted = out["load_direction"] is not None and out["load_direction"]["p_value"] <= alpha
@@ -2287,32 +2312,50 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
                  "re-measure the reference readings more often, or log the tracker's drift check")
 
 
-def turned_load_deflections(robot: Robot, m: Measurements, ob: Observed, k: np.ndarray) -> np.ndarray:
-    """(N, d, A) [m/rad]: the deflection A(q, a x F) k of every row of ``m`` (its quantities ``ob``) with its load
-    turned about each axis a (z for a planar arm, x, y, z for a spatial one; the moment, if any, left out), k the
-    nominal model's compliances (:func:`nominal_columns`)."""
+def _turned_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
+    """Per axis a (z for a planar arm, x, y, z for a spatial one): the rows' loads a x F (N, d) [N] turned about
+    it (the moment, if any, left out: zero columns)."""
     axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
-    cols = []
+    out = []
     for a in axes:
         turned = np.cross(a, as_xyz(m.force))[:, : robot.task_dim]
-        load = np.hstack([turned, np.zeros_like(m.moment)]) if m.has_moment else turned
-        cols.append(np.einsum("ndp,p->nd", nominal_columns(robot, m.q, load, ob), k))
-    return np.stack(cols, -1)
+        out.append(np.hstack([turned, np.zeros_like(m.moment)]) if m.has_moment else turned)
+    return out
 
 
-def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, f0: Fit, chosen, alpha: float):
+def turned_load_deflections(robot: Robot, m: Measurements, ob: Observed, k: np.ndarray) -> np.ndarray:
+    """(N, d, A) [m/rad]: the deflection A(q, a x F) k of every row of ``m`` (its quantities ``ob``) with its load
+    turned about each axis a (:func:`_turned_loads`), k the nominal model's compliances (:func:`nominal_columns`)."""
+    return np.stack([np.einsum("ndp,p->nd", nominal_columns(robot, m.q, load, ob), k)
+                     for load in _turned_loads(robot, m)], -1)
+
+
+def turned_on_dropped(robot: Robot, m: Measurements, ob_full: Observed, dropped) -> np.ndarray:
+    """(N, d, A * D) [m/(N m) per N]: the deflection A_j(q, a x F) of every row of ``m`` through each joint j of
+    ``dropped`` (D joints the logged loads never turn, left out of the model: a vertical axis under hanging
+    masses) per unit of its compliance, the load turned about each axis a (:func:`_turned_loads`). A tilted load
+    turns such a joint, whose compliance the data do not know: its columns enter the tilt's test with free
+    coefficients (the angle times the compliance). ob_full: what the rows measure, every joint."""
+    ob = replace(ob_full, params=np.asarray(dropped, int))
+    return np.concatenate([nominal_columns(robot, m.q, load, ob) for load in _turned_loads(robot, m)], -1)
+
+
+def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, unknown: np.ndarray, f0: Fit, chosen, alpha: float):
     """(``diagnostics.load_direction`` or None, note): the tilted-load test of :func:`diagnostics`: the load turned by
-    a small angle added to the nominal model (fit ``f0``; ``turned`` (N, w, 3), weighted: the columns A(q, a x F) k of
-    its k, :func:`turned_load_deflections`), its F-test and the angle; then whether the chosen causes still add
-    anything beyond it (when they do not, the tilt explains the data as well as they do, and the warning says so)."""
+    a small angle added to the nominal model (fit ``f0``; ``turned`` (N, w, A), weighted: the columns A(q, a x F) k of
+    its k, :func:`turned_load_deflections`; ``unknown`` (N, w, A D), weighted: the turned load's deflection through
+    the D joints the logged loads never turn, :func:`turned_on_dropped`, with free coefficients), its F-test and the
+    angle; then whether the chosen causes still add anything beyond it (when they do not, the tilt explains the data
+    as well as they do, and the warning says so)."""
     m, des, noise = pre.m, pre.des, pre.noise
     N, d = m.n_rows, des.d
-    T = (pre.error.whiten(turned) if pre.error.blocks else turned).reshape(N * d, -1)
+    both = np.concatenate([turned, unknown], -1)
+    T = (pre.error.whiten(both) if pre.error.blocks else both).reshape(N * d, -1)
     f1 = fit(np.hstack([des.X0, T]), des.y)
     if f1.rank <= f0.rank:
         return None, None
     p = f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df)
-    angle = f1.beta[des.X0.shape[1]:]
+    angle = f1.beta[des.X0.shape[1]:des.X0.shape[1] + turned.shape[-1]]
     size = float(np.degrees(np.linalg.norm(angle)))
     out = {"p_value": p, "angle_deg": size, "axis": (angle / np.linalg.norm(angle)).tolist() if size > 0 else None,
            "chosen_beyond_p": None}
@@ -2975,16 +3018,18 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
     from . import calibrated
 
     verdict = replace(verdict, data=str(data_path), robot=robot.source)
-    worse = bool((verdict["diagnostics"] or {}).get("extended_not_better_held_out"))
+    diag = verdict["diagnostics"] or {}
+    worse = bool(diag.get("extended_not_better_held_out") or diag.get("outside_catalogue"))
     with_test = test_pose is not None and test_force is not None
     nominal_cal = (calibrated.from_analysis(robot, pre, {**verdict, "extended": None}, data_path if worse else None)
                    if worse or with_test else None)  # the data's hash only where it is the file's model
     if worse:  # keep the model that carries to other configurations
-        cal = replace(nominal_cal, source={**nominal_cal.source, "model": "nominal (the extended model predicts "
-                                                                          "held-out configurations no better)"})
+        why = ("its causes only absorb an effect outside the catalogue (diagnostics.outside_catalogue: "
+               f"{diag['outside_catalogue']})" if diag.get("outside_catalogue") else
+               "the extended model predicts held-out configurations no better (gain.loco_ratio)")
+        cal = replace(nominal_cal, source={**nominal_cal.source, "model": f"nominal ({why.split(' (')[0]})"})
         verdict = replace(verdict, notes=[*verdict.notes, "calibrated.yaml holds the nominal model, not the extended "
-                                          f"one ({', '.join(verdict['extended']['causes'])}): the extended model "
-                                          "predicts held-out configurations no better (gain.loco_ratio)"])
+                                          f"one ({', '.join(verdict['extended']['causes'])}): {why}"])
     else:
         cal = calibrated.from_analysis(robot, pre, verdict, data_path)
     if not with_test:
