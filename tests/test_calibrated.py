@@ -166,6 +166,24 @@ def test_exported_model_reloads_to_the_verdicts_estimates(tmp_path):
     assert again["cause"] in D.CAUSES + ("none", "unexplained")
 
 
+def test_a_joint_the_data_did_not_identify_keeps_the_file_s_compliance_and_the_others_are_replaced(tmp_path):
+    """A fresh user's IRB 6700 under hanging masses: joint 1 (a vertical axis) is never identified, and
+    calibrated.yaml's compliances_rad_per_Nm then kept every joint's guessed value, the identified ones too, under a
+    header saying 'the robot file with its identified compliances'. Now the identified joints' are the calibration's
+    estimates, joint 1 keeps the robot file's value, and a comment at the top names it."""
+    robot = ARMS["6-axis"]
+    data = _lab_data(tmp_path, robot, T.Truth(R.compliances(robot) * 1.3), n_configs=16)
+    out = tmp_path / "out"
+    v = D.run(robot, str(data), str(out), 0.01, figures=False)
+    assert v["nominal"]["not_identifiable_joints"] == [1]
+    written = load_robot(out / "calibrated.yaml")
+    cal = written.calibration
+    assert cal.k_joints == (1, 2, 3, 4, 5)
+    np.testing.assert_allclose(written.compliances[1:], cal.theta[:5], rtol=1e-12, atol=0)
+    assert written.compliances[0] == load_robot(robot.source).compliances[0]
+    assert "# compliances_rad_per_Nm: joint 1 keeps the robot file's value" in (out / "calibrated.yaml").read_text()
+
+
 def test_an_extended_model_no_better_held_out_is_not_the_calibrated_model(tmp_path):
     """A fresh user's Jaco2 (exact statics, outside the catalogue) got a cause named whose extended model predicted
     held-out configurations 0.27 m against 29 um for the nominal one; the verdict warned "prefer the nominal model",

@@ -113,12 +113,44 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     if isinstance(doc.get("cell"), dict) and doc["cell"].get("srdf"):
         doc["cell"] = {**doc["cell"], "srdf": moved(doc["cell"]["srdf"])}
     doc.pop("calibration", None)
-    k = cal.compliances(robot.n_joints)
-    if np.all(np.isfinite(k)) and np.all(k > 0):
-        doc["compliances_rad_per_Nm"] = [float(v) for v in k]
+    k, kept = _written_compliances(cal, robot.n_joints, doc.get("compliances_rad_per_Nm"))
+    if k is not None:
+        doc["compliances_rad_per_Nm"] = k
     doc["name"] = f"{doc['name']} (calibrated)" if not str(doc["name"]).endswith("(calibrated)") else doc["name"]
     doc["calibration"] = cal.to_dict()
     return doc
+
+
+def _written_compliances(cal: Calibration, n: int, own) -> tuple[list | None, list[int]]:
+    """(the calibrated file's ``compliances_rad_per_Nm`` (n,) [rad/(N m)] or None: the robot file's own kept as they
+    are; the joints (0-based) that keep the robot file's value): each joint's identified compliance where the data
+    identified it and it is positive, the robot file's own value for the others (a vertical axis under hanging
+    masses); None when a joint has neither."""
+    k = cal.compliances(n)
+    ok = np.isfinite(k) & (k > 0)
+    has_own = isinstance(own, list) and len(own) == n
+    if not ok.all() and not has_own:
+        return None, []
+    kept = [j for j in range(n) if not ok[j]]
+    return [float(k[j]) if ok[j] else float(own[j]) for j in range(n)], kept
+
+
+def _compliances_comment(robot: Robot, cal: Calibration) -> str:
+    """The calibrated file's comment on its ``compliances_rad_per_Nm`` (:func:`_written_compliances`): which joints
+    keep the robot file's value, or that the file's own are kept; empty when every joint's is identified."""
+    from ..validation import read_yaml
+
+    own = read_yaml(robot.source) if Path(robot.source).suffix.lower() != ".urdf" else {}
+    k, kept = _written_compliances(cal, robot.n_joints, own.get("compliances_rad_per_Nm"))
+    if k is None:
+        return ("# compliances_rad_per_Nm: the robot file's own (these data did not identify every joint's, and the "
+                "robot\n# file gives none for some); calibration.k_joints lists the joints identified\n")
+    if not kept:
+        return ""
+    names = ", ".join(robot.joint_names[j] for j in kept)
+    which = f"joint {names} keeps" if len(kept) == 1 else f"joints {names} keep"
+    return (f"# compliances_rad_per_Nm: {which} the robot file's value (these data did not identify\n# it, or "
+            "identified a value that is not positive); calibration.k_joints lists the joints identified\n")
 
 
 def _limits_given_apart(robot: Robot) -> list | None:
@@ -140,6 +172,7 @@ def write_calibrated(robot: Robot, cal: Calibration, out_dir) -> Path:
     path = Path(out_dir) / CALIBRATED_FILE
     text = ("# written by stiffcal discrepancy: the robot file with its identified compliances and the calibrated\n"
             "# model (calibration); read it with stiffcal.load_robot, predict and compensate with it (docs)\n")
+    text += _compliances_comment(robot, cal)
     text += yaml.safe_dump(calibrated_document(robot, cal, out_dir), sort_keys=False, default_flow_style=None,
                            width=120)
     path.write_text(text, encoding="utf-8")
