@@ -406,6 +406,11 @@ def test_masses_in_kg_logged_as_newtons_are_noted_against_the_robot_files_compli
     kg = Measurements.from_arrays(meas.q, meas.force / 9.80665, meas.dp, config=meas.config)
     assert any("masses in kg logged as newtons" in n for n in D.analyse(robot, kg, gain=False)["notes"])
     assert not any("times the robot file's" in n for n in D.analyse(robot, meas, gain=False)["notes"])
+    # a fresh user's Z1: the file's compliances only guesses (here 1.2 and 0.85 times the truth), so the ratios
+    # are 11.8 and 8.3, not all within 15 % of 9.81: still noted, and the true forces still give no note
+    guessed = replace(paper_robot, compliances=k * np.array([1 / 1.2, 1 / 0.85]))
+    assert any("masses in kg logged as newtons" in n for n in D.analyse(guessed, kg, gain=False)["notes"])
+    assert not any("times the robot file's" in n for n in D.analyse(guessed, meas, gain=False)["notes"])
 
 
 def test_an_arm_softer_than_the_range_is_analysed_when_its_robot_file_says_so(paper_robot):
