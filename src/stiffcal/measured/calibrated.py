@@ -248,14 +248,9 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
                      "alone, with no extension and no uncertainty (sd 0); give the calibrated.yaml that stiffcal "
                      "discrepancy writes")
     notes += [unidentified] if unidentified else []
-    k = cal.compliances(robot.n_joints)
-    negative = [robot.joint_names[j] for j in range(robot.n_joints) if k[j] < 0]
-    if negative:
-        notes.append(f"the calibrated model's compliance of joint(s) {', '.join(negative)} is negative: its "
-                     "deflections push against the load, which no joint does; the data it came from were likely "
-                     "logged with the force's or the displacement's sign reversed, or in the wrong frame (its "
-                     "verdict's notes say which): fix them and analyse again before using these predictions")
+    notes += _negative_compliance_notes(robot, cal)
     notes += _unset_backlash_notes(robot, cal, q, load)
+    notes += _uncertain_rows_note(cal, X, mean[:, :d], sd[:, :d])
     names = robot.target_names
     tnames = tuple(names[t] for t in (np.zeros(len(q), int) if target is None else np.asarray(target, int)))
     ok = determined_rows(robot, cal, q, load, X)
@@ -265,6 +260,46 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
                      "they did not determine that the row moves): their error can be far above sd")
     return Prediction(q, load, mean[:, :d], sd[:, :d], mean[:, d:] if orientation else None,
                       sd[:, d:] if orientation else None, cov, tnames, cal.causes, tuple(notes), ok)
+
+
+def _negative_compliance_notes(robot: Robot, cal) -> list[str]:
+    """Notes on the calibrated compliances below zero: beyond their 95 % interval (z = 1.96; the data were likely
+    logged with a sign reversed or in the wrong frame), or within it (the data barely determine the compliance: a
+    fresh user's Z1 had k5 = -2.1e-4 +- 1.1e-3 and was told its signs were reversed)."""
+    k = cal.compliances(robot.n_joints)
+    sd = np.full(robot.n_joints, np.inf)
+    sd[list(cal.k_joints)] = np.sqrt(np.clip(np.diag(cal.cov)[: len(cal.k_joints)], 0.0, None))
+    beyond = [robot.joint_names[j] for j in range(robot.n_joints) if k[j] < 0 and k[j] + 1.96 * sd[j] < 0]
+    within = [f"{robot.joint_names[j]} ({k[j]:.3g} +- {1.96 * sd[j]:.2g} rad/(N m), 95 %)"
+              for j in range(robot.n_joints) if k[j] < 0 and not k[j] + 1.96 * sd[j] < 0]
+    notes = []
+    if beyond:
+        notes.append(f"the calibrated model's compliance of joint(s) {', '.join(beyond)} is negative beyond its 95 % "
+                     "interval: its deflections push against the load, which no joint does; the data it came from were "
+                     "likely logged with the force's or the displacement's sign reversed, or in the wrong frame (its "
+                     "verdict's notes say which): fix them and analyse again before using these predictions")
+    if within:
+        notes.append(f"the calibrated model's compliance of joint(s) {', '.join(within)} is negative but within "
+                     "its interval of zero: its data barely determine it, so a row whose load turns that joint has a "
+                     "large sd; measure with loads that turn it to identify it")
+    return notes
+
+
+def _uncertain_rows_note(cal, X: np.ndarray, mean: np.ndarray, sd: np.ndarray) -> list[str]:
+    """A note when rows' predicted deflection (N, d) [m] is smaller than its own standard deviation (N, d) (in norm):
+    the calibrated model does not determine the deflection there, and a compensation may add error (a fresh user's
+    Z1: a cubic stiffness of joint 5 at 0.24 of its sd made a compensated path 3.5 times worse than none), naming
+    the parameter that contributes most to those rows' variance (X (N, r, p): the rows' regressors)."""
+    bad = np.linalg.norm(sd, axis=1) > np.linalg.norm(mean, axis=1)
+    if not bad.any():
+        return []
+    share = np.einsum("nrp,p->p", X[bad] ** 2, np.clip(np.diag(cal.cov), 0.0, None))  # each parameter's variance
+    top = int(np.argmax(share))
+    value, half = cal.theta[top], 1.96 * float(np.sqrt(max(cal.cov[top, top], 0.0)))
+    return [f"{int(bad.sum())} of {len(bad)} row(s) have a predicted deflection smaller than its own sd: the "
+            f"calibrated model does not determine the deflection there (mostly through {cal.names[top]} = "
+            f"{value:.3g} +- {half:.2g}, 95 %), so a compensation there may add error rather than remove it; "
+            "measure such poses and loads in the next round (stiffcal design --prior)"]
 
 
 def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.ndarray) -> np.ndarray:
