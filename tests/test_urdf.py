@@ -424,6 +424,23 @@ def test_an_unknown_tip_frame_lists_every_link_the_closest_first(root, tmp_path)
     assert listed[0] == "panda_hand_tcp"
 
 
+def test_the_report_says_why_a_joint_is_not_identifiable_as_the_design_does(root):
+    """A fresh user's Baxter: the report said every unidentifiable joint's axis 'passes through the measured point',
+    also for a vertical axis that a vertical force never turns (the design's notes said so rightly). The report's
+    design study now carries the design's own notes: here the KUKA under a vertical force, whose joint 1 is never
+    turned, and the Panda, whose joint 7's axis passes through the tool point."""
+    from stiffcal.report.html import robot_summary
+    from stiffcal.planning.study import study_from_entry
+
+    for robot, pose, force, joint, why in (
+            ("config/robots/kuka_kr210_r2700.yaml", [20, -60, 110, 30, 45, -20], [0, 0, -1000], "1", "never turned"),
+            ("tests/data/urdf/franka_panda.yaml", [0, -30, 0, -120, 0, 90, 45], [20, 0, -30], "panda_joint7",
+             "passes through")):
+        entry = {"name": "s", "robot": robot, "force_N": force, "sigma_m": 1e-5, "test_pose_deg": pose}
+        r = robot_summary(study_from_entry(entry, root))
+        assert r["inert"] == [joint] and len(r["inert_notes"]) == 1 and why in r["inert_notes"][0]
+
+
 def test_the_report_counts_the_identifiable_compliances(root, tmp_path):
     """The Franka Panda with the tool point on joint 7's axis: that compliance cannot be identified, so a single
     pose gives 3 equations for 6 compliances, as the design says (it said 7 in the report)."""

@@ -454,33 +454,16 @@ def _ot_bound(inp: _DesignInputs, found: _Found):
     return bound, over, feasible_bound, feasible_over, converged
 
 
-def _unidentified_notes(robot: Robot, base) -> list[str]:
-    """A note for each joint whose compliance the plan cannot identify, saying why and what would."""
-    params_note = base.sensed
-    return [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
-            "compliance never deflects them, cannot be identified from their positions and is left out of the "
-            "model (cov_diag 'inf'); measure a point off that axis (tool_m, targets) or the orientation to "
-            "identify it" if j not in params_note else
-            f"joint {robot.joint_names[j]} is never turned by the measurement loads ({_load_words(base)}) at any "
-            "pose, nor by the test load: its compliance cannot be identified and is left out of the model "
-            "(cov_diag 'inf'), as the measured-data analysis does; a load that turns it (a push sideways, a "
-            "moment) identifies it" if j in base.unturned else
-            f"joint {robot.joint_names[j]}'s axis passes through the tool point, where the force is applied: "
-            "without a moment the load never turns that joint, whose compliance cannot be identified and is "
-            "left out of the model (cov_diag 'inf'); apply a moment (--wrench) to identify it"
-            for j in range(robot.n_joints) if j not in base.params]
-
-
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
     from .model import criteria
     from .model.workcell import cell_notes, clearance
-    from .planning.problem import plan_summary
+    from .planning.problem import plan_summary, unidentified_notes
 
     robot, base, approx, continuum, poses = inp.robot, inp.base, found.approx, found.continuum, found.poses
     summ = plan_summary(inp.study, poses)
     bound, over, feasible_bound, feasible_over, converged = _ot_bound(inp, found)
-    notes = found.notes + _unidentified_notes(robot, base)
+    notes = found.notes + unidentified_notes(robot, base)
     if not converged:
         notes.append((continuum or approx).convergence_note())
     if continuum is not None and not approx.converged:
@@ -516,10 +499,6 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
         loads_N=None if meas_loads is None else meas_loads.wrenches,
         cell=None if robot.cell is None else robot.cell.describe(),
         joint_limits_deg=robot.limits_deg)
-
-
-def _load_words(problem) -> str:
-    return problem.loads.spec if problem.loads is not None else f"the force {problem.force.tolist()} N"
 
 
 def _cell_value(cell):

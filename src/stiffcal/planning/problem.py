@@ -733,3 +733,27 @@ def plan_summary(study, plan_deg: np.ndarray) -> dict:
         out[e] = cov[..., i]
         out[dk] = np.sqrt(cov[..., i])
     return out
+
+
+def load_words(problem: "Problem") -> str:
+    """The measurement loads of ``problem`` in words: its load set's spec, or its force."""
+    return problem.loads.spec if problem.loads is not None else f"the force {problem.force.tolist()} N"
+
+
+def unidentified_notes(robot: Robot, base: "Problem") -> list[str]:
+    """A note for each joint whose compliance the plan cannot identify (not among ``base.params``), saying why and
+    what would: its axis through every measured point, never turned by the measurement loads, or through the tool
+    point without a moment (the design's notes and the report's design study say the same)."""
+    params_note = base.sensed
+    return [f"joint {robot.joint_names[j]}'s axis passes through every measured point at every pose: its "
+            "compliance never deflects them, cannot be identified from their positions and is left out of the "
+            "model (cov_diag 'inf'); measure a point off that axis (tool_m, targets) or the orientation to "
+            "identify it" if j not in params_note else
+            f"joint {robot.joint_names[j]} is never turned by the measurement loads ({load_words(base)}) at any "
+            "pose, nor by the test load: its compliance cannot be identified and is left out of the model "
+            "(cov_diag 'inf'), as the measured-data analysis does; a load that turns it (a push sideways, a "
+            "moment) identifies it" if j in base.unturned else
+            f"joint {robot.joint_names[j]}'s axis passes through the tool point, where the force is applied: "
+            "without a moment the load never turns that joint, whose compliance cannot be identified and is "
+            "left out of the model (cov_diag 'inf'); apply a moment (--wrench) to identify it"
+            for j in range(robot.n_joints) if j not in base.params]

@@ -178,6 +178,8 @@ def robot_summary(study) -> dict:
     d, source, DH table, tool, limits (``limited``: per joint; a continuous joint has none), joint names, URDF."""
     import numpy as np
 
+    from ..planning.problem import unidentified_notes
+
     robot = study.robot
     prob = study.problem("ot")
     dh = None
@@ -190,6 +192,7 @@ def robot_summary(study) -> dict:
             "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
             "has_limits": robot.has_joint_limits, "limited": robot.limited.tolist(),
             "inert": [robot.joint_names[j] for j in range(robot.n_joints) if j not in prob.params],
+            "inert_notes": unidentified_notes(robot, prob),
             "joint_keys": robot.joint_columns(""), "joint_names": list(robot.joint_names), "urdf": robot.urdf}
 
 
