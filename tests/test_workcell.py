@@ -754,3 +754,36 @@ def test_a_tip_link_named_like_its_fixed_joint_is_the_link(tmp_path):
     np.testing.assert_allclose(files[0].fk(q), files[1].fk(q), atol=1e-12)
     ok = feasible(files[0], q)
     assert np.array_equal(ok, feasible(files[1], q)) and 0 < ok.sum() < len(q)
+
+
+@needs_arms
+def test_bodies_that_never_move_relative_to_each_other_are_not_a_pair(tmp_path):
+    """A fresh user's Baxter (left arm; example-robot-data's URDF and SRDF): the gripper's two fingers, whose own
+    joints are not in the chain, were checked as a pair at a constant 16 mm, and every plan's clearance named them,
+    hiding the pair that does limit it. Now no checked self pair is fixed relative to itself: for every pair the
+    relative placement of its two bodies, computed here by Pinocchio at random poses, changes; the fingers are none."""
+    import pinocchio as pin
+
+    from stiffcal.model.workcell import engine, full_configuration
+
+    root = real_arms.robots_dir()
+    path = tmp_path / "baxter.yaml"
+    path.write_text(f"name: baxter-left\nkind: urdf\nurdf: {root}/baxter_description/urdf/baxter.urdf\n"
+                    "base_frame: base\ntip_frame: left_gripper\ncell:\n  self_collision: true\n"
+                    f"  srdf: {root}/baxter_description/srdf/baxter_manipulation.srdf\n", encoding="utf-8")
+    robot = load_robot(path)
+    eng = engine(robot)
+    lo, hi = robot.joint_limits_rad[:, 0], robot.joint_limits_rad[:, 1]
+    q = np.random.default_rng(4).uniform(lo, hi, (3, robot.n_joints))
+    data, gdata = eng.model.createData(), pin.GeometryData(eng.geom)
+    placements = []
+    for x in full_configuration(robot, eng.model, q):
+        pin.updateGeometryPlacements(eng.model, data, eng.geom, gdata, x)
+        placements.append([gdata.oMg[i].copy() for i in range(len(eng.geom.geometryObjects))])
+    selfs = [(a, b) for (a, b), lab in zip(eng.pairs, eng.labels) if lab[2] == "self"]
+    assert selfs
+    for a, b in selfs:
+        rel = [(P[a].inverse() * P[b]).homogeneous for P in placements]
+        assert max(np.abs(r - rel[0]).max() for r in rel[1:]) > 1e-9, eng.labels[eng.pairs.index((a, b))]
+    assert any(lab[0].startswith("l_gripper_") for lab in eng.labels)  # the fingers are checked against the rest
+    assert not any(lab[0].startswith("l_gripper_") and lab[1].startswith("l_gripper_") for lab in eng.labels)

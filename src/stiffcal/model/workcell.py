@@ -13,7 +13,9 @@ The robot's bodies
   ``pinocchio.computeCollisionsInParallel`` on one thread, each pair with a security margin (the clearance):
   a pair is in collision when its distance is below its margin. Self-collision pairs: every pair of bodies
   that are not on the same joint, not on joints next to each other (a joint and its parent: adjacent links),
-  not both fixed to the base, and not disabled by the SRDF (``cell.srdf``, ``pinocchio.removeCollisionPairs``).
+  not moved by the same joints of the chain (both fixed to the base, or both held on one link: a gripper's fingers
+  whose own joints are not in the chain never move relative to each other), and not disabled by the SRDF
+  (``cell.srdf``, ``pinocchio.removeCollisionPairs``).
   Against a half-space a body's convex hull is used: its signed distance to a plane is the same as the mesh's
   (the extreme point in a direction is a vertex of the hull), at a hundredth of the cost.
 * Planar and DH arms, and URDF arms without collision geometry or with ``link_radius_m`` given: capsules of
@@ -694,12 +696,14 @@ class CapsuleEngine(_Base):
 @dataclass(frozen=True)
 class _Geom:
     """A collision body of a URDF: its geometry-object index, link name, parent joint, whether it moves with
-    the chain, whether it is the body the tool hangs from."""
+    the chain, whether it is the body the tool hangs from, and the chain's joints that move it (two bodies moved by
+    the same ones never move relative to each other: a gripper's fingers held on the last link)."""
     index: int
     link: str
     joint: int
     moving: bool
     tip: bool
+    movers: frozenset = frozenset()
 
 
 def _package_dirs(urdf: Path) -> list[str]:
@@ -740,7 +744,7 @@ def _urdf_geometry(robot):
         for i, g in enumerate(geom.geometryObjects):
             support = set(model.supports[g.parentJoint])
             bodies.append(_Geom(i, model.frames[g.parentFrame].name, int(g.parentJoint), bool(support & moving),
-                                tip_joint in support))
+                                tip_joint in support, frozenset(support & moving)))
         _GEOMETRY[key] = (bodies, model, geom)
     return _GEOMETRY[key]
 
@@ -784,7 +788,7 @@ class MeshEngine(_Base):
             for x in range(len(bodies)):
                 for y in range(x + 1, len(bodies)):
                     a, b = bodies[x], bodies[y]
-                    if not (a.moving or b.moving) or a.joint == b.joint or model.parents[a.joint] == b.joint \
+                    if a.movers == b.movers or a.joint == b.joint or model.parents[a.joint] == b.joint \
                             or model.parents[b.joint] == a.joint or cell.ignored(a.link, b.link):
                         continue
                     pairs.append((a.index, b.index))
