@@ -787,3 +787,46 @@ def test_bodies_that_never_move_relative_to_each_other_are_not_a_pair(tmp_path):
         assert max(np.abs(r - rel[0]).max() for r in rel[1:]) > 1e-9, eng.labels[eng.pairs.index((a, b))]
     assert any(lab[0].startswith("l_gripper_") for lab in eng.labels)  # the fingers are checked against the rest
     assert not any(lab[0].startswith("l_gripper_") and lab[1].startswith("l_gripper_") for lab in eng.labels)
+
+
+@needs_arms
+def test_a_missing_or_foreign_srdf_is_named(tmp_path, capsys):
+    """A fresh user's Baxter (left arm, self-collision): without its SRDF the cell left no pose, and the message asked
+    to lower a clearance of 0 and move obstacles there were none of; a Panda's SRDF given for it was taken in
+    silence, with the same result. Now a foreign SRDF (no link of it in the URDF) is refused naming cell.srdf, and
+    without one the message names the links that collide at most random poses (the forearm's two bodies, which the
+    SRDF disables), each at the share of the probe poses Pinocchio and coal find here too."""
+    import pinocchio as pin
+
+    from stiffcal.model.workcell import PROBE_LOG2, engine, full_configuration, probe_poses
+
+    root = real_arms.robots_dir()
+    base = (f"name: baxter-left\nkind: urdf\nurdf: {root}/baxter_description/urdf/baxter.urdf\nbase_frame: base\n"
+            "tip_frame: left_gripper\ncell:\n  self_collision: true\n")
+    foreign = tmp_path / "foreign.yaml"
+    foreign.write_text(base + f"  srdf: {root}/panda_description/srdf/panda.srdf\n", encoding="utf-8")
+    assert main(["design", "--robot", str(foreign), "--test-pose-deg", "10,-30,0,60,0,40,0", "--force-N",
+                 "0,0,-20", "--experiments", "8", "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert "field 'cell.srdf'" in err and "none of which is in the URDF" in err
+    bare = tmp_path / "bare.yaml"
+    bare.write_text(base, encoding="utf-8")
+    assert main(["design", "--robot", str(bare), "--test-pose-deg", "10,-30,0,60,0,40,0", "--force-N", "0,0,-20",
+                 "--experiments", "8", "--no-cache"]) == 2
+    err = capsys.readouterr().err
+    assert "these links collide most often: left_lower_forearm and left_upper_forearm_visual" in err, err
+    robot = load_robot(bare)
+    eng = engine(robot)
+    a, b, share = eng.frequent[0]
+    geom = pin.buildGeomFromUrdf(eng.model, str(root / "baxter_description/urdf/baxter.urdf"), pin.COLLISION,
+                                 package_dirs=[str(root.parent.parent)])
+    ia = [i for i, g in enumerate(geom.geometryObjects) if eng.model.frames[g.parentFrame].name == a]
+    ib = [i for i, g in enumerate(geom.geometryObjects) if eng.model.frames[g.parentFrame].name == b]
+    geom.removeAllCollisionPairs()
+    for i in ia:
+        for j in ib:
+            geom.addCollisionPair(pin.CollisionPair(i, j))
+    data, gdata = eng.model.createData(), pin.GeometryData(geom)
+    q = full_configuration(robot, eng.model, probe_poses(robot))
+    hits = [pin.computeCollisions(eng.model, data, geom, gdata, x, True) for x in q]
+    assert len(q) == 2**PROBE_LOG2 and abs(np.mean(hits) - share) <= 1.0 / len(q)

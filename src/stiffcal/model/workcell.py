@@ -62,6 +62,9 @@ PROBE_LOG2 = 8
 GOLDEN_ITERS = 50
 #: a distance this far below its margin [m] still counts as meeting it (round-off)
 TOL_M = 1e-9
+#: a self pair in collision at this fraction of the probe poses or more (not all) is named when no pose is free
+#: (:func:`no_pose_hint`): most likely a pair the SRDF should disable
+FREQUENT_PAIR = 0.5
 #: poses checked per batch (memory of the numpy engine, one call of the coal engine)
 CHUNK = 4096
 #: default cable length [m] when no half-space is below the tool point
@@ -520,6 +523,8 @@ class _Base:
     def __init__(self, robot, cell: WorkCell):
         self.robot, self.cell = robot, cell
         self.notes: list[str] = []
+        #: the self pairs in collision at most of the probe poses: (link, link, fraction), most often first
+        self.frequent: list[tuple[str, str, float]] = []
         self._cache: dict = {}
 
     def _points(self, q):
@@ -857,6 +862,7 @@ class MeshEngine(_Base):
         if "<!ENTITY" in text or "<!DOCTYPE" in text:
             raise InputError("XML entity or DOCTYPE declarations are not allowed", source=self.cell.source,
                              field="cell.srdf")
+        _srdf_links_known(text, {f.name for f in self.model.frames}, self.cell)
         try:
             pin.removeCollisionPairs(self.model, geom, self.cell.srdf)
         except (ValueError, RuntimeError) as err:
@@ -900,6 +906,10 @@ class MeshEngine(_Base):
         q = probe_poses(self.robot)
         hit0, hitm = self._pair_hits(q, margins=False), self._pair_hits(q)
         always, within = hit0.all(axis=0), hitm.all(axis=0) & ~hit0.all(axis=0)
+        share = hit0.mean(axis=0)
+        self.frequent = [(self.labels[k][0], self.labels[k][1], float(share[k]))
+                         for k in np.argsort(-share, kind="stable")
+                         if self.labels[k][2] == "self" and FREQUENT_PAIR <= share[k] < 1.0]
         for k in np.flatnonzero(always):
             a, b, kind = self.labels[k]
             if kind == "obstacle":
@@ -1061,6 +1071,21 @@ def feasible(robot, q: np.ndarray, hanging=None) -> np.ndarray:
     return eng.feasible(flat, hanging).reshape(q.shape[:-1])
 
 
+def _srdf_links_known(text: str, links: set, cell) -> None:
+    """Refuse an SRDF whose ``disable_collisions`` pairs name no link of the URDF (another robot's SRDF: a Panda's
+    given for a Baxter disabled nothing, and the cell then left no pose, with a message about clearances)."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as err:
+        raise InputError(f"cannot read the SRDF {cell.srdf}: {err}", source=cell.source, field="cell.srdf") from None
+    named = {e.get(k) for e in root.iter("disable_collisions") for k in ("link1", "link2")} - {None}
+    if named and not named & links:
+        raise InputError(f"the SRDF {cell.srdf} disables pairs of links none of which is in the URDF (e.g. "
+                         f"{sorted(named)[0]!r}): expected this robot's SRDF", source=cell.source, field="cell.srdf")
+
+
 def cell_notes(robot) -> list[str]:
     """What the cell's engine decided about pairs (pairs not checked, checked for contact only); for a spatial
     robot without a cell, that its poses are checked against the joint limits only."""
@@ -1070,6 +1095,20 @@ def cell_notes(robot) -> list[str]:
             "arm itself or obstacles (a cell in the robot file, or --cell, keeps them out)"]
     eng = engine(robot)
     return [] if eng is None else list(eng.notes)
+
+
+def no_pose_hint(robot) -> str:
+    """What to look at first when the cell leaves no pose: the self pairs in collision at half the probe poses or
+    more (a pair that only overlaps by design, which the SRDF should disable: a missing SRDF, or another robot's),
+    else the clearance, the obstacles and the joint limits."""
+    eng = engine(robot)
+    frequent = [] if eng is None else eng.frequent[:3]
+    if frequent:
+        pairs = ", ".join(f"{a} and {b} ({100 * f:.0f} %)" for a, b, f in frequent)
+        return (f"at {2**PROBE_LOG2} random poses within the joint limits these links collide most often: {pairs}; "
+                "links that overlap by design are pairs the SRDF should disable (cell.srdf: is it this robot's?), or "
+                "list them under ignore_pairs")
+    return "lower the clearance, move the obstacles or widen the joint limits"
 
 
 def clearance(robot, q: np.ndarray) -> tuple[np.ndarray, list[str]]:

@@ -92,13 +92,12 @@ def _feasible_only(q: np.ndarray, robot: Robot, problem: Problem | None, what: s
     if robot.cell is None:
         return q
     from ..errors import InputError
-    from ..model.workcell import feasible
+    from ..model.workcell import feasible, no_pose_hint
 
     ok = problem.feasible(q) if problem is not None else feasible(robot, q)
     if not ok.any():
         raise InputError(f"none of the {len(q)} poses {what} can be taken in the cell ({robot.cell.describe()}): "
-                         "lower the clearance, move the obstacles or widen the joint limits",
-                         source=robot.cell.source, field="cell")
+                         f"{no_pose_hint(robot)}", source=robot.cell.source, field="cell")
     return q[ok]
 
 
