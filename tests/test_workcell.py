@@ -428,6 +428,8 @@ def test_loads_apart_from_the_test_wrench(root):
     (["--cell", "CELL:link_radius_m: 0.05\nfloor_m: -100\n"], "floor_m"),
     (["--candidates", "CSV:q1_deg\n10\n"], "columns"),
     (["--candidates", "CSV:q1_deg,q2_deg\n10,abc\n"], "row 2, column q2_deg"),
+    # a fresh user's Baxter: degrees under the joint names (radians) were told "expected within +-720 deg, got -17.7"
+    (["--candidates", "CSV:1,2\n0.5,-17.7\n"], "a column named by the joint is in radians: -17.7 rad is -1014.14 deg"),
     (["--candidates", "CSV:q1_deg,q2_deg\n\n,\n"], "no poses"),
     (["--joint-limits-deg", "-90:90,-90:90", "--candidates", "CSV:q1_deg,q2_deg\n10,20\n10,120\n"],
      "row 3, column q2_deg"),

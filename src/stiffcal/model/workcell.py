@@ -1172,7 +1172,9 @@ def _candidate_angles(rows: list[list[str]], idx: list[int], cols: list[str], sc
                 raise InputError(f"expected a number, got {row[i] if i < len(row) else 'nothing'!r}", source=src,
                                  field=f"row {r}, column {c}") from None
             if not np.isfinite(v) or abs(v * scale) > np.radians(MAX_JOINT_ANGLE_DEG) * (1 + 1e-12):
-                raise InputError(f"expected a finite angle within +-{MAX_JOINT_ANGLE_DEG:g} deg, got {row[i]}",
+                unit = ("" if scale != 1.0 else f" (a column named by the joint is in radians: {row[i]} rad is "
+                        f"{np.degrees(v):.6g} deg; degrees go in the pose columns, q_<name>_deg or q1_deg ..)")
+                raise InputError(f"expected a finite angle within +-{MAX_JOINT_ANGLE_DEG:g} deg, got {row[i]}{unit}",
                                  source=src, field=f"row {r}, column {c}")
             vals.append(v * scale)
         out.append(vals)
