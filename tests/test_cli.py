@@ -48,6 +48,10 @@ def test_design_t_optimality_reports_inf_as_string(root, capsys, monkeypatch):
     _, out, _ = run([*PAPER, "--criterion", "t"], capsys)
     d = json.loads(out)
     assert d["cov_diag"] == ["inf", "inf"] and d["O_t"] == "inf"
+    # a fresh user's Baxter: a T plan that identifies nothing came with no word
+    assert any("do not identify the compliances of joint(s) 1, 2" in n for n in d["notes"]), d["notes"]
+    _, out, _ = run([*PAPER, "--criterion", "a"], capsys)
+    assert not any("do not identify" in n for n in json.loads(out)["notes"])
 
 
 @pytest.mark.parametrize("args,needle", [

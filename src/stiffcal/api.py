@@ -454,6 +454,24 @@ def _ot_bound(inp: _DesignInputs, found: _Found):
     return bound, over, feasible_bound, feasible_over, converged
 
 
+def _singular_plan_note(inp: _DesignInputs, summ, ot: float) -> list[str]:
+    """A note when the plan does not identify the compliances the model keeps (an infinite O_t or variance): a
+    criterion such as T (the trace of M, whatever its rank) can be best at a singular plan (a fresh user's Baxter:
+    two identical poses, every variance 'inf', and no word)."""
+    from .model import criteria
+
+    names = [n for j, n in zip(inp.robot.joint_columns("E_dk"), inp.robot.joint_names)
+             if j in summ and not np.isfinite(float(summ[j]))]
+    kept = [inp.robot.joint_names[j] for j in inp.base.params]
+    unseen = [n for n in names if n in kept]
+    if np.isfinite(ot) and not unseen:
+        return []
+    what = f"the compliances of joint(s) {', '.join(unseen)}" if unseen else "every compliance"
+    return [f"the plan's {inp.m} pose(s) do not identify {what} (the information matrix is singular: O_t and those "
+            f"variances are infinite); criterion {criteria.label(inp.criterion)} need not identify the model (T "
+            "maximises the trace of M, whatever its rank): take more poses, or criterion ot, d or a"]
+
+
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
     from .model import criteria
@@ -478,6 +496,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
             notes.append("the test pose itself cannot be taken in the cell (a body within the clearance of an obstacle "
                          "or of another body): the plan predicts its compensation error all the same")
     ot = float(summ["O_t"])
+    notes += _singular_plan_note(inp, summ, ot)
     meas_loads, sensing = inp.meas_loads, inp.sensing
     return DesignResult(
         criterion=inp.criterion, criterion_label=criteria.label(inp.criterion), robot=robot.name, experiments=inp.m,
