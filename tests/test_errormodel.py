@@ -573,12 +573,56 @@ def test_a_pulley_s_tilt_that_the_catalogue_only_absorbs_is_unexplained(tmp_path
         v = D.verdict_of(arm, pre, gain=False)
         causes.append(v["cause"])
         tilt = v["diagnostics"]["load_direction"]
-        if v["diagnostics"]["outside_catalogue"]:
+        if "load_direction" in (v["diagnostics"]["outside_catalogue"] or []):
             assert v["causes"] and tilt["p_value"] <= 0.01 < tilt["chosen_beyond_p"]
-            assert v["cause"] == "unexplained" and v["p_value"] == tilt["p_value"]
+            assert v["cause"] == "unexplained" and v["p_value"] <= tilt["p_value"]
             _, cal = D.complete(arm, pre, v, path)
             assert cal.causes == () and "outside the catalogue" in cal.source["model"]
     assert set(causes) <= {"none", "unexplained"} and "unexplained" in causes, causes
+
+
+def test_a_drift_that_the_catalogue_only_absorbs_is_unexplained_and_its_confounding_named(tmp_path):
+    """A fresh user's IRB 6700 under hanging masses hung in increasing order at every visit: a tracker drift of
+    60 um/h was found, and nonlinear_joint_stiffness or measurement_offset named beside it (the drift, which grows
+    with the time since the visit's reference, looks like a misfit that grows with the load). Here the simulator's
+    6-axis arm with a drift, six seeds, of which the analysis before named measurement_offset in one: no verdict is
+    a catalogue cause; where the drift is significant against the nominal model and the named causes add nothing
+    beyond it the verdict is unexplained; and the time since the reference follows the load's size (correlation
+    above 0.9, computed here from the log), which the drift's note names."""
+    arm = R.robots(ROOT)["6-axis"]
+    causes = []
+    for s in range(6):
+        rng = np.random.default_rng(2000 + s)
+        log = T.lab_log(arm, R.PROTOCOLS["hanging x3, reference per visit, 2 passes"], rng, 20)
+        truth = T.Truth(R.compliances(arm), drift=T.random_directions(rng, 1, 3)[0] * 3e-7)
+        path = tmp_path / f"drift{s}.csv"
+        path.write_text(T.lab_csv(arm, log, T.measure(arm, truth, log, rng)), encoding="utf-8")
+        v = D.analyse(arm, read_measurements(path, arm), gain=False)
+        causes.append(v["cause"])
+        time = v["diagnostics"]["time"]
+        if "time" in (v["diagnostics"]["outside_catalogue"] or []):
+            assert v["cause"] == "unexplained" and time["nominal_p"] <= 0.01 < time["chosen_beyond_p"]
+        if time["p_value"] <= 0.01:
+            assert any("cannot be told apart" in n for n in v["notes"])
+    assert set(causes) <= {"none", "unexplained"} and "unexplained" in causes, causes
+    # the last log read here: each visit begins with its exact-zero reference row; within the visits, the time
+    # since it against the load's size
+    rows = list(csv.DictReader(path.open(encoding="utf-8")))
+    t, f, t0, k = [], [], None, []
+    for r in rows:
+        size = float(np.linalg.norm([float(r[c]) for c in ("fx_N", "fy_N", "fz_N")]))
+        if size == 0.0:
+            t0 = float(r["timestamp_s"])
+            k.append(len(t))
+            continue
+        t.append(float(r["timestamp_s"]) - t0)
+        f.append(size)
+    t, f = np.array(t), np.array(f)
+    for a, b in [(a, b) for a, b in zip(k, k[1:] + [len(t)]) if b > a]:
+        t[a:b] -= t[a:b].mean()
+        f[a:b] -= f[a:b].mean()
+    assert time["time_load_correlation"] == pytest.approx(t @ f / np.sqrt((t @ t) * (f @ f)), rel=1e-6)
+    assert time["time_load_correlation"] > 0.9
 
 
 def _hysteresis_log(path, seed: int, stays: bool, b: float = 5e-5, k=(1e-6, 2e-6), sigma=1e-5, n_configs=25):

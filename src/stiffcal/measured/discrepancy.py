@@ -1941,18 +1941,28 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
 
 
 def _outside_verdict(diag: dict, ranked: list[str]) -> dict:
-    """The verdict's cause, p-value and statement when an effect outside the catalogue explains the data as well as
-    the causes it named (``diagnostics.outside_catalogue``: a load turned from its logged direction, whose test
-    against the nominal model is significant and beyond which the named causes add nothing): ``unexplained``, the
-    p-value that effect's test, the named causes only absorbing it (they stay in ``causes``; calibrated.yaml holds
-    the nominal model)."""
-    tilt = diag["load_direction"]
-    label = "+".join(ranked)
-    return {"cause": "unexplained", "p_value": tilt["p_value"], "p_value_of": ["load_direction"],
-            "p_value_statement": f"p = {tilt['p_value']:.2g} of 'the load acts in its logged direction' "
-                                 f"(diagnostics.load_direction: turned by {tilt['angle_deg']:.2g} deg): something the "
-                                 f"catalogue does not describe explains the data, and {label} adds nothing beyond it "
-                                 f"(p = {tilt['chosen_beyond_p']:.2g}): the catalogue's causes only absorb it"}
+    """The verdict's cause, p-value and statement when effects outside the catalogue explain the data as well as
+    the causes it named (``diagnostics.outside_catalogue``: a load turned from its logged direction, a drift with the
+    time since the reference reading; each significant, and the named causes add nothing beyond it):
+    ``unexplained``, the p-value the smallest of those effects' tests, the named causes only absorbing them (they
+    stay in ``causes``; calibrated.yaml holds the nominal model). Where the time since the reference follows the
+    load's size (``time.time_load_correlation``), a drift and a misfit that grows with the load are confounded,
+    and the statement says so."""
+    found = diag["outside_catalogue"]
+    words = {"load_direction": lambda d: f"the load acts in its logged direction (turned by {d['angle_deg']:.2g} deg)",
+             "time": lambda d: f"the rows do not drift (a drift of {np.linalg.norm(d['rate_m_per_h']) * 1e6:.3g} "
+                               f"um/h)"}
+    key = {"load_direction": "p_value", "time": "nominal_p"}
+    p = min(diag[k][key[k]] for k in found)
+    tests = "; ".join(f"p = {diag[k][key[k]]:.2g} of '{words[k](diag[k])}' (diagnostics.{k}), beyond which "
+                      f"{'+'.join(ranked)} adds nothing (p = {diag[k]['chosen_beyond_p']:.2g})" for k in found)
+    r = (diag.get("time") or {}).get("time_load_correlation")
+    confounded = ("; under this protocol the time since the reference follows the load's size (correlation "
+                  f"{r:.2f}), so a drift and a misfit that grows with the load cannot be told apart"
+                  if r is not None and abs(r) >= TIME_LOAD_CONFOUNDED else "")
+    return {"cause": "unexplained", "p_value": p, "p_value_of": list(found),
+            "p_value_statement": f"{tests}: something the catalogue does not describe explains the data, which the "
+                                 f"catalogue's causes only absorb{confounded}"}
 
 
 def _named_causes(sel: Selection, chosen: frozenset, alternatives: list, alone: dict, noise: Noise, alpha: float):
@@ -2103,8 +2113,9 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
       signs (:func:`_return_diagnostic`: a backlash that stays where the load pushed it);
     - ``load_scatter``: whether the loads' direction scatters push by push, the error model's ``load_direction``
       component (:func:`_scatter_diagnostic`: a hand-held gauge held off its axis);
-    - ``outside_catalogue``: ``"load_direction"`` when the turned load is significant and the chosen causes add
-      nothing beyond it (the verdict is then ``unexplained``: :func:`_outside_verdict`), else None.
+    - ``outside_catalogue``: the effects outside the catalogue (``load_direction``, ``time``) that are significant and
+      beyond which the chosen causes add nothing (the verdict is then ``unexplained``: :func:`_outside_verdict`), else
+      None.
     Returns (dict, notes)."""
     m = pre.m
     out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
@@ -2127,9 +2138,10 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
                if len(pre.dropped) else turned[..., :0])
     out["load_direction"], note = _tilt_diagnostic(pre, turned, unknown, f0, chosen, alpha)
     notes += [note] if note else []
-    tilt = out["load_direction"]
-    if tilt is not None and tilt["p_value"] <= alpha and (tilt["chosen_beyond_p"] or 0.0) > alpha:
-        out["outside_catalogue"] = "load_direction"
+    explains = [k for k, p in (("load_direction", "p_value"), ("time", "nominal_p")) if out[k] is not None
+                and out[k][p] <= alpha and (out[k]["chosen_beyond_p"] or 0.0) > alpha]  # found against the nominal
+    #                                                                model, and the causes add nothing beyond it
+    out["outside_catalogue"] = explains or None
     out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
     notes += [note] if note else []
     tilted = out["load_direction"] is not None and out["load_direction"]["p_value"] <= alpha
@@ -2305,24 +2317,57 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
         des = gls_design(pre.weighted, em)
         CL = em.whiten_columns(C[:N], C[N:]) if em.blocks else C[:N]
         X = des.model(chosen)
-        f0, f1 = fit(X, des.y), fit(np.hstack([X, CL.reshape(N * d, pos)]), des.y)
+        D_ = CL.reshape(N * d, pos)
+        f0, f1 = fit(X, des.y), fit(np.hstack([X, D_]), des.y)
         if f1.rank > f0.rank:
             sd = np.sqrt(em.sigma2 * np.clip(np.diag(f1.cov_unscaled)[X.shape[1]:], 0.0, None))
-            tests["drift"] = (f1.beta[X.shape[1]:], sd, f_test(f0.rss, f0.df, f1.rss, f1.df, em.sigma2, em.df))
+            g0 = fit(des.X0, des.y)  # the nominal model alone and with the drift: do the causes add to it?
+            g = fit(np.hstack([des.X0, D_]), des.y)
+            beyond = f_test(g.rss, g.df, f1.rss, f1.df, em.sigma2, em.df) if chosen else None
+            tests["drift"] = (f1.beta[X.shape[1]:], sd, f_test(f0.rss, f0.df, f1.rss, f1.df, em.sigma2, em.df),
+                              f_test(g0.rss, g0.df, g.rss, g.df, em.sigma2, em.df), beyond)
     if not tests:
         return None, None
-    (rate, sd, p), = tests.values()
+    (rate, sd, p, p_nominal, beyond), = tests.values()
+    r = _time_load_correlation(pre, since[:N])
     out = {"p_value": p, "rate_m_per_h": [float(r) * 3600 for r in rate],
            "rate_sd_m_per_h": [float(v) * 3600 for v in sd],
-           "clock": "timestamp_s" if pre.meas.log is not None and pre.meas.log.has_time else "row order"}
+           "clock": "timestamp_s" if pre.meas.log is not None and pre.meas.log.has_time else "row order",
+           "nominal_p": p_nominal, "chosen_beyond_p": beyond, "time_load_correlation": r}
     if p > alpha:
         return out, None
     per = "m/h" if out["clock"] == "timestamp_s" else "m per 3600 rows"
+    confounded = ("" if r is None or abs(r) < TIME_LOAD_CONFOUNDED else
+                  f"; but under this protocol the time since the reference follows the load's size (correlation "
+                  f"{r:.2f}: the loads applied in the same order at every visit), so a drift and a misfit that grows "
+                  "with the load (a load turned from its logged direction, a nonlinear stiffness) cannot be told "
+                  "apart; apply the loads in a varying order to tell them")
     return out, (f"the rows drift with the time since their reference reading (a linear drift of "
                  f"{np.linalg.norm(out['rate_m_per_h']) * 1e6:.3g} u{per}, F-test p = {p:.2g}; the clock: "
                  f"{out['clock']}): a drift of the tracker (or of the zero point) over the campaign? No catalogue "
                  "cause describes it: measurement_offset and the rows' shared errors only absorb part of it; "
-                 "re-measure the reference readings more often, or log the tracker's drift check")
+                 "re-measure the reference readings more often, or log the tracker's drift check" + confounded)
+
+
+#: |correlation| of the loaded rows' time since their reference reading with their load's size at and above which
+#: the drift test's note says the two are confounded (:func:`_time_load_correlation`)
+TIME_LOAD_CONFOUNDED = 0.9
+
+
+def _time_load_correlation(pre: Prepared, since: np.ndarray) -> float | None:
+    """The correlation of the loaded rows' time since their reference reading (N,) with their load's size |F| (and
+    |M|, as one wrench norm), within the rows' reference readings (each reading's rows centred: a drift shows only
+    within them); None where either does not vary. Hanging masses hung in increasing order at every visit give
+    about 1: the drift and any misfit that grows with the load are then confounded (a fresh user's IRB 6700: a
+    tilted pulley read as a drift of 2,400 um/h)."""
+    ref = pre.error.structure.ref_time[: pre.m.n_rows]
+    size = np.linalg.norm(load_of(pre.m), axis=1)
+    _, group = np.unique(ref, return_inverse=True)
+    t = since - (np.bincount(group, since) / np.bincount(group))[group]
+    f = size - (np.bincount(group, size) / np.bincount(group))[group]
+    if not (np.ptp(t) > 0 and np.ptp(f) > 0):
+        return None
+    return float(t @ f / np.sqrt((t @ t) * (f @ f)))
 
 
 def _turned_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
@@ -3038,7 +3083,7 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
                    if worse or with_test else None)  # the data's hash only where it is the file's model
     if worse:  # keep the model that carries to other configurations
         why = ("its causes only absorb an effect outside the catalogue (diagnostics.outside_catalogue: "
-               f"{diag['outside_catalogue']})" if diag.get("outside_catalogue") else
+               f"{', '.join(diag['outside_catalogue'])})" if diag.get("outside_catalogue") else
                "the extended model predicts held-out configurations no better (gain.loco_ratio)")
         cal = replace(nominal_cal, source={**nominal_cal.source, "model": f"nominal ({why.split(' (')[0]})"})
         verdict = replace(verdict, notes=[*verdict.notes, "calibrated.yaml holds the nominal model, not the extended "
