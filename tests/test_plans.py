@@ -535,3 +535,21 @@ def test_batched_polish_gradient_is_the_single_plan_one(root, rng):
         assert v == pytest.approx(v1, rel=1e-13) and v1 == pytest.approx(float(plan_loss(prob, q)), rel=1e-12)
         np.testing.assert_allclose(gi, g1, rtol=1e-10, atol=1e-14 * np.abs(g1).max(initial=0.0))
     assert np.isinf(loss[2]) and not g[2].any()
+
+
+def test_efficient_rounding_gives_no_pose_to_a_support_point_of_zero_weight():
+    """A fresh user's IRB 6700 in a cell: the weights' solver left a support point at weight 0, and the rounding
+    divided by it (RuntimeWarning leaked to the terminal; 0/0 is NaN, which argmin picks first). Efficient rounding
+    (Pukelsheim & Rieder 1992) of weights (0.5, 0.3, 0, 0.2) to m = 1..12 poses: counts n_i with sum m, none on the
+    zero-weight point, and within k/2 of m w_i (k the support points), with no warning."""
+    from types import SimpleNamespace
+    import warnings
+
+    w = np.array([0.5, 0.3, 0.0, 0.2])
+    design = SimpleNamespace(weights=w, support_deg=np.arange(4, dtype=float)[:, None] * np.ones((1, 2)))
+    for m in range(1, 13):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            plan = round_design(design, m)
+        counts = np.array([(plan[:, 0] == i).sum() for i in range(4)])
+        assert counts.sum() == m and counts[2] == 0 and np.all(np.abs(counts - m * w) <= max(1, len(w) / 2))

@@ -320,8 +320,9 @@ def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, 
         if not accepted:
             e = -w.copy()
             e[int(np.argmax(phi))] += 1.0
-            res = minimize_scalar(lambda t: value(w + t * e), bounds=(0.0, 1.0), method="bounded",
-                                  options=dict(xatol=1e-12))
+            with np.errstate(invalid="ignore", over="ignore"):  # Phi = inf where M is singular: inf - inf inside
+                res = minimize_scalar(lambda t: value(w + t * e), bounds=(0.0, 1.0), method="bounded",
+                                      options=dict(xatol=1e-12))
             if not res.fun < Phi:
                 break
             w = np.maximum(w + float(res.x) * e, 0.0)

@@ -867,10 +867,12 @@ def round_design(design: ApproximateDesign, m: int) -> np.ndarray:
     w = design.weights
     k = len(w)
     counts = np.ceil((m - 0.5 * k) * w).astype(int).clip(min=0)
+    live = w > 0  # a support point of zero weight (round-off of the weights' solver) never gets a pose
+    safe = np.where(live, w, 1.0)
     while counts.sum() < m:
-        counts[np.argmin(counts / w)] += 1
+        counts[np.argmin(np.where(live, counts / safe, np.inf))] += 1
     while counts.sum() > m:
-        j = np.argmax(np.where(counts > 0, (counts - 1) / w, -np.inf))
+        j = np.argmax(np.where((counts > 0) & live, (counts - 1) / safe, -np.inf))
         counts[j] -= 1
     return np.repeat(design.support_deg, counts, axis=0)
 
