@@ -2008,8 +2008,10 @@ def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: floa
     if misfit > GROSS_MISFIT:
         notes.insert(0, f"the nominal model leaves residuals {misfit:.3g} times the noise (RMS): a misfit this large "
                         "is rarely an effect of the catalogue's size; check first that the loads and displacements are "
-                        "in the base frame and in N, N m, m and rad (a wrench in the tool frame, a unit off), then "
-                        "read the causes and warnings below")
+                        "in the base frame and in N, N m, m and rad (a wrench in the tool frame, a unit off), and that "
+                        "the robot file's kinematics are the arm's (dh_convention standard or modified, the DH table's "
+                        "signs and offsets, tool_m, a URDF's frames: a modified-DH table read as standard misfits "
+                        "this way), then read the causes and warnings below")
     params = ob.model_params(robot)
     notes += second_order_note(robot, m, params, f0.beta, sigma)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
