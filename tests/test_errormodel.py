@@ -41,6 +41,24 @@ def _log_csv(tmp_path, robot, protocol, seed=0, n_configs=8, truth=None, pose_id
     return log, dp, path
 
 
+def _with_visit_column(path, edit=None):
+    """The CSV at ``path`` with a ``visit`` column (V1, V2, ...: a new visit at each exact-zero reference row, as
+    the lab logs it), then ``edit(header, rows)`` applied; written beside it, its path returned."""
+    rows = list(csv.reader(path.open(encoding="utf-8")))
+    header, body = rows[0], rows[1:]
+    d = [header.index(c) for c in header if c.startswith("d") and c.endswith("_m")]
+    n = 0
+    for r in body:
+        n += all(float(r[i]) == 0.0 for i in d)
+        r.append(f"V{n}")
+    header = header + ["visit"]
+    if edit is not None:
+        header, body = edit(header, body)
+    out = path.with_name(path.stem + "_visits.csv")
+    out.write_text("\n".join(",".join(r) for r in [header, *body]) + "\n", encoding="utf-8")
+    return out
+
+
 def _model_rows(log, meas, structure):
     """The simulator's rows in the order of the structure's model rows: the loaded rows, then its unloaded ones."""
     return np.concatenate([meas.rows, meas.zero_rows[structure.zero_index]])
@@ -524,6 +542,44 @@ def test_handed_lab_logs_with_their_reference_readings_give_the_right_verdict(ca
             assert v["p_value"] > v["alpha"]
     a, b = verdicts
     assert (a["cause"], a["causes"], a["p_value"]) == (b["cause"], b["causes"], b["p_value"])
+
+
+def test_a_visit_column_that_disagrees_with_the_rows_is_noted(tmp_path, paper_robot):
+    """A fresh user's IRB 6700 logs with a visit column, read in silence: a visit whose reference row was deleted,
+    labels that split every visit in two, and timestamps rounded to the hour (the drift test then left out without
+    a word). The 2-link arm's log (a reference per visit, two passes) with its visit column: as logged, no note;
+    with one visit's exact-zero row deleted, that visit is named; with each visit's rows under two labels, the
+    consecutive labels at one configuration are named; with the time rounded away, the drift test says why it is
+    left out."""
+    pr = R.PROTOCOLS["hanging x3, reference per visit, 2 passes"]
+    _, _, path = _log_csv(tmp_path, paper_robot, pr, n_configs=10)
+
+    def notes_of(p):
+        return D.analyse(paper_robot, read_measurements(p, paper_robot), gain=False)["notes"]
+
+    words = ("of the visit column have no", "not consecutive in time", "follow each other at one configuration")
+    assert not any(w in n for n in notes_of(_with_visit_column(path)) for w in words)
+
+    def lose(header, body):  # the reference row of visit V7
+        return header, [r for r in body if not (r[-1] == "V7" and all(float(r[header.index(c)]) == 0.0
+                                                                      for c in ("dx_m", "dy_m")))]
+    lost = notes_of(_with_visit_column(path, lose))
+    assert any(n.startswith("visit(s) V7 of the visit column have no") for n in lost)
+
+    def halves(header, body):
+        for r in body:
+            r[-1] += "b" if float(r[header.index("fy_N")]) < -200 else "a"
+        return header, body
+    assert any("follow each other at one configuration" in n for n in notes_of(_with_visit_column(path, halves)))
+
+    def hour(header, body):
+        t = header.index("timestamp_s")
+        for r in body:
+            r[t] = "0.0"
+        return header, body
+    v = D.analyse(paper_robot, read_measurements(_with_visit_column(path, hour), paper_robot), gain=False)
+    assert v["diagnostics"]["time"] is None and any("the drift test (diagnostics.time) is left out" in n
+                                                    for n in v["notes"])
 
 
 # --- what a careful analyst warns of -------------------------------------------------------------------------------

@@ -2329,7 +2329,10 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
             tests["drift"] = (f1.beta[X.shape[1]:], sd, f_test(f0.rss, f0.df, f1.rss, f1.df, em.sigma2, em.df),
                               f_test(g0.rss, g0.df, g.rss, g.df, em.sigma2, em.df), beyond)
     if not tests:
-        return None, None
+        timed = pre.meas.log is not None and pre.meas.log.has_time and not np.ptp(since) > 0
+        return None, ("the drift test (diagnostics.time) is left out: timestamp_s is the same for every row and the "
+                      "reference reading it was taken from (timestamps rounded or tied?); log each reading's own time"
+                      if timed else None)
     (rate, sd, p, p_nominal, beyond), = tests.values()
     r = _time_load_correlation(pre, since[:N])
     out = {"p_value": p, "rate_m_per_h": [float(r) * 3600 for r in rate],

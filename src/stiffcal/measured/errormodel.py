@@ -374,7 +374,7 @@ def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
     holding two reference readings of one target (two visits under one label?), reference labels without an
     exact-zero row beside labels with one (a typo?). The exact-zero rows decide which reading a row was taken from
     only where no ``reference`` column is given."""
-    notes = []
+    notes = _visit_column_notes(f, visit) if f["visit"] is not None else []
     exact = np.flatnonzero(f["exact"])
     if f["visit"] is not None and exact.size:
         per = np.unique(np.column_stack([visit[exact], f["target"][exact]]), axis=0, return_counts=True)[1]
@@ -392,6 +392,53 @@ def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
             notes.append(f"reference label(s) {', '.join(orphan[:5])}{' ...' if len(orphan) > 5 else ''} have no "
                          "exact-zero row while other labels do: a typo? Their rows are taken as measured from an "
                          "unlogged reading of their own")
+    return notes
+
+
+def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:
+    """Notes where the ``visit`` column disagrees with the rows (a fresh user's IRB 6700 logs, read in silence):
+    visits without an exact-zero reference row of a target they measure where most visits of their kind (the first
+    at a configuration, or a later one) have one (a reference row lost: a later visit with none is the protocol of a
+    reference per configuration); visit labels whose rows are not consecutive in time (rows of other visits between
+    them: one label used for two visits?); and consecutive visits at one configuration with no other between them
+    (one visit split under two labels?). ``visit`` (n,): the visits of :func:`_visits`."""
+    order = np.lexsort((f["rows"], f["time"]))
+    first_at = {}
+    for i in order:
+        first_at.setdefault((int(f["config"][i]), int(f["target"][i])), int(visit[i]))
+    label = {int(visit[i]): str(f["visit"][i]) for i in order}
+    measured = {(int(visit[i]), int(f["target"][i]), first_at[(int(f["config"][i]), int(f["target"][i]))] == visit[i])
+                for i in np.flatnonzero(f["loaded"])}
+    with_zero = {(int(visit[i]), int(f["target"][i])) for i in np.flatnonzero(f["exact"])}
+    lost = []
+    for kind in (True, False):  # the first visits at a configuration, then the later ones
+        mine = [(v, t) for v, t, first in measured if first == kind]
+        has = [k for k in mine if k in with_zero]
+        if len(has) > len(mine) / 2:
+            lost += [label[v] for v, t in mine if (v, t) not in with_zero]
+    notes = []
+    if lost:
+        lost = sorted(set(lost))
+        notes.append(f"visit(s) {', '.join(lost[:5])}{' ...' if len(lost) > 5 else ''} of the visit column have no "
+                     "exact-zero reference row of a target they measure, while most visits of their kind do: a "
+                     "reference row lost, or a label that splits a visit? Their rows are read against the last "
+                     "reference of their target at their configuration before them (else as measured from an unlogged "
+                     "reading of their own)")
+    runs = [int(order[0])] + [int(b) for a, b in zip(order[:-1], order[1:]) if visit[a] != visit[b]] if len(order) \
+        else []
+    seen = [label[int(visit[i])] for i in runs]
+    split = sorted({v for v in seen if seen.count(v) > 1})
+    if split:
+        notes.append(f"visit label(s) {', '.join(split[:5])}{' ...' if len(split) > 5 else ''} hold rows that are not "
+                     "consecutive in time (rows of other visits between them): one label used for two visits? Rows of "
+                     "one configuration and label are read as one visit")
+    twice = [f"{label[int(visit[a])]} and {label[int(visit[b])]}" for a, b in zip(runs[:-1], runs[1:])
+             if f["config"][a] == f["config"][b]]
+    if twice:
+        notes.append(f"visit labels {', '.join(twice[:3])}{' ...' if len(twice) > 3 else ''} follow each other at one "
+                     "configuration with no other configuration between them: one visit split under two labels? (A "
+                     "new visit is the robot brought back to the configuration; its return error is modelled per "
+                     "visit)")
     return notes
 
 
