@@ -832,3 +832,27 @@ def test_a_missing_or_foreign_srdf_is_named(tmp_path, capsys):
     q = full_configuration(robot, eng.model, probe_poses(robot))
     hits = [pin.computeCollisions(eng.model, data, geom, gdata, x, True) for x in q]
     assert len(q) == 2**PROBE_LOG2 and abs(np.mean(hits) - share) <= 1.0 / len(q)
+
+
+def test_a_test_pose_whose_cable_meets_the_cell_is_said_so(tmp_path):
+    """A fresh user's Z1 on a table: hanging masses could not hang at the test pose (the cable lay on the table), and
+    the design's note said 'a body within the clearance'. Here the 2-link arm at (30, 30) deg with a box under its
+    tool point: the tool point is at (0.72, 0.65) m, beyond the elbow, and the cable runs straight down through the
+    box (0.67-0.77 m by 0.10-0.20 m), while both links stay more than their radius and clearance away from it (by
+    hand below); the note names the cable. Without the box the note is absent."""
+    q = np.radians([30.0, 30.0])
+    elbow = 0.6 * np.array([np.cos(q[0]), np.sin(q[0])])
+    tool = elbow + 0.4 * np.array([np.cos(q.sum()), np.sin(q.sum())])
+    assert 0.67 < tool[0] < 0.77 and tool[1] > 0.2 and tool[0] > elbow[0] + 0.1  # the cable meets the box only
+    t = np.linspace(0, 1, 2001)[:, None]
+    pts = np.vstack([t * elbow, elbow + t * (tool - elbow)])
+    gap = np.maximum(np.abs(pts - [0.72, 0.15]) - 0.05, 0.0)
+    assert np.linalg.norm(gap, axis=1).min() > 0.04 + 0.02  # the links clear the box by radius and clearance
+    cell = ("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: -0.1\n"
+            "  clearance_m: 0.02\n  link_radius_m: 0.04\n")
+    for box, said in (("  boxes:\n    - {name: stand, center_m: [0.72, 0.15], size_m: [0.1, 0.1]}\n", True),
+                      ("", False)):
+        path = tmp_path / "r.yaml"
+        path.write_text(cell + box, encoding="utf-8")
+        res = stiffcal.design(path, [30, 30], [0, -100], experiments=2, loads="hanging:50,100")
+        assert any("the cable of the hanging masses meets" in n for n in res.notes) == said, res.notes

@@ -454,6 +454,23 @@ def _ot_bound(inp: _DesignInputs, found: _Found):
     return bound, over, feasible_bound, feasible_over, converged
 
 
+def _test_pose_cell_note(robot: Robot, base, q_t: np.ndarray) -> list[str]:
+    """A note when the test pose q_t (n,) [rad] cannot be taken in the cell, saying why: a body within the
+    clearance, or (with hanging masses) only the cable, which meets a body or an obstacle (a fresh user's Z1 on a
+    table: told 'a body within the clearance' where the cable lay on the table)."""
+    from .model.workcell import feasible
+
+    if base.feasible(q_t[None])[0]:
+        return []
+    if base.hang_offset is not None and feasible(robot, q_t[None])[0]:
+        why = ("the cable of the hanging masses meets a body or an obstacle there (the arm itself is clear: the "
+               "masses cannot hang at the test pose, though a push there can be measured)")
+    else:
+        why = "a body within the clearance of an obstacle or of another body"
+    return [f"the test pose itself cannot be taken in the cell ({why}): the plan predicts its compensation error all "
+            "the same"]
+
+
 def _singular_plan_note(inp: _DesignInputs, summ, ot: float) -> list[str]:
     """A note when the plan does not identify the compliances the model keeps (an infinite O_t or variance): a
     criterion such as T (the trace of M, whatever its rank) can be best at a singular plan (a fresh user's Baxter:
@@ -492,9 +509,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
         c, names = clearance(robot, np.radians(poses))
         clear, closest = c, tuple(names)
         notes += _contact_note(c, names)
-        if not base.feasible(np.radians(inp.q_t)[None])[0]:
-            notes.append("the test pose itself cannot be taken in the cell (a body within the clearance of an obstacle "
-                         "or of another body): the plan predicts its compensation error all the same")
+        notes += _test_pose_cell_note(robot, base, np.radians(inp.q_t))
     ot = float(summ["O_t"])
     notes += _singular_plan_note(inp, summ, ot)
     meas_loads, sensing = inp.meas_loads, inp.sensing
