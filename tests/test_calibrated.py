@@ -509,6 +509,37 @@ def test_next_round_with_an_undetermined_parameter_the_test_pose_does_not_move(t
     assert undetermined == any("b2" in n and "stay undetermined" in n for n in nr.notes)
 
 
+def test_next_round_under_the_lab_s_hanging_masses_against_the_information_by_hand(tmp_path):
+    """A fresh user's Z1: the next round could plan only the tool point under the test force, which a lab that hangs
+    masses cannot apply (and its poses put the cable on the table). With loads (hanging 100 and 200 N along the
+    arm's gravity) every new pose is measured under both: O_t of the plan is tr(X_t (Cov^-1 + sum X_i^T X_i /
+    sigma^2)^-1 X_t^T) with both loads' rows of each pose written from the Jacobian here, the plan is the best pair of
+    the candidate poses by brute force, and the certified bound is below it."""
+    from stiffcal.model.observation import measurement_loads
+
+    robot = _calibrated_2link(tmp_path)
+    cal = robot.calibration
+    loads = measurement_loads(robot, "hanging:100,200")
+    nr = C.next_round(robot, QT, FT, 2, step_deg=20.0, loads=loads)
+    down = np.asarray(robot.gravity, float) / np.linalg.norm(robot.gravity)
+    forces = [100.0 * down, 200.0 * down]
+    s2 = nr.sigma_m**2
+    Xt = _by_hand(robot, QT, FT)[0]
+
+    def info(q):  # (K, 4, 4): both loads' rows of each pose
+        return sum(np.einsum("kdi,kdj->kij", X, X) for X in (_by_hand(robot, q, f) for f in forces)) / s2
+
+    M = np.linalg.inv(cal.cov) + info(nr.poses).sum(axis=0)
+    np.testing.assert_allclose(nr.O_t, np.trace(Xt @ np.linalg.solve(M, Xt.T)), rtol=1e-8)
+    pool = D.candidate_poses(robot, 20.0)
+    P = info(pool)
+    i, j = np.triu_indices(len(pool))
+    Ms = np.linalg.inv(cal.cov)[None] + P[i] + P[j]
+    ot = np.einsum("dp,kpd->k", Xt, np.linalg.solve(Ms, np.broadcast_to(Xt.T, (len(i), 4, 2))))
+    np.testing.assert_allclose(nr.O_t, ot.min(), rtol=1e-9)
+    assert nr.lower_bound <= ot.min() * (1 + 1e-12)
+
+
 def test_next_round_with_no_prior_is_the_plan_without_old_data(tmp_path):
     """The exchange with a zero prior is the exchange without one (the same plan and value); a prior that
     carries almost nothing (the covariance times 1e12) gives the O_t of the best plan without old data, which is
@@ -661,6 +692,30 @@ def test_next_round_measures_the_given_robot(tmp_path, calibrated_file):
     assert not inside(free) and inside(plan) and plan["O_t"] >= free["O_t"] * (1 - 1e-9)
     with pytest.raises(C.InputError, match="another robot"):
         plan_next_round(calibrated_file[1], [0] * 6, [0, 0, -300], robot=ROOT / "config/robots/kuka_kr210_r2700.yaml")
+
+
+def test_next_round_under_hanging_masses_keeps_their_cable_free(tmp_path, calibrated_file, capsys):
+    """design --prior --loads hanging:..: in a cell with a stand under part of the reach, every pose of the next round
+    has the masses' cable free (workcell.feasible with the cable, checked here), where the plan under the test force
+    alone puts a pose whose cable would meet the stand; the loads are in the output, and the CLI takes them."""
+    from stiffcal.api import plan_next_round
+    from stiffcal.cli import main
+    from stiffcal.model.workcell import feasible
+
+    robot_file = tmp_path / "cell.yaml"
+    robot_file.write_text((ROOT / "config/robots/paper_2r.yaml").read_text(encoding="utf-8") + "\ncell:\n"
+                          "  floor_m: -0.2\n  clearance_m: 0.02\n  link_radius_m: 0.04\n  boxes:\n"
+                          "    - {name: stand, center_m: [0.5, -0.1], size_m: [0.6, 0.1]}\n", encoding="utf-8")
+    in_cell = load_robot(robot_file)
+    pushed = plan_next_round(calibrated_file[1], [60, 30], [0, -300], experiments=3, robot=robot_file)
+    hung = plan_next_round(calibrated_file[1], [60, 30], [0, -300], experiments=3, robot=robot_file,
+                           loads="hanging:100,200")
+    cable_free = lambda p: feasible(in_cell, np.radians(p["poses_deg"]), np.zeros(3))  # noqa: E731
+    assert cable_free(hung).all() and not cable_free(pushed).all()
+    assert hung["loads"] == "hanging:100,200" and "under the loads hanging:100,200" in hung["lower_bound_over"]
+    assert main(["design", "--robot", str(robot_file), "--prior", str(calibrated_file[1]), "--test-pose-deg", "60,30",
+                 "--force-N", "0,-300", "--experiments", "2", "--loads", "hanging:100,200"]) == 0
+    capsys.readouterr()
 
 
 def test_a_backlash_joint_without_torque_is_named_in_predictions(calibrated_file):

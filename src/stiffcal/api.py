@@ -931,10 +931,12 @@ def _root(ot: float) -> float:
 
 def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1,
                     sigma_m: float | None = None, joint_limits_deg=None, cell=None, seed: int = 0,
-                    robot=None) -> dict:
+                    robot=None, loads: str | None = None) -> dict:
     """The next round's plan (``stiffcal design --prior``; :func:`stiffcal.measured.calibrated.next_round`): M more
-    poses of the tool point's position under the test load, O_t-optimal for the calibrated model with the information
-    its data already hold added, with the certified lower bound over every M-pose plan of the candidate poses.
+    poses of the tool point's position under the test load (or each measured under ``loads``, the SPEC of
+    :func:`design`'s: the lab's hanging masses, their cable free in the cell), O_t-optimal for the calibrated model
+    with the information its data already hold added, with the certified lower bound over every M-pose plan of the
+    candidate poses.
 
     prior: a calibrated robot file (``calibrated.yaml`` of ``stiffcal discrepancy``) or a Robot with a
     calibration; test_pose_deg (n,) [deg]; force_N (d,) [N] or wrench (d + d_m,) [N, N m]: the test load, used in
@@ -945,6 +947,7 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     ``poses_deg``, ``O_t``, ``O_t_prior``, ``O_t_fresh``, ``lower_bound``, ``gap``, ... [m^2]. Raises
     :class:`InputError` for bad arguments or a robot without a calibration."""
     from .measured import calibrated as C
+    from .model.observation import measurement_loads
     from .planning.study import check_test_inputs
     from .threads import one_blas_thread
 
@@ -956,8 +959,9 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     sigma = None if sigma_m is None else positive_number(sigma_m, "sigma_m")
     seed = whole_number(seed, "seed", 0, 2**32 - 1)
     load = np.r_[force, [] if moment is None else moment]
+    meas_loads = None if loads is None else measurement_loads(robot, loads, "loads")
     with one_blas_thread():
-        nr = C.next_round(robot, np.radians(q_t), load, m, sigma, seed=seed)
+        nr = C.next_round(robot, np.radians(q_t), load, m, sigma, seed=seed, loads=meas_loads)
     return json_safe({
         "robot": robot.name, "prior": prior.source, "experiments": m, "causes": list(nr.causes),
         "joint_names": list(robot.joint_names),
@@ -966,7 +970,9 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
         "rms_m": _root(nr.O_t), "rms_prior_m": _root(nr.O_t_prior), "rms_fresh_m": _root(nr.O_t_fresh),
         "lower_bound": nr.lower_bound,
         "gap": nr.O_t / nr.lower_bound - 1.0 if nr.lower_bound > 0 else None,
-        "lower_bound_over": f"every plan of {m} of the {nr.pool_size} candidate poses, with the old information added",
+        "lower_bound_over": f"every plan of {m} of the {nr.pool_size} candidate poses, with the old information added"
+                            + ("" if meas_loads is None else f", each pose measured under the loads {meas_loads.spec}"),
+        "loads": None if meas_loads is None else meas_loads.spec,
         "approximate_design": {"support_deg": round_within(np.degrees(nr.support), robot.limits_deg).tolist(),
                                "weights": nr.weights.tolist(), "equivalence_gap": nr.equivalence_gap},
         "parameter_names": list(nr.names), "cov_diag": nr.cov_diag.tolist(), "sigma_m": nr.sigma_m, "seed": seed,

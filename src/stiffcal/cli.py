@@ -175,7 +175,6 @@ _O_T_OF_THE_TOOL = "it plans the tool point's position under the test load with 
 _NOT_WITH_PRIOR = {"criterion": ("ot", _O_T_OF_THE_TOOL), "targets": (None, _O_T_OF_THE_TOOL),
                    "orientation": (False, _O_T_OF_THE_TOOL), "sigma_rad": (None, _O_T_OF_THE_TOOL),
                    "test_target": ("tool", _O_T_OF_THE_TOOL), "orientation_length_m": (0.0, _O_T_OF_THE_TOOL),
-                   "loads": (None, "the next round measures under the test load"),
                    "candidates": (None, "its candidate poses are those of the measured-data plans"),
                    "cache_dir": (None, "it computes no approximate design, so there is nothing to cache")}
 
@@ -196,7 +195,7 @@ def next_round(args, m: int) -> dict:
                           experiments=m,
                           sigma_m=None if args.sigma is None else positive_number(args.sigma, "--sigma"),
                           joint_limits_deg=joint_limits(args.joint_limits_deg), cell=args.cell, seed=args.seed,
-                          robot=load_robot(args.robot))
+                          robot=load_robot(args.robot), loads=args.loads)
     for note in out["notes"]:
         write(f"stiffcal design: note: {note}")
     return out

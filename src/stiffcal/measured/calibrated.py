@@ -703,10 +703,12 @@ def prior_design_bound(P: np.ndarray, prior: np.ndarray, W: np.ndarray, m: int, 
 
 
 def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: int, sigma_m: float | None = None,
-               step_deg: float = 10.0, seed: int = 0) -> NextRound:
+               step_deg: float = 10.0, seed: int = 0, loads=None) -> NextRound:
     """The O_t-optimal plan of m more poses given the information already collected: the robot's calibrated model
     (its calibration's causes, less a measurement offset) with the old data's information
-    (:func:`prior_information`) added to the plan's, the test load in every new measurement of the tool point
+    (:func:`prior_information`) added to the plan's, the test load in every new measurement of the tool point, or
+    every pose measured under each of ``loads`` (:class:`stiffcal.model.observation.Loads`: the lab's hanging
+    masses, with their cable free in the cell; None: the test load)
     (as :func:`stiffcal.measured.discrepancy.optimal_plan`, over its candidate poses, by the same exchange), with the
     certified bound of :func:`prior_design_bound` and the plans with no new data and with no old data beside it.
     test_pose (n,) [rad]; test_load (d,) [N] or (d + d_m,) [N, N m]; sigma_m [m]: the new readings' noise
@@ -722,7 +724,7 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     sigma = float(cal.sigma_m if sigma_m is None else sigma_m)
     prior, p_r, causes = prior_information(cal, sigma)
     ob = D.Observed(robot.target_names, None, False, 1.0, np.asarray(cal.k_joints, int), cal.n_offsets)
-    pool, Xp, Xt, scale = D.plan_regressors(robot, causes, test_pose, test_load, ob, step_deg)
+    pool, Xp, Xt, scale = D.plan_regressors(robot, causes, test_pose, test_load, ob, step_deg, loads)
     live = (np.abs(Xp).max(axis=(0, 1)) > 0) | (np.abs(Xt).max(axis=0) > 0)
     prior_s = _marginal(prior / np.outer(scale, scale), live)
     Xp, Xt, scale = Xp[..., live], Xt[:, live], scale[live]

@@ -3134,15 +3134,17 @@ def _ot_of(Xs: np.ndarray, Xt: np.ndarray) -> float:
         return np.inf
 
 
-def candidate_poses(robot: Robot, step_deg: float = 10.0) -> np.ndarray:
+def candidate_poses(robot: Robot, step_deg: float = 10.0, hanging=None) -> np.ndarray:
     """(K, n) [rad]: the candidate poses of the plans for measured data (:func:`optimal_plan`,
     :func:`stiffcal.measured.calibrated.next_round`): a step_deg grid within the joint limits (4096 quasi-random poses
-    for 4+ joints), those the robot's cell allows. Raises :class:`InputError` when the cell allows none."""
+    for 4+ joints), those the robot's cell allows (with the cable of hanging masses free where ``hanging``, the
+    cable's start from the tool point in the tip frame (3,) [m], is given). Raises :class:`InputError` when the cell
+    allows none."""
     pool = joint_space_pool(robot, step_deg, 12)  # 4096 quasi-random poses where a grid would be too large
     if robot.cell is not None:  # only the poses the robot can take in its cell (stiffcal.model.workcell)
         from ..model.workcell import feasible
 
-        pool = pool[feasible(robot, pool)]
+        pool = pool[feasible(robot, pool, hanging)]
         if not len(pool):
             raise InputError(f"no pose of the plan's candidate grid can be taken in the cell ({robot.cell.describe()})",
                              source=robot.cell.source, field="cell")
@@ -3150,14 +3152,21 @@ def candidate_poses(robot: Robot, step_deg: float = 10.0) -> np.ndarray:
 
 
 def plan_regressors(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
-                    observed: Observed | None = None, step_deg: float = 10.0):
+                    observed: Observed | None = None, step_deg: float = 10.0, loads=None):
     """The plan problem of :func:`optimal_plan`: (pool (K, n) [rad] of :func:`candidate_poses`, Xp (K, r, p) the
-    regressors of every candidate under the test load, Xt (d, p) the tool point's at the test pose, scale (p,)
-    [m per parameter unit]), Xp and Xt divided by scale (the columns' RMS over the pool: O_t does not depend on
-    the parameters' units, and balanced columns keep the information matrices well conditioned)."""
+    regressors of every candidate under the test load, or under each of ``loads``
+    (:class:`stiffcal.model.observation.Loads`: the lab's hanging masses, pushes or loading bar, every candidate
+    measured under all of them, its rows stacked; the cable of hanging masses free in the cell), Xt (d, p) the tool
+    point's at the test pose, scale (p,) [m per parameter unit]), Xp and Xt divided by scale (the columns' RMS over
+    the pool: O_t does not depend on the parameters' units, and balanced columns keep the information matrices well
+    conditioned)."""
     ob = observed or Observed()
-    pool = candidate_poses(robot, step_deg)
-    Xp = pose_rows(robot, pool, np.asarray(test_force, float), causes, ob)
+    pool = candidate_poses(robot, step_deg, None if loads is None else loads.hang_offset)
+    if loads is None:
+        Xp = pose_rows(robot, pool, np.asarray(test_force, float), causes, ob)
+    else:
+        W = loads.at(robot, pool)  # (K, L, w)
+        Xp = np.concatenate([pose_rows(robot, pool, W[:, k], causes, ob) for k in range(W.shape[1])], axis=1)
     Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True,
                        observed=ob.at_tool(robot))[0]
     scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))
