@@ -540,6 +540,31 @@ def test_next_round_under_the_lab_s_hanging_masses_against_the_information_by_ha
     assert nr.lower_bound <= ot.min() * (1 + 1e-12)
 
 
+def test_the_verdict_s_next_round_measures_under_the_lab_s_own_loads(tmp_path):
+    """The verdict's next round planned every new pose under the test force, which a lab that hangs masses cannot
+    apply (a fresh user's Z1: its poses put the cable on the table). lab_loads takes the data's own: the simulator's
+    hanging masses (the protocol's magnitudes along gravity, to the load cell's resolution) as hanging masses; its
+    pushes, whose directions change with every configuration (96 distinct loads), as none (the test load then); and
+    the verdict's next_round says which, its plan that of next_round under them."""
+    robot = ARMS["2-link"]
+    pr = R.PROTOCOLS["hanging x3, reference per visit, 2 passes"]
+    data = _lab_data(tmp_path, robot, T.Truth(R.compliances(robot), gap=np.full(2, 2e-4), tau_gap=1e-3))
+    meas = read_measurements(data, robot)
+    loads = D.lab_loads(robot, meas)
+    down = np.asarray(robot.gravity, float) / np.linalg.norm(robot.gravity)
+    expect = np.sort(np.asarray(pr.magnitudes_N)[: len(loads.wrenches)])
+    assert loads.hanging and len(loads.wrenches) == len(pr.magnitudes_N[:3])
+    np.testing.assert_allclose(np.sort(loads.wrenches @ down), expect, atol=0.01)
+    pushes = read_measurements(_lab_data(tmp_path, robot, T.Truth(R.compliances(robot)), name="pushes.csv",
+                                         protocol="4 directions x 2, repeated"), robot)
+    assert D.lab_loads(robot, pushes) is None
+    pre = D.prepare(robot, meas)
+    v, cal = D.complete(robot, pre, D.verdict_of(robot, pre, gain=False), data, QT, FT)
+    assert v["next_round"]["loads"] == "the data's 3 hanging masses"
+    nr = C.next_round(replace(robot, calibration=cal), QT, FT, v["next_round"]["experiments"], loads=loads)
+    np.testing.assert_allclose(v["next_round"]["poses_deg"], np.degrees(nr.poses), atol=1e-3)
+
+
 def test_next_round_with_no_prior_is_the_plan_without_old_data(tmp_path):
     """The exchange with a zero prior is the exchange without one (the same plan and value); a prior that
     carries almost nothing (the covariance times 1e12) gives the O_t of the best plan without old data, which is

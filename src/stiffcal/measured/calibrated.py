@@ -853,21 +853,24 @@ def rms(ot: float) -> float | None:
 
 
 def next_round_summary(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray,
-                       m: int | None = None) -> tuple[dict, list[str]]:
+                       m: int | None = None, loads=None) -> tuple[dict, list[str]]:
     """The verdict's ``next_round``: :func:`next_round` of m poses (default: the fewest that identify the model's
     parameters alone, plus one, as :func:`stiffcal.measured.discrepancy.optimal_plan`) as RMS errors [m] at the test
     pose: ``rms_prior_m`` (the data's alone), ``rms_next_m`` (with the plan's m poses added), ``rms_fresh_m`` (the best
     m poses without the data), each null when its O_t is not finite (m poses alone cannot identify the model), and
     ``lower_bound_rms_m``;
-    ``experiments``, ``poses_deg``; and the notes of :func:`next_round` (a test load that turns a joint the
-    calibration did not identify, a test pose that moves a parameter it did not determine), for the verdict's."""
+    ``experiments``, ``poses_deg``, ``loads`` (what every new pose is measured under: ``loads``, the lab's, e.g.
+    :func:`stiffcal.measured.discrepancy.lab_loads`, or the test load); and the notes of :func:`next_round` (a test
+    load that turns a joint the calibration did not identify, a test pose that moves a parameter it did not
+    determine), for the verdict's."""
     cal = robot.calibration
     _, p_r, _ = prior_information(cal, cal.sigma_m)
     m = m or int(np.ceil(p_r / robot.task_dim)) + 1
-    nr = next_round(robot, test_pose, test_load, m)
+    nr = next_round(robot, test_pose, test_load, m, loads=loads)
     from ..model.robot import round_within
 
     return ({"experiments": m, "poses_deg": round_within(np.degrees(nr.poses), robot.limits_deg, 3).tolist(),
+             "loads": "the test load" if loads is None else loads.spec,
              "rms_prior_m": rms(nr.O_t_prior), "rms_next_m": rms(nr.O_t), "rms_fresh_m": rms(nr.O_t_fresh),
              "lower_bound_rms_m": float(np.sqrt(max(nr.lower_bound, 0.0)))},
             [f"next_round: {n}" for n in nr.notes])

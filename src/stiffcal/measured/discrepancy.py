@@ -424,6 +424,34 @@ def load_of(meas: Measurements) -> np.ndarray:
     return meas.wrench if meas.has_moment else meas.force
 
 
+#: the largest angle [deg] between a load of the data and the robot's gravity for the data's loads to count as
+#: hanging masses (:func:`lab_loads`)
+HANGING_ANGLE_DEG = 1.0
+
+
+def lab_loads(robot: Robot, meas: Measurements):
+    """The loads the lab applied, as the next round's (:class:`stiffcal.model.observation.Loads`): the data's distinct
+    forces (merged within the load cell's resolution), hanging masses (their cable checked in the cell) when every
+    one is within :data:`HANGING_ANGLE_DEG` of the robot's gravity; None (the next round then measures under the test
+    load) when the data have moments (a loading bar's turn with the tool: its wrench at one pose is not at another)
+    or more distinct loads than :data:`stiffcal.model.loads.MAX_DATA_LOADS`."""
+    from ..model.loads import load_set
+    from ..model.observation import Loads
+    from .measurements import cluster
+
+    if meas.has_moment:
+        return None
+    try:
+        forces = load_set("data", robot.task_dim, meas.force, meas.resolutions[1], cluster=cluster).forces
+    except InputError:
+        return None
+    g = np.asarray(robot.gravity, float)[: robot.task_dim]
+    cos = forces @ g / (np.linalg.norm(forces, axis=1) * np.linalg.norm(g))
+    hanging = bool(np.all(cos >= np.cos(np.radians(HANGING_ANGLE_DEG))))
+    spec = f"the data's {len(forces)} {'hanging masses' if hanging else 'loads'}"
+    return Loads(np.asarray(forces, float), None, hanging, spec)
+
+
 def observations(meas: Measurements, observed: Observed) -> np.ndarray:
     """(N, r): every row's measured quantities, the rotation [rad] times ``observed.rad_weight`` [m/rad]
     (weighted least squares: every component then has the position noise)."""
@@ -3101,7 +3129,7 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
     nominal = replace(robot, calibration=nominal_cal)
     machining = {"test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
                  **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
-    summary, notes = calibrated.next_round_summary(model, test_pose, test_force)
+    summary, notes = calibrated.next_round_summary(model, test_pose, test_force, loads=lab_loads(robot, pre.m))
     return replace(verdict, next_round=summary, machining_path=machining, notes=[*verdict.notes, *notes]), cal
 
 
