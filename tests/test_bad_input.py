@@ -377,3 +377,8 @@ def test_a_misspelt_config_key_is_named_with_the_key_it_looks_like():
     data = [{**cfg["measured_data"][0], "alfa": 0.05}]
     with pytest.raises(InputError, match=r"unknown field\(s\) 'alfa' \('alfa': did you mean 'alpha'\?\)"):
         validate({**cfg, "measured_data": data}, "config", "my.yaml")
+    # a fresh user's `tip_fram:` in a URDF robot file: their correct `base_frame:` was offered for it too
+    with pytest.raises(InputError, match=r"missing required field\(s\) 'tip_frame' \('tip_fram': did you mean "
+                                         r"'tip_frame'\?\)$"):
+        validate({"name": "x", "kind": "urdf", "urdf": "x.urdf", "base_frame": "base", "tip_fram": "tool0"}, "robot",
+                 "r.yaml")

@@ -213,7 +213,13 @@ def _spelling(given: list[str], expected: list[str]) -> str:
     """' (did you mean ...?)' for the given keys that look like misspellings of expected ones (difflib), else ''."""
     import difflib
 
-    pairs = [(g, m[0]) for g in given if (m := difflib.get_close_matches(g, expected, n=1, cutoff=0.6))]
+    best: dict[str, tuple[float, str]] = {}  # per expected key, the given key most like it (a fresh user's typo
+    for g in given:                          # 'tip_fram' was matched and so was their correct 'base_frame')
+        for e in difflib.get_close_matches(g, expected, n=1, cutoff=0.6):
+            ratio = difflib.SequenceMatcher(None, g, e).ratio()
+            if ratio > best.get(e, (0.0, ""))[0]:
+                best[e] = (ratio, g)
+    pairs = sorted((g, e) for e, (_, g) in best.items())
     return f" ({'; '.join(f'{g!r}: did you mean {e!r}?' for g, e in pairs)})" if pairs else ""
 
 
