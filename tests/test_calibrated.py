@@ -467,10 +467,11 @@ def _schur_ot(M, Xt, nuisance):
     3.10), with the pseudo-inverse where the data do not determine them; inf where S is singular."""
     a, n = ~nuisance, nuisance
     S = M[np.ix_(a, a)] - M[np.ix_(a, n)] @ np.linalg.pinv(M[np.ix_(n, n)]) @ M[np.ix_(n, a)]
-    ev = np.linalg.eigvalsh(S)
-    if ev.min() <= 1e-12 * ev.max():
+    ev, U = np.linalg.eigh(0.5 * (S + S.T))
+    if ev.min() <= 1e-10 * ev.max():
         return np.inf
-    return float(np.trace(Xt[:, a] @ np.linalg.solve(S, Xt[:, a].T)))
+    Z = Xt[:, a] @ U
+    return float(np.sum(Z**2 / ev))
 
 
 def test_next_round_with_an_undetermined_parameter_the_test_pose_does_not_move(tmp_path):
@@ -507,6 +508,31 @@ def test_next_round_with_an_undetermined_parameter_the_test_pose_does_not_move(t
     undetermined = np.abs(X[pick][:, 3]).max() == 0
     assert (nr.cov_diag[3] == np.inf) == undetermined
     assert undetermined == any("b2" in n and "stay undetermined" in n for n in nr.notes)
+
+
+def test_the_gain_s_optimal_plan_values_the_test_pose_alone_by_brute_force():
+    """The verdict's gain planned the extended model's O_t-optimal plan and called it infinite (null, with a note)
+    whenever the plan left a parameter undetermined that the test pose's deflection does not depend on (a fresh
+    user's Z1: backlashes of joints the test load does not turn). The 2-link arm with backlash, the test force along
+    link 2 (tau_2 = 0: k2's and b2's columns of X_t zero): optimal_plan's value is the best pair of candidate poses
+    by brute force, each valued by hand as the Schur complement with the pseudo-inverse of the nuisance block
+    (_schur_ot), finite."""
+    robot = ARMS["2-link"]
+    qt = np.radians([30.0, 50.0])
+    ft = 300.0 * np.array([np.cos(qt.sum()), np.sin(qt.sum())])
+    plan, value = D.optimal_plan(robot, ("backlash",), qt, ft, m=2, step_deg=30.0)
+    Xt = _by_hand(robot, qt, ft)[0]
+    nuisance = np.abs(Xt).max(axis=0) < 1e-9 * np.abs(Xt).max()
+    assert nuisance.tolist() == [False, True, False, True]
+    pool = D.candidate_poses(robot, 30.0)
+    X = _by_hand(robot, pool, ft)
+    tau = np.einsum("ndj,d->nj", robot.jacobian(pool), ft)  # a torque of round-off reverses nothing
+    X[..., 2:] *= np.abs(tau)[:, None, :] > 1e-9 * np.abs(tau).max(axis=1)[:, None, None]
+    P = np.einsum("kdi,kdj->kij", X, X)
+    i, j = np.triu_indices(len(pool))
+    ots = np.array([_schur_ot(P[a] + P[b], Xt, nuisance) for a, b in zip(i, j)])
+    assert np.isfinite(value) and np.isfinite(ots).any()
+    np.testing.assert_allclose(value, ots.min(), rtol=1e-6)
 
 
 def test_next_round_under_the_lab_s_hanging_masses_against_the_information_by_hand(tmp_path):

@@ -788,26 +788,17 @@ def _moves_undetermined(cal: Calibration, Xt: np.ndarray, live: np.ndarray) -> n
     return ~flags & (size > 1e-9 * max(size.max(), 1e-300))
 
 
-#: the ridge (relative to the candidates' mean information per parameter) put on the next round's nuisance
-#: parameters (:func:`_nuisance_ridge`): O_t then differs from its limit by about this fraction
-NUISANCE_RIDGE = 1e-9
-
-
 def _nuisance_ridge(cal: Calibration, P: np.ndarray, Xt: np.ndarray, live: np.ndarray) -> np.ndarray:
-    """(p_live, p_live): a diagonal ridge on the next round's nuisance parameters: those the calibration's data did
-    not determine (its estimable flags) and the test pose does not move (their column of Xt (d, p_live) round-off;
-    a backlash of a joint whose total torque the old loads never reversed and the test load does not turn). The
-    test pose's deflection X_t theta does not depend on them, so its variance is finite whether or not the new
-    poses determine them: the limit of tr(W (M + r I_n)^-1) as r -> 0, the inverse of the Schur complement
-    M_aa - M_an M_nn^+ M_na on the other parameters (Pukelsheim, *Optimal Design of Experiments*, 1993, sec. 3.10:
-    the information matrix of a parameter subsystem). A small r gives that limit to a relative r and keeps every
-    plan's M invertible for the exchange (without it, a plan that left them undetermined had an infinite O_t, and
-    the posterior variances raised). P (K, p_live, p_live): the candidates' information."""
+    """(p_live, p_live): :func:`stiffcal.planning.plans.nuisance_ridge` on the next round's nuisance parameters:
+    those the calibration's data did not determine (its estimable flags) and the test pose does not move (their
+    column of Xt (d, p_live) round-off; a backlash of a joint whose total torque the old loads never reversed and the
+    test load does not turn). Without it, a plan that left them undetermined had an infinite O_t, and the posterior
+    variances raised. P (K, p_live, p_live): the candidates' information."""
+    from ..planning.plans import nuisance_ridge
+
     flags = np.array(cal.estimable, bool)[: len(live)][live]
     size = np.abs(Xt).max(axis=0)
-    nuisance = ~flags & ~(size > 1e-9 * max(size.max(), 1e-300))
-    mean = float(np.trace(P.mean(axis=0))) / max(P.shape[-1], 1)
-    return np.diag(np.where(nuisance, NUISANCE_RIDGE * max(mean, 1e-300), 0.0))
+    return nuisance_ridge(P, ~flags & ~(size > 1e-9 * max(size.max(), 1e-300)))
 
 
 def _posterior_variances(M: np.ndarray) -> np.ndarray:

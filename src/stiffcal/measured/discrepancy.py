@@ -2109,9 +2109,9 @@ def _gain_notes(robot: Robot, gain: dict | None, diagnostics: dict, ext: list, d
         if gain is not None and key in gain and not np.isfinite(gain[key]):
             gain[key] = None
             notes.append(f"gain.{key} is left out: {what} ({len(gain['nominal_plan_deg'])} poses under the "
-                         "test load, measuring what the data measured) does not identify every parameter of the "
-                         f"extended model ({', '.join(ext)}): its information matrix is singular, so its O_t is "
-                         "infinite")
+                         "test load, measuring what the data measured) does not determine the parameters of the "
+                         f"extended model ({', '.join(ext)}) that the test pose's deflection depends on, so its O_t "
+                         "is infinite")
     if gain is not None and "test_pose_rms_extended_m" in gain and gain["test_pose_rms_extended_m"] is None:
         notes.append(f"gain's test-pose errors are null: the extended model's ({', '.join(ext)}) deflection at the "
                      "test pose depends on parameters these data do not determine (extended.not_estimable: e.g. a "
@@ -3154,12 +3154,15 @@ def _write_figures(robot: Robot, meas: Measurements, verdict: dict, cal, label: 
 # --- the paper's method applied to the model that fits --------------------------------------------------
 
 def _ot_of(Xs: np.ndarray, Xt: np.ndarray) -> float:
-    """O_t / sigma^2 = tr(X_t M^-1 X_t^T) of a plan with regressors Xs (m, d, p); inf when singular."""
-    M = np.einsum("mdi,mdj->ij", Xs, Xs)
-    try:
-        return float(np.trace(Xt @ np.linalg.solve(M, Xt.T))) if np.linalg.cond(M) < 1e12 else np.inf
-    except np.linalg.LinAlgError:
+    """O_t / sigma^2 = tr(X_t M^+ X_t^T) of a plan with regressors Xs (m, d, p), M = sum X_i^T X_i: the variance of
+    the estimable X_t b (any generalised inverse gives it; Searle, *Linear Models*, 1971, sec. 5.4), so finite when
+    the plan leaves undetermined only parameters the test point's deflection does not depend on; inf when X_t is
+    not in the plan's row space."""
+    X = Xs.reshape(-1, Xs.shape[-1])
+    if not in_row_space(X, Xt):
         return np.inf
+    M = X.T @ X
+    return float(np.trace(Xt @ np.linalg.pinv(0.5 * (M + M.T), hermitian=True) @ Xt.T))
 
 
 def candidate_poses(robot: Robot, step_deg: float = 10.0, hanging=None) -> np.ndarray:
@@ -3210,9 +3213,13 @@ def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.nda
     and O_t the tool point's position error at the test pose: Fedorov exchange
     (:func:`stiffcal.planning.plans.fedorov_exchange`, the engine of every plan) over :func:`candidate_poses`. Returns
     (poses [deg] (m, n), O_t / sigma^2)."""
-    from ..planning.plans import fedorov_exchange
+    from ..planning.plans import fedorov_exchange, nuisance_ridge
 
     pool, Xp, Xt, _ = plan_regressors(robot, causes, test_pose, test_force, observed, step_deg)
     m = m or int(np.ceil(Xp.shape[2] / Xp.shape[1])) + 1
-    res = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
-    return np.degrees(pool[res.indices]), res.value
+    size = np.abs(Xt).max(axis=0)
+    nuisance = ~(size > 1e-9 * max(size.max(), 1e-300))  # the test point's deflection does not depend on them
+    prior = nuisance_ridge(np.einsum("kdi,kdj->kij", Xp, Xp), nuisance) if nuisance.any() else None
+    res = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=prior)
+    value = res.value if prior is None else _ot_of(Xp[res.indices], Xt)
+    return np.degrees(pool[res.indices]), value

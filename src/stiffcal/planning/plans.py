@@ -496,6 +496,23 @@ def exchange_loop(score, best, slot_P, slot_idx, pool_P, max_passes: int, slot_X
     return best
 
 
+#: the ridge (relative to the candidates' mean information per parameter) on nuisance parameters
+#: (:func:`nuisance_ridge`): O_t then differs from its limit by about this fraction
+NUISANCE_RIDGE = 1e-9
+
+
+def nuisance_ridge(info: np.ndarray, nuisance: np.ndarray) -> np.ndarray:
+    """(p, p): a diagonal ridge on the ``nuisance`` parameters (p,) bool, those the test point's deflection does not
+    depend on (their column of X_t zero) and nothing else determines (a backlash of a joint the test load does not
+    turn): the exchange's prior. O_t = tr(X_t M^-1 X_t^T) is then finite whether or not a plan determines them,
+    the limit as the ridge r -> 0 being the inverse of the Schur complement M_aa - M_an M_nn^+ M_na on the other
+    parameters (Pukelsheim, *Optimal Design of Experiments*, 1993, sec. 3.10: the information matrix of a parameter
+    subsystem), which a small r gives to a relative r while keeping every plan's M invertible for the exchange.
+    info (K, p, p): the candidates' information matrices (the ridge's scale)."""
+    mean = float(np.trace(info.mean(axis=0))) / max(info.shape[-1], 1)
+    return np.diag(np.where(nuisance, NUISANCE_RIDGE * max(mean, 1e-300), 0.0))
+
+
 @single_threaded
 def fedorov_exchange(pool: np.ndarray, Xt: np.ndarray, m: int, *, information: bool = False,
                      starts: list | tuple = (), n_starts: int = 16, greedy: bool = False, seed: int = 0,
