@@ -113,7 +113,7 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
     if isinstance(doc.get("cell"), dict) and doc["cell"].get("srdf"):
         doc["cell"] = {**doc["cell"], "srdf": moved(doc["cell"]["srdf"])}
     doc.pop("calibration", None)
-    k, kept = _written_compliances(cal, robot.n_joints, doc.get("compliances_rad_per_Nm"))
+    k, _ = _written_compliances(cal, robot.n_joints, doc.get("compliances_rad_per_Nm"))
     if k is not None:
         doc["compliances_rad_per_Nm"] = k
     doc["name"] = f"{doc['name']} (calibrated)" if not str(doc["name"]).endswith("(calibrated)") else doc["name"]
