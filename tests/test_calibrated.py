@@ -591,6 +591,40 @@ def test_the_verdict_s_next_round_measures_under_the_lab_s_own_loads(tmp_path):
     np.testing.assert_allclose(v["next_round"]["poses_deg"], np.degrees(nr.poses), atol=1e-3)
 
 
+def test_next_round_on_the_axis_of_a_joint_calibrated_off_it(tmp_path):
+    """A fresh user's UR3, calibrated on two targets off the last joint's axis (so its compliance is in the model),
+    then planned at the tool point on that axis: k6's column was 2e-17 of the others, the columns' scaling made it a
+    unit column of round-off, the prior came out indefinite and every plan 'inf'. tests/data/lab/ur10.yaml (its tool
+    point on joint 6's axis) with a calibration of its six compliances (a correlated covariance): O_t of the next
+    round is sigma^2 tr(X_t (C_aa^-1 + X_a^T X_a / sigma^2)^-1 X_t^T) over the five compliances that move the tool
+    point (C_aa their marginal covariance), written here from the Jacobian; finite, below the prior's, and the
+    variances of the five finite."""
+    robot = load_robot(ROOT / "tests/data/lab/ur10.yaml")
+    k = np.asarray(robot.compliances, float)
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(6, 6))
+    corr = A @ A.T + 6 * np.eye(6)
+    d = 0.05 * k / np.sqrt(np.diag(corr))
+    cov = corr * np.outer(d, d)
+    names = tuple(f"k_{n}" for n in robot.joint_names)
+    cal = C.Calibration((), tuple(range(6)), names, k.copy(), cov, (True,) * 6, 0, 2e-5)
+    calibrated = replace(robot, calibration=cal)
+    qt, ft = np.radians([20.0, -100.0, 90.0, -80.0, -90.0, 30.0]), np.array([100.0, -50.0, -300.0])
+    nr = C.next_round(calibrated, qt, ft, 3, step_deg=20.0)
+
+    def rows(q):  # (K, 3, 5): J_j tau_j of joints 1-5 at the tool point
+        J = robot.jacobian(np.atleast_2d(q))
+        tau = np.einsum("ndj,d->nj", J, ft)
+        return (J * tau[:, None, :])[..., :5]
+
+    assert np.abs(robot.jacobian(np.atleast_2d(qt))[0][:, 5]).max() < 1e-12  # joint 6 does not move the tool point
+    X, Xt, s2 = rows(nr.poses).reshape(-1, 5), rows(qt)[0], nr.sigma_m**2
+    M = np.linalg.inv(cov[:5, :5]) + X.T @ X / s2
+    np.testing.assert_allclose(nr.O_t, np.trace(Xt @ np.linalg.solve(M, Xt.T)), rtol=1e-8)
+    assert np.isfinite(nr.O_t) and nr.O_t < nr.O_t_prior
+    np.testing.assert_allclose(nr.cov_diag[:5], np.diag(np.linalg.inv(M)), rtol=1e-6)
+
+
 def test_next_round_with_no_prior_is_the_plan_without_old_data(tmp_path):
     """The exchange with a zero prior is the exchange without one (the same plan and value); a prior that
     carries almost nothing (the covariance times 1e12) gives the O_t of the best plan without old data, which is

@@ -667,7 +667,31 @@ def prior_information(cal: Calibration, sigma_m: float) -> tuple[np.ndarray, int
     causes = tuple(c for c in cal.causes if c != "measurement_offset")
     p_r = len(cal.theta) - (cal.n_offsets if "measurement_offset" in cal.causes else 0)
     cov = cal.cov[:p_r, :p_r]
-    return sigma_m**2 * np.linalg.pinv(0.5 * (cov + cov.T), hermitian=True), p_r, causes
+    return sigma_m**2 * _psd_inverse(cov), p_r, causes
+
+
+#: relative eigenvalue (of a matrix scaled to a unit diagonal) below which a direction counts as not determined
+PSD_RTOL = 1e-12
+
+
+def _psd_inverse(A: np.ndarray) -> np.ndarray:
+    """The pseudo-inverse of a symmetric positive semi-definite A (p, p) (a covariance or an information matrix),
+    taken in its correlation form D^-1/2 A D^-1/2 (unit diagonal: the parameters' units do not decide the rank):
+    eigenvalues below :data:`PSD_RTOL` of the largest, round-off's negative ones included, are not inverted; a
+    parameter with a zero diagonal gets zero. A covariance read back from calibrated.yaml whose correlations are
+    near 1 had an eigenvalue of -1e-18 that numpy's pinv inverted to a negative information of -1e15, and every
+    next-round plan came out 'inf' (a fresh user's UR3)."""
+    A = 0.5 * (A + A.T)
+    d = np.sqrt(np.clip(np.diag(A), 0.0, None))
+    on = d > 0
+    out = np.zeros_like(A)
+    if not on.any():
+        return out
+    R = A[np.ix_(on, on)] / np.outer(d[on], d[on])
+    ev, U = np.linalg.eigh(R)
+    keep = ev > PSD_RTOL * max(float(ev.max()), 1e-300)
+    out[np.ix_(on, on)] = ((U[:, keep] / ev[keep]) @ U[:, keep].T) / np.outer(d[on], d[on])
+    return out
 
 
 def prior_design_bound(P: np.ndarray, prior: np.ndarray, W: np.ndarray, m: int, iters: int = 3000,
@@ -725,7 +749,7 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     prior, p_r, causes = prior_information(cal, sigma)
     ob = D.Observed(robot.target_names, None, False, 1.0, np.asarray(cal.k_joints, int), cal.n_offsets)
     pool, Xp, Xt, scale = D.plan_regressors(robot, causes, test_pose, test_load, ob, step_deg, loads)
-    live = (np.abs(Xp).max(axis=(0, 1)) > 0) | (np.abs(Xt).max(axis=0) > 0)
+    live = (np.abs(Xp).max(axis=(0, 1)) > 0) | (np.abs(Xt).max(axis=0) > 0)  # round-off columns are zero
     prior_s = _marginal(prior / np.outer(scale, scale), live)
     Xp, Xt, scale = Xp[..., live], Xt[:, live], scale[live]
     P = np.einsum("kdi,kdj->kij", Xp, Xp)
@@ -740,7 +764,8 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     W = Xt.T @ Xt
     bound, w, gap = prior_design_bound(P, ridged, W, m)
     cov_rr = cal.cov[:p_r, :p_r]
-    post = np.diag(cov_rr).copy()  # a parameter that no pose and not the test pose moves keeps its variance
+    post = np.where(np.array(cal.estimable, bool)[:p_r], np.diag(cov_rr), np.inf)  # a parameter that no pose and
+    #                           not the test pose moves keeps its variance (inf where its data did not determine it)
     post[live] = sigma**2 * _posterior_variances(prior_s + P[with_old.indices].sum(axis=0)) / scale**2
     keep = w > 1e-4 * w.max()
     names = cal.names[:p_r]
@@ -803,12 +828,21 @@ def _nuisance_ridge(cal: Calibration, P: np.ndarray, Xt: np.ndarray, live: np.nd
 
 def _posterior_variances(M: np.ndarray) -> np.ndarray:
     """(p,): the diagonal of M^+ for the parameters M (p, p) (an information matrix, symmetric positive
-    semi-definite) determines, inf for those it does not (e_j outside M's range, relative rank 1e-10)."""
-    ev, U = np.linalg.eigh(0.5 * (M + M.T))
-    keep = ev > 1e-10 * max(float(ev.max(initial=0.0)), 1e-300)
-    out = (U[:, keep] ** 2) @ (1.0 / ev[keep])
-    determined = ((U[:, ~keep] ** 2).sum(axis=1) <= 1e-10) if (~keep).any() else np.ones(len(M), bool)
-    return np.where(determined, out, np.inf)
+    semi-definite) determines, inf for those it does not (e_j outside M's range: in M's correlation form, as
+    :func:`_psd_inverse` decides the rank, so that well-determined old parameters beside new ones do not count
+    as round-off)."""
+    M = 0.5 * (M + M.T)
+    d = np.sqrt(np.clip(np.diag(M), 0.0, None))
+    out = np.full(len(M), np.inf)
+    on = d > 0
+    if not on.any():
+        return out
+    ev, U = np.linalg.eigh(M[np.ix_(on, on)] / np.outer(d[on], d[on]))
+    keep = ev > PSD_RTOL * max(float(ev.max()), 1e-300)
+    var = ((U[:, keep] ** 2) @ (1.0 / ev[keep])) / d[on] ** 2
+    determined = (U[:, ~keep] ** 2).sum(axis=1) <= 1e-10 if (~keep).any() else np.ones(on.sum(), bool)
+    out[on] = np.where(determined, var, np.inf)
+    return out
 
 
 def _marginal(information: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -818,7 +852,7 @@ def _marginal(information: np.ndarray, keep: np.ndarray) -> np.ndarray:
     if keep.all():
         return information
     kk, kd, dd = information[np.ix_(keep, keep)], information[np.ix_(keep, ~keep)], information[np.ix_(~keep, ~keep)]
-    return kk - kd @ np.linalg.pinv(dd, hermitian=True) @ kd.T
+    return kk - kd @ _psd_inverse(dd) @ kd.T
 
 
 def _unidentified_at_test_pose(robot: Robot, cal, test_pose: np.ndarray, test_load: np.ndarray) -> list[str]:

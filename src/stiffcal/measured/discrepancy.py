@@ -3200,9 +3200,31 @@ def plan_regressors(robot: Robot, causes, test_pose: np.ndarray, test_force: np.
         Xp = np.concatenate([pose_rows(robot, pool, W[:, k], causes, ob) for k in range(W.shape[1])], axis=1)
     Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True,
                        observed=ob.at_tool(robot))[0]
+    dead = _round_off_columns(robot, ob, causes, Xp, Xt)
+    Xp[..., dead], Xt[:, dead] = 0.0, 0.0
     scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))
     scale[scale == 0] = 1.0
     return pool, Xp / scale, Xt / scale, scale
+
+
+def _round_off_columns(robot: Robot, ob: Observed, causes, Xp: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """(p,) bool: the plan's parameters that neither a candidate pose (Xp (K, r, p)) nor the test pose (Xt (d, p))
+    moves beyond round-off, 1e-9 of the largest column of their block (the compliances, then each cause's
+    parameters: one unit within a block). A fresh user's UR3, calibrated on two targets off its last axis and then
+    planned on the tool point on it: that compliance's column was 2e-17 of the others, which the columns' scaling
+    made a unit column of round-off, and the next round's prior then came out indefinite (every plan 'inf')."""
+    from ..model.catalogue import extension_size
+
+    size = np.maximum(np.abs(Xp).max(axis=(0, 1)), np.abs(Xt).max(axis=0))
+    sizes = [len(ob.model_params(robot))] + [extension_size(c, robot, ob.n_offsets or robot.task_dim)
+                                              for c in sorted(causes, key=CAUSES.index)]
+    bounds = np.cumsum([0] + sizes)
+    dead = np.zeros(len(size), bool)
+    if bounds[-1] != len(size):  # the blocks are not known: only exact zeros
+        return size == 0
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        dead[a:b] = ~(size[a:b] > 1e-9 * max(float(size[a:b].max(initial=0.0)), 1e-300))
+    return dead
 
 
 def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
