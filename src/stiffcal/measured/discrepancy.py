@@ -1393,11 +1393,34 @@ def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed) -> None:
         load = load_of(meas).copy()
         load[:, d:] *= scale
         rss.append(fit(_stack(nominal_columns(robot, meas.q, load, ob)), observations(meas, ob).ravel()).rss)
+    cols = [f"m{a}_Nm" for a in ("z" if robot.planar else "xyz")]
     if rss[1] < 0.1 * rss[0]:
-        cols = [f"m{a}_Nm" for a in ("z" if robot.planar else "xyz")]
         raise InputError(f"expected moments in N m, but the nominal model fits the data {rss[0] / rss[1]:.3g} times "
                          "better (residual sum of squares) with them divided by 1000: moments in N mm labelled N m?",
                          source=meas.source, field=f"columns {', '.join(cols)}")
+    lever = _median_lever(meas)
+    if lever is not None and lever > MAX_LEVER_REACHES * robot.reach_m:
+        raise InputError(f"expected moments in N m, but where the force is large the moments are {lever:.3g} m times "
+                         f"the force in the median (a lever {lever / robot.reach_m:.3g} times the arm's reach of "
+                         f"{robot.reach_m:.3g} m; a loading bar's is a fraction of it): moments in N mm labelled N m?",
+                         source=meas.source, field=f"columns {', '.join(cols)}")
+
+
+#: the median lever |M| / |F| of the rows with a large force, in reaches of the arm, beyond which moments are
+#: refused as N mm (:func:`_check_moment_unit`): a loading bar's is a fraction of the reach, N mm make it 1000x
+MAX_LEVER_REACHES = 20.0
+
+
+def _median_lever(meas: Measurements) -> float | None:
+    """The median of |M| / |F| [m] over the rows whose force is at least a tenth of the largest (a pure moment beside
+    a load cell's small force readings is not a lever); None without such rows. A fresh user's UR3 with a loading
+    bar 0.15 m long logged its moments in N mm: the residual test passed (the compliances shrank 100-fold to fit),
+    the lever was 150 m."""
+    f = np.linalg.norm(meas.force, axis=1)
+    big = f >= 0.1 * f.max(initial=0.0)
+    if not (f.max(initial=0.0) > 0 and big.any()):
+        return None
+    return float(np.median(np.linalg.norm(meas.moment[big], axis=1) / f[big]))
 
 
 def _as_the_robot_file_says(robot: Robot, meas: Measurements, ob: Observed, c: float) -> bool:
