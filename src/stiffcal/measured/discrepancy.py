@@ -1935,12 +1935,8 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     stages: the closed test and the causes it names (:func:`_named_causes`), the nominal model
     (:func:`_nominal_summary`), the diagnostics, the extended model, the held-out check and the gain with their
     notes (:func:`_gain_notes`)."""
-    meas, m, ob, des, noise, notes = pre.meas, pre.m, pre.ob, pre.des, pre.noise, list(pre.notes)
-    if getattr(robot, "calibration", None) is not None:
-        data = (robot.calibration.source or {}).get("data") or "its data"
-        notes.insert(0, f"the robot file is a calibrated model (of {data}): these data are analysed alone, against its "
-                        "kinematics; its calibration is not combined with them (to combine rounds, analyse the logs "
-                        "together, each configuration with its own pose_id, against the robot file)")
+    meas, m, ob, des, noise = pre.meas, pre.m, pre.ob, pre.des, pre.noise
+    notes = _calibrated_robot_note(robot) + list(pre.notes)
     f0 = fit(des.X0, des.y)
     lof = lack_of_fit_test(robot, m, des, noise, pre.w, pre.error)
     sel = closed_testing(des, CAUSES, noise, lof, alpha)
@@ -1989,6 +1985,16 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
         resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
         out["residual_structure"] = residual_structure(robot, m, resid)
     return Verdict(**out, robot=robot.source)
+
+
+def _calibrated_robot_note(robot: Robot) -> list[str]:
+    """The note of a verdict whose robot file is a calibrated model (its calibration is not combined with the data)."""
+    if getattr(robot, "calibration", None) is None:
+        return []
+    data = (robot.calibration.source or {}).get("data") or "its data"
+    return [f"the robot file is a calibrated model (of {data}): these data are analysed alone, against its "
+            "kinematics; its calibration is not combined with them (to combine rounds, analyse the logs together, "
+            "each configuration with its own pose_id, against the robot file)"]
 
 
 def _outside_verdict(diag: dict, ranked: list[str]) -> dict:
