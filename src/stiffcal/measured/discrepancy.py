@@ -3190,8 +3190,12 @@ def _ot_of(Xs: np.ndarray, Xt: np.ndarray) -> float:
     X = Xs.reshape(-1, Xs.shape[-1])
     if not in_row_space(X, Xt):
         return np.inf
-    M = X.T @ X
-    return float(np.trace(Xt @ np.linalg.pinv(0.5 * (M + M.T), hermitian=True) @ Xt.T))
+    norm = np.linalg.norm(X, axis=0)
+    norm = np.where(norm > 0, norm, 1.0)
+    _, sv, Vt = np.linalg.svd(X / norm, full_matrices=False)  # X's own SVD: its condition, not M's square
+    keep = sv > RANK_RTOL * sv[0]
+    Z = (Xt / norm) @ Vt[keep].T / sv[keep]
+    return float(np.sum(Z**2))
 
 
 def candidate_poses(robot: Robot, step_deg: float = 10.0, hanging=None) -> np.ndarray:
@@ -3262,15 +3266,21 @@ def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.nda
     model nominal + ``causes``, the test force (or wrench) used in every measurement (as in the paper), every
     pose measuring what the data measured (``observed``: its targets and orientation; default the tool point)
     and O_t the tool point's position error at the test pose: Fedorov exchange
-    (:func:`stiffcal.planning.plans.fedorov_exchange`, the engine of every plan) over :func:`candidate_poses`. Returns
-    (poses [deg] (m, n), O_t / sigma^2)."""
+    (:func:`stiffcal.planning.plans.fedorov_exchange`, the engine of every plan) over :func:`candidate_poses`.
+    Parameters the test point's deflection does not depend on (a backlash of a joint the test load does not turn)
+    are nuisance: the plan is first exchanged without them (taken as known: a well-conditioned problem), then from
+    that plan with them estimated (:func:`stiffcal.planning.plans.nuisance_ridge`); its value is the plan's own O_t
+    (:func:`_ot_of`: finite where the plan determines what the test point needs). Returns (poses [deg] (m, n),
+    O_t / sigma^2)."""
     from ..planning.plans import fedorov_exchange, nuisance_ridge
 
     pool, Xp, Xt, _ = plan_regressors(robot, causes, test_pose, test_force, observed, step_deg)
     m = m or int(np.ceil(Xp.shape[2] / Xp.shape[1])) + 1
     size = np.abs(Xt).max(axis=0)
-    nuisance = ~(size > 1e-9 * max(size.max(), 1e-300))  # the test point's deflection does not depend on them
-    prior = nuisance_ridge(np.einsum("kdi,kdj->kij", Xp, Xp), nuisance) if nuisance.any() else None
-    res = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=prior)
-    value = res.value if prior is None else _ot_of(Xp[res.indices], Xt)
-    return np.degrees(pool[res.indices]), value
+    keep = size > 1e-9 * max(size.max(), 1e-300)  # the others: the test point's deflection does not depend on them
+    res = fedorov_exchange(Xp[..., keep], Xt[:, keep], m, greedy=True, n_starts=4, seed=seed)
+    if keep.all():
+        return np.degrees(pool[res.indices]), res.value
+    ridge = nuisance_ridge(np.einsum("kdi,kdj->kij", Xp, Xp), ~keep)  # then exchanged with them estimated
+    res = fedorov_exchange(Xp, Xt, m, starts=[res.indices], n_starts=0, prior=ridge)
+    return np.degrees(pool[res.indices]), _ot_of(Xp[res.indices], Xt)  # the plan's own O_t, without the ridge
