@@ -572,6 +572,18 @@ def test_a_visit_column_that_disagrees_with_the_rows_is_noted(tmp_path, paper_ro
         return header, body
     assert any("follow each other at one configuration" in n for n in notes_of(_with_visit_column(path, halves)))
 
+    def revisits(header, body):  # each second half begins with a reference reading of its own: a real new visit
+        header, body = halves(header, body)
+        out, zero = [], None
+        for r in body:
+            if r[-1].endswith("a") and all(float(r[header.index(c)]) == 0.0 for c in ("dx_m", "dy_m")):
+                zero = r
+            if r[-1].endswith("b") and (not out or out[-1][-1] != r[-1]):
+                out.append(zero[:-1] + [r[-1]])
+            out.append(r)
+        return header, out
+    assert not any("follow each other" in n for n in notes_of(_with_visit_column(path, revisits)))
+
     def hour(header, body):
         t = header.index("timestamp_s")
         for r in body:

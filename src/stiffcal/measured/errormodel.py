@@ -400,8 +400,9 @@ def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:
     visits without an exact-zero reference row of a target they measure where most visits of their kind (the first
     at a configuration, or a later one) have one (a reference row lost: a later visit with none is the protocol of a
     reference per configuration); visit labels whose rows are not consecutive in time (rows of other visits between
-    them: one label used for two visits?); and consecutive visits at one configuration with no other between them
-    (one visit split under two labels?). ``visit`` (n,): the visits of :func:`_visits`."""
+    them: one label used for two visits?); and consecutive visits at one configuration with no other between them,
+    the second without a reference reading of its own (one visit split under two labels?). ``visit`` (n,): the
+    visits of :func:`_visits`."""
     order = np.lexsort((f["rows"], f["time"]))
     first_at = {}
     for i in order:
@@ -432,8 +433,9 @@ def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:
         notes.append(f"visit label(s) {', '.join(split[:5])}{' ...' if len(split) > 5 else ''} hold rows that are not "
                      "consecutive in time (rows of other visits between them): one label used for two visits? Rows of "
                      "one configuration and label are read as one visit")
+    own = {v for v, _ in with_zero}  # a visit that begins with its own reference reading is a new visit
     twice = [f"{label[int(visit[a])]} and {label[int(visit[b])]}" for a, b in zip(runs[:-1], runs[1:])
-             if f["config"][a] == f["config"][b]]
+             if f["config"][a] == f["config"][b] and int(visit[b]) not in own]
     if twice:
         notes.append(f"visit labels {', '.join(twice[:3])}{' ...' if len(twice) > 3 else ''} follow each other at one "
                      "configuration with no other configuration between them: one visit split under two labels? (A "
