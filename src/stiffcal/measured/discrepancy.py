@@ -1977,7 +1977,8 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
     held = held_out(robot, pre, ext) if gain else None
     out["held_out"] = None if held is None else held.as_dict()
-    out["gain"] = _gain(robot, des, ext, noise.s2, test_pose, test_force, ob, out["held_out"]) if ext and gain else None
+    out["gain"] = (_gain(robot, des, ext, noise.s2, test_pose, test_force, ob, out["held_out"], lab_loads(robot, m))
+                   if ext and gain else None)
     notes += _gain_notes(robot, out["gain"], out["diagnostics"], ext, pre.dropped, test_pose, test_force)
     out = json_safe(out, out["notes"])
     if sel.unexplained:
@@ -2137,8 +2138,8 @@ def _gain_notes(robot: Robot, gain: dict | None, diagnostics: dict, ext: list, d
                       ("nominal_plan_under_extended_rms_m", "the nominal model's optimal plan")):
         if gain is not None and key in gain and not np.isfinite(gain[key]):
             gain[key] = None
-            notes.append(f"gain.{key} is left out: {what} ({len(gain['nominal_plan_deg'])} poses under the "
-                         "test load, measuring what the data measured) does not determine the parameters of the "
+            notes.append(f"gain.{key} is left out: {what} ({len(gain['nominal_plan_deg'])} poses, measuring what "
+                         "the data measured) does not determine the parameters of the "
                          f"extended model ({', '.join(ext)}) that the test pose's deflection depends on, so its O_t "
                          "is infinite")
     if gain is not None and "test_pose_rms_extended_m" in gain and gain["test_pose_rms_extended_m"] is None:
@@ -2974,10 +2975,11 @@ def held_out(robot: Robot, pre: "Prepared", causes=()) -> HeldOut | None:
     return HeldOut(nom[1], nom[0], cal[0], np.asarray(m.config), tuple(m.config_labels), tuple(causes))
 
 
-def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict | None) -> dict:
+def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict | None, loads=None) -> dict:
     """The verdict's ``gain`` of the extended model nominal + ``causes``: the held-out RMS of either model
     (``ho``: the verdict's ``held_out``, :meth:`HeldOut.as_dict`), and at the test pose the RMS error of either
-    model's prediction and the O_t-optimal plans (:func:`optimal_plan`)."""
+    model's prediction and the O_t-optimal plans (:func:`optimal_plan`), measured under the lab's ``loads``
+    (:func:`lab_loads`; None: the test load)."""
     nom = None if ho is None else ho["rms_nominal_m"]
     ext = None if ho is None else ho["rms_calibrated_m"]
     out = {"loco_rms_nominal_m": nom, "loco_rms_extended_m": ext,
@@ -2997,9 +2999,9 @@ def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict 
         out.update({"test_pose_rms_nominal_m": float(np.sqrt(bias @ bias + var0)) if known else None,
                     "test_pose_rms_extended_m": float(np.sqrt(var1)) if known else None,
                     "test_pose_model_error_m": float(np.linalg.norm(bias)) if known else None})
-        plan, ot_ext = optimal_plan(robot, causes, qt[0], ft[0], observed=ob)
-        plan_nom, _ = optimal_plan(robot, (), qt[0], ft[0], m=len(plan), observed=ob)
-        Xn = pose_rows(robot, np.radians(plan_nom), ft[0], causes, ob)
+        plan, ot_ext = optimal_plan(robot, causes, qt[0], ft[0], observed=ob, loads=loads)
+        plan_nom, _ = optimal_plan(robot, (), qt[0], ft[0], m=len(plan), observed=ob, loads=loads)
+        Xn = plan_rows(robot, np.radians(plan_nom), ft[0], causes, ob, loads)
         scale = np.sqrt(np.mean(Xn**2, axis=(0, 1)))
         scale[scale == 0] = 1.0
         ot_nom_plan = _ot_of(Xn / scale, Xt1 / scale)
@@ -3226,11 +3228,7 @@ def plan_regressors(robot: Robot, causes, test_pose: np.ndarray, test_force: np.
     conditioned)."""
     ob = observed or Observed()
     pool = candidate_poses(robot, step_deg, None if loads is None else loads.hang_offset)
-    if loads is None:
-        Xp = pose_rows(robot, pool, np.asarray(test_force, float), causes, ob)
-    else:
-        W = loads.at(robot, pool)  # (K, L, w)
-        Xp = np.concatenate([pose_rows(robot, pool, W[:, k], causes, ob) for k in range(W.shape[1])], axis=1)
+    Xp = plan_rows(robot, pool, test_force, causes, ob, loads)
     Xt = model_columns(robot, np.atleast_2d(test_pose), np.atleast_2d(test_force), causes, predict=True,
                        observed=ob.at_tool(robot))[0]
     dead = _round_off_columns(robot, ob, causes, Xp, Xt)
@@ -3238,6 +3236,15 @@ def plan_regressors(robot: Robot, causes, test_pose: np.ndarray, test_force: np.
     scale = np.sqrt(np.mean(Xp**2, axis=(0, 1)))
     scale[scale == 0] = 1.0
     return pool, Xp / scale, Xt / scale, scale
+
+
+def plan_rows(robot: Robot, q: np.ndarray, test_force: np.ndarray, causes, ob: Observed, loads=None) -> np.ndarray:
+    """(K, L r, p): the regressors of poses q (K, n) [rad] as a plan measures them: under the test load, or under
+    each of ``loads`` (:class:`stiffcal.model.observation.Loads`, their rows stacked), every target of ``ob``."""
+    if loads is None:
+        return pose_rows(robot, q, np.asarray(test_force, float), causes, ob)
+    W = loads.at(robot, q)  # (K, L, w)
+    return np.concatenate([pose_rows(robot, q, W[:, k], causes, ob) for k in range(W.shape[1])], axis=1)
 
 
 def _round_off_columns(robot: Robot, ob: Observed, causes, Xp: np.ndarray, Xt: np.ndarray) -> np.ndarray:
@@ -3261,10 +3268,12 @@ def _round_off_columns(robot: Robot, ob: Observed, causes, Xp: np.ndarray, Xt: n
 
 
 def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.ndarray,
-                 m: int | None = None, step_deg: float = 10.0, seed: int = 0, observed: Observed | None = None):
+                 m: int | None = None, step_deg: float = 10.0, seed: int = 0, observed: Observed | None = None,
+                 loads=None):
     """O_t-optimal plan of m poses (default: the fewest that identify every parameter, plus one) for the
-    model nominal + ``causes``, the test force (or wrench) used in every measurement (as in the paper), every
-    pose measuring what the data measured (``observed``: its targets and orientation; default the tool point)
+    model nominal + ``causes``, the test force (or wrench) used in every measurement (as in the paper; or the lab's
+    ``loads``, :func:`plan_regressors`), every pose measuring what the data measured (``observed``: its targets and
+    orientation; default the tool point)
     and O_t the tool point's position error at the test pose: Fedorov exchange
     (:func:`stiffcal.planning.plans.fedorov_exchange`, the engine of every plan) over :func:`candidate_poses`.
     Parameters the test point's deflection does not depend on (a backlash of a joint the test load does not turn)
@@ -3274,8 +3283,9 @@ def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.nda
     O_t / sigma^2)."""
     from ..planning.plans import fedorov_exchange, nuisance_ridge
 
-    pool, Xp, Xt, _ = plan_regressors(robot, causes, test_pose, test_force, observed, step_deg)
-    m = m or int(np.ceil(Xp.shape[2] / Xp.shape[1])) + 1
+    pool, Xp, Xt, _ = plan_regressors(robot, causes, test_pose, test_force, observed, step_deg, loads)
+    per_load = Xp.shape[1] // (1 if loads is None else len(loads.wrenches))  # loads along one line add no rank
+    m = m or int(np.ceil(Xp.shape[2] / per_load)) + 1
     size = np.abs(Xt).max(axis=0)
     keep = size > 1e-9 * max(size.max(), 1e-300)  # the others: the test point's deflection does not depend on them
     res = fedorov_exchange(Xp[..., keep], Xt[:, keep], m, greedy=True, n_starts=4, seed=seed)
