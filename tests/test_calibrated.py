@@ -625,6 +625,23 @@ def test_next_round_on_the_axis_of_a_joint_calibrated_off_it(tmp_path):
     np.testing.assert_allclose(nr.cov_diag[:5], np.diag(np.linalg.inv(M)), rtol=1e-6)
 
 
+def test_a_machining_path_of_the_nominal_model_against_itself_is_said_so(tmp_path):
+    """A fresh user's Panda: calibrated.yaml held the nominal model, and the machining path compared it with itself
+    (after_nominal equal to after_calibrated, 7e-12 m: 'perfect compensation') without a word. On clean data the
+    note says so, the two equal; on backlash data (an extension calibrated) no such note."""
+    robot = ARMS["2-link"]
+    for truth, nominal in ((T.Truth(R.compliances(robot)), True),
+                           (T.Truth(R.compliances(robot), gap=np.full(2, 2e-4), tau_gap=1e-3), False)):
+        data = _lab_data(tmp_path, robot, truth, name=f"log_{nominal}.csv")
+        pre = D.prepare(robot, read_measurements(data, robot))
+        v, cal = D.complete(robot, pre, D.verdict_of(robot, pre, gain=False), data, QT, FT)
+        said = any(n.startswith("machining_path: calibrated.yaml holds the nominal model") for n in v["notes"])
+        assert said == nominal == (cal.causes == ())
+        if nominal:
+            mp = v["machining_path"]
+            np.testing.assert_allclose(mp["after_nominal"], mp["after_calibrated"], rtol=0, atol=1e-9)
+
+
 def test_next_round_with_no_prior_is_the_plan_without_old_data(tmp_path):
     """The exchange with a zero prior is the exchange without one (the same plan and value); a prior that
     carries almost nothing (the covariance times 1e12) gives the O_t of the best plan without old data, which is

@@ -856,3 +856,20 @@ def test_a_test_pose_whose_cable_meets_the_cell_is_said_so(tmp_path):
         path.write_text(cell + box, encoding="utf-8")
         res = stiffcal.design(path, [30, 30], [0, -100], experiments=2, loads="hanging:50,100")
         assert any("the cable of the hanging masses meets" in n for n in res.notes) == said, res.notes
+
+
+@needs_arms
+def test_self_collision_without_an_srdf_is_noted(tmp_path):
+    """A fresh user's Panda without its SRDF: accepted in silence (the pairs the SRDF disables then checked). The
+    cell's notes say the SRDF is missing; with it, no such note."""
+    from stiffcal.model.workcell import cell_notes
+
+    root = real_arms.robots_dir()
+    urdf, srdf, base, tip, tool, _, _ = real_arms.ARMS["panda"]
+    for given in (False, True):
+        path = tmp_path / f"panda_{given}.yaml"
+        path.write_text(f"name: panda\nkind: urdf\nurdf: {root / urdf}\nbase_frame: {base}\ntip_frame: {tip}\n"
+                        f"tool_m: {tool}\ncell:\n  floor_m: 0.0\n  self_collision: true\n"
+                        + (f"  srdf: {root / srdf}\n" if given else ""), encoding="utf-8")
+        missing = any("without an SRDF" in n for n in cell_notes(load_robot(path)))
+        assert missing == (not given)

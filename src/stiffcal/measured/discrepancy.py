@@ -3161,6 +3161,10 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
     machining = {"test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
                  **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
     summary, notes = calibrated.next_round_summary(model, test_pose, test_force, loads=lab_loads(robot, pre.m))
+    if not cal.causes:
+        notes.append("machining_path: calibrated.yaml holds the nominal model, so the path compensated with the "
+                     "nominal model is the calibrated one's: after_nominal equals after_calibrated (the check shows "
+                     "what compensation leaves, not a gain of an extension)")
     return replace(verdict, next_round=summary, machining_path=machining, notes=[*verdict.notes, *notes]), cal
 
 

@@ -1094,7 +1094,12 @@ def cell_notes(robot) -> list[str]:
             "the robot has no cell: the poses are checked against the joint limits only, not against the table, the "
             "arm itself or obstacles (a cell in the robot file, or --cell, keeps them out)"]
     eng = engine(robot)
-    return [] if eng is None else list(eng.notes)
+    bare = (["the cell checks the arm's self-collision without an SRDF: every pair of bodies that are not adjacent is "
+             "checked, and a pair that overlaps by design is left out only where it collides at every probe pose; "
+             "give the robot's SRDF (cell.srdf) for the pairs its makers disabled"]
+            if robot.cell.self_collision and getattr(robot, "urdf_info", None) and not robot.cell.srdf
+            and isinstance(eng, MeshEngine) else [])
+    return [] if eng is None else bare + list(eng.notes)
 
 
 def no_pose_hint(robot) -> str:
