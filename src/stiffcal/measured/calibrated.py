@@ -71,6 +71,8 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
            "robot_sha256": sha256(robot.source) if Path(robot.source).is_file() else None,
            "verdict_cause": verdict["cause"], "verdict_causes": list(verdict["causes"]),
            "p_value": verdict["p_value"], "alpha": verdict["alpha"], "stiffcal": __version__}
+    if any(n.startswith(D.GEOMETRY_NOTE) for n in pre.meas.notes):  # the rows were corrected for the exact statics:
+        src["second_order"] = True                                   # predictions add it back (predict)
     return Calibration(causes, tuple(int(j) for j in params), tuple(names), np.asarray(f.beta, float),
                        pre.noise.s2 * f.cov_unscaled, tuple(bool(e) for e in ok), pre.ob.rows_per(robot),
                        float(np.sqrt(pre.noise.s2)), verdict["nominal"]["rotation_weight_m_per_rad"],
@@ -419,7 +421,24 @@ def _motion(robot: Robot, cal, q: np.ndarray, load: np.ndarray, target=None, ori
     X = columns(robot, q, load, target, orientation)
     mean, note = _with_unidentified_joints(robot, cal, q, load, target, orientation,
                                            np.einsum("nrp,p->nr", X, cal.theta))
+    if (cal.source or {}).get("second_order"):  # the exact statics' part, as the analysis corrected its rows
+        mean = mean.copy()
+        mean[:, : robot.task_dim] += _second_order(robot, cal, q, load, target)
     return X, mean, note
+
+
+def _second_order(robot: Robot, cal, q: np.ndarray, load: np.ndarray, target) -> np.ndarray:
+    """(N, d) [m]: :func:`stiffcal.measured.discrepancy.second_order_part` of poses q (N, n) [rad] under ``load``
+    at the calibration's compliances, each row's target."""
+    from . import discrepancy as D
+    from .measurements import Measurements
+
+    d = robot.task_dim
+    target = None if target is None else np.asarray(target, int)
+    meas = Measurements.from_arrays(q, load[:, :d], np.zeros((len(q), d)), moment=load[:, d:] if load.shape[1] > d
+                                    else None, target=target, target_names=robot.target_names)
+    ob = D.Observed(robot.target_names, target, False, 1.0, np.asarray(cal.k_joints, int), 0)
+    return D.second_order_part(robot, meas, ob, np.asarray(cal.theta[: len(cal.k_joints)], float))
 
 
 def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, mean):
