@@ -2099,8 +2099,10 @@ def _outside_verdict(diag: dict, ranked: list[str]) -> dict:
     found = diag["outside_catalogue"]
     words = {"load_direction": lambda d: f"the load acts in its logged direction (turned by {d['angle_deg']:.2g} deg)",
              "time": lambda d: f"the rows do not drift (a drift of {np.linalg.norm(d['rate_m_per_h']) * 1e6:.3g} "
-                               f"um/h)"}
-    key = {"load_direction": "p_value", "time": "nominal_p"}
+                               f"um/h)",
+             "load_offset": lambda d: "the loads act at the tool point (they act as if "
+                                      f"{np.linalg.norm(d['offset_m']) * 1e3:.3g} mm off it)"}
+    key = {"load_direction": "p_value", "load_offset": "p_value", "time": "nominal_p"}
     p = min(diag[k][key[k]] for k in found)
     tests = "; ".join(f"p = {diag[k][key[k]]:.2g} of '{words[k](diag[k])}' (diagnostics.{k}), beyond which "
                       f"{'+'.join(ranked)} adds nothing (p = {diag[k]['chosen_beyond_p']:.2g})" for k in found)
@@ -2269,7 +2271,7 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
       None.
     Returns (dict, notes)."""
     m = pre.m
-    out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None,
+    out: dict = {"one_load_per_configuration": False, "time": None, "load_direction": None, "load_offset": None,
                  "extended_not_better_held_out": False, "return_to_zero": None, "load_scatter": None,
                  "outside_catalogue": None}
     notes = []
@@ -2289,7 +2291,10 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
                if len(pre.dropped) else turned[..., :0])
     out["load_direction"], note = _tilt_diagnostic(pre, turned, unknown, f0, chosen, alpha)
     notes += [note] if note else []
-    explains = [k for k, p in (("load_direction", "p_value"), ("time", "nominal_p")) if out[k] is not None
+    out["load_offset"], note = _offset_diagnostic(robot, pre, f0.beta, f0, chosen, alpha)
+    notes += [note] if note else []
+    explains = [k for k, p in (("load_direction", "p_value"), ("load_offset", "p_value"), ("time", "nominal_p"))
+                if out[k] is not None
                 and out[k][p] <= alpha and (out[k]["chosen_beyond_p"] or 0.0) > alpha]  # found against the nominal
     #                                                                model, and the causes add nothing beyond it
     out["outside_catalogue"] = explains or None
@@ -2559,21 +2564,13 @@ def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, unknown: np.ndarray, f0:
     the D joints the logged loads never turn, :func:`turned_on_dropped`, with free coefficients), its F-test and the
     angle; then whether the chosen causes still add anything beyond it (when they do not, the tilt explains the data
     as well as they do, and the warning says so)."""
-    m, des, noise = pre.m, pre.des, pre.noise
-    N, d = m.n_rows, des.d
-    both = np.concatenate([turned, unknown], -1)
-    T = (pre.error.whiten(both) if pre.error.blocks else both).reshape(N * d, -1)
-    f1 = fit(np.hstack([des.X0, T]), des.y)
-    if f1.rank <= f0.rank:
+    tested = _effect_test(pre, turned, unknown, f0, chosen)
+    if tested is None:
         return None, None
-    p = f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df)
-    angle = f1.beta[des.X0.shape[1]:des.X0.shape[1] + turned.shape[-1]]
+    p, angle, beyond = tested
     size = float(np.degrees(np.linalg.norm(angle)))
     out = {"p_value": p, "angle_deg": size, "axis": (angle / np.linalg.norm(angle)).tolist() if size > 0 else None,
-           "chosen_beyond_p": None}
-    if chosen:
-        f2 = fit(np.hstack([des.model(chosen), T]), des.y)
-        out["chosen_beyond_p"] = f_test(f1.rss, f1.df, f2.rss, f2.df, noise.s2, noise.df)
+           "chosen_beyond_p": beyond}
     if p > alpha or (out["chosen_beyond_p"] is not None and out["chosen_beyond_p"] <= alpha):
         return out, None
     label = "+".join(sorted(chosen, key=CAUSES.index))
@@ -2582,6 +2579,69 @@ def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, unknown: np.ndarray, f0:
                  f"(F-test p = {p:.2g}{beyond}): the load's real direction may differ from the logged one (a pulley, a "
                  "tilted fixture, a frame mismatch between the load cell and the tracker?); no catalogue cause "
                  "describes it" + (f", and {label} may only absorb it" if chosen else ""))
+
+
+def _effect_test(pre: Prepared, named: np.ndarray, unknown: np.ndarray, f0: Fit, chosen):
+    """(p, coefficients of ``named``, chosen_beyond_p) or None: the F-test of an effect outside the catalogue added
+    to the nominal model (fit ``f0``) by its columns (weighted: ``named`` (N, w, A) whose coefficients are reported,
+    ``unknown`` (N, w, B) with free coefficients; whitened by the rows' error model), and of the chosen causes beyond
+    it (None without causes); None where the columns add no rank."""
+    m, des, noise = pre.m, pre.des, pre.noise
+    N, d = m.n_rows, des.d
+    both = np.concatenate([named, unknown], -1)
+    T = (pre.error.whiten(both) if pre.error.blocks else both).reshape(N * d, -1)
+    f1 = fit(np.hstack([des.X0, T]), des.y)
+    if f1.rank <= f0.rank:
+        return None
+    p = f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df)
+    beyond = None
+    if chosen:
+        f2 = fit(np.hstack([des.model(chosen), T]), des.y)
+        beyond = f_test(f1.rss, f1.df, f2.rss, f2.df, noise.s2, noise.df)
+    return p, f1.beta[des.X0.shape[1]:des.X0.shape[1] + named.shape[-1]], beyond
+
+
+def _offset_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
+    """Per axis e of the tip frame (x, y for a planar arm, x, y, z for a spatial one): the wrench (N, d + d_m) of a
+    force F applied a unit length along e from the tool point, less the force itself: the moment (R e) x F alone."""
+    R, _ = robot.tool_frame(m.q)
+    F = as_xyz(m.force)
+    d = robot.task_dim
+    out = []
+    for i in range(2 if d == 2 else 3):
+        M = np.cross(np.asarray(R, float)[:, :, i], F)
+        out.append(np.hstack([np.zeros((m.n_rows, d)), M[:, 2:] if d == 2 else M]))
+    return out
+
+
+def _offset_diagnostic(robot: Robot, pre: Prepared, k: np.ndarray, f0: Fit, chosen, alpha: float):
+    """(``diagnostics.load_offset`` or None, note): the loads act at a point r off the tool point (a loading bar
+    logged without its moment columns, the load cell not at tool_m): the moment (R r) x F added to the nominal model
+    (its deflection through the nominal compliances k per unit of each tip-frame component of r, and through the
+    joints the logged loads never turn with free coefficients), its F-test, r [m], and whether the chosen causes
+    add anything beyond it. Only for data without moment columns (a fresh user's UR3 with a loading bar logged
+    without its moments: nonlinear_joint_stiffness, unexplained or none with a compliance 2 times its truth)."""
+    m = pre.m
+    if m.has_moment:
+        return None, None
+    ob_full = pre.ob_full.take(pre.keep)
+    loads = _offset_loads(robot, m)
+    named = np.stack([np.einsum("ndp,p->nd", nominal_columns(robot, m.q, w, pre.ob), k) for w in loads], -1)
+    unknown = (np.concatenate([nominal_columns(robot, m.q, w, replace(ob_full, params=np.asarray(pre.dropped, int)))
+                               for w in loads], -1) if len(pre.dropped) else named[..., :0])
+    tested = _effect_test(pre, named * pre.w[:, None, None], unknown * pre.w[:, None, None], f0, chosen)
+    if tested is None:
+        return None, None
+    p, r, beyond = tested
+    out = {"p_value": p, "offset_m": [float(v) for v in r], "chosen_beyond_p": beyond}
+    if p > alpha or (beyond is not None and beyond <= alpha):
+        return out, None
+    label = "+".join(sorted(chosen, key=CAUSES.index))
+    return out, (f"the nominal model's residuals follow a moment of the loads about the tool point, as if they acted "
+                 f"at ({', '.join(f'{v:.3g}' for v in r)}) m from it in the tip frame (F-test p = {p:.2g}"
+                 + (f"; {label} adds nothing beyond it, p = {beyond:.2g}" if chosen else "") + "): a loading bar "
+                 "logged without its moment columns (mx_Nm ..), or the loads applied away from tool_m? No catalogue "
+                 "cause describes it" + (f", and {label} may only absorb it" if chosen else ""))
 
 
 def _stood_in_for(c: str, ranked: list[str], alternatives: list) -> str:
