@@ -1503,9 +1503,9 @@ def test_rotations_and_moments_in_another_unit_are_refused(tmp_path, column, fac
 def test_a_loading_bar_s_moments_in_N_mm_are_refused_by_their_lever():
     """A fresh user's UR3 with a loading bar 0.15 m long and two targets, its moments logged in N mm: the nominal
     model fitted both units about as well (its compliances shrank 100-fold), so the residual test passed and the
-    verdict named causes. The moments of a bar are r x F: in N mm their lever |M| / |F| is 150 m, 20 times and more
-    the 6-axis arm's reach; refused naming the columns, with the lever computed here; in N m (0.15 m) accepted by
-    this check."""
+    verdict named causes. The moments of a bar are (R r) x F, r fixed in the tip frame (R its rotation, from the
+    arm's kinematics here): in N mm the bar is 150 m long, 20 times and more the 6-axis arm's reach; refused naming
+    the columns; in N m (0.15 m) accepted by this check."""
     robot = R.robots(Path(__file__).resolve().parents[1])["6-axis"]
     rng = np.random.default_rng(1)
     q = rng.uniform(-1.0, 1.0, (30, 6))
@@ -1513,14 +1513,14 @@ def test_a_loading_bar_s_moments_in_N_mm_are_refused_by_their_lever():
     r = np.array([0.15, 0.0, 0.0])
     dp = rng.normal(0.0, 1e-5, (30, 3))  # the residual test sees nothing in noise alone
     ob = D.Observed()
+    Rt, _ = robot.tool_frame(q)
+    M = np.cross(np.einsum("nij,j->ni", Rt, r), F)
     for factor in (1.0, 1e3):
-        meas = Measurements.from_arrays(q, F, dp, moment=factor * np.cross(r, F))
-        lever = float(np.median(np.linalg.norm(factor * np.cross(r, F), axis=1) / np.linalg.norm(F, axis=1)))
-        assert lever == pytest.approx(0.15 * factor)
+        meas = Measurements.from_arrays(q, F, dp, moment=factor * M)
         if factor == 1.0:
             D._check_moment_unit(robot, meas, ob)
             continue
-        with pytest.raises(InputError, match=r"columns mx_Nm, my_Nm, mz_Nm.*moments are 150 m times the force.*N mm"):
+        with pytest.raises(InputError, match=r"columns mx_Nm, my_Nm, mz_Nm.*applied 150 m from the tool point.*N mm"):
             D._check_moment_unit(robot, meas, ob)
 
 

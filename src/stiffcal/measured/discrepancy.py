@@ -1398,29 +1398,42 @@ def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed) -> None:
         raise InputError(f"expected moments in N m, but the nominal model fits the data {rss[0] / rss[1]:.3g} times "
                          "better (residual sum of squares) with them divided by 1000: moments in N mm labelled N m?",
                          source=meas.source, field=f"columns {', '.join(cols)}")
-    lever = _median_lever(meas)
+    lever = _bar_lever(robot, meas)
     if lever is not None and lever > MAX_LEVER_REACHES * robot.reach_m:
-        raise InputError(f"expected moments in N m, but where the force is large the moments are {lever:.3g} m times "
-                         f"the force in the median (a lever {lever / robot.reach_m:.3g} times the arm's reach of "
-                         f"{robot.reach_m:.3g} m; a loading bar's is a fraction of it): moments in N mm labelled N m?",
+        raise InputError(f"expected moments in N m, but the moments are those of the forces applied {lever:.3g} m from "
+                         f"the tool point (a loading bar {lever / robot.reach_m:.3g} times the arm's reach of "
+                         f"{robot.reach_m:.3g} m; a real one is a fraction of it): moments in N mm labelled N m?",
                          source=meas.source, field=f"columns {', '.join(cols)}")
 
 
-#: the median lever |M| / |F| of the rows with a large force, in reaches of the arm, beyond which moments are
-#: refused as N mm (:func:`_check_moment_unit`): a loading bar's is a fraction of the reach, N mm make it 1000x
+#: the lever of the loads' moments (:func:`_bar_lever`), in reaches of the arm, beyond which moments are refused as
+#: N mm (:func:`_check_moment_unit`): a loading bar's is a fraction of the reach, N mm make it 1000 times longer
 MAX_LEVER_REACHES = 20.0
+#: the share of the moments' sum of squares a loading bar's lever must explain for :func:`_bar_lever` to give it
+BAR_FIT_R2 = 0.9
 
 
-def _median_lever(meas: Measurements) -> float | None:
-    """The median of |M| / |F| [m] over the rows whose force is at least a tenth of the largest (a pure moment beside
-    a load cell's small force readings is not a lever); None without such rows. A fresh user's UR3 with a loading
-    bar 0.15 m long logged its moments in N mm: the residual test passed (the compliances shrank 100-fold to fit),
-    the lever was 150 m."""
-    f = np.linalg.norm(meas.force, axis=1)
-    big = f >= 0.1 * f.max(initial=0.0)
-    if not (f.max(initial=0.0) > 0 and big.any()):
+def _bar_lever(robot: Robot, meas: Measurements) -> float | None:
+    """|r| [m] of the point r (fixed in the tip frame) at which the forces act when the moments are theirs, M =
+    (R r) x F (a loading bar: least squares over the rows, linear in r), where that explains at least
+    :data:`BAR_FIT_R2` of the moments' sum of squares; else None (pure moments beside a load cell's force noise are
+    no bar's). A fresh user's UR3 with a 0.15 m bar logged its moments in N mm: the residual test passed (the
+    compliances shrank 100-fold to fit), the bar came out 150 m long."""
+    R, _ = robot.tool_frame(meas.q)
+    F = as_xyz(meas.force)
+    skew = np.zeros((len(F), 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -F[:, 2], F[:, 1], -F[:, 0]
+    skew -= np.swapaxes(skew, 1, 2)
+    A = -np.einsum("nij,njk->nik", skew, np.asarray(R, float))  # (R r) x F = -[F]x R r
+    M = as_xyz(np.column_stack([np.zeros((len(F), 2)), meas.moment])) if robot.task_dim == 2 else meas.moment
+    rows = slice(2, 3) if robot.task_dim == 2 else slice(0, 3)
+    A, M = A[:, rows].reshape(-1, 3), M[:, rows].reshape(-1)
+    total = float(M @ M)
+    if not total > 0:
         return None
-    return float(np.median(np.linalg.norm(meas.moment[big], axis=1) / f[big]))
+    r = np.linalg.lstsq(A, M, rcond=None)[0]
+    left = M - A @ r
+    return float(np.linalg.norm(r)) if 1.0 - float(left @ left) / total >= BAR_FIT_R2 else None
 
 
 def _as_the_robot_file_says(robot: Robot, meas: Measurements, ob: Observed, c: float) -> bool:
