@@ -1106,6 +1106,10 @@ def test_a_soft_arm_s_exact_statics_are_not_read_as_catalogue_causes(tmp_path):
         if seed == 8:  # the second-order part against the exact statics, on the rows as the file prints them
             np.testing.assert_allclose(part, exact - first, rtol=0, atol=1e-9)
             assert np.sqrt(np.mean(part**2)) > 1e-5  # tens of micrometres: near the noise
+            meas = read_measurements(tmp_path / f"panda_{seed}.csv", robot)
+            ob = D.Observed.of(robot, meas)  # the shortcut's bound is one
+            assert D._second_order_bound(robot, meas, ob, K[np.asarray(ob.model_params(robot), int)]) >= np.abs(
+                part).max()
         assert v["cause"] == "none" and any(n.startswith(D.GEOMETRY_NOTE) for n in v["notes"]), v["causes"]
         est, ci = np.array(v["nominal"]["k"]), np.array(v["nominal"]["k_ci95"])
         z += list((est - K[np.asarray(v["nominal"]["k_joints"]) - 1]) / (ci / 1.96))

@@ -1970,6 +1970,27 @@ def second_order_part(robot: Robot, meas: Measurements, ob: Observed, k: np.ndar
     return point(q + dq) - point(q + dq_w) - first
 
 
+def _second_order_bound(robot: Robot, meas: Measurements, ob: Observed, k: np.ndarray) -> float:
+    """[m] a bound of :func:`second_order_part`'s largest value: the point's second derivative along joint motions
+    is at most the arm's reach L (plus the tool's) per rad^2, and the joints move by at most s = sum_j |dq_j| (the
+    load's and, doubled, the weight's, with the torques at the commanded pose), so the point's motion differs from
+    its first order by at most L s^2 (here 4 L s^2); and the torques at the deflected pose differ from those at the
+    commanded one by at most T s (T: the torques' sum and the loads' moment arms, a bound of their derivative), which
+    moves the point by at most L sum_j k_j T s (here doubled). A stiff arm's bound is far below the noise."""
+    kf = np.zeros(robot.n_joints)
+    kf[np.asarray(ob.model_params(robot), int)] = np.abs(k)
+    tool = getattr(robot, "tool_m", None)
+    lever = robot.reach_m + (0.0 if tool is None else float(np.linalg.norm(tool)))
+    tau = np.abs(torques(robot, meas.q, load_of(meas)))
+    scale = tau.sum(axis=1) + np.linalg.norm(load_of(meas), axis=1) * lever  # bounds |d tau / dq| [N m / rad]
+    dq = (kf * tau).sum(axis=1)
+    if getattr(robot, "masses", None) is not None:
+        t0 = np.abs(robot.gravity_torques(meas.q))
+        dq, scale = dq + 2.0 * (kf * t0).sum(axis=1), scale + t0.sum(axis=1) + 2.0 * np.abs(t0).max(initial=0.0)
+    shift = lever * kf.sum() * scale * dq  # the torques' change over the deflection, through the compliances
+    return float(np.max(4.0 * lever * dq**2 + 2.0 * shift, initial=0.0))
+
+
 def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Design) -> tuple[Measurements, bool]:
     """``meas`` with each row's displacement less its second-order part (:func:`second_order_part` at the nominal
     fit's compliances, refitted once on the corrected rows), and True, where that part's RMS exceeds
@@ -1983,6 +2004,8 @@ def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Desi
         return meas, False
     resid = np.sqrt(f.rss / f.df)
     cols = slice(0, robot.task_dim)
+    if _second_order_bound(robot, meas, ob, f.beta) <= GEOMETRY_CORRECTION * resid:
+        return meas, False  # a stiff arm: nothing to compute
     part = second_order_part(robot, meas, ob, f.beta)
     if not np.sqrt(np.mean(part**2)) > GEOMETRY_CORRECTION * resid:
         return meas, False
