@@ -1994,7 +1994,9 @@ def _second_order_bound(robot: Robot, meas: Measurements, ob: Observed, k: np.nd
 def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Design) -> tuple[Measurements, bool]:
     """``meas`` with each row's displacement less its second-order part (:func:`second_order_part` at the nominal
     fit's compliances, refitted once on the corrected rows), and True, where that part's RMS exceeds
-    :data:`GEOMETRY_CORRECTION` times the nominal fit's residual RMS; else ``meas`` and False. Eq. 4 is first order:
+    :data:`GEOMETRY_CORRECTION` times the nominal fit's residual RMS and the corrected rows fit the nominal model
+    better (the same parameters: the physics that fits the data better; rows of a first-order simulator are left as
+    they are); else ``meas`` and False. Eq. 4 is first order:
     on a soft arm (a fresh user's Panda, 1e-4..1e-3 rad/(N m) under 3 kg; a Jaco2 before it) the exact motion
     differs from it by tens of micrometres, which the catalogue then named as coupling and link bending at
     p = 3e-12 on clean data. The correction is the fixed point of the exact model's fit (Gauss-Newton's first
@@ -2004,6 +2006,9 @@ def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Desi
         return meas, False
     resid = np.sqrt(f.rss / f.df)
     cols = slice(0, robot.task_dim)
+    step = meas.dp_step_m  # rows the model fits to round-off, or to their printed digits: refused later, untouched
+    if not resid > max(1e-9 * np.sqrt(np.mean(des.y**2)), ROUNDING_NOISE_FACTOR * (step or 0.0) / np.sqrt(12.0)):
+        return meas, False
     if _second_order_bound(robot, meas, ob, f.beta) <= GEOMETRY_CORRECTION * resid:
         return meas, False  # a stiff arm: nothing to compute
     part = second_order_part(robot, meas, ob, f.beta)
@@ -2014,6 +2019,9 @@ def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Desi
         corrected = replace(meas, dp=dp - part)
         again = build_design(robot, corrected, ob)
         part = second_order_part(robot, meas, ob, fit(again.X0, again.y).beta)
+    again = build_design(robot, replace(meas, dp=dp - part), ob)
+    if not fit(again.X0, again.y).rss < f.rss:  # the rows fit the first order better: they are no exact statics'
+        return meas, False                       # (a first-order simulator's), and are left as they are
     rms = float(np.sqrt(np.mean(part**2)))
     note = (f"{GEOMETRY_NOTE} ({rms * 1e6:.3g} um RMS, the largest {np.abs(part).max() * 1e6:.3g} um): eq. 4 is "
             "first order, and with these compliances and loads the measured point's exact motion differs from it by "
