@@ -873,3 +873,22 @@ def test_self_collision_without_an_srdf_is_noted(tmp_path):
                         + (f"  srdf: {root / srdf}\n" if given else ""), encoding="utf-8")
         missing = any("without an SRDF" in n for n in cell_notes(load_robot(path)))
         assert missing == (not given)
+
+
+def test_the_cable_keeps_its_clearance(tmp_path):
+    """A fresh user's UR10: the plan's cable of hanging masses passed 27 um from the wrist's mesh, which the cell
+    allowed (the cable is a line that must not touch). cable_clearance_m keeps it off: the 2-link arm at (30, 30)
+    deg, whose cable runs straight down from the tool point at x = 0.7196 m, beside a box whose edge is at
+    x = 0.75 m (3.0 cm away, by hand): free with no clearance and with 2 cm, not with 5 cm; the floor it ends on is
+    no obstacle to it."""
+    from stiffcal.model.workcell import feasible
+
+    q = np.radians([[30.0, 30.0]])
+    tool_x = 0.6 * np.cos(q[0, 0]) + 0.4 * np.cos(q[0].sum())
+    assert abs((0.75 - tool_x) - 0.0304) < 1e-3
+    for clearance, free in ((0.0, True), (0.02, True), (0.05, False)):
+        path = tmp_path / f"c{clearance}.yaml"
+        path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: -0.1\n"
+                        f"  link_radius_m: 0.04\n  cable_clearance_m: {clearance}\n  boxes:\n"
+                        "    - {name: stand, center_m: [0.85, 0.15], size_m: [0.2, 0.1]}\n", encoding="utf-8")
+        assert feasible(load_robot(path), q, hanging=True)[0] == free, clearance

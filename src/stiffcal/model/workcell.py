@@ -42,7 +42,8 @@ Hanging masses
 With hanging masses (loads ``hanging:``) the cable must be free too: the segment from the tool point along
 gravity (the robot file's ``gravity``) down to the first half-space it meets (the floor), or of
 ``cable_length_m`` when that is shorter or no half-space is below, must not pass through any body but the one
-it hangs from (the link carrying the tool point) nor through a box or cylinder (distance > 0).
+it hangs from (the link carrying the tool point) nor through a box or cylinder (distance > ``cable_clearance_m``,
+default 0: the cable is a line; give the cable's radius and sway to keep it off the arm's meshes).
 """
 
 from __future__ import annotations
@@ -242,8 +243,9 @@ class WorkCell:
     (URDF arms); ignore_pairs: pairs of bodies (link names, segment names ``link1``.., ``tool``, obstacle names)
     not checked;
     cable_length_m: the longest cable of a hanging mass [m] (default down to the first half-space, else
-    :data:`CABLE_DEFAULT_M`); source: the file it came from (for messages); spec: the cell as given (the
-    document, for the outputs and for caching).
+    :data:`CABLE_DEFAULT_M`); cable_clearance_m: the smallest distance [m] the cable keeps from the robot's other
+    bodies and from boxes and cylinders (default 0: no contact); source: the file it came from (for messages);
+    spec: the cell as given (the document, for the outputs and for caching).
     """
 
     obstacles: tuple[Obstacle, ...] = ()
@@ -256,6 +258,7 @@ class WorkCell:
     cable_length_m: float | None = None
     source: str = "<memory>"
     spec: str = ""
+    cable_clearance_m: float = 0.0
     _engines: dict = field(default_factory=dict, compare=False, repr=False, hash=False)
 
     @property
@@ -368,7 +371,8 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
                                  field=_at(prefix, f"ignore_pairs[{i}]"))
     spec = json.dumps({**doc, **({"srdf": srdf} if srdf else {})}, sort_keys=True, allow_nan=False)
     return WorkCell(tuple(obstacles), float(doc.get("clearance_m", 0.0)), doc.get("self_clearance_m"), self_collision,
-                    radius, srdf, pairs, doc.get("cable_length_m"), source, spec)
+                    radius, srdf, pairs, doc.get("cable_length_m"), source, spec,
+                    float(doc.get("cable_clearance_m", 0.0)))
 
 
 def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
@@ -570,8 +574,8 @@ class _Base:
         for o in self.cell.obstacles:
             if o.kind == "half_space":  # its ends stay on the free side (the floor is where it ends)
                 out = np.minimum(out, np.minimum(o.sdf(top), o.sdf(bottom) + 1e-9))
-            else:
-                out = np.minimum(out, o.segment_sdf(top, bottom))
+            else:  # a box or a cylinder: kept at the cable's clearance
+                out = np.minimum(out, o.segment_sdf(top, bottom) - self.cell.cable_clearance_m)
         return out
 
     def feasible(self, q: np.ndarray, hanging=None) -> np.ndarray:
@@ -687,7 +691,7 @@ class CapsuleEngine(_Base):
         # the body the cable hangs from: the segments ending at the tool point
         hang = np.all(np.abs(b - tool[:, None]) <= 1e-12, axis=-1) | np.all(np.abs(a - tool[:, None]) <= 1e-12, axis=-1)
         d = segment_distance(a, b, top[:, None], bottom[:, None]) - self.radius
-        return np.all((d > 0) | hang, axis=1)
+        return np.all((d > self.cell.cable_clearance_m) | hang, axis=1)
 
     def distances(self, q):
         """(N, checks) signed distances [m] and the names of the checks (pairs, then obstacles)."""
@@ -952,7 +956,7 @@ class MeshEngine(_Base):
             length = float(np.linalg.norm(b - a))
             if length <= 0:
                 continue
-            cap = coal.Capsule(1e-6, length)
+            cap = coal.Capsule(max(1e-6, self.cell.cable_clearance_m), length)  # the cable with its clearance
             M = coal.Transform3s(_rotation_to(np.array([0.0, 0.0, 1.0]), (b - a) / length), (a + b) / 2)
             for index, shape in bodies:
                 res = coal.CollisionResult()
