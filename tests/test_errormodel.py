@@ -641,6 +641,30 @@ def test_a_loading_bar_logged_without_its_moments_is_warned_of(tmp_path):
     assert v["cause"] == "unexplained" or any("logged without its moment columns" in n for n in v["notes"])
 
 
+def test_joints_whose_total_torque_the_loads_never_reverse_are_named(tmp_path):
+    """A fresh user's UR10 under hanging masses: its elbow's total torque never reversed (31 -> 212 N m), so a
+    backlash there could not show, and the verdict's none did not say so. tests/data/lab/ur10.yaml (the URDF's
+    inertias) under the simulator's hanging masses: the note names exactly the turned joints whose total torque
+    (the weight's plus the load's, computed here) keeps its sign in every row."""
+    robot = load_robot(ROOT / "tests/data/lab/ur10.yaml")
+    rng = np.random.default_rng(4)
+    log = T.lab_log(robot, R.PROTOCOLS["hanging x3, reference per visit, 2 passes"], rng, 12)
+    path = tmp_path / "ur10.csv"
+    path.write_text(T.lab_csv(robot, log, T.measure(robot, T.Truth(R.compliances(robot)), log, rng)), encoding="utf-8")
+    meas = read_measurements(path, robot)
+    pre = D.prepare(robot, meas)
+    t0 = robot.gravity_torques(pre.m.q)
+    tau = D.torques(robot, pre.m.q, pre.m.force)
+    kept = [int(j) for j in pre.ob.model_params(robot)]
+    never = [robot.joint_names[j] for j in kept if np.all(np.sign(t0[:, j] + tau[:, j]) == np.sign(t0[:, j]))]
+    notes = [n for n in D.verdict_of(robot, pre, gain=False)["notes"] if "never reverse the total torque" in n]
+    if never and len(never) < len(kept):
+        assert len(notes) == 1 and all(name in notes[0] for name in never), (never, notes)
+        assert not any(robot.joint_names[j] in notes[0] for j in kept if robot.joint_names[j] not in never)
+    else:
+        assert not notes
+
+
 # --- what a careful analyst warns of -------------------------------------------------------------------------------
 
 def test_one_load_per_configuration_is_said(tmp_path, paper_robot):

@@ -51,6 +51,7 @@ lack of fit):
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass, replace
 from itertools import combinations
@@ -2070,7 +2071,7 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     (:func:`_nominal_summary`), the diagnostics, the extended model, the held-out check and the gain with their
     notes (:func:`_gain_notes`)."""
     meas, m, ob, des, noise = pre.meas, pre.m, pre.ob, pre.des, pre.noise
-    notes = _calibrated_robot_note(robot) + list(pre.notes)
+    notes = _calibrated_robot_note(robot) + list(pre.notes) + _unseen_backlash_note(robot, pre)
     f0 = fit(des.X0, des.y)
     lof = lack_of_fit_test(robot, m, des, noise, pre.w, pre.error)
     sel = closed_testing(des, CAUSES, noise, lof, alpha)
@@ -2120,6 +2121,25 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
         resid = (des.y - des.model(chosen) @ f.beta).reshape(-1, des.d)
         out["residual_structure"] = residual_structure(robot, m, resid)
     return Verdict(**out, robot=robot.source)
+
+
+def _unseen_backlash_note(robot: Robot, pre: Prepared) -> list[str]:
+    """A note naming the joints whose backlash no row can show (the catalogue's backlash column zero in every row:
+    with the arm's weight, no load reverses the joint's total torque), so that ``none`` is not read as 'no backlash'
+    there (a fresh user's UR10 under hanging masses: the elbow's torque 31 -> 212 N m, never reversed)."""
+    if "backlash" not in pre.des.blocks or not robot.n_joints:
+        return []
+    block = pre.des.blocks["backlash"].reshape(pre.m.n_rows, pre.des.d, -1)
+    names = parameter_names("backlash", robot, pre.ob)
+    joints = [int(re.match(r"b(\d+)", n).group(1)) for n in names if re.match(r"b(\d+)", n)]
+    turned = {int(j) + 1 for j in pre.ob.model_params(robot)}  # the joints the loads turn (others noted apart)
+    dead = [robot.joint_names[j - 1] for j, col in zip(joints, np.moveaxis(block, -1, 0))
+            if j in turned and not np.any(col)]
+    if not dead or len(dead) == len(turned):
+        return []
+    return [f"the loads never reverse the total torque of joint(s) {', '.join(dead)} (the arm's weight preloads them): "
+            "a backlash there cannot show in these data, and the backlash test is of the other joints only; loads "
+            "that reverse it (a push upwards, a pose where the weight's torque is small) would test it"]
 
 
 def _calibrated_robot_note(robot: Robot) -> list[str]:
