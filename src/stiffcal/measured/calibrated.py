@@ -145,8 +145,8 @@ def _compliances_comment(robot: Robot, cal: Calibration) -> str:
     own = read_yaml(robot.source) if Path(robot.source).suffix.lower() != ".urdf" else {}
     k, kept = _written_compliances(cal, robot.n_joints, own.get("compliances_rad_per_Nm"))
     if k is None:
-        return ("# compliances_rad_per_Nm: the robot file's own (these data did not identify every joint's, and the "
-                "robot\n# file gives none for some); calibration.k_joints lists the joints identified\n")
+        return ("# compliances_rad_per_Nm: as in the robot file (these data did not identify every joint's, and the "
+                "robot\n# file gives none for those); calibration.k_joints lists the joints identified\n")
     if not kept:
         return ""
     names = ", ".join(robot.joint_names[j] for j in kept)
