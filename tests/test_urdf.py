@@ -465,3 +465,17 @@ def test_the_report_counts_the_identifiable_compliances(root, tmp_path):
     text = " ".join(env.from_string(sentence).render(r=r).split())
     assert text.startswith("A single pose gives 3 equations for 6 compliances (of the 7 joints, panda_joint7 is "
                            "left out")
+
+
+def test_plans_csv_prints_a_pose_at_a_joint_limit_within_it(root):
+    """A fresh user's Panda study: plans.csv printed q4 = -176.0012 where the URDF's limit is -176.001176 (rounded
+    outward to 1e-4 deg); every printed angle lies within its limit, the nearest 1e-4 deg inside it."""
+    from stiffcal.paper.tables import plans_long
+    from stiffcal.model.robot import load_robot
+
+    robot = load_robot(root / "tests/data/urdf/franka_panda.yaml")
+    lo = robot.limits_deg[:, 0]
+    pose = np.where(np.arange(7) == 3, lo, 0.0)  # joint 4 at its lower limit
+    df = plans_long({("ot", 1): pose[None]}, robot)
+    q = df[[c for c in df.columns if c.endswith("_deg")]].to_numpy()[0]
+    assert np.all(q >= lo - 1e-12) and abs(q[3] - lo[3]) < 1e-4, (q[3], lo[3])

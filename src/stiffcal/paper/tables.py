@@ -174,12 +174,15 @@ def plans_long(plans: dict, robot, clearances: dict | None = None) -> pd.DataFra
     for named joints). plans: (plan label, m) -> (m, n) poses [deg]; clearances: the same keys -> (the poses'
     smallest distances [m] to the cell and to the robot itself, the pair of each), which add the columns
     clearance_m and closest (a robot in a cell)."""
+    from ..model.robot import round_within
+
     cols = _pose_cols(robot)
     rows = []
     for key, poses in plans.items():
         label, m = key
-        for i, q in enumerate(np.atleast_2d(poses)):
-            row = {"plan": label, "m": m, "pose": i + 1, **dict(zip(cols, np.round(q, 4) + 0.0))}
+        # to 1e-4 deg, never past a joint limit (a Panda's -176.001176 printed as -176.0012 lay outside it)
+        for i, q in enumerate(round_within(np.atleast_2d(poses), robot.limits_deg, 4)):
+            row = {"plan": label, "m": m, "pose": i + 1, **dict(zip(cols, np.asarray(q, float) + 0.0))}
             if clearances is not None:
                 c, closest = clearances[key]
                 row |= {"clearance_m": round(float(c[i]), 6), "closest": closest[i]}
