@@ -665,6 +665,28 @@ def test_joints_whose_total_torque_the_loads_never_reverse_are_named(tmp_path):
         assert not notes
 
 
+def test_a_push_direction_logged_with_its_sign_flipped_is_noted(tmp_path):
+    """A fresh user's gauge log with the -z pushes logged as +z: a cubic stiffness named at p = 0.002, negative
+    compliances, no word. The simulator's 6-axis arm under a gauge pushing along +-x, +-y, +-z: with fz_N's sign
+    flipped where it was negative, the note names the rows logged under one load that deflect in opposite
+    directions; the log as written gets none."""
+    arm = R.robots(ROOT)["6-axis"]
+    rng = np.random.default_rng(21)
+    log = T.lab_log(arm, R.PROTOCOLS["gauge +-axes, reference per visit, half revisited"], rng, 20)
+    lines = T.lab_csv(arm, log, T.measure(arm, T.Truth(R.compliances(arm)), log, rng)).splitlines()
+    fz = lines[0].split(",").index("fz_N")
+    words = "deflect in opposite directions"
+    good = tmp_path / "good.csv"
+    good.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    assert not any(words in n for n in D.analyse(arm, read_measurements(good, arm), gain=False)["notes"])
+    rows = [ln.split(",") for ln in lines[1:]]
+    for r in rows:
+        r[fz] = r[fz].lstrip("-")
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join([lines[0]] + [",".join(r) for r in rows]) + "\n", encoding="utf-8")
+    assert any(words in n for n in D.analyse(arm, read_measurements(bad, arm), gain=False)["notes"])
+
+
 # --- what a careful analyst warns of -------------------------------------------------------------------------------
 
 def test_one_load_per_configuration_is_said(tmp_path, paper_robot):

@@ -1911,6 +1911,7 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
     check_noise(m, noise)
     notes = list(meas.notes) + ([rw_note] if rw_note else []) + ([dropped_note(robot, dropped)] if len(dropped) else [])
     notes += _no_reference_rows_note(meas) if em.shared else []
+    notes += _opposite_replicates_note(m, np.sqrt(noise.s2 * (1.0 + float(np.sum(em.ratios)))))
     unseen = [j for j in range(robot.n_joints) if j not in ob_all.model_params(robot) and j not in dropped]
     if unseen:
         notes.append(unseen_note(robot, unseen))
@@ -2030,6 +2031,44 @@ def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Desi
             "(the second-order part at the nominal compliances, second_order_part)")
     dp[:, cols] -= part[:, cols]
     return replace(meas, dp=dp, notes=(*meas.notes, note)), True
+
+
+#: the cosine below which two rows at one configuration logged under loads of one direction deflect in opposite
+#: directions (:func:`_opposite_replicates_note`), and how many of a row's noise sigma (its own and its shared
+#: errors') the two must lie apart
+OPPOSITE_COS = -0.8
+OPPOSITE_SIGMAS = 6.0
+
+
+def _opposite_replicates_note(meas: Measurements, sigma: float) -> list[str]:
+    """A note when rows at one configuration logged under loads of one direction and size (cosine above 0.95, sizes
+    within 25 %) deflect in opposite directions (cosine below :data:`OPPOSITE_COS`; both among the configuration's
+    large rows: half its largest |dp| and 0.3 of the data's 75th percentile; and :data:`OPPOSITE_SIGMAS` times the
+    rows' noise ``sigma`` [m] apart) at two or more configurations and a tenth of them: a load logged with its sign
+    flipped for one direction (a gauge's magnitude logged positive: a fresh user's -z pushes logged as +z got a cubic
+    stiffness at p = 0.002 and negative compliances, with no word)."""
+    size = np.linalg.norm(meas.dp, axis=1)
+    fsize = np.linalg.norm(meas.force, axis=1)
+    big = 0.3 * np.percentile(size, 75) if len(size) else 0.0
+    unit = meas.dp / np.where(size > 0, size, 1.0)[:, None]
+    funit = meas.force / np.where(fsize > 0, fsize, 1.0)[:, None]
+    configs = np.unique(meas.config)
+    split = []
+    for c in configs:
+        rows = np.flatnonzero((meas.config == c) & (fsize > 0))
+        rows = rows[size[rows] >= max(big, 0.5 * size[rows].max(initial=0.0))]  # the configuration's large ones
+        ratio = fsize[rows][:, None] / fsize[rows][None, :]
+        same = ((funit[rows] @ funit[rows].T) > 0.95) & (ratio > 0.8) & (ratio < 1.25)  # one load, as logged
+        apart = np.linalg.norm(meas.dp[rows][:, None] - meas.dp[rows][None], axis=-1) > OPPOSITE_SIGMAS * sigma
+        if np.any(same & apart & ((unit[rows] @ unit[rows].T) < OPPOSITE_COS)):
+            split.append(rows)
+    if len(split) < max(2, 0.1 * len(configs)):
+        return []
+    return [f"at {len(split)} of {len(configs)} configurations rows logged under loads of one direction deflect in "
+            "opposite directions: a load logged with its sign flipped for one direction (a gauge's magnitude logged "
+            "positive, -z as +z)? The model cannot fit both, the noise estimate takes the difference, and the "
+            "compliances are biased; check the force columns' signs (data rows "
+            f"{', '.join(str(int(meas.rows[r])) for r in split[0][:4])}, say)"]
 
 
 def _no_reference_rows_note(meas: Measurements) -> list[str]:
