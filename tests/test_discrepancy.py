@@ -1631,3 +1631,14 @@ def test_deflections_large_enough_for_second_order_kinematics_are_corrected(pape
             said = float(re.search(r"\(([0-9.e+-]+) um RMS", found[0]).group(1)) * 1e-6
             assert abs(said / expect - 1) < 0.02, (said, expect)
             assert v["cause"] == "none", v["causes"]
+
+
+def test_a_negative_backlash_gap_is_not_read_as_a_gear():
+    """A fresh user's clean log named backlash with b2 = -1.5e-5 +- 0.8e-5 rad (a negative gap, no gear's) and said
+    nothing. The note names a gap below zero beyond its interval, and only such a gap."""
+    ext = {"causes": ["backlash"], "parameter_names": ["b1_rad", "b2_rad"], "parameters": [2e-5, -1.5e-5],
+           "parameters_ci95": [0.5e-5, 0.8e-5]}
+    notes = D._negative_gap_note(ext)
+    assert len(notes) == 1 and "b2_rad = -1.5e-05" in notes[0] and "b1_rad" not in notes[0]
+    assert D._negative_gap_note({**ext, "parameters": [2e-5, -0.5e-5]}) == []
+    assert D._negative_gap_note({**ext, "causes": ["joint_coupling"]}) == []

@@ -2149,6 +2149,7 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     if out["diagnostics"]["outside_catalogue"] and ranked:
         out.update(_outside_verdict(out["diagnostics"], ranked))
     out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
+    notes += _negative_gap_note(out["extended"])
     held = held_out(robot, pre, ext) if gain else None
     out["held_out"] = None if held is None else held.as_dict()
     out["gain"] = (_gain(robot, des, ext, noise.s2, test_pose, test_force, ob, out["held_out"], lab_loads(robot, m))
@@ -2179,6 +2180,21 @@ def _unseen_backlash_note(robot: Robot, pre: Prepared) -> list[str]:
     return [f"the loads never reverse the total torque of joint(s) {', '.join(dead)} (the arm's weight preloads them): "
             "a backlash there cannot show in these data, and the backlash test is of the other joints only; loads "
             "that reverse it (a push upwards, a pose where the weight's torque is small) would test it"]
+
+
+def _negative_gap_note(extended: dict | None) -> list[str]:
+    """A note when the extended model's backlash has a gap below zero beyond its 95 % interval: no gear's (a fresh
+    user's clean log named backlash with b2 = -1.5e-5 +- 0.8e-5 rad, and nothing said)."""
+    if not extended or "backlash" not in extended.get("causes", []):
+        return []
+    bad = [f"{n} = {v:.3g} +- {c:.2g}" for n, v, c in zip(extended["parameter_names"], extended["parameters"],
+                                                          extended["parameters_ci95"])
+           if n.startswith("b") and v is not None and c is not None and v + c < 0]
+    if not bad:
+        return []
+    return [f"the extended model's backlash has a negative gap ({', '.join(bad)}, 95 %), which no gear has: it stands "
+            "for something else the data show at those joints (a misfit that changes sign with the load, a frame or "
+            "sign error), or is a chance result; read the backlash as not confirmed there"]
 
 
 def _calibrated_robot_note(robot: Robot) -> list[str]:
