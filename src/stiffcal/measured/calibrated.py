@@ -773,6 +773,7 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     Xp, Xt, scale = Xp[..., live], Xt[:, live], scale[live]
     P = np.einsum("kdi,kdj->kij", Xp, Xp)
     ridged = prior_s + _nuisance_ridge(cal, P, Xt, live)
+    ridged = ridged + _unmeasured_ridge(ridged, P, Xt)
     with_old = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed, prior=ridged)
     notes = _unidentified_at_test_pose(robot, cal, test_pose, test_load)
     fresh = fedorov_exchange(Xp, Xt, m, greedy=True, n_starts=4, seed=seed)
@@ -843,6 +844,28 @@ def _nuisance_ridge(cal: Calibration, P: np.ndarray, Xt: np.ndarray, live: np.nd
     flags = np.array(cal.estimable, bool)[: len(live)][live]
     size = np.abs(Xt).max(axis=0)
     return nuisance_ridge(P, ~flags & ~(size > 1e-9 * max(size.max(), 1e-300)))
+
+
+def _unmeasured_ridge(prior: np.ndarray, P: np.ndarray, Xt: np.ndarray) -> np.ndarray:
+    """(p, p): the ridge of :func:`stiffcal.planning.plans.nuisance_ridge` on the directions that neither the prior
+    (p, p) nor any candidate (P (K, p, p)) measures and the test pose (Xt (d, p)) does not see: a combination of
+    parameters the calibration confounded (a planar arm's last joint and its link's bending) whose sum the test pose
+    needs but not their difference. Zero where there is none; where the test pose sees such a direction, zero as
+    well (its O_t is then infinite, and the bound says so)."""
+    from ..planning.plans import NUISANCE_RIDGE
+
+    M = prior + P.mean(axis=0)
+    d = np.sqrt(np.clip(np.diag(M), 0.0, None))
+    d = np.where(d > 0, d, 1.0)
+    ev, U = np.linalg.eigh(M / np.outer(d, d))
+    null = U[:, ev <= PSD_RTOL * max(float(ev.max(initial=0.0)), 1e-300)] / d[:, None]
+    if not null.size:
+        return np.zeros_like(prior)
+    seen = np.abs(Xt @ null).max(axis=0) > 1e-9 * np.abs(Xt).max() * np.abs(null).max(axis=0)
+    null = null[:, ~seen]
+    mean = float(np.trace(P.mean(axis=0))) / max(P.shape[-1], 1)
+    return NUISANCE_RIDGE * max(mean, 1e-300) * (null @ null.T) / max(float(np.abs(null).max(initial=0.0)) ** 2,
+                                                                       1e-300)
 
 
 def _posterior_variances(M: np.ndarray) -> np.ndarray:
