@@ -645,17 +645,25 @@ def test_a_machining_path_of_the_nominal_model_against_itself_is_said_so(tmp_pat
 def test_the_verdict_s_next_round_of_a_confounded_calibration_does_not_abort_the_analysis(tmp_path):
     """A fresh user's planar 3R with link bending: the calibration confounds the last joint's compliance with its
     link's bending (k3 not estimable), no candidate pose separates them, and `stiffcal discrepancy --test-pose-deg`
-    exited 2 naming '--prior' (never given), the analysis lost. The simulator's 3-link arm with link bending: the
-    analysis with a test pose completes, the confounded direction is a nuisance of the next round where the test
-    pose does not see it (its O_t finite), and the verdict has its next_round."""
-    robot = ARMS["3-link"]
-    k = R.compliances(robot)
+    exited 2 naming '--prior' (never given), the analysis lost. tests/data/lab/lab_3r.yaml with link bending (the
+    simulator's log): the confounded direction is a nuisance of the next round where the test pose does not see
+    it (its O_t finite, its bound below it), calibrated.yaml keeps the file's value of the undetermined compliance,
+    and the analysis with a test pose completes with its next_round."""
+    robot = load_robot(ROOT / "tests/data/lab/lab_3r.yaml")  # a planar 3R with its compliances in the file
+    k = np.asarray(robot.compliances, float)
     data = _lab_data(tmp_path, robot, T.Truth(k, link_bending=np.full(robot.n_segments, 3e-7)), n_configs=12,
                      protocol="hanging x3, reference per configuration, half revisited")
     pre = D.prepare(robot, read_measurements(data, robot))
     v = D.verdict_of(robot, pre, gain=False)
     cal = C.from_analysis(robot, pre, {**v, "extended": {"causes": ["link_compliance"]}})  # the user's model
     assert not all(cal.estimable)  # the last joint and its link confounded
+    # calibrated.yaml keeps the robot file's value of a compliance its data did not determine (the user's k3 was
+    # written as if measured, 9 times off)
+    out = tmp_path / "written"
+    out.mkdir()
+    written = load_robot(C.write_calibrated(robot, cal, out))
+    undetermined = [j for j, e in zip(cal.k_joints, cal.estimable) if not e]
+    assert undetermined and all(written.compliances[j] == robot.compliances[j] for j in undetermined)
     qt, ft = np.radians([30.0, 60.0, -45.0]), np.array([0.0, -147.1])
     nr = C.next_round(replace(robot, calibration=cal), qt, ft, 4, loads=D.lab_loads(robot, pre.m))
     assert np.isfinite(nr.O_t) and nr.lower_bound <= nr.O_t * (1 + 1e-5)  # to the ridge's conditioning

@@ -126,10 +126,13 @@ def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
 def _written_compliances(cal: Calibration, n: int, own) -> tuple[list | None, list[int]]:
     """(the calibrated file's ``compliances_rad_per_Nm`` (n,) [rad/(N m)] or None: the robot file's own kept as they
     are; the joints (0-based) that keep the robot file's value): each joint's identified compliance where the data
-    identified it and it is positive, the robot file's own value for the others (a vertical axis under hanging
-    masses); None when a joint has neither."""
+    identified (determined: its estimable flag) and it is positive, the robot file's own value for the others (a
+    vertical axis under hanging masses; a planar arm's last joint confounded with its link's bending); None when a
+    joint has neither."""
     k = cal.compliances(n)
-    ok = np.isfinite(k) & (k > 0)
+    determined = np.zeros(n, bool)  # a compliance the data did not determine (its minimum-norm value) is no estimate
+    determined[list(cal.k_joints)] = np.asarray(cal.estimable, bool)[: len(cal.k_joints)]
+    ok = np.isfinite(k) & (k > 0) & determined
     has_own = isinstance(own, list) and len(own) == n
     if not ok.all() and not has_own:
         return None, []
@@ -151,8 +154,8 @@ def _compliances_comment(robot: Robot, cal: Calibration) -> str:
         return ""
     names = ", ".join(robot.joint_names[j] for j in kept)
     which = f"joint {names} keeps" if len(kept) == 1 else f"joints {names} keep"
-    return (f"# compliances_rad_per_Nm: {which} the robot file's value (these data did not identify\n# it, or "
-            "identified a value that is not positive); calibration.k_joints lists the joints identified\n")
+    return (f"# compliances_rad_per_Nm: {which} the robot file's value (these data did not determine\n# it, or "
+            "determined a value that is not positive); calibration.k_joints and .estimable say which\n")
 
 
 def _limits_given_apart(robot: Robot) -> list | None:
