@@ -792,12 +792,7 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     post[live] = sigma**2 * _posterior_variances(prior_s + P[with_old.indices].sum(axis=0)) / scale**2
     keep = w > 1e-4 * w.max()
     names = cal.names[:p_r]
-    left = [names[j] for j in np.flatnonzero(~np.isfinite(post))]
-    if left:
-        notes.append(f"{', '.join(left)} stay undetermined with the old data and the plan's poses (their variances "
-                     "are infinite)"
-                     + ("; the test pose's deflection does not depend on them, so its O_t is finite without them"
-                        if np.isfinite(with_old.value) else ""))
+    notes += _left_undetermined_note(names, post, np.isfinite(with_old.value))
     Xt_raw = Xt * scale
     prior_ot = float(np.trace(Xt_raw @ cov_rr[np.ix_(live, live)] @ Xt_raw.T))
     undetermined = [names[j] for j in np.flatnonzero(live)[_moves_undetermined(cal, Xt, live)]]
@@ -809,6 +804,17 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     return NextRound(pool[with_old.indices], sigma**2 * with_old.value, prior_ot, sigma**2 * fresh.value,
                      sigma**2 * bound, pool[keep], w[keep] / w[keep].sum(), float(gap), tuple(names), post, len(pool),
                      causes, sigma, tuple(notes))
+
+
+def _left_undetermined_note(names, post: np.ndarray, finite: bool) -> list[str]:
+    """A note naming the parameters whose variance after the next round is infinite (``post`` (p,)); ``finite``: the
+    test pose's O_t is finite all the same (its deflection does not depend on them)."""
+    left = [names[j] for j in np.flatnonzero(~np.isfinite(post))]
+    if not left:
+        return []
+    return [f"{', '.join(left)} stay undetermined with the old data and the plan's poses (their variances are "
+            "infinite)" + ("; the test pose's deflection does not depend on them, so its O_t is finite without them"
+                           if finite else "")]
 
 
 def _shared_error_note(cal: Calibration, sigma_m: float | None) -> list[str]:
