@@ -133,25 +133,21 @@ def _written_compliances(cal: Calibration, n: int, own) -> tuple[list | None, li
     determined = np.zeros(n, bool)  # a compliance the data did not determine (its minimum-norm value) is no estimate
     determined[list(cal.k_joints)] = np.asarray(cal.estimable, bool)[: len(cal.k_joints)]
     ok = np.isfinite(k) & (k > 0) & determined
-    has_own = isinstance(own, list) and len(own) == n
-    if not ok.all() and not has_own:
-        return None, []
     kept = [j for j in range(n) if not ok[j]]
+    if kept and not (isinstance(own, list) and len(own) == n):
+        return None, kept
     return [float(k[j]) if ok[j] else float(own[j]) for j in range(n)], kept
 
 
-def _compliances_comment(robot: Robot, cal: Calibration) -> str:
-    """The calibrated file's comment on its ``compliances_rad_per_Nm`` (:func:`_written_compliances`): which joints
-    keep the robot file's value, or that the file's own are kept; empty when every joint's is identified."""
-    from ..validation import read_yaml
-
-    own = read_yaml(robot.source) if Path(robot.source).suffix.lower() != ".urdf" else {}
-    k, kept = _written_compliances(cal, robot.n_joints, own.get("compliances_rad_per_Nm"))
-    if k is None:
-        return ("# compliances_rad_per_Nm: as in the robot file (these data did not identify every joint's, and the "
-                "robot\n# file gives none for those); calibration.k_joints lists the joints identified\n")
+def _compliances_comment(robot: Robot, kept: list[int], written: bool) -> str:
+    """The calibrated file's comment on its ``compliances_rad_per_Nm`` (:func:`_written_compliances`: the joints
+    ``kept`` at the robot file's value, and whether the key was ``written``): which joints keep the robot file's
+    value, or that the file's own are kept; empty when every joint's is identified."""
     if not kept:
         return ""
+    if not written:
+        return ("# compliances_rad_per_Nm: as in the robot file (these data did not identify every joint's, and the "
+                "robot\n# file gives none for those); calibration.k_joints lists the joints identified\n")
     names = ", ".join(robot.joint_names[j] for j in kept)
     which = f"joint {names} keeps" if len(kept) == 1 else f"joints {names} keep"
     return (f"# compliances_rad_per_Nm: {which} the robot file's value (these data did not determine\n# it, or "
@@ -170,16 +166,18 @@ def _limits_given_apart(robot: Robot) -> list | None:
     return None
 
 
-def write_calibrated(robot: Robot, cal: Calibration, out_dir) -> Path:
-    """Write ``out_dir/calibrated.yaml`` (:func:`calibrated_document`); returns its path."""
+def write_calibrated(robot: Robot, cal: Calibration, out_dir, doc: dict | None = None) -> Path:
+    """Write ``out_dir/calibrated.yaml`` (``doc``: :func:`calibrated_document`, computed here when not given);
+    returns its path."""
     import yaml
 
+    doc = calibrated_document(robot, cal, out_dir) if doc is None else doc
+    _, kept = _written_compliances(cal, robot.n_joints, None)
     path = Path(out_dir) / CALIBRATED_FILE
     text = ("# written by stiffcal discrepancy: the robot file with its identified compliances and the calibrated\n"
             "# model (calibration); read it with stiffcal.load_robot, predict and compensate with it (docs)\n")
-    text += _compliances_comment(robot, cal)
-    text += yaml.safe_dump(calibrated_document(robot, cal, out_dir), sort_keys=False, default_flow_style=None,
-                           width=120)
+    text += _compliances_comment(robot, kept, "compliances_rad_per_Nm" in doc)
+    text += yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120)
     path.write_text(text, encoding="utf-8")
     return path
 
@@ -696,24 +694,26 @@ def prior_information(cal: Calibration, sigma_m: float) -> tuple[np.ndarray, int
 PSD_RTOL = 1e-12
 
 
-def _psd_inverse(A: np.ndarray) -> np.ndarray:
-    """The pseudo-inverse of a symmetric positive semi-definite A (p, p) (a covariance or an information matrix),
-    taken in its correlation form D^-1/2 A D^-1/2 (unit diagonal: the parameters' units do not decide the rank):
-    eigenvalues below :data:`PSD_RTOL` of the largest, round-off's negative ones included, are not inverted; a
-    parameter with a zero diagonal gets zero. A covariance read back from calibrated.yaml whose correlations are
-    near 1 had an eigenvalue of -1e-18 that numpy's pinv inverted to a negative information of -1e15, and every
-    next-round plan came out 'inf' (a fresh user's UR3)."""
+def _scaled_eigh(A: np.ndarray):
+    """(d, ev, U, keep) of a symmetric positive semi-definite A (p, p) in its correlation form D^-1/2 A D^-1/2 (unit
+    diagonal: the parameters' units do not decide the rank): d (p,) the square roots of A's diagonal (1 where it is
+    zero), the eigenvalues ev and vectors U of the scaled matrix (parameters with a zero diagonal at zero), and keep
+    (p,) bool the eigenvalues above :data:`PSD_RTOL` of the largest (round-off's negative ones are not)."""
     A = 0.5 * (A + A.T)
     d = np.sqrt(np.clip(np.diag(A), 0.0, None))
-    on = d > 0
-    out = np.zeros_like(A)
-    if not on.any():
-        return out
-    R = A[np.ix_(on, on)] / np.outer(d[on], d[on])
-    ev, U = np.linalg.eigh(R)
-    keep = ev > PSD_RTOL * max(float(ev.max()), 1e-300)
-    out[np.ix_(on, on)] = ((U[:, keep] / ev[keep]) @ U[:, keep].T) / np.outer(d[on], d[on])
-    return out
+    d = np.where(d > 0, d, 1.0)
+    ev, U = np.linalg.eigh(A / np.outer(d, d))
+    return d, ev, U, ev > PSD_RTOL * max(float(ev.max(initial=0.0)), 1e-300)
+
+
+def _psd_inverse(A: np.ndarray) -> np.ndarray:
+    """The pseudo-inverse of a symmetric positive semi-definite A (p, p) (a covariance or an information matrix),
+    taken in its correlation form (:func:`_scaled_eigh`): eigenvalues below :data:`PSD_RTOL` of the largest,
+    round-off's negative ones included, are not inverted; a parameter with a zero diagonal gets zero. A covariance
+    read back from calibrated.yaml whose correlations are near 1 had an eigenvalue of -1e-18 that numpy's pinv
+    inverted to a negative information of -1e15, and every next-round plan came out 'inf' (a fresh user's UR3)."""
+    d, ev, U, keep = _scaled_eigh(A)
+    return ((U[:, keep] / ev[keep]) @ U[:, keep].T) / np.outer(d, d)
 
 
 def prior_design_bound(P: np.ndarray, prior: np.ndarray, W: np.ndarray, m: int, iters: int = 3000,
@@ -837,9 +837,9 @@ def _moves_undetermined(cal: Calibration, Xt: np.ndarray, live: np.ndarray) -> n
     flags) and whose column of the test pose's scaled regressor Xt (d, p_live) is not round-off. A parameter
     undetermined alone but determined in a sum with another (a group of the verdict's ``not_estimable``) counts
     too: the prior then errs on the safe side."""
-    flags = np.array(cal.estimable, bool)[: len(live)][live]
-    size = np.abs(Xt).max(axis=0)
-    return ~flags & (size > 1e-9 * max(size.max(), 1e-300))
+    from .discrepancy import moved_columns
+
+    return ~np.array(cal.estimable, bool)[: len(live)][live] & moved_columns(Xt)
 
 
 def _nuisance_ridge(cal: Calibration, P: np.ndarray, Xt: np.ndarray, live: np.ndarray) -> np.ndarray:
@@ -849,10 +849,9 @@ def _nuisance_ridge(cal: Calibration, P: np.ndarray, Xt: np.ndarray, live: np.nd
     test load does not turn). Without it, a plan that left them undetermined had an infinite O_t, and the posterior
     variances raised. P (K, p_live, p_live): the candidates' information."""
     from ..planning.plans import nuisance_ridge
+    from .discrepancy import moved_columns
 
-    flags = np.array(cal.estimable, bool)[: len(live)][live]
-    size = np.abs(Xt).max(axis=0)
-    return nuisance_ridge(P, ~flags & ~(size > 1e-9 * max(size.max(), 1e-300)))
+    return nuisance_ridge(P, ~np.array(cal.estimable, bool)[: len(live)][live] & ~moved_columns(Xt))
 
 
 def _unmeasured_ridge(prior: np.ndarray, P: np.ndarray, Xt: np.ndarray) -> np.ndarray:
@@ -863,11 +862,8 @@ def _unmeasured_ridge(prior: np.ndarray, P: np.ndarray, Xt: np.ndarray) -> np.nd
     well (its O_t is then infinite, and the bound says so)."""
     from ..planning.plans import NUISANCE_RIDGE
 
-    M = prior + P.mean(axis=0)
-    d = np.sqrt(np.clip(np.diag(M), 0.0, None))
-    d = np.where(d > 0, d, 1.0)
-    ev, U = np.linalg.eigh(M / np.outer(d, d))
-    null = U[:, ev <= PSD_RTOL * max(float(ev.max(initial=0.0)), 1e-300)] / d[:, None]
+    d, _, U, keep = _scaled_eigh(prior + P.mean(axis=0))
+    null = U[:, ~keep] / d[:, None]
     if not null.size:
         return np.zeros_like(prior)
     seen = np.abs(Xt @ null).max(axis=0) > 1e-9 * np.abs(Xt).max() * np.abs(null).max(axis=0)
@@ -882,18 +878,10 @@ def _posterior_variances(M: np.ndarray) -> np.ndarray:
     semi-definite) determines, inf for those it does not (e_j outside M's range: in M's correlation form, as
     :func:`_psd_inverse` decides the rank, so that well-determined old parameters beside new ones do not count
     as round-off)."""
-    M = 0.5 * (M + M.T)
-    d = np.sqrt(np.clip(np.diag(M), 0.0, None))
-    out = np.full(len(M), np.inf)
-    on = d > 0
-    if not on.any():
-        return out
-    ev, U = np.linalg.eigh(M[np.ix_(on, on)] / np.outer(d[on], d[on]))
-    keep = ev > PSD_RTOL * max(float(ev.max()), 1e-300)
-    var = ((U[:, keep] ** 2) @ (1.0 / ev[keep])) / d[on] ** 2
-    determined = (U[:, ~keep] ** 2).sum(axis=1) <= 1e-10 if (~keep).any() else np.ones(on.sum(), bool)
-    out[on] = np.where(determined, var, np.inf)
-    return out
+    d, ev, U, keep = _scaled_eigh(M)
+    var = ((U[:, keep] ** 2) @ (1.0 / ev[keep])) / d**2
+    determined = (U[:, ~keep] ** 2).sum(axis=1) <= 1e-10
+    return np.where(determined & (np.diag(M) > 0), var, np.inf)
 
 
 def _marginal(information: np.ndarray, keep: np.ndarray) -> np.ndarray:

@@ -2283,7 +2283,7 @@ def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: floa
                         "this way), then read the causes and warnings below")
     params = ob.model_params(robot)
     if not any(n.startswith(GEOMETRY_NOTE) for n in m.notes):
-        notes += second_order_note(robot, m, params, f0.beta, sigma)
+        notes += second_order_note(robot, m, ob, f0.beta, sigma)
     nominal = {"k": f0.beta.tolist(), "k_ci95": k_ci.tolist(), "k_joints": [int(j) + 1 for j in params],
                "k_names": [robot.joint_columns("k")[int(j)] for j in params],
                "not_identifiable_joints": [j + 1 for j in range(robot.n_joints) if j not in params],
@@ -2300,28 +2300,24 @@ def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: floa
 SECOND_ORDER_NOTE = 0.3
 
 
-def second_order_note(robot: Robot, m: Measurements, params: np.ndarray, k: np.ndarray, sigma: float) -> list[str]:
+def second_order_note(robot: Robot, m: Measurements, ob: Observed, k: np.ndarray, sigma: float) -> list[str]:
     """A note when the deflections are large enough that the first-order model (eq. 4: dp = J(q) dq) leaves an
-    error comparable to the noise sigma [m]: with the identified compliances k (p,) of the joints ``params`` (the
-    others zero), the joints' deflections under the rows' loads, dq = k tau, and under the arm's own weight, dq_w,
-    the tool point's exact motion fk(q + dq_w + dq) - fk(q + dq_w) against J(q) dq; its RMS over the rows and
-    coordinates beyond :data:`SECOND_ORDER_NOTE` sigma. A soft arm (a fresh user's Jaco2, 4.5 mm under 6 kg)
-    showed 15.6 um RMS beside 15 um of noise, and the catalogue named link bending and coupling for it."""
-    n = robot.n_joints
-    kf = np.zeros(n)
-    kf[np.asarray(params, int)] = np.clip(k, 0.0, None)
-    tau = torques(robot, m.q, load_of(m))
-    dq = kf * tau
+    error comparable to the noise sigma [m] and the rows were not corrected for it (:func:`geometry_corrected`: they
+    fit the first order better): :func:`second_order_part` at the identified compliances k (p,) of the joints
+    ``ob.model_params`` (the others zero), its RMS over the rows and coordinates beyond :data:`SECOND_ORDER_NOTE`
+    sigma, with the joints' largest deflections under the rows' loads and under the arm's own weight. A soft arm (a
+    fresh user's Jaco2, 4.5 mm under 6 kg) showed 15.6 um RMS beside 15 um of noise, and the catalogue named link
+    bending and coupling for it."""
+    kf = np.zeros(robot.n_joints)
+    kf[np.asarray(ob.model_params(robot), int)] = np.clip(k, 0.0, None)
+    dq = kf * torques(robot, m.q, load_of(m))
     dq_w = kf * robot.gravity_torques(m.q) if getattr(robot, "masses", None) is not None else np.zeros_like(dq)
-    base = m.q + dq_w
-    exact = np.asarray(robot.fk(base + dq), float) - np.asarray(robot.fk(base), float)
-    first = np.einsum("ndj,nj->nd", robot.jacobian(m.q), dq)
-    rms = float(np.sqrt(np.mean((exact - first) ** 2)))
+    rms = float(np.sqrt(np.mean(second_order_part(robot, m, ob, k) ** 2)))
     if not sigma > 0 or rms <= SECOND_ORDER_NOTE * sigma:
         return []
     return [f"the deflections are large enough for the first-order model (eq. 4, dp = J(q) dq) to leave "
-            f"{rms * 1e6:.3g} um RMS at the tool point ({rms / sigma:.2g} times the noise; the joints turn by up to "
-            f"{np.abs(dq).max() * 1e3:.3g} mrad under the loads and {np.abs(dq_w).max() * 1e3:.3g} mrad under the "
+            f"{rms * 1e6:.3g} um RMS at the measured points ({rms / sigma:.2g} times the noise; the joints turn by up "
+            f"to {np.abs(dq).max() * 1e3:.3g} mrad under the loads and {np.abs(dq_w).max() * 1e3:.3g} mrad under the "
             "arm's own weight, with the compliances identified here): the geometry's change under load is outside "
             "the catalogue, and a cause named may stand for it; smaller loads make it smaller (as their square)"]
 
@@ -3365,7 +3361,7 @@ def _run(robot: Robot, data_path: str, out_dir: str, alpha: float, test_pose, te
     if figures:
         _write_figures(robot, meas, verdict, cal, label or Path(data_path).name, out)
     if calibrated_doc is not None:
-        calibrated.write_calibrated(robot, cal, out)
+        calibrated.write_calibrated(robot, cal, out, calibrated_doc)
     (out / "verdict.json").write_text(text + "\n", encoding="utf-8")
     return verdict
 
@@ -3524,6 +3520,13 @@ def plan_rows(robot: Robot, q: np.ndarray, test_force: np.ndarray, causes, ob: O
     return np.concatenate([pose_rows(robot, q, W[:, k], causes, ob) for k in range(W.shape[1])], axis=1)
 
 
+def moved_columns(Xt: np.ndarray) -> np.ndarray:
+    """(p,) bool: the parameters the test point's regressor Xt (d, p) (scaled to balanced columns) moves beyond
+    round-off, 1e-9 of its largest column."""
+    size = np.abs(Xt).max(axis=0)
+    return size > 1e-9 * max(float(size.max(initial=0.0)), 1e-300)
+
+
 def _round_off_columns(robot: Robot, ob: Observed, causes, Xp: np.ndarray, Xt: np.ndarray) -> np.ndarray:
     """(p,) bool: the plan's parameters that neither a candidate pose (Xp (K, r, p)) nor the test pose (Xt (d, p))
     moves beyond round-off, 1e-9 of the largest column of their block (the compliances, then each cause's
@@ -3563,8 +3566,7 @@ def optimal_plan(robot: Robot, causes, test_pose: np.ndarray, test_force: np.nda
     pool, Xp, Xt, _ = plan_regressors(robot, causes, test_pose, test_force, observed, step_deg, loads)
     per_load = Xp.shape[1] // (1 if loads is None else len(loads.wrenches))  # loads along one line add no rank
     m = m or int(np.ceil(Xp.shape[2] / per_load)) + 1
-    size = np.abs(Xt).max(axis=0)
-    keep = size > 1e-9 * max(size.max(), 1e-300)  # the others: the test point's deflection does not depend on them
+    keep = moved_columns(Xt)  # the others: the test point's deflection does not depend on them
     res = fedorov_exchange(Xp[..., keep], Xt[:, keep], m, greedy=True, n_starts=4, seed=seed)
     if keep.all():
         return np.degrees(pool[res.indices]), res.value
