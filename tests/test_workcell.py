@@ -892,3 +892,22 @@ def test_the_cable_keeps_its_clearance(tmp_path):
                         f"  link_radius_m: 0.04\n  cable_clearance_m: {clearance}\n  boxes:\n"
                         "    - {name: stand, center_m: [0.85, 0.15], size_m: [0.2, 0.1]}\n", encoding="utf-8")
         assert feasible(load_robot(path), q, hanging=True)[0] == free, clearance
+
+
+def test_a_hanging_mass_that_would_rest_on_the_table_is_refused(tmp_path):
+    """A fresh user's iiwa on a table (floor_m 0, cable_length_m 0.5): 5 of 8 planned poses had the tool point 0.355 m
+    above the table, so the mass on its 0.5 m cable would have rested on the table and loaded nothing; the cable was
+    cut at the table. Now the mass must hang clear of every half-space: the 2-link arm's tool point at heights set
+    by hand (forward kinematics below), against cable lengths shorter and longer than that height; without
+    cable_length_m the cable still runs down to the table, unchecked."""
+    from stiffcal.model.workcell import feasible
+
+    q = np.radians([[60.0, -30.0], [20.0, 0.0]])
+    height = 0.6 * np.sin(q[:, 0]) + 0.4 * np.sin(q.sum(axis=1))  # 0.7196 and 0.3420 m above the base
+    assert np.allclose(height, [0.7196, 0.3420], atol=1e-4)
+    for length, free in (("0.3", [True, True]), ("0.5", [True, False]), ("0.8", [False, False]), (None, [True, True])):
+        path = tmp_path / f"c{length}.yaml"
+        path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: 0.0\n"
+                        "  link_radius_m: 0.02\n" + (f"  cable_length_m: {length}\n" if length else ""),
+                        encoding="utf-8")
+        assert list(feasible(load_robot(path), q, hanging=True)) == free, length

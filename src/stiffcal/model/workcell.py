@@ -40,10 +40,12 @@ and an obstacle in collision at every probe pose is refused (the cell leaves no 
 Hanging masses
 --------------
 With hanging masses (loads ``hanging:``) the cable must be free too: the segment from the tool point along
-gravity (the robot file's ``gravity``) down to the first half-space it meets (the floor), or of
-``cable_length_m`` when that is shorter or no half-space is below, must not pass through any body but the one
-it hangs from (the link carrying the tool point) nor through a box or cylinder (distance > ``cable_clearance_m``,
-default 0: the cable is a line; give the cable's radius and sway to keep it off the arm's meshes).
+gravity (the robot file's ``gravity``) of ``cable_length_m`` (from the tool point to the lowest point of the
+hanging mass) must end on the free side of every half-space (a mass that would rest on the table or the floor
+loads nothing), and must not pass through any body but the one it hangs from (the link carrying the tool point)
+nor through a box or cylinder (distance > ``cable_clearance_m``, default 0: the cable is a line; give the cable's
+radius and sway to keep it off the arm's meshes). Without ``cable_length_m`` the segment runs down to the first
+half-space it meets (the floor: the mass's height is then not checked), else :data:`CABLE_DEFAULT_M`.
 """
 
 from __future__ import annotations
@@ -242,7 +244,8 @@ class WorkCell:
     of a URDF's meshes; needed for planar and DH arms); srdf: the SRDF whose disabled pairs are not checked
     (URDF arms); ignore_pairs: pairs of bodies (link names, segment names ``link1``.., ``tool``, obstacle names)
     not checked;
-    cable_length_m: the longest cable of a hanging mass [m] (default down to the first half-space, else
+    cable_length_m: from the tool point to the lowest point of the longest hanging mass, cable and mass [m]; the
+    mass must hang clear of every half-space (default: down to the first half-space, unchecked, else
     :data:`CABLE_DEFAULT_M`); cable_clearance_m: the smallest distance [m] the cable keeps from the robot's other
     bodies and from boxes and cylinders (default 0: no contact); source: the file it came from (for messages);
     spec: the cell as given (the document, for the outputs and for caching).
@@ -561,7 +564,9 @@ class _Base:
         top = as_xyz(p + R @ start)
         g = np.asarray(robot.gravity, float)
         g = np.r_[g, 0.0] if g.size == 2 else g
-        length = np.full(len(q), np.inf if self.cell.cable_length_m is None else float(self.cell.cable_length_m))
+        if self.cell.cable_length_m is not None:  # the mass hangs this far below: it must clear every half-space
+            return top, top + float(self.cell.cable_length_m) * g
+        length = np.full(len(q), np.inf)
         for o in self.cell.obstacles:
             if o.kind == "half_space" and _dot(o.normal, g) < 0:
                 hit = (_dot(top, o.normal) - o.offset) / -_dot(o.normal, g)
