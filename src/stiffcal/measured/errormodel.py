@@ -724,7 +724,7 @@ class ErrorModel:
     coordinate (only for configurations whose rows share an error);
     q_unloaded: the unloaded rows' quadratic form y_U^T H_UU^-1 y_U, on df_unloaded; notes; inflation: the largest
     relative increase of a parameter combination's variance from estimating the components
-    (:func:`variance_inflation`; the tests and intervals take them as known)."""
+    (:func:`variance_inflation`; the intervals take them as known, the tests do not: ``small_sample``)."""
     structure: ReadingStructure
     ratios: np.ndarray
     estimable: np.ndarray
@@ -741,6 +741,9 @@ class ErrorModel:
     notes: tuple[str, ...] = ()
     zero_y: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)))
     inflation: float = 0.0
+    #: the Kenward-Roger quantities of the fixed effects (:class:`KenwardRoger`; None: no component in use, or not
+    #: computed), with which the tests take the components' estimation into account (:meth:`KenwardRoger.f_test`)
+    small_sample: "KenwardRoger | None" = field(default=None, repr=False, compare=False)
     #: ``estimate(..., lrt="deferred")``: the callable that computes (p_values, inflation) (:func:`with_tests`)
     pending: object = field(default=None, repr=False, compare=False)
     #: ((Y, groups, X_union, weights), blocks): the per-configuration arrays :func:`estimate` built from those very
@@ -909,7 +912,8 @@ def _estimable(blocks: list[dict], K: int) -> list[int]:
 
 
 def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, groups: np.ndarray,
-             X_union: np.ndarray | None, drift: np.ndarray | None = None, lrt: bool = True) -> ErrorModel:
+             X_union: np.ndarray | None, drift: np.ndarray | None = None, lrt: bool = True,
+             start: "ErrorModel | None" = None) -> ErrorModel:
     """The :class:`ErrorModel` of the model rows (module docstring).
 
     Y (R, w): every model row's measured components, weighted by the noise model (rows multiplied by
@@ -919,9 +923,9 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     tracker's drift, so that it is not read as a shared error); lrt: compute each component's likelihood-ratio
     p-value (else None) and, without a drift, the variance inflation (:func:`variance_inflation`; else 0);
     ``"deferred"``: not yet, but when :func:`with_tests` is called on the result (the same numbers; a fit that
-    may be refitted pays for them once).
-    Raises :class:`InputError` when no degree of freedom is left for the noise.
-    """
+    may be refitted pays for them once); start: an error model of nearly the same rows whose ratios start the
+    likelihood's maximisation (:func:`_maximise`; else its two cold starts). Raises :class:`InputError` when no
+    degree of freedom is left for the noise."""
     N, R = structure.n_loaded, structure.n_rows
     K = len(structure.components)
     w = Y.shape[1]
@@ -938,14 +942,14 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     lik = _Likelihood.of(blocks, est)
     if lik.df <= 0:
         raise InputError("no degree of freedom is left to estimate the noise")
-    lam_u, ll_u = _maximise(lik, len(est))
+    lam_u, ll_u = _maximise(lik, len(est), start=_warm_start(start, structure, est))
     lam[est] = lam_u
     estimable[est] = True
 
-    def tests() -> tuple[tuple, float]:  # the components' likelihood-ratio p-values and the variance inflation
+    def tests() -> tuple[tuple, "KenwardRoger | None"]:  # the components' likelihood-ratio p-values, Kenward-Roger
         for i, k in enumerate(est):
             pvals[k] = _lrt(lik, lam_u, ll_u, i, None)
-        return tuple(pvals), variance_inflation(blocks, lam) if drift is None else 0.0
+        return tuple(pvals), kenward_roger(blocks, lam) if drift is None else None
 
     sigma2 = lik.sigma2(lam_u)
     replicated = paired and df_pe >= min(MIN_PURE_ERROR_DF, lik.df)
@@ -968,13 +972,23 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     return with_tests(replace(em, pending=tests)) if lrt else em
 
 
+def _warm_start(prior: "ErrorModel | None", structure: ReadingStructure, est: list) -> np.ndarray | None:
+    """The variance ratios (len(est),) of ``prior`` for the components ``est`` of ``structure`` (matched by name; 0
+    where ``prior`` has none), or None without a prior."""
+    if prior is None:
+        return None
+    ratios = {c.name: lam for c, lam, ok in zip(prior.structure.components, prior.ratios, prior.estimable) if ok}
+    return np.array([ratios.get(structure.components[k].name, 0.0) for k in est], float)
+
+
 def with_tests(em: ErrorModel) -> ErrorModel:
     """``em`` with the tests :func:`estimate` deferred (``lrt="deferred"``): each component's likelihood-ratio
     p-value and the variance inflation; ``em`` itself when none are pending."""
     if em.pending is None:
         return em
-    pvals, inflation = em.pending()
-    return replace(em, p_values=pvals, inflation=inflation, pending=None)
+    pvals, kr = em.pending()
+    return replace(em, p_values=pvals, inflation=0.0 if kr is None else kr.largest_inflation, small_sample=kr,
+                   pending=None)
 
 
 def _lrt(lik: _Likelihood, lam: np.ndarray, ll: float, i: int, sigma2, fixed: dict | None = None) -> float:
@@ -1032,7 +1046,73 @@ def _finish(structure, blocks, lam, estimable, pvals, stage, sigma2, df_union, s
 
 # --- the estimated variance components' share in the fixed effects' covariance ---------------------------------
 
-def kenward_roger(blocks: list[dict], lam: np.ndarray) -> np.ndarray | None:
+@dataclass(frozen=True)
+class KenwardRoger:
+    """The quantities of :func:`kenward_roger` in an orthonormal basis of the fixed effects (X^T H^-1 X = I in it;
+    r its dimension): basis (p, r), the coefficients of its directions; P (g, r, r): X^T H^-1 G_i H^-1 X in it
+    (G_0 = I for sigma^2, then each component in use); W (g, g): the inverse of the expected REML information of
+    (sigma^2, sigma^2 lambda_k) in units of sigma^4; inflation (r, r): Lambda / sigma^2."""
+    basis: np.ndarray
+    P: np.ndarray
+    W: np.ndarray
+    inflation: np.ndarray
+
+    @property
+    def largest_inflation(self) -> float:
+        """The largest eigenvalue of 2 Lambda in the metric of Phi (:func:`variance_inflation`)."""
+        return float(max(2.0 * np.linalg.eigvalsh(self.inflation).max(initial=0.0), 0.0))
+
+    def f_test(self, U: np.ndarray, zU: np.ndarray, s2: float, df: int) -> float:
+        """The p-value of the Kenward-Roger F-test that the fixed effects' combination U^T c is zero (Kenward &
+        Roger, *Biometrics* 53, 1997, sec. 4; Halekoh & Hojsgaard, *J. Stat. Softw.* 59(9), 2014, sec. 3):
+        U (r, q) orthonormal columns in :attr:`basis`'s coordinates c, zU (q,) the estimate of U^T c [sigma units
+        of the plug-in covariance s2 I], s2 the error variance on df degrees of freedom. The statistic uses the
+        adjusted covariance Phi_A = s2 (I + 2 U^T Lambda U); lambda F ~ F(q, m), with m the denominator degrees of
+        freedom the estimated components leave (at most df: the plug-in test's, which takes them as known)."""
+        q = U.shape[1]
+        if q == 0 or not s2 > 0:
+            return 1.0
+        a = np.einsum("ai,gab,bj->gij", U, self.P, U)  # U^T P_i U (g, q, q)
+        t = np.einsum("gii->g", a)
+        A1 = float(t @ self.W @ t)
+        A2 = float(np.einsum("ij,iab,jba->", self.W, a, a))
+        F = float(zU @ np.linalg.solve(np.eye(q) + 2.0 * U.T @ self.inflation @ U, zU)) / q / s2
+        m, scale = kr_degrees(q, A1, A2, df)
+        return float(dist.f_sf(scale * F, q, m)) if F > 0 else 1.0
+
+
+def kr_degrees(q: int, A1: float, A2: float, df: float) -> tuple[float, float]:
+    """(m, lambda): Kenward-Roger's denominator degrees of freedom and scale of a q-dimensional F-test from its
+    A1 and A2 (Kenward & Roger 1997, eqs. 10-12; rho as pbkrtest's ``Lb_ddf``), m at most ``df``: (df, 1) where the
+    estimated components do not affect the test (A2 = 0) or m is beyond df (q rho at or just above 1). In a
+    balanced design it is the exact test's: A1 = A2 = 2 / nu for a direction the groups' means carry, m = nu (rho
+    infinite at nu = 4, negative below it); m is kept at 1 or more, lambda 1 where m is within 0.01 of 2."""
+    if not A2 > 1e-12 or A2 >= q:
+        return float(df), 1.0
+    B = (A1 + 6.0 * A2) / (2.0 * q)
+    g = ((q + 1.0) * A1 - (q + 4.0) * A2) / ((q + 2.0) * A2)
+    den = 3.0 * q + 2.0 * (1.0 - g)
+    if den == 0:
+        return float(df), 1.0
+    c1, c2, c3 = g / den, (q - g) / den, (q + 2.0 - g) / den
+    E = 1.0 / (1.0 - A2 / q)
+    V0, V1, V2 = 1.0 + c1 * B, 1.0 - c2 * B, 1.0 - c3 * B
+    if V1 == 0:
+        return float(df), 1.0
+    if abs(V2) <= 1e-12 * max(abs(V0), 1.0):
+        m = 4.0  # rho infinite
+    else:
+        q_rho = ((1.0 - A2 / q) / V1) ** 2 * V0 / V2
+        if 0.0 < q_rho - 1.0 and 4.0 + (q + 2.0) / (q_rho - 1.0) >= df or q_rho == 1.0:
+            return float(df), 1.0
+        m = 4.0 + (q + 2.0) / (q_rho - 1.0)
+        if q_rho > 0.0 and q_rho < 1.0:  # no finite moment match: as large as the plug-in's
+            return float(df), 1.0
+    m = max(m, 1.0)
+    return m, 1.0 if abs(m - 2.0) < 0.01 or m < 2.0 else m / (E * (m - 2.0))
+
+
+def kenward_roger(blocks: list[dict], lam: np.ndarray) -> KenwardRoger | None:
     """The Kackar-Harville inflation of the generalised least-squares estimator's covariance for variance
     components that are estimated, not known (Kenward & Roger, *Biometrics* 53, 1997, eqs. 2-5): with
     V = sigma^2 H(lambda), theta = (sigma^2, sigma^2 lambda_k for each lambda_k > 0), G_0 = I, G_k = Z_k Z_k^T,
@@ -1042,10 +1122,10 @@ def kenward_roger(blocks: list[dict], lam: np.ndarray) -> np.ndarray | None:
     extra variance of beta_hat, one for the bias of Phi(theta_hat)). Lambda / sigma^2 does not depend on sigma^2.
 
     blocks: as :func:`_block_arrays` (every model row of a configuration; X zero on the unloaded rows), lam (K,)
-    the estimated ratios. Returns Lambda / sigma^2 (r, r) in an orthonormal basis of the fixed effects in the
-    metric X^T H^-1 X (the whitened union; r its rank), in which Phi_A / sigma^2 = I + 2 Lambda / sigma^2; None
-    when no component is in use (ordinary least squares: nothing estimated but sigma^2, whose uncertainty the
-    F-tests' degrees of freedom hold)."""
+    the estimated ratios. Returns the :class:`KenwardRoger` quantities, among them Lambda / sigma^2 (r, r) in an
+    orthonormal basis of the fixed effects in the metric X^T H^-1 X (the whitened union; r its rank), in which
+    Phi_A / sigma^2 = I + 2 Lambda / sigma^2; None when no component is in use (ordinary least squares: nothing
+    estimated but sigma^2, whose uncertainty the F-tests' degrees of freedom hold)."""
     used = [k for k in range(len(lam)) if lam[k] > 0]
     if not used:
         return None
@@ -1084,7 +1164,7 @@ def kenward_roger(blocks: list[dict], lam: np.ndarray) -> np.ndarray | None:
     info = 0.5 * (t - 2.0 * np.einsum("ijaa->ij", Qo) + np.einsum("iab,jba->ij", Po, Po))
     W = np.linalg.pinv(info)
     inflation = np.einsum("ij,ijab->ab", W, Qo - np.einsum("iab,jbc->ijac", Po, Po))
-    return 0.5 * (inflation + inflation.T)
+    return KenwardRoger(basis, Po, W, 0.5 * (inflation + inflation.T))
 
 
 def variance_inflation(blocks: list[dict], lam: np.ndarray) -> float:
@@ -1093,7 +1173,7 @@ def variance_inflation(blocks: list[dict], lam: np.ndarray) -> float:
     0 without a component in use). The analysis's tests and intervals take the REML ratios as known (plug-in);
     this says how much that understates the parameters' variances."""
     kr = kenward_roger(blocks, lam)
-    return 0.0 if kr is None else float(max(2.0 * np.linalg.eigvalsh(kr).max(initial=0.0), 0.0))
+    return 0.0 if kr is None else kr.largest_inflation
 
 
 # --- the unloaded rows: blunders among them, and a zero point that moved ------------------------------------------
