@@ -1061,6 +1061,10 @@ def test_a_new_users_data_sets_give_the_verdicts_of_their_readme(paper_robot):
     assert "nonlinear_joint_stiffness" in {*v["causes"], *v["indistinguishable_from"]}
     v = D.analyse(paper_robot, read_measurements(NEWUSER / "r2_hangrep_clean_0_s102_pid.csv", paper_robot), gain=False)
     assert v["outlier_rows"] == [36] and v["cause"] == "none"
+    r4 = load_robot(NEWUSER / "planar_4r.yaml")
+    v = D.analyse(r4, read_measurements(NEWUSER / "r4_hang3_refconfig_clean_s27.csv", r4), gain=False)
+    assert v["cause"] == "none" and v["nominal"]["noise_varies"] is None, (v["cause"], v["p_value"])
+    assert any("the likelihood does not confirm it" in n for n in v["notes"])
     for name in ("r2_hangrep_sharedref_once_s0.csv", "r2_push4rep_sharedref_once_s2.csv"):
         v = D.analyse(paper_robot, read_measurements(NEWUSER / name, paper_robot), gain=False)
         assert v["cause"] == "none" and any("share the errors of their reference readings" in n for n in v["notes"]), (

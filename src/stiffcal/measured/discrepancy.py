@@ -621,6 +621,9 @@ class VarianceModel:
     p_value: float
     sigma_ratio: float
     held_out: np.ndarray | None = None
+    #: the likelihood-ratio p-value against constant noise with the rows' shared errors (:func:`_noise_trend_p`)
+    #: when it did not confirm the trend (the fits are then unweighted); None: confirmed, or not tested
+    rejected_p: float | None = None
 
 
 #: level of the test that decides to weight the fit (a constant variance is kept unless it is rejected)
@@ -1889,7 +1892,40 @@ def _weighted_error_model(robot: Robot, meas: Measurements, m: Measurements, kee
         held = held + _shift_of(step, m.n_rows)
         vm = VarianceModel(w, step.p_value if vm is None else vm.p_value, float(w.max() / w.min()), held)
         weighted, w0, em, zp, des = weighted_fit(w, em)
+    if vm is not None:  # the noise trend against constant noise, both with the shared errors
+        constant = weighted_fit(np.ones(m.n_rows), em)
+        p = _noise_trend_p(em, weighted, constant[2], constant[0], robot.task_dim + 1)
+        if p is not None and p > HETEROSCEDASTICITY_ALPHA:
+            vm = replace(vm, rejected_p=p)
+            weighted, w0, em, zp, des = constant
+            w, held = np.ones(m.n_rows), np.zeros(m.n_rows)
     return vm, w, weighted, w0, EM.with_tests(em), zp, des, held
+
+
+def _reml_of_rows(em, X: np.ndarray) -> float:
+    """``em``'s REML log-likelihood on the scale of the rows before their noise weights (the weighted rows' one,
+    :attr:`stiffcal.measured.errormodel.ErrorModel.loglik`, plus log |W| and Harville's term of the weighted
+    regressors X (its model rows' union, weighted), less the term of the unweighted ones, which is the same for
+    every weighting and left out): comparable between weightings of the same rows."""
+    Y, _, _, weights = em.arrays[0]
+    sv = np.linalg.svd(X, compute_uv=False)
+    keep = sv > RANK_RTOL * sv[0] if sv.size and sv[0] > 0 else np.zeros(sv.size, bool)
+    return float(em.loglik + Y.shape[1] * np.log(weights).sum() - np.log(sv[keep]).sum())
+
+
+def _noise_trend_p(em, des: Design, em_constant, des_constant: Design, k: int) -> float | None:
+    """The p-value of the likelihood-ratio test of the noise weights (a variance function of k coefficients beyond
+    the constant, fitted) against constant noise, each with its REML error model of the rows' shared errors
+    (``em`` on the weighted design ``des``, ``em_constant`` on ``des_constant``): chi^2 on k degrees of freedom.
+    The replicates' test (:func:`variance_model`) does not see the shared errors, and the refits on the
+    residuals can trade them for weights (a fresh user's clean 4R log: weights by a factor 3 took the reference
+    readings' error for noise, REML set it to zero, and the rows fitted as independent named joint_coupling at
+    p = 1e-7). None where the two fits do not hold the same rows (the screening of unloaded rows differed)."""
+    if em.arrays is None or em_constant.arrays is None or not np.array_equal(
+            em.structure.zero_index, em_constant.structure.zero_index):
+        return None
+    stat = 2.0 * (_reml_of_rows(em, des.union()) - _reml_of_rows(em_constant, des_constant.union()))
+    return float(dist.chi2_sf(max(stat, 0.0), k)) if stat > 0 else 1.0
 
 
 def _shift_of(vm: VarianceModel | None, n: int) -> np.ndarray:
@@ -1956,6 +1992,12 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
         notes.append(unseen_note(robot, unseen))
     if noise.df < 10:
         notes.append(f"the noise estimate has only {noise.df} degrees of freedom: the tests have little power")
+    if vm is not None and vm.rejected_p is not None:
+        notes.append(f"the replicates' spread suggests a noise that varies with the position of the measured point "
+                     f"(p = {vm.p_value:.2g}, a factor {vm.sigma_ratio:.3g} between rows), but with the errors the "
+                     f"rows share the likelihood does not confirm it (likelihood ratio p = {vm.rejected_p:.2g}): "
+                     "the fits are not weighted")
+        vm = None
     if vm is not None:
         notes.append(f"the noise varies with the position of the measured point (a tracker's error grows with "
                      f"the distance; p = {vm.p_value:.2g}), by a factor {vm.sigma_ratio:.3g} between rows: the fits "

@@ -749,6 +749,8 @@ class ErrorModel:
     #: ((Y, groups, X_union, weights), blocks): the per-configuration arrays :func:`estimate` built from those very
     #: inputs (without a drift), reused by :func:`unloaded_tests` when it is given the same objects
     arrays: tuple | None = field(default=None, repr=False, compare=False)
+    #: the REML log-likelihood at the estimate (sigma^2 profiled out; Harville's, of the weighted rows)
+    loglik: float = float("nan")
 
     @property
     def shared(self) -> bool:
@@ -966,7 +968,7 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
                          "data (the fixed effects absorb it): it is left out")
     em = _finish(structure, blocks, lam, estimable, tuple(pvals), stage, sigma2, None if replicated else lik.df,
                  source, w, notes, Y[N:])
-    em = replace(em, arrays=((Y, groups, X_union, weights), blocks) if drift is None else None)
+    em = replace(em, arrays=((Y, groups, X_union, weights), blocks) if drift is None else None, loglik=ll_u)
     if lrt == "deferred":
         return replace(em, pending=tests)
     return with_tests(replace(em, pending=tests)) if lrt else em
