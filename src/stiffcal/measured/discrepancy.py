@@ -2309,7 +2309,7 @@ def _outside_verdict(diag: dict, ranked: list[str]) -> dict:
     r = (diag.get("time") or {}).get("time_load_correlation")
     confounded = ("; under this protocol the time since the reference follows the load's size (correlation "
                   f"{r:.2f}), so a drift and a misfit that grows with the load cannot be told apart"
-                  if r is not None and abs(r) >= TIME_LOAD_CONFOUNDED else "")
+                  if "time" in found and r is not None and abs(r) >= TIME_LOAD_CONFOUNDED else "")
     return {"cause": "unexplained", "p_value": p, "p_value_of": list(found),
             "p_value_statement": f"{tests}: something the catalogue does not describe explains the data, which the "
                                  f"catalogue's causes only absorb{confounded}"}

@@ -78,7 +78,10 @@ CATALOGUE: dict[str, Cause] = {c.name: c for c in (
     Cause("backlash", ("a gear's gap: dq_i = b_i (sign(t0_i + tau_i) - sign(t0_i)), a jump of b_i (half the gap) "
                        "either way where the load reverses the total torque"), "joint",
           lambda robot, rotation: [f"b{i + 1}_rad" for i in range(robot.n_joints)], _backlash, preloaded=True),
-    Cause("measurement_offset", "the tracker's bias: one per measured position axis (and rotation axis)",
+    Cause("measurement_offset", ("a constant shift of every loaded reading from its reference, one per measured "
+                                 "position axis (and rotation axis): a tracker's bias cancels in a difference, so "
+                                 "this is a target that settles in its nest or a fixture that moves when loaded, or "
+                                 "a reference read in another state"),
           "measurement", _offset_names),
 )}
 #: the catalogue's causes, in the order of every model's parameters after the compliances
