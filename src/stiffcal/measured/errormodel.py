@@ -1105,10 +1105,10 @@ def kr_degrees(q: int, A1: float, A2: float, df: float) -> tuple[float, float]:
         m = 4.0  # rho infinite
     else:
         q_rho = ((1.0 - A2 / q) / V1) ** 2 * V0 / V2
-        if 0.0 < q_rho - 1.0 and 4.0 + (q + 2.0) / (q_rho - 1.0) >= df or q_rho == 1.0:
+        if 0.0 < q_rho <= 1.0:  # no finite moment match: as large as the plug-in's
             return float(df), 1.0
         m = 4.0 + (q + 2.0) / (q_rho - 1.0)
-        if q_rho > 0.0 and q_rho < 1.0:  # no finite moment match: as large as the plug-in's
+        if m >= df:
             return float(df), 1.0
     m = max(m, 1.0)
     return m, 1.0 if abs(m - 2.0) < 0.01 or m < 2.0 else m / (E * (m - 2.0))
@@ -1172,8 +1172,8 @@ def kenward_roger(blocks: list[dict], lam: np.ndarray) -> KenwardRoger | None:
 def variance_inflation(blocks: list[dict], lam: np.ndarray) -> float:
     """The largest relative increase of a fixed-effect combination's variance when the variance components are
     estimated rather than known: the largest eigenvalue of 2 Lambda in the metric of Phi (:func:`kenward_roger`;
-    0 without a component in use). The analysis's tests and intervals take the REML ratios as known (plug-in);
-    this says how much that understates the parameters' variances."""
+    0 without a component in use). The analysis's intervals take the REML ratios as known (plug-in; its closed
+    test does not, :meth:`KenwardRoger.f_test`): this says how much that understates the parameters' variances."""
     kr = kenward_roger(blocks, lam)
     return 0.0 if kr is None else kr.largest_inflation
 
