@@ -1893,13 +1893,26 @@ def _weighted_error_model(robot: Robot, meas: Measurements, m: Measurements, kee
         vm = VarianceModel(w, step.p_value if vm is None else vm.p_value, float(w.max() / w.min()), held)
         weighted, w0, em, zp, des = weighted_fit(w, em)
     if vm is not None:  # the noise trend against constant noise, both with the shared errors
-        constant = weighted_fit(np.ones(m.n_rows), em)
-        p = _noise_trend_p(em, weighted, constant[2], constant[0], robot.task_dim + 1)
-        if p is not None and p > HETEROSCEDASTICITY_ALPHA:
+        p = _noise_trend_p(em, weighted, _constant_noise_model(meas, keep, des_all.rows(keep), em, rw),
+                           des_all.rows(keep), robot.task_dim + 1)
+        if p > HETEROSCEDASTICITY_ALPHA:
             vm = replace(vm, rejected_p=p)
-            weighted, w0, em, zp, des = constant
+            weighted, w0, em, zp, des = weighted_fit(np.ones(m.n_rows), em)
             w, held = np.ones(m.n_rows), np.zeros(m.n_rows)
     return vm, w, weighted, w0, EM.with_tests(em), zp, des, held
+
+
+def _constant_noise_model(meas: Measurements, keep: np.ndarray, des: Design, em, rw: float):
+    """The error model of the same model rows as ``em`` (its structure: the same unloaded rows) without noise
+    weights: the loaded rows ``keep`` of ``meas`` (unweighted design ``des``) and the unloaded rows ``em`` used,
+    their rotation weighted by rw [m/rad] (one REML fit, started from ``em``'s ratios; no tests)."""
+    from . import errormodel as EM
+
+    st, N, d = em.structure, int(keep.sum()), des.d
+    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+    Y = np.vstack([des.y.reshape(N, d), z[st.zero_index].reshape(-1, d)])
+    groups = np.unique(meas.group[keep], return_inverse=True)[1].ravel()
+    return EM.estimate(st, Y, np.ones(len(Y)), groups, des.union().reshape(N, d, -1), lrt=False, start=em)
 
 
 def _reml_of_rows(em, X: np.ndarray) -> float:
@@ -1913,17 +1926,14 @@ def _reml_of_rows(em, X: np.ndarray) -> float:
     return float(em.loglik + Y.shape[1] * np.log(weights).sum() - np.log(sv[keep]).sum())
 
 
-def _noise_trend_p(em, des: Design, em_constant, des_constant: Design, k: int) -> float | None:
+def _noise_trend_p(em, des: Design, em_constant, des_constant: Design, k: int) -> float:
     """The p-value of the likelihood-ratio test of the noise weights (a variance function of k coefficients beyond
     the constant, fitted) against constant noise, each with its REML error model of the rows' shared errors
     (``em`` on the weighted design ``des``, ``em_constant`` on ``des_constant``): chi^2 on k degrees of freedom.
     The replicates' test (:func:`variance_model`) does not see the shared errors, and the refits on the
     residuals can trade them for weights (a fresh user's clean 4R log: weights by a factor 3 took the reference
     readings' error for noise, REML set it to zero, and the rows fitted as independent named joint_coupling at
-    p = 1e-7). None where the two fits do not hold the same rows (the screening of unloaded rows differed)."""
-    if em.arrays is None or em_constant.arrays is None or not np.array_equal(
-            em.structure.zero_index, em_constant.structure.zero_index):
-        return None
+    p = 1e-7). Both must hold the same rows (:func:`_constant_noise_model`)."""
     stat = 2.0 * (_reml_of_rows(em, des.union()) - _reml_of_rows(em_constant, des_constant.union()))
     return float(dist.chi2_sf(max(stat, 0.0), k)) if stat > 0 else 1.0
 
