@@ -973,6 +973,38 @@ def test_the_kenward_roger_f_test_is_the_exact_test_where_the_plug_in_test_is_no
     assert np.mean(p_plain <= 0.05) > 0.05 + 5 * se, np.mean(p_plain <= 0.05)
 
 
+def test_the_kenward_roger_f_test_of_two_directions_is_the_exact_test():
+    """The block tests of the closed test are multi-dimensional: two covariates that vary between groups only (8
+    groups of 3 rows, lambda = 1.5), tested together; the exact test is the F(2, 5) of the group means' regression
+    on both. Kenward-Roger's p-value equals it to round-off in every one of 200 replicates."""
+    rng = np.random.default_rng(5)
+    G, n = 8, 3
+    x1, x2 = np.linspace(-1.0, 1.0, G), np.cos(np.arange(G))
+    X = [np.stack([np.ones(n), np.full(n, x1[g]), np.full(n, x2[g])], -1)[:, None, :] for g in range(G)]
+    D = np.stack([np.ones(G), x1, x2], -1)
+    worst = 0.0
+    for _ in range(200):
+        Y = rng.normal(size=(G, 1)) * np.sqrt(1.5) + rng.normal(size=(G, n))
+        blocks = [{"rows": np.arange(n) + g * n, "Y": Y[g][:, None], "Z": {0: np.ones((n, 1))}, "L": np.eye(n),
+                   "X": X[g], "D": None} for g in range(G)]
+        lik = EM._Likelihood.of(blocks, [0])
+        lam_hat, _ = EM._maximise(lik, 1)
+        kr = EM.kenward_roger(blocks, lam_hat)
+        if kr is None:
+            continue
+        Hs = [EM._covariance(b, lam_hat) for b in blocks]
+        M = sum(b["X"][:, 0].T @ np.linalg.solve(H, b["X"][:, 0]) for b, H in zip(blocks, Hs))
+        beta = np.linalg.solve(M, sum(b["X"][:, 0].T @ np.linalg.solve(H, b["Y"][:, 0]) for b, H in zip(blocks, Hs)))
+        U = np.linalg.qr(kr.basis.T @ np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))[0]  # both slopes' directions
+        p_kr = kr.f_test(U, U.T @ (kr.basis.T @ M @ beta), lik.sigma2(lam_hat), G * n - 3)
+        means = Y.mean(axis=1)
+        full = np.linalg.lstsq(D, means, rcond=None)[1][0]
+        null = float(((means - means.mean()) ** 2).sum())
+        p_exact = stats.f.sf(((null - full) / 2) / (full / (G - 3)), 2, G - 3)
+        worst = max(worst, abs(p_kr - p_exact))
+    assert worst < 1e-7, worst
+
+
 def _trend_test_fires(robot, protocol: T.Protocol, seeds: range, tmp_path) -> int:
     """How many of the clean lab logs of ``protocol`` (one per seed, read from their CSV with pose_id as a lab's)
     make the replicate-based test of a noise trend (stiffcal.measured.discrepancy.variance_model) weight the rows."""
