@@ -836,25 +836,26 @@ def test_a_missing_or_foreign_srdf_is_named(tmp_path, capsys):
 
 def test_a_test_pose_whose_cable_meets_the_cell_is_said_so(tmp_path):
     """A fresh user's Z1 on a table: hanging masses could not hang at the test pose (the cable lay on the table), and
-    the design's note said 'a body within the clearance'. Here the 2-link arm at (30, 30) deg with a box under its
-    tool point: the tool point is at (0.72, 0.65) m, beyond the elbow, and the cable runs straight down through the
-    box (0.67-0.77 m by 0.10-0.20 m), while both links stay more than their radius and clearance away from it (by
-    hand below); the note names the cable. Without the box the note is absent."""
-    q = np.radians([30.0, 30.0])
+    the design's note said 'a body within the clearance'. Here the 2-link arm at (60, -90) deg with a box under its
+    tool point: link 2 descends from the elbow (0.30, 0.52) m to the tool point (0.646, 0.32) m, and the cable runs
+    straight down through the box (0.10 m square about (0.646, 0.15) m), while both links stay more than their
+    radius and clearance away from it (by hand below); the note names the cable. Without the box the note is
+    absent (the cable hangs clear of link 2, which rises away from the tool point)."""
+    q = np.radians([60.0, -90.0])
     elbow = 0.6 * np.array([np.cos(q[0]), np.sin(q[0])])
     tool = elbow + 0.4 * np.array([np.cos(q.sum()), np.sin(q.sum())])
-    assert 0.67 < tool[0] < 0.77 and tool[1] > 0.2 and tool[0] > elbow[0] + 0.1  # the cable meets the box only
+    assert abs(tool[0] - 0.646) < 1e-3 and tool[1] > 0.2 and tool[1] < elbow[1]  # the cable meets the box only
     t = np.linspace(0, 1, 2001)[:, None]
     pts = np.vstack([t * elbow, elbow + t * (tool - elbow)])
-    gap = np.maximum(np.abs(pts - [0.72, 0.15]) - 0.05, 0.0)
+    gap = np.maximum(np.abs(pts - [tool[0], 0.15]) - 0.05, 0.0)
     assert np.linalg.norm(gap, axis=1).min() > 0.04 + 0.02  # the links clear the box by radius and clearance
     cell = ("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: -0.1\n"
             "  clearance_m: 0.02\n  link_radius_m: 0.04\n")
-    for box, said in (("  boxes:\n    - {name: stand, center_m: [0.72, 0.15], size_m: [0.1, 0.1]}\n", True),
+    for box, said in ((f"  boxes:\n    - {{name: stand, center_m: [{tool[0]:.4f}, 0.15], size_m: [0.1, 0.1]}}\n", True),
                       ("", False)):
         path = tmp_path / "r.yaml"
         path.write_text(cell + box, encoding="utf-8")
-        res = stiffcal.design(path, [30, 30], [0, -100], experiments=2, loads="hanging:50,100")
+        res = stiffcal.design(path, [60, -90], [0, -100], experiments=2, loads="hanging:50,100")
         assert any("the cable of the hanging masses meets" in n for n in res.notes) == said, res.notes
 
 
@@ -877,20 +878,20 @@ def test_self_collision_without_an_srdf_is_noted(tmp_path):
 
 def test_the_cable_keeps_its_clearance(tmp_path):
     """A fresh user's UR10: the plan's cable of hanging masses passed 27 um from the wrist's mesh, which the cell
-    allowed (the cable is a line that must not touch). cable_clearance_m keeps it off: the 2-link arm at (30, 30)
-    deg, whose cable runs straight down from the tool point at x = 0.7196 m, beside a box whose edge is at
-    x = 0.75 m (3.0 cm away, by hand): free with no clearance and with 2 cm, not with 5 cm; the floor it ends on is
-    no obstacle to it."""
+    allowed (the cable is a line that must not touch). cable_clearance_m keeps it off: the 2-link arm at (60, -90)
+    deg, whose cable runs straight down from the tool point at x = 0.6464 m (link 2 rising away from it), beside a
+    box whose edge is at x = 0.6764 m (3.0 cm away, by hand): free with no clearance and with 2 cm, not with 5 cm;
+    the floor it ends on is no obstacle to it."""
     from stiffcal.model.workcell import feasible
 
-    q = np.radians([[30.0, 30.0]])
+    q = np.radians([[60.0, -90.0]])
     tool_x = 0.6 * np.cos(q[0, 0]) + 0.4 * np.cos(q[0].sum())
-    assert abs((0.75 - tool_x) - 0.0304) < 1e-3
+    assert abs((0.6764 - tool_x) - 0.0300) < 1e-3
     for clearance, free in ((0.0, True), (0.02, True), (0.05, False)):
         path = tmp_path / f"c{clearance}.yaml"
         path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: -0.1\n"
                         f"  link_radius_m: 0.04\n  cable_clearance_m: {clearance}\n  boxes:\n"
-                        "    - {name: stand, center_m: [0.85, 0.15], size_m: [0.2, 0.1]}\n", encoding="utf-8")
+                        "    - {name: stand, center_m: [0.7764, 0.15], size_m: [0.2, 0.1]}\n", encoding="utf-8")
         assert feasible(load_robot(path), q, hanging=True)[0] == free, clearance
 
 
@@ -902,12 +903,110 @@ def test_a_hanging_mass_that_would_rest_on_the_table_is_refused(tmp_path):
     cable_length_m the cable still runs down to the table, unchecked."""
     from stiffcal.model.workcell import feasible
 
-    q = np.radians([[60.0, -30.0], [20.0, 0.0]])
-    height = 0.6 * np.sin(q[:, 0]) + 0.4 * np.sin(q.sum(axis=1))  # 0.7196 and 0.3420 m above the base
-    assert np.allclose(height, [0.7196, 0.3420], atol=1e-4)
-    for length, free in (("0.3", [True, True]), ("0.5", [True, False]), ("0.8", [False, False]), (None, [True, True])):
+    q = np.radians([[90.0, -120.0], [45.0, -90.0]])  # link 2 descending to the tool point: the cable clears it
+    height = 0.6 * np.sin(q[:, 0]) + 0.4 * np.sin(q.sum(axis=1))  # 0.4000 and 0.1414 m above the base
+    assert np.allclose(height, [0.4, 0.1414], atol=1e-4)
+    for length, free in (("0.1", [True, True]), ("0.3", [True, False]), ("0.5", [False, False]), (None, [True, True])):
         path = tmp_path / f"c{length}.yaml"
         path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: 0.0\n"
                         "  link_radius_m: 0.02\n" + (f"  cable_length_m: {length}\n" if length else ""),
                         encoding="utf-8")
         assert list(feasible(load_robot(path), q, hanging=True)) == free, length
+
+
+def test_the_cable_is_checked_against_the_link_it_hangs_from(tmp_path):
+    """A fresh user's UR10: a cable from a flange facing sideways or up ran through the flange's own link (22-49 mm
+    inside wrist_3_link in 18 of 34 planned poses), which was never checked. The 2-link arm (links 0.6 and 0.4 m,
+    radius 0.04 m, a 0.3 m cable): at (0, 90) deg link 2 stands straight up from (0.6, 0) to the tool point
+    (0.6, 0.4), and the cable runs down its axis to (0.6, 0.1), 0.1 m clear of link 1 (by hand below): refused; at
+    (0, 0) it hangs from the tip of a horizontal link 2: free."""
+    from stiffcal.model.workcell import feasible
+
+    q = np.radians([[0.0, 90.0], [0.0, 0.0]])
+    bottom = np.array([0.6, 0.4 - 0.3])
+    assert np.hypot(*(bottom - [0.6, 0.0])) - 0.04 > 0.05  # the cable's end is clear of link 1 at (0.6, 0)
+    path = tmp_path / "r.yaml"
+    path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: -0.5\n"
+                    "  link_radius_m: 0.04\n  cable_length_m: 0.3\n", encoding="utf-8")
+    assert list(feasible(load_robot(path), q, hanging=True)) == [False, True]
+    assert list(feasible(load_robot(path), q)) == [True, True]  # without a cable both poses are free
+
+
+def test_a_ur10_cable_through_its_own_flange_is_refused_as_the_meshes_say(tmp_path):
+    """The fresh user's UR10 pose (tool point at tool0's origin, the flange 25 deg above horizontal, 48.5 mm of
+    cable inside wrist_3_link by the user's check) against a pose whose flange faces down: stiffcal's check with
+    the cable against the link it hangs from agrees with coal on the collision meshes (the cable from 1 mm below
+    the tool point)."""
+    import coal
+    import pinocchio as pin
+
+    from stiffcal.model.workcell import feasible
+
+    root = real_arms.robots_dir()
+    urdf = root / real_arms.ARMS["ur10"][0]
+    path = tmp_path / "ur10.yaml"
+    path.write_text(f"name: ur10\nkind: urdf\nurdf: {urdf}\nbase_frame: base_link\ntip_frame: tool0\n"
+                    "tool_m: [0, 0, 0]\ncell:\n  floor_m: -0.8\n  cable_length_m: 0.45\n", encoding="utf-8")
+    robot = load_robot(path)
+    q = np.radians([[15.14, -43.34, -116.84, -174.84, -90.00, 143.85], [0.0, -90.0, 90.0, -90.0, -90.0, 0.0]])
+    model = pin.buildModelFromUrdf(str(urdf))
+    geom = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[str(root.parent.parent)])
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    wrist = [i for i, g in enumerate(geom.geometryObjects) if g.name.startswith("wrist_3_link")]
+    hits = []
+    for x in q:
+        pin.forwardKinematics(model, data, x)
+        pin.updateFramePlacements(model, data)
+        pin.updateGeometryPlacements(model, data, geom, gdata)
+        top = data.oMf[model.getFrameId("tool0")].translation - [0.0, 0.0, 1e-3]
+        cable = coal.Capsule(1e-6, 0.45 - 1e-3)
+        where = coal.Transform3s(np.eye(3), top - [0.0, 0.0, (0.45 - 1e-3) / 2])
+        hits.append(any(coal.collide(geom.geometryObjects[i].geometry, coal.Transform3s(gdata.oMg[i].rotation,
+                                     gdata.oMg[i].translation), cable, where, coal.CollisionRequest(),
+                                     coal.CollisionResult()) for i in wrist))
+    assert hits == [True, False]
+    assert list(feasible(robot, q, hanging=True)) == [False, True]
+
+
+@needs_arms
+def test_an_obstacle_through_the_fixed_base_is_refused(tmp_path):
+    """A fresh user's Panda with a wall at x = -0.08 m: link0's collision mesh reaches x = -0.154 m (its vertices,
+    read here), 74 mm into the wall, and the cell was accepted in silence (no joint moves the base, so it was never
+    checked). Refused now, naming both and the depth from the mesh; the wall 0.2 m further back (the pose free),
+    or the pair ignored, is accepted, and the table top under the base (floor_m 0, the mesh touching it) is no
+    overlap."""
+    import pinocchio as pin
+
+    root = real_arms.robots_dir()
+    urdf = root / real_arms.ARMS["panda"][0]
+    model = pin.buildModelFromUrdf(str(urdf))
+    geom = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[str(root.parent.parent)])
+    link0 = [g.geometry for g in geom.geometryObjects if g.name.startswith("panda_link0")][0]
+    reach = min(float(link0.vertices(i)[0]) for i in range(link0.num_vertices))  # the mesh's placement is the origin
+    depth_mm = round((-0.08 - reach) * 1e3)
+    assert 70 <= depth_mm <= 80
+    from stiffcal.model.workcell import feasible
+
+    q = np.radians([[10, 20, 0, -120, 0, 140, 45]])
+    ignore = "  ignore_pairs: [[panda_link0, wall]]\n"
+    for offset, extra, refused in ((-0.08, "", True), (-0.28, "", False), (-0.08, ignore, False)):
+        wall = f"  half_spaces:\n    - {{name: wall, normal: [1, 0, 0], offset_m: {offset}}}\n"
+        path = real_arms.write_robot_file("panda", tmp_path, floor_m=0.0, extra=wall + extra)
+        if refused:
+            with pytest.raises(InputError, match=f"wall cuts {depth_mm} mm into panda_link0"):
+                feasible(load_robot(path), q)
+        else:  # no refusal (with the pair ignored the wall still meets link1, which turns about the base)
+            assert feasible(load_robot(path), q)[0] == (offset == -0.28)
+
+
+def test_a_cable_longer_than_the_drop_is_named_when_no_pose_is_left(tmp_path):
+    """A fresh user's UR10 with a 3 m cable over a floor 0.8 m below the base: refused with a message that never
+    said cable_length_m. The 2-link arm (reach 1 m) over a floor 0.5 m below its base with a 2 m cable: no tool
+    point is 2 m above the floor, so no pose is left with hanging masses; the message names the cable's length,
+    and the same arm plans without hanging masses."""
+    path = tmp_path / "r.yaml"
+    path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: -0.5\n"
+                    "  link_radius_m: 0.02\n  cable_length_m: 2.0\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"cable_length_m 2 m, from the tool point to the mass's lowest point"):
+        stiffcal.design(path, [30, 30], [0, -100], experiments=2, loads="hanging:50,100")
+    assert stiffcal.design(path, [30, 30], [0, -100], experiments=2).poses_deg.shape == (2, 2)
