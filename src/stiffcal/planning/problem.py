@@ -726,7 +726,8 @@ def plan_summary(study, plan_deg: np.ndarray) -> dict:
     spec = spectral(M)  # one eigen-decomposition for both
     cov_p = functional_variance(M, np.eye(M.shape[-1]), study.sigma, spec)  # covariance_diagonal
     ot = np.where(np.all(np.isfinite(cov_p), axis=-1), criteria.o_t(M, prob.At, study.sigma, spec), np.inf)
-    out = {"O_t": ot, "chi": prob.ot_star(m) / np.asarray(ot, float)}
+    with np.errstate(invalid="ignore"):  # inf / inf (no plan identifies the test pose's parameters): chi undefined
+        out = {"O_t": ot, "chi": prob.ot_star(m) / np.asarray(ot, float)}
     cov = np.full(cov_p.shape[:-1] + (n,), np.inf)  # a joint the measurements never see: not identifiable
     cov[..., prob.params] = cov_p
     for i, (e, dk) in enumerate(zip(study.robot.joint_columns("E_dk"), study.robot.joint_columns("dk"))):
