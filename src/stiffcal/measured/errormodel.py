@@ -1067,10 +1067,11 @@ class KenwardRoger:
     def f_test(self, U: np.ndarray, zU: np.ndarray, s2: float, df: int) -> float:
         """The p-value of the Kenward-Roger F-test that the fixed effects' combination U^T c is zero (Kenward &
         Roger, *Biometrics* 53, 1997, sec. 4; Halekoh & Hojsgaard, *J. Stat. Softw.* 59(9), 2014, sec. 3):
-        U (r, q) orthonormal columns in :attr:`basis`'s coordinates c, zU (q,) the estimate of U^T c [sigma units
-        of the plug-in covariance s2 I], s2 the error variance on df degrees of freedom. The statistic uses the
-        adjusted covariance Phi_A = s2 (I + 2 U^T Lambda U); lambda F ~ F(q, m), with m the denominator degrees of
-        freedom the estimated components leave (at most df: the plug-in test's, which takes them as known)."""
+        U (r, q) orthonormal columns in :attr:`basis`'s coordinates c (in which the plug-in covariance of the
+        estimate is s2 I), zU (q,) the estimate of U^T c, s2 the error variance on df degrees of freedom. The
+        statistic uses the adjusted covariance Phi_A = s2 (I + 2 U^T Lambda U); lambda F ~ F(q, m), with m the
+        denominator degrees of freedom the estimated components leave (at most df: the plug-in test's, which takes
+        them as known)."""
         q = U.shape[1]
         if q == 0 or not s2 > 0:
             return 1.0
