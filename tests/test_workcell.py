@@ -1010,3 +1010,20 @@ def test_a_cable_longer_than_the_drop_is_named_when_no_pose_is_left(tmp_path):
     with pytest.raises(InputError, match=r"cable_length_m 2 m, from the tool point to the mass's lowest point"):
         stiffcal.design(path, [30, 30], [0, -100], experiments=2, loads="hanging:50,100")
     assert stiffcal.design(path, [30, 30], [0, -100], experiments=2).poses_deg.shape == (2, 2)
+
+
+def test_a_test_pose_inside_an_obstacle_names_the_pair(tmp_path):
+    """A fresh user's Panda test pose inside a fixture: the note did not say which body met what. The 2-link arm
+    at (0, 0) deg lies along the x axis to x = 1 m; a box of 0.1 m about (0.8, 0) m holds link 2 (its axis
+    0.05 m inside the box, by hand): the note names link2 and the box with the signed distance the cell reports."""
+    from stiffcal.model.workcell import clearance
+
+    path = tmp_path / "r.yaml"
+    path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: -0.5\n"
+                    "  link_radius_m: 0.02\n  boxes:\n"
+                    "    - {name: fixture, center_m: [0.8, 0.0], size_m: [0.1, 0.1]}\n", encoding="utf-8")
+    d, names = clearance(load_robot(path), np.radians([[0.0, 0.0]]))
+    assert names[0] == "link2-fixture" and d[0] < -0.05
+    res = stiffcal.design(path, [0, 0], [0, -100], experiments=2)
+    assert any("the test pose itself cannot be taken" in n and f"closest: link2-fixture at {d[0] * 1e3:.3g} mm" in n
+               for n in res.notes), res.notes

@@ -456,9 +456,10 @@ def _ot_bound(inp: _DesignInputs, found: _Found):
 
 def _test_pose_cell_note(robot: Robot, base, q_t: np.ndarray) -> list[str]:
     """A note when the test pose q_t (n,) [rad] cannot be taken in the cell, saying why: a body within the
-    clearance, or (with hanging masses) only the cable, which meets a body or an obstacle (a fresh user's Z1 on a
-    table: told 'a body within the clearance' where the cable lay on the table)."""
-    from .model.workcell import feasible
+    clearance (naming the closest pair and its distance), or (with hanging masses) only the cable, which meets a
+    body or an obstacle (a fresh user's Z1 on a table: told 'a body within the clearance' where the cable lay on
+    the table)."""
+    from .model.workcell import clearance, feasible
 
     if base.feasible(q_t[None])[0]:
         return []
@@ -466,7 +467,9 @@ def _test_pose_cell_note(robot: Robot, base, q_t: np.ndarray) -> list[str]:
         why = ("the cable of the hanging masses meets a body or an obstacle there (the arm itself is clear: the "
                "masses cannot hang at the test pose, though a push there can be measured)")
     else:
-        why = "a body within the clearance of an obstacle or of another body"
+        d, names = clearance(robot, q_t[None])
+        closest = f"; closest: {names[0]} at {d[0] * 1e3:.3g} mm" if names[0] and np.isfinite(d[0]) else ""
+        why = "a body within the clearance of an obstacle or of another body" + closest
     return [f"the test pose itself cannot be taken in the cell ({why}): the plan predicts its compensation error all "
             "the same"]
 

@@ -281,6 +281,13 @@ class Robot:
     cell: object = field(default=None, compare=False)
     urdf_info: dict | None = field(default=None, compare=False)
 
+    def __repr__(self) -> str:
+        """One line (the dataclass's repr printed every array of the chain, its masses and calibration)."""
+        extras = [x for x, on in (("masses", self.masses is not None), ("calibrated", self.calibration is not None),
+                                  ("cell", self.cell is not None)) if on]
+        return (f"Robot({self.name!r}, kind={self.kind!r}, joints={list(self.joint_names)}, source={self.source!r}"
+                + "".join(f", {x}" for x in extras) + ")")
+
     def __post_init__(self):
         if not self.joint_names:
             object.__setattr__(self, "joint_names", default_joint_names(self.n_joints))
