@@ -508,3 +508,26 @@ def test_power_bound_holds_for_the_plan_itself(lab3):
                             pair["df_den"], cert["bound_m2"] / out["sigma_m"] ** 2)
     assert pair["power"] <= at_bound + 1e-12 and at_bound <= cert["power_bound"] + 1e-12
     assert plan["power"] <= cert["power_bound"]
+
+
+def test_no_rival_note_says_why_the_verdict_s_other_causes_are_not_rivals():
+    """A fresh user's UR10: the verdict listed indistinguishable_from [backlash] while discriminate said 'the data
+    single out nonlinear_joint_stiffness; nothing to discriminate', which read as a contradiction. The note now says
+    that those causes are needed with the named one, not equally good combinations, and how to plan against them;
+    without such causes it stays as it was."""
+    from types import SimpleNamespace
+
+    from stiffcal.measured.discrimination import _rival_notes
+
+    truth = SimpleNamespace(label="nonlinear_joint_stiffness", causes=("nonlinear_joint_stiffness",))
+    rm = SimpleNamespace(models=(truth,), truth=truth)
+    tests = {c: {"significant": c == "nonlinear_joint_stiffness"} for c in ("nonlinear_joint_stiffness", "backlash")}
+    verdict = {"cause": "nonlinear_joint_stiffness", "causes": ["nonlinear_joint_stiffness"], "tests": tests,
+               "indistinguishable_from": ["backlash"], "equivalent_combinations": [], "p_value": 1e-4,
+               "nominal": {"noise_varies": None}}
+    notes = _rival_notes(verdict, rm, [], [])
+    assert any("the data single out nonlinear_joint_stiffness" in n and "indistinguishable_from, {backlash}" in n
+               and "combinations=" in n for n in notes), notes
+    verdict["indistinguishable_from"] = []
+    assert _rival_notes(verdict, rm, [], []) == ["no rival combination: the data single out nonlinear_joint_stiffness; "
+                                                 "nothing to discriminate"]

@@ -1107,7 +1107,12 @@ def _rival_notes(verdict: dict, rm: "RivalModels", seps, pairs) -> list[str]:
                      "holds only if that combination is real")
     if len(rm.models) == 1:
         what = rm.truth.label if rm.truth.causes else "no cause (the nominal model)"
-        notes.append(f"no rival combination: the data single out {what}; nothing to discriminate")
+        others = [c for c in verdict.get("indistinguishable_from") or [] if c not in rm.truth.causes]
+        besides = (f" (the verdict's indistinguishable_from, {{{', '.join(others)}}}, are causes of which the data "
+                   f"need at least one with {what}, not combinations that explain the data as well: "
+                   "equivalent_combinations is empty, so no rival is fitted as well to plan against; the API's "
+                   "rivals_from_verdict takes combinations= to plan against them)" if others else "")
+        notes.append(f"no rival combination: the data single out {what}; nothing to discriminate{besides}")
     elif not pairs:
         notes.append("no plan of these measurements can separate the rivals; " + "; ".join(
             s.reason for s in seps if not s.separable and s.truth == 0))
