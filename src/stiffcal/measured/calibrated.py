@@ -273,9 +273,9 @@ def _negative_compliance_notes(robot: Robot, cal) -> list[str]:
     k = cal.compliances(robot.n_joints)
     sd = np.full(robot.n_joints, np.inf)
     sd[list(cal.k_joints)] = np.sqrt(np.clip(np.diag(cal.cov)[: len(cal.k_joints)], 0.0, None))
-    beyond = [robot.joint_names[j] for j in range(robot.n_joints) if k[j] < 0 and k[j] + 1.96 * sd[j] < 0]
-    within = [f"{robot.joint_names[j]} ({k[j]:.3g} +- {1.96 * sd[j]:.2g} rad/(N m), 95 %)"
-              for j in range(robot.n_joints) if k[j] < 0 and not k[j] + 1.96 * sd[j] < 0]
+    far, near = _below_zero(k, sd)
+    beyond = [robot.joint_names[j] for j in far]
+    within = [f"{robot.joint_names[j]} ({k[j]:.3g} +- {1.96 * sd[j]:.2g} rad/(N m), 95 %)" for j in near]
     notes = []
     if beyond:
         notes.append(f"the calibrated model's compliance of joint(s) {', '.join(beyond)} is negative beyond its 95 % "
@@ -287,6 +287,13 @@ def _negative_compliance_notes(robot: Robot, cal) -> list[str]:
                      "its interval of zero: its data barely determine it, so a row whose load turns that joint has a "
                      "large sd; measure with loads that turn it to identify it")
     return notes
+
+
+def _below_zero(value: np.ndarray, sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(beyond, within): the indices of the values (n,) below zero beyond their 95 % interval (z = 1.96 with their
+    sd (n,)), and of those below zero within it."""
+    negative, far = value < 0, value + 1.96 * sd < 0
+    return np.flatnonzero(negative & far), np.flatnonzero(negative & ~far)
 
 
 def _backlash_gaps(robot: Robot, cal) -> dict:
@@ -305,10 +312,12 @@ def _negative_backlash_notes(robot: Robot, cal) -> list[str]:
     """Notes on the calibrated backlash gaps below zero, which no gear has (its predictions put the jump against the
     load): beyond the 95 % interval, or within it (barely determined; a fresh user's iiwa had b5 = -1.6e-4 rad
     against a true +1e-4, and its predictions used it without a word)."""
-    gaps = {j: v for j, v in _backlash_gaps(robot, cal).items() if v[0] < 0}
-    text = {j: f"{robot.joint_names[j]} ({b:.3g} +- {1.96 * sd:.2g} rad, 95 %)" for j, (b, sd) in gaps.items()}
-    beyond = [text[j] for j, (b, sd) in gaps.items() if b + 1.96 * sd < 0]
-    within = [text[j] for j, (b, sd) in gaps.items() if not b + 1.96 * sd < 0]
+    gaps = _backlash_gaps(robot, cal)
+    joints = list(gaps)
+    b, sd = (np.array([gaps[j][i] for j in joints], float).reshape(-1) for i in (0, 1))
+    text = [f"{robot.joint_names[j]} ({gaps[j][0]:.3g} +- {1.96 * gaps[j][1]:.2g} rad, 95 %)" for j in joints]
+    far, near = _below_zero(b, sd)
+    beyond, within = [text[i] for i in far], [text[i] for i in near]
     notes = []
     if beyond:
         notes.append(f"the calibrated model's backlash of joint(s) {', '.join(beyond)} is negative beyond its 95 % "

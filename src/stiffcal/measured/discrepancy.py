@@ -1540,6 +1540,18 @@ def _scale_notes(robot: Robot, k: np.ndarray, k_ci: np.ndarray, params: np.ndarr
 ZERO_POINT_MAX_OUTLIERS = 0.2
 
 
+def unloaded_rows(meas: Measurements, rw: float) -> np.ndarray:
+    """(N0, w): the unloaded rows' measured components as the loaded rows' are stacked, the rotation weighted by
+    rw [m/rad]."""
+    return meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+
+
+def group_indices(group: np.ndarray) -> np.ndarray:
+    """(N,) the replicate groups ``group`` (N,) renumbered 0, 1, ... (as :func:`stiffcal.measured.errormodel.estimate`
+    takes them)."""
+    return np.unique(group, return_inverse=True)[1].ravel()
+
+
 def zero_weights(meas: Measurements, keep: np.ndarray, w: np.ndarray) -> np.ndarray:
     """(N0,): the weight of every unloaded row: that of the first kept loaded row at its configuration (w:
     the weights of the kept rows ``keep`` (bool (N,)) of ``meas``), 1 where none is."""
@@ -1572,7 +1584,7 @@ def noise_variance(des: Design, meas: Measurements) -> Noise:
 
     _check_noise_df(des, meas.group, meas.source)
     N = len(des.y) // des.d
-    groups = np.unique(meas.group, return_inverse=True)[1].ravel()
+    groups = group_indices(meas.group)
     em = EM.estimate(EM.independent(N), des.y.reshape(N, des.d), np.ones(N), groups,
                      des.union().reshape(N, des.d, -1))
     return Noise(em.sigma2, em.df, em.source, em.ss_pe, em.df_pe)
@@ -1615,8 +1627,8 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     N, d = int(keep.sum()), des.d
     _check_noise_df(des, meas.group[keep], meas.source)
     Yl, Xu = des.y.reshape(N, d), des.union().reshape(N, d, -1)
-    groups = np.unique(meas.group[keep], return_inverse=True)[1].ravel()
-    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+    groups = group_indices(meas.group[keep])
+    z = unloaded_rows(meas, rw)
     zw = z * w0[:, None] if len(z) else z.reshape(0, d)
     out, p_out = [], []
 
@@ -1662,7 +1674,7 @@ def _zero_point_summary(meas: Measurements, em, out: list, p_out: list, p_shift,
     n0 = len(meas.zero_rows)
     if n0 == 0:
         return None
-    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+    z = unloaded_rows(meas, rw)
     exact = np.all(z == 0.0, axis=1)
     used = em.structure.zero_index
     noisy = np.setdiff1d(np.flatnonzero(~exact), out)
@@ -1909,9 +1921,9 @@ def _constant_noise_model(meas: Measurements, keep: np.ndarray, des: Design, em,
     from . import errormodel as EM
 
     st, N, d = em.structure, int(keep.sum()), des.d
-    z = meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
+    z = unloaded_rows(meas, rw)
     Y = np.vstack([des.y.reshape(N, d), z[st.zero_index].reshape(-1, d)])
-    groups = np.unique(meas.group[keep], return_inverse=True)[1].ravel()
+    groups = group_indices(meas.group[keep])
     return EM.estimate(st, Y, np.ones(len(Y)), groups, des.union().reshape(N, d, -1), lrt=False, start=em)
 
 
@@ -2682,9 +2694,9 @@ def _error_model_with(pre: Prepared, C: np.ndarray, lrt: bool):
     st = pre.error.structure
     N, d = pre.m.n_rows, pre.des.d
     idx = st.zero_index
-    z = pre.meas.zero_dp if pre.meas.zero_rot is None else np.hstack([pre.meas.zero_dp, pre.rw * pre.meas.zero_rot])
+    z = unloaded_rows(pre.meas, pre.rw)
     Y = np.vstack([pre.weighted.y.reshape(N, d), z[idx] * pre.w0[idx, None]])
-    groups = np.unique(pre.m.group, return_inverse=True)[1].ravel()
+    groups = group_indices(pre.m.group)
     return EM.estimate(st, Y, np.concatenate([pre.w, pre.w0[idx]]), groups, pre.weighted.union().reshape(N, d, -1),
                        drift=C, lrt=lrt, start=pre.error)
 
