@@ -85,6 +85,23 @@ def test_o_t_star_is_o_t_with_every_measurement_at_the_test_pose_for_a_six_axis_
     assert Problem(arm, np.array([0.0, 1.0]), "ot", 1, np.radians([60, 20])).ot_star(3) == 2 / 3
 
 
+def test_o_t_star_counts_a_direction_the_load_barely_moves_in_full():
+    """O_t* from the test pose's rows (criteria.o_t_of_rows): with every measurement at the test pose, each
+    measured coordinate counts sigma^2 / (m sum s^2) however small its deflection (eq. 17: trace(A_t (A_t^T A_t)^+
+    A_t^T) = rank A_t). A coordinate a billion times smaller than the others (a vertical hanging mass seen from
+    the side, as on an iiwa) made the information A^T A round it off: O_t* and chi came out inf."""
+    rng = np.random.default_rng(4)
+    At = rng.normal(size=(3, 5)) * 80.0
+    At[1] *= 1e-9  # the load barely moves the tool along y at the test pose
+    scales = np.array([0.25, 0.5, 1.0])  # three hanging masses along the test load
+    A1 = np.concatenate([s * At for s in scales])
+    expected = 3 * 1e-10 / (8 * np.sum(scales**2))
+    assert criteria.o_t_of_rows(A1, At, 1e-5) / 8 == pytest.approx(expected, rel=1e-6)
+    assert criteria.o_t(8 * A1.T @ A1, At, 1e-5) == np.inf  # what the information alone gives
+    other = rng.normal(size=(1, 5))  # a test deflection the measurements cannot give
+    assert criteria.o_t_of_rows(A1, np.vstack([At, other]), 1e-5) == np.inf
+
+
 def test_every_list_of_criteria_is_the_registry_s(root):
     """The config schema's enum and default (taken from the registry when the schema is read), the CLI's help and
     the docs' table of criteria name exactly the registered criteria (stiffcal.model.criteria.CRITERIA), and the

@@ -237,16 +237,19 @@ def _flag(value, field: str) -> bool:
     return bool(value)
 
 
-def design_estimate_s(robot: Robot, m: int, single: bool = True) -> list[tuple[str, float]]:
+def design_estimate_s(robot: Robot, m: int, single: bool = True, n_loads: int = 1) -> list[tuple[str, float]]:
     """The stages of :func:`design` with a rough estimate of their seconds on one core of a 2-core machine like
-    CI's (fitted to runs of 2-20-joint planar and 3-10-joint spatial arms: within a factor of about 3; the
-    progress lines scale what is left by how the stages so far compared with their estimates). single: the
-    single-pose search runs (one pose identifies every compliance)."""
+    CI's (fitted to runs of 2-20-joint planar and 3-10-joint spatial arms, and of UR10, Panda and iiwa in cells
+    under hanging masses: within a factor of about 3; the progress lines scale what is left by how the stages so
+    far compared with their estimates). single: the single-pose search runs (one pose identifies every
+    compliance); n_loads: the loads of every measurement pose (``loads``). In a cell the approximate design is
+    computed twice (over the feasible poses, and over the joint space for the bound that holds for every plan)."""
     n = robot.n_joints
     if robot.planar:
         approx, plan = 0.3 + 0.75 * n, 19.0 * (n / 10) ** 3.85
     else:
         approx, plan = 1.5 + 30.0 * (n / 10) ** 8, 0.5 + 5.0 * (n / 10) ** 8
+    approx *= (2.0 if robot.cell is not None else 1.0) * (1.5 if n_loads > 1 else 1.0)
     stages = [("single pose", 0.6 if single else 0.05), ("approximate design and certificate", approx)]
     return stages + ([(f"plan of {m} poses", plan + 0.01 * m)] if m > 1 else [])
 
@@ -319,7 +322,8 @@ def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int 
     inp = _design_inputs(robot, test_pose_deg, force_N, wrench, experiments, criterion, sigma, targets, orientation,
                          sigma_rad, test_target, orientation_length_m, joint_limits_deg, loads, cell, candidates, seed,
                          cache_dir)
-    stages = design_estimate_s(inp.robot, inp.m, inp.m == 1)
+    n_loads = 1 if inp.meas_loads is None else len(inp.meas_loads.wrenches)
+    stages = design_estimate_s(inp.robot, inp.m, inp.m == 1, n_loads)
     with one_blas_thread(), _stages(progress if progress is None else _flag(progress, "progress"), stages) as bar:
         found = _search(inp, bar)
     return _design_result(inp, found)

@@ -141,12 +141,14 @@ def _plans_progress(args, ms):
     if len(ms) == 1:
         return contextlib.nullcontext(None)
     from .api import design_estimate_s
+    from .model.observation import measurement_loads
     from .model.robot import load_robot
 
     robot = load_robot(args.robot)
+    n_loads = 1 if args.loads is None else len(measurement_loads(robot, args.loads).wrenches)
     stages = []
     for k, m in enumerate(ms):
-        est = design_estimate_s(robot, m, single=False)
+        est = design_estimate_s(robot, m, single=False, n_loads=n_loads)
         stages.append((f"plan of {m} poses ({k + 1} of {len(ms)} plans)",
                        sum(w for name, w in est if k == 0 or name.startswith("plan"))))
     return Progress("design", stages, enabled=False if args.quiet else None)

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .stiffness import functional_variance, spectral
+from .stiffness import ESTIMABLE_RTOL, functional_variance, spectral
 
 
 @dataclass(frozen=True)
@@ -109,6 +109,21 @@ def o_t(M: np.ndarray, At: np.ndarray, sigma: float = 1.0, spec=None) -> np.ndar
     from the plan; finite when M is singular only in directions the test pose does not see.
     """
     return np.sum(functional_variance(M, At, sigma, spec), axis=-1)
+
+
+def o_t_of_rows(A: np.ndarray, At: np.ndarray, sigma: float = 1.0) -> float:
+    """O_t of eq. 16 from a plan's stacked rows A (r, n) instead of its information A^T A:
+    ``sigma^2 trace(A_t (A^T A)^+ A_t^T) = sigma^2 ||A_t A^+||_F^2``, A^+ by the singular value decomposition of A,
+    which resolves a direction whose singular value is below the square root of round-off relative to the largest
+    (a component of the deflection the load barely makes: each measured direction counts in full however small, as
+    in ``trace(A_t (A_t^T A_t)^+ A_t^T) = rank A_t``), where A^T A cannot. At: (d, n). Returns [m^2 for sigma in m];
+    inf when A_t has a part outside A's row space (beyond ``ESTIMABLE_RTOL`` of its norm: not estimable)."""
+    A, At = np.asarray(A, float), np.asarray(At, float)
+    Z = At @ np.linalg.pinv(A)
+    leak = At - Z @ A
+    if np.sum(leak**2) > ESTIMABLE_RTOL**2 * max(float(np.sum(At**2)), np.finfo(float).tiny):
+        return float("inf")
+    return float(sigma**2 * np.sum(Z**2))
 
 
 def o_t_star(n: int, m: int, sigma: float = 1.0) -> float:

@@ -137,7 +137,28 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
                      source=problem.robot.source)
 
 
-def _phi_design(W, M):
+#: eigenvalues of a design's information matrix below this fraction of its largest are zero to working precision
+#: (its inverse has no correct digit along them: :func:`_phi_design`)
+SINGULAR_RTOL = 1e-12
+
+
+def _phi_design(W: np.ndarray, M: np.ndarray) -> tuple[float, np.ndarray]:
+    """(Phi, G): Phi(xi) = trace(W G) of a design's information M (n, n), W (n, n) = A_t^T A_t, and G (n, n) the
+    inverse of M that phi(x, xi) = ||A(x) G A_t^T||_F^2 uses. G = M^-1, except where M is singular to working
+    precision (eigenvalues at most :data:`SINGULAR_RTOL` of the largest) in directions W does not weigh (the test
+    pose's deflection does not depend on them either; e.g. the compliance of a joint that the test load does not
+    turn, which the design then leaves unloaded): G is then the pseudo-inverse on the other directions. That is
+    the design's Phi, taken as singular (a singular optimal design: Pukelsheim, *Optimal Design of Experiments*,
+    1993, secs. 3.10 and 7.19: a generalised inverse of M), and the certified bound Phi^2 / max_x phi holds with
+    any G (:meth:`ApproximateDesign.bound_with`), where M^-1 has no correct digit along those directions and
+    sends phi, and the bound, astray."""
+    ev, V = np.linalg.eigh(M)
+    small = ev <= SINGULAR_RTOL * ev[-1]
+    if small.any() and ev[-1] > 0:
+        N = V[:, small]
+        if float(np.sum(N * (W @ N))) <= SINGULAR_RTOL * float(np.trace(W)):
+            G = (V[:, ~small] / ev[~small]) @ V[:, ~small].T
+            return float(np.trace(W @ G)), G
     Minv = np.linalg.inv(M)
     return float(np.trace(W @ Minv)), Minv
 
@@ -176,7 +197,7 @@ class ApproximateDesign:
         (a plan's own poses, polished off the candidates): phi's maximum taken over both."""
         X = np.radians(np.asarray(self.support_deg, float))
         M = np.einsum("k,kij->ij", np.asarray(self.weights, float), _info(problem, X))
-        C = np.linalg.inv(M) @ problem.At.T
+        C = _phi_design(problem.At.T @ problem.At, M)[1] @ problem.At.T
         extra = float(np.max(np.sum((problem.rows(np.atleast_2d(poses_rad)) @ C) ** 2, axis=(-2, -1)),
                              initial=0.0))
         return sigma**2 * self.phi**2 / max(self.max_phi, extra) / m
@@ -310,7 +331,7 @@ def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, 
 
     def value(v):
         try:
-            val = float(np.trace(W @ np.linalg.inv((v @ P2).reshape(n, n))))
+            val = _phi_design(W, (v @ P2).reshape(n, n))[0]
         except np.linalg.LinAlgError:
             return np.inf
         return val if np.isfinite(val) and val > 0 else np.inf

@@ -38,7 +38,7 @@ from ..errors import InputError
 from ..model.observation import (Loads, Sensing, as_wrench, loaded_rows, observation_rows, sensed_params,
                           target_offsets, test_rows)
 from ..model.robot import TOOL_TARGET, Robot
-from ..model.stiffness import functional_variance, information_matrix, observation_matrix, pose_information, spectral
+from ..model.stiffness import functional_variance, information_matrix, observation_matrix, spectral
 from ..threads import single_threaded
 
 TWO_PI = 2.0 * np.pi
@@ -232,11 +232,11 @@ class Problem:
         paper's problem, n the number of parameters those measurements identify at a generic test pose: the
         number of compliances, or the number of measured coordinates d for an arm with more joints than d,
         where A_t has rank d; in general ``sigma^2 trace(A_t (m A_1^T A_1)^+ A_t^T)`` with A_1 the rows
-        measured at the test pose, inf when they cannot give the error at the test pose)."""
+        measured at the test pose (from the rows: :func:`stiffcal.model.criteria.o_t_of_rows`), inf when they cannot
+        give the error at the test pose)."""
         if self.is_default:
             return criteria.o_t_star(min(self.n_params, self.robot.task_dim), m, self.sigma)
-        A1 = self.rows(self.test_pose)
-        return float(criteria.o_t(m * pose_information(A1), self.At, self.sigma))
+        return criteria.o_t_of_rows(self.rows(self.test_pose).reshape(-1, self.n_params), self.At, self.sigma) / m
 
 
 def plan_observations(problem: Problem, q: np.ndarray) -> np.ndarray:
