@@ -1005,6 +1005,58 @@ def test_the_kenward_roger_f_test_of_two_directions_is_the_exact_test():
     assert worst < 1e-7, worst
 
 
+def test_a_shared_error_estimated_at_zero_keeps_its_groups_degrees_of_freedom():
+    """A fresh user's UR5 (8-15 configurations, a reference per configuration reused on a revisit) raised false
+    alarms in 4 of 200 clean logs at alpha = 1 %, all where REML put the reference readings' error at or near zero.
+    A component estimated at zero was left out of Kenward-Roger's test, which then took the rows' degrees of
+    freedom. In the balanced random-intercept design (6 groups of 4 rows, a slope between groups, lambda = 0.1 so
+    that the estimate is often zero): at every zero estimate the test now has the exact test's m = G - 2 = 4
+    (A1 = A2 = 2 / 4) and a p-value never below the exact test's (the pooled variance is at least the group means'
+    there), so it is never more liberal than the exact test; the plug-in test, as before, is below the exact test's
+    p-value in a sixth or more of those data sets."""
+    rng = np.random.default_rng(11)
+    G, n = 6, 4
+    x = np.linspace(-1.0, 1.0, G)
+    X = [np.stack([np.ones(n), np.full(n, x[g])], -1)[:, None, :] for g in range(G)]
+    ms, p_kr, p_exact, p_plain = [], [], [], []
+    for _ in range(400):
+        Y = rng.normal(size=(G, 1)) * np.sqrt(0.1) + rng.normal(size=(G, n))
+        blocks = [{"rows": np.arange(n) + g * n, "Y": Y[g][:, None], "Z": {0: np.ones((n, 1))}, "L": np.eye(n),
+                   "X": X[g], "D": None} for g in range(G)]
+        lik = EM._Likelihood.of(blocks, [0])
+        lam_hat, _ = EM._maximise(lik, 1)
+        if lam_hat[0] > 0:
+            continue
+        assert EM.kenward_roger(blocks, lam_hat) is None  # the component at zero is not in use by default
+        kr = EM.kenward_roger(blocks, lam_hat, np.array([True]))
+        s2, df = lik.sigma2(lam_hat), G * n - 2
+        M = sum(b["X"][:, 0].T @ b["X"][:, 0] for b in blocks)  # H = I at lambda = 0
+        beta = np.linalg.solve(M, sum(b["X"][:, 0].T @ b["Y"][:, 0] for b in blocks))
+        u = kr.basis.T @ np.array([0.0, 1.0])
+        U = (u / np.linalg.norm(u))[:, None]
+        a = np.einsum("ai,gab,bj->gij", U, kr.P, U)
+        t = np.einsum("gii->g", a)
+        ms.append(EM.kr_degrees(1, float(t @ kr.W @ t), float(np.einsum("ij,iab,jba->", kr.W, a, a)), df)[0])
+        p_kr.append(kr.f_test(U, U.T @ (kr.basis.T @ M @ beta), s2, df))
+        p_exact.append(stats.linregress(x, Y.mean(axis=1)).pvalue)
+        p_plain.append(stats.f.sf(beta[1] ** 2 / (s2 * np.linalg.inv(M)[1, 1]), 1, df))
+    p_kr, p_exact, p_plain = np.array(p_kr), np.array(p_exact), np.array(p_plain)
+    assert len(ms) > 100  # the case at issue is common here
+    np.testing.assert_allclose(ms, G - 2, rtol=1e-9)
+    assert np.all(p_kr >= p_exact * (1 - 1e-9)), np.min(p_kr / p_exact)
+    assert np.mean(p_plain < p_exact) > 1 / 6, np.mean(p_plain < p_exact)
+
+
+def test_kenward_roger_without_a_moment_match_is_conservative():
+    """Where A2 >= q no F-distribution matches the statistic's moments (the UR5 log's offset test: q = 3, A2 = 7.05
+    once the reference error estimated at zero counts): the degrees of freedom are Satterthwaite's 2 q / A2, at least
+    1 (for q = 1, A2 is the relative variance of the estimated variance of the direction, and 2 / A2 Satterthwaite's
+    1946 count), never the plug-in test's df, which they were before."""
+    assert EM.kr_degrees(3, 21.1, 7.05, 72.0) == (1.0, 1.0)
+    m, scale = EM.kr_degrees(1, 1.25, 1.25, 40.0)
+    assert m == pytest.approx(2 / 1.25) and scale == 1.0
+
+
 def _trend_test_fires(robot, protocol: T.Protocol, seeds: range, tmp_path) -> int:
     """How many of the clean lab logs of ``protocol`` (one per seed, read from their CSV with pose_id as a lab's)
     make the replicate-based test of a noise trend (stiffcal.measured.discrepancy.variance_model) weight the rows."""

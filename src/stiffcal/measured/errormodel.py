@@ -951,7 +951,7 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     def tests() -> tuple[tuple, "KenwardRoger | None"]:  # the components' likelihood-ratio p-values, Kenward-Roger
         for i, k in enumerate(est):
             pvals[k] = _lrt(lik, lam_u, ll_u, i, None)
-        return tuple(pvals), kenward_roger(blocks, lam) if drift is None else None
+        return tuple(pvals), kenward_roger(blocks, lam, estimable) if drift is None else None
 
     sigma2 = lik.sigma2(lam_u)
     replicated = paired and df_pe >= min(MIN_PURE_ERROR_DF, lik.df)
@@ -1089,9 +1089,15 @@ def kr_degrees(q: int, A1: float, A2: float, df: float) -> tuple[float, float]:
     A1 and A2 (Kenward & Roger 1997, eqs. 10-12; rho as pbkrtest's ``Lb_ddf``), m at most ``df``: (df, 1) where the
     estimated components do not affect the test (A2 = 0) or m is beyond df (q rho at or just above 1). In a
     balanced design it is the exact test's: A1 = A2 = 2 / nu for a direction the groups' means carry, m = nu (rho
-    infinite at nu = 4, negative below it); m is kept at 1 or more, lambda 1 where m is within 0.01 of 2."""
-    if not A2 > 1e-12 or A2 >= q:
+    infinite at nu = 4, negative below it); m is kept at 1 or more, lambda 1 where m is within 0.01 of 2. Where A2 >= q
+    the moments cannot be matched (E = 1 / (1 - A2 / q) is not a variance ratio; pbkrtest's scale turns negative):
+    the estimated components leave the test's variance as uncertain as a chi-square's on 2 q / A2 degrees of freedom
+    (Satterthwaite's count; nu in a balanced design), m = max(2 q / A2, 1) with lambda 1, never the plug-in test's df
+    (which took the shared errors as known exactly where they are least known)."""
+    if not A2 > 1e-12:
         return float(df), 1.0
+    if A2 >= q:  # no moment match (2 q / A2 <= 2 in a balanced design's terms): Satterthwaite's count, at least 1
+        return float(min(df, max(2.0 * q / A2, 1.0))), 1.0
     B = (A1 + 6.0 * A2) / (2.0 * q)
     g = ((q + 1.0) * A1 - (q + 4.0) * A2) / ((q + 2.0) * A2)
     den = 3.0 * q + 2.0 * (1.0 - g)
@@ -1115,21 +1121,26 @@ def kr_degrees(q: int, A1: float, A2: float, df: float) -> tuple[float, float]:
     return m, 1.0 if abs(m - 2.0) < 0.01 or m < 2.0 else m / (E * (m - 2.0))
 
 
-def kenward_roger(blocks: list[dict], lam: np.ndarray) -> KenwardRoger | None:
+def kenward_roger(blocks: list[dict], lam: np.ndarray, estimable: np.ndarray | None = None) -> KenwardRoger | None:
     """The Kackar-Harville inflation of the generalised least-squares estimator's covariance for variance
     components that are estimated, not known (Kenward & Roger, *Biometrics* 53, 1997, eqs. 2-5): with
-    V = sigma^2 H(lambda), theta = (sigma^2, sigma^2 lambda_k for each lambda_k > 0), G_0 = I, G_k = Z_k Z_k^T,
+    V = sigma^2 H(lambda), theta = (sigma^2, sigma^2 lambda_k for each component in use), G_0 = I, G_k = Z_k Z_k^T,
     P_i = X^T V^-1 G_i V^-1 X, Q_ij = X^T V^-1 G_i V^-1 G_j V^-1 X, W the inverse of the expected REML
     information (1/2 tr(Pi G_i Pi G_j), Pi the REML projection), Phi = (X^T V^-1 X)^-1:
     Var(beta_hat) ~ Phi_A = Phi + 2 Lambda, Lambda = Phi sum_ij W_ij (Q_ij - P_i Phi P_j) Phi (one Lambda for the
     extra variance of beta_hat, one for the bias of Phi(theta_hat)). Lambda / sigma^2 does not depend on sigma^2.
 
     blocks: as :func:`_block_arrays` (every model row of a configuration; X zero on the unloaded rows), lam (K,)
-    the estimated ratios. Returns the :class:`KenwardRoger` quantities, among them Lambda / sigma^2 (r, r) in an
-    orthonormal basis of the fixed effects in the metric X^T H^-1 X (the whitened union; r its rank), in which
-    Phi_A / sigma^2 = I + 2 Lambda / sigma^2; None when no component is in use (ordinary least squares: nothing
-    estimated but sigma^2, whose uncertainty the F-tests' degrees of freedom hold)."""
-    used = [k for k in range(len(lam)) if lam[k] > 0]
+    the estimated ratios; estimable (K,): the components in use, those estimated at zero among them (default: those
+    with lam_k > 0). A component estimated at zero (the boundary) is estimated all the same: a direction it would
+    carry has its groups' degrees of freedom, not the rows' (in a balanced random-intercept design, a slope between G
+    groups keeps the exact test's m = G - 2 there; left out, the test took the rows' and its p-value fell below the
+    exact test's in a third of such data sets). Returns the :class:`KenwardRoger` quantities, among them
+    Lambda / sigma^2 (r, r) in an orthonormal basis of the fixed effects in the metric X^T H^-1 X (the whitened
+    union; r its rank), in which Phi_A / sigma^2 = I + 2 Lambda / sigma^2; None when no component is in use
+    (ordinary least squares: nothing estimated but sigma^2, whose uncertainty the F-tests' degrees of freedom
+    hold)."""
+    used = [k for k in range(len(lam)) if (lam[k] > 0 if estimable is None else estimable[k])]
     if not used:
         return None
     fixed = [_fixed(b) for b in blocks]
