@@ -102,6 +102,29 @@ def test_o_t_star_counts_a_direction_the_load_barely_moves_in_full():
     assert criteria.o_t_of_rows(A1, np.vstack([At, other]), 1e-5) == np.inf
 
 
+def test_an_o_t_star_the_loads_cannot_give_is_inf_and_said_so():
+    """A fresh user's UR5 pushed along +-x and +-y with a vertical test load: O_t_star and chi came out "inf" with no
+    word, and "chi: inf" read as infinitely better. A planar 3R arm pushed along x only: the test pose's rows
+    (rank 2 of 3 compliances, by numpy's SVD) do not span the rows of the test load along y, so O_t* is inf and the
+    design's note says why; pushed along x and y they do, and there is no note."""
+    from stiffcal.api import _ot_star_note
+    from stiffcal.model.observation import measurement_loads
+    from stiffcal.planning.problem import Problem
+    from stiffcal.model.robot import planar_robot
+
+    arm = planar_robot([0.5, 0.4, 0.3])
+    qt = np.radians([30.0, 40.0, -50.0])
+    for spec, finite in (("forces:100,0;-100,0", False), ("forces:100,0;0,100", True)):
+        prob = Problem(arm, np.array([0.0, -100.0]), "ot", 4, qt, loads=measurement_loads(arm, spec))
+        A1 = prob.rows(qt).reshape(-1, prob.n_params)
+        gained = np.linalg.matrix_rank(np.vstack([A1, prob.At])) > np.linalg.matrix_rank(A1)
+        assert gained != finite
+        assert np.isfinite(prob.ot_star(4)) == finite
+        notes = _ot_star_note(prob, 4)
+        assert (notes == []) == finite
+        assert finite or ("O_t_star and chi are inf" in notes[0] and spec in notes[0])
+
+
 def test_every_list_of_criteria_is_the_registry_s(root):
     """The config schema's enum and default (taken from the registry when the schema is read), the CLI's help and
     the docs' table of criteria name exactly the registered criteria (stiffcal.model.criteria.CRITERIA), and the

@@ -969,6 +969,50 @@ def test_a_ur10_cable_through_its_own_flange_is_refused_as_the_meshes_say(tmp_pa
 
 
 @needs_arms
+def test_a_cable_from_a_fingertip_is_checked_against_the_fingers(tmp_path):
+    """A fresh user's Panda (tool point panda_hand_tcp, on the closed fingertips' faces) under hanging masses: every
+    planned pose tilted the gripper 62-87 deg and hung the cable through the fingertips (8.5 mm deep by the user's
+    check), because a body whose hull held the tool point was left unchecked, and a point on its face counted as
+    held. coal on the collision meshes, from 1 mm below the tool point: the cable meets a finger at that pose and not
+    with the hook 15 mm past the fingertips at the ready pose (gripper down); stiffcal agrees, and with no pose left
+    its message names the fingers and the hook."""
+    import coal
+    import pinocchio as pin
+
+    from stiffcal.model.workcell import feasible
+
+    root = real_arms.robots_dir()
+    urdf = root / real_arms.ARMS["panda"][0]
+    model = pin.buildModelFromUrdf(str(urdf))
+    geom = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[str(root.parent.parent)])
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    fingers = [i for i, g in enumerate(geom.geometryObjects) if "finger" in g.name]
+    poses = np.radians([[7.01, 75.58, 2.97, -26.69, -0.26, 170.0, 63.02], [0.0, -45.0, 0.0, -135.0, 0.0, 90.0, 45.0]])
+    hits = []
+    for x, hook in zip(poses, (0.0, 0.015)):
+        pin.framesForwardKinematics(model, data, np.r_[x, 0.0, 0.0])  # the fingers closed (their neutral)
+        pin.updateGeometryPlacements(model, data, geom, gdata)
+        tcp = data.oMf[model.getFrameId("panda_hand_tcp")]
+        top = tcp.translation + tcp.rotation @ [0.0, 0.0, hook] - [0.0, 0.0, 1e-3]
+        cable = coal.Capsule(1e-6, 0.3 - 1e-3)
+        where = coal.Transform3s(np.eye(3), top - [0.0, 0.0, (0.3 - 1e-3) / 2])
+        hits.append(any(coal.collide(geom.geometryObjects[i].geometry, coal.Transform3s(gdata.oMg[i].rotation,
+                                     gdata.oMg[i].translation), cable, where, coal.CollisionRequest(),
+                                     coal.CollisionResult()) for i in fingers))
+    assert hits == [True, False]
+    ok = []
+    for x, hook in zip(poses, (0.0, 0.015)):
+        path = tmp_path / f"panda{hook}.yaml"
+        path.write_text(f"name: panda\nkind: urdf\nurdf: {urdf}\nbase_frame: panda_link0\ntip_frame: panda_hand_tcp\n"
+                        f"tool_m: [0, 0, {hook}]\ncell:\n  floor_m: -1.5\n  cable_length_m: 0.3\n", encoding="utf-8")
+        ok.append(bool(feasible(load_robot(path), x[None], hanging=True)[0]))
+    assert ok == [False, True]
+    with pytest.raises(InputError, match=r"cable runs through the arm \(panda_\w*finger.*a hook past the fingertips"):
+        stiffcal.design(tmp_path / "panda0.0.yaml", [0, 30, 0, -120, 0, 150, 45], [0, 0, -29.42], experiments=4,
+                        loads="hanging:9.81,19.61", cache_dir=None)
+
+
+@needs_arms
 def test_an_obstacle_through_the_fixed_base_is_refused(tmp_path):
     """A fresh user's Panda with a wall at x = -0.08 m: link0's collision mesh reaches x = -0.154 m (its vertices,
     read here), 74 mm into the wall, and the cell was accepted in silence (no joint moves the base, so it was never
@@ -1007,9 +1051,26 @@ def test_a_cable_longer_than_the_drop_is_named_when_no_pose_is_left(tmp_path):
     path = tmp_path / "r.yaml"
     path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  floor_m: -0.5\n"
                     "  link_radius_m: 0.02\n  cable_length_m: 2.0\n", encoding="utf-8")
-    with pytest.raises(InputError, match=r"cable_length_m 2 m, from the tool point to the mass's lowest point"):
+    with pytest.raises(InputError, match=r"at \d+ the mass or cable meets an obstacle \(cable_length_m 2 m more than "
+                                         r"the tool point's height\?\)"):
         stiffcal.design(path, [30, 30], [0, -100], experiments=2, loads="hanging:50,100")
     assert stiffcal.design(path, [30, 30], [0, -100], experiments=2).poses_deg.shape == (2, 2)
+
+
+def test_a_cell_in_millimetres_is_refused_naming_the_unit(tmp_path):
+    """A fresh user's table given in millimetres (800 x 1000 x 750 "m") was accepted and then said to cut 374628 mm
+    into the base. The 2-link arm (reach 1 m): a square box of side 80 m (113 m across, its diagonal) is refused
+    naming the unit; one of side 14.14 m (20 m across: a hall's floor as a box) is accepted."""
+    for size, refused in ((80.0, True), (14.14, False)):
+        path = tmp_path / "r.yaml"
+        box = f"{{name: table, center_m: [0.0, {-size / 2 - 0.5}], size_m: [{size}, {size}]}}"
+        path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  link_radius_m: 0.02\n"
+                        f"  boxes:\n    - {box}\n", encoding="utf-8")
+        if refused:
+            with pytest.raises(InputError, match=r"'table' is 113.1 m across.*\(millimetres given\?\)"):
+                load_robot(path)
+        else:
+            assert load_robot(path).cell is not None
 
 
 def test_a_test_pose_inside_an_obstacle_names_the_pair(tmp_path):

@@ -184,7 +184,8 @@ class DesignResult:
             "degenerate": self.degenerate,
             "approximate_design": {"support_deg": round_within(d["support_deg"], self.joint_limits_deg).tolist(),
                                    "weights": np.round(d["weights"], 9).tolist(),
-                                   "equivalence_gap": d["equivalence_gap"], "converged": d["converged"]},
+                                   "equivalence_gap": d["equivalence_gap"], "converged": d["converged"],
+                                   "region": d["region"]},
             "notes": list(self.notes), "sigma": self.sigma, "seed": self.seed,
             "test_pose_deg": self.test_pose_deg.tolist(), "force_N": self.force_N.tolist(),
             "moment_Nm": None if self.moment_Nm is None else self.moment_Nm.tolist(),
@@ -239,8 +240,8 @@ def _flag(value, field: str) -> bool:
 
 def design_estimate_s(robot: Robot, m: int, single: bool = True, n_loads: int = 1) -> list[tuple[str, float]]:
     """The stages of :func:`design` with a rough estimate of their seconds on one core of a 2-core machine like
-    CI's (fitted to runs of 2-20-joint planar and 3-10-joint spatial arms, and of UR10, Panda and iiwa in cells
-    under hanging masses: within a factor of about 3; the progress lines scale what is left by how the stages so
+    CI's (fitted to runs of 2-20-joint planar and 3-10-joint spatial arms, and of UR5, UR10, Panda and iiwa in
+    cells under hanging masses: within a factor of about 3; the progress lines scale what is left by how the stages so
     far compared with their estimates). single: the single-pose search runs (one pose identifies every
     compliance); n_loads: the loads of every measurement pose (``loads``). In a cell the approximate design is
     computed twice (over the feasible poses, and over the joint space for the bound that holds for every plan)."""
@@ -250,6 +251,8 @@ def design_estimate_s(robot: Robot, m: int, single: bool = True, n_loads: int = 
     else:
         approx, plan = 1.5 + 30.0 * (n / 10) ** 8, 0.5 + 5.0 * (n / 10) ** 8
     approx *= (2.0 if robot.cell is not None else 1.0) * (1.5 if n_loads > 1 else 1.0)
+    if robot.cell is not None and not robot.planar:  # every exchange step checks its poses against the meshes
+        plan *= 6.0
     stages = [("single pose", 0.6 if single else 0.05), ("approximate design and certificate", approx)]
     return stages + ([(f"plan of {m} poses", plan + 0.01 * m)] if m > 1 else [])
 
@@ -445,7 +448,9 @@ def _ot_bound(inp: _DesignInputs, found: _Found):
         if continuum is not None:
             bound, converged = continuum.lower_bound(m, sigma), continuum.converged
             over = "every plan within the joint limits, so every plan the cell allows (the cell ignored: valid, loose)"
-            feasible_bound = approx.bound_with(inp.study.problem("ot"), np.radians(found.poses), m, sigma)
+            # the joint-space bound holds for these plans too: where the design over the feasible candidates stopped
+            # short of its optimum (its bound below the other by up to its gap), the larger of the two
+            feasible_bound = max(approx.bound_with(inp.study.problem("ot"), np.radians(found.poses), m, sigma), bound)
             feasible_over = (f"every plan of the {approx.n_candidates} feasible pool poses, the feasible search "
                              "points, the maxima of phi found from them and this plan's poses (exact over these; not "
                              "a bound for plans of other feasible poses)")
@@ -496,6 +501,17 @@ def _singular_plan_note(inp: _DesignInputs, summ, ot: float) -> list[str]:
             "maximises the trace of M, whatever its rank): take more poses, or criterion ot, d or a"]
 
 
+def _ot_star_note(base, m: int) -> list[str]:
+    """A note when O_t* (eq. 17: every measurement at the test pose) is inf: the measurement loads at the test pose
+    cannot give its deflection under the test load, so chi = O_t* / O_t is inf too (a fresh user read "chi: inf" as
+    infinitely better)."""
+    if base.loads is None or np.isfinite(base.ot_star(m)):
+        return []
+    return [f"O_t_star and chi are inf: measured at the test pose itself, the loads {base.loads.spec} cannot give its "
+            "deflection under the test load (it is not a combination of theirs), so the paper's reference O_t* "
+            "(eq. 17) does not exist here; compare O_t with lower_bound instead"]
+
+
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
     from .model import criteria
@@ -518,7 +534,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
         notes += _contact_note(c, names)
         notes += _test_pose_cell_note(robot, base, np.radians(inp.q_t))
     ot = float(summ["O_t"])
-    notes += _singular_plan_note(inp, summ, ot)
+    notes += _singular_plan_note(inp, summ, ot) + _ot_star_note(base, inp.m)
     meas_loads, sensing = inp.meas_loads, inp.sensing
     return DesignResult(
         criterion=inp.criterion, criterion_label=criteria.label(inp.criterion), robot=robot.name, experiments=inp.m,

@@ -47,7 +47,9 @@ loads nothing), and must not pass through any body nor through a box or cylinder
 keep it off the arm's meshes). The body it hangs from (the link carrying the tool point) is checked from
 :data:`CABLE_START_M` below the tool point (beyond a capsule's radius): a cable from a flange that faces sideways or
 up runs through the flange itself (a fresh user's UR10: 22-49 mm of cable inside wrist_3_link in 18 of 34 planned
-poses); a tool point inside that body's hull (a gripper's) leaves that body unchecked. Without ``cable_length_m``
+poses); a tool point inside that body's hull (a gripper's), at least :data:`CABLE_START_M` from its surface,
+leaves that body unchecked (one on a fingertip's face does not: a fresh user's Panda hung its cable through the
+fingertip boxes, 8.5 mm deep, in every planned pose). Without ``cable_length_m``
 the segment runs down to the first half-space it meets (the floor: the mass's height is then not checked), else
 :data:`CABLE_DEFAULT_M`.
 """
@@ -421,6 +423,11 @@ def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
             raise InputError(f"expected unique obstacle names, got {o.name!r} twice", source=source,
                              field=_at(prefix, fld))
         names.add(o.name)
+        size = 2.0 * o.bounding_radius if o.kind != "half_space" else 0.0
+        if size > HUGE_OBSTACLE_REACHES * reach:
+            raise InputError(f"obstacle {o.name!r} is {size:.4g} m across, more than {HUGE_OBSTACLE_REACHES:g} times "
+                             f"the arm's reach ({reach:.3g} m): lengths in the cell are in metres (millimetres "
+                             "given?); a floor or a wall is a half-space", source=source, field=_at(prefix, fld))
         far = float(o.sdf(np.zeros(3)))
         if far > FAR_OBSTACLE_REACHES * reach:
             raise InputError(f"obstacle {o.name!r} is {far:.4g} m from the base, more than {FAR_OBSTACLE_REACHES:g} "
@@ -431,6 +438,9 @@ def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
 
 #: an obstacle farther from the base than this many reaches of the arm is refused (a length in mm given as m)
 FAR_OBSTACLE_REACHES = 20.0
+#: a box or cylinder larger than this many reaches of the arm is refused (a fresh user's table of 800 x 1000 x 750
+#: "m" was accepted and then said to cut 374628 mm into the base)
+HUGE_OBSTACLE_REACHES = 100.0
 
 
 def _box(b: dict, i: int, planar: bool, vec, source: str, prefix: str) -> Obstacle:
@@ -701,6 +711,10 @@ class CapsuleEngine(_Base):
         return ok
 
     def cable_bodies_ok(self, q, top, bottom):
+        return np.array([not h for h in self.cable_hits(q, top, bottom)], bool)
+
+    def cable_hits(self, q, top, bottom) -> list[str]:
+        """Per pose the body the hanging cable meets nearest ('' where it hangs free of the arm)."""
         a, b = self._segments(q)
         tool = b[:, -1]
         # the body the cable hangs from (the segments ending at the tool point) against the cable below its start
@@ -711,7 +725,9 @@ class CapsuleEngine(_Base):
         u = (span / np.maximum(np.linalg.norm(span, axis=-1, keepdims=True), 1e-300))[:, None]
         start = top[:, None] + (self.radius + clear + CABLE_START_M)[None, :, None] * u
         below = segment_distance(a, b, start, bottom[:, None]) - self.radius
-        return np.all(np.where(hang, below, d) > clear, axis=1)
+        d = np.where(hang, below, d)
+        k = np.argmin(d, axis=1)
+        return [self.names[k[i]] if d[i, k[i]] <= clear else "" for i in range(len(q))]
 
     def distances(self, q):
         """(N, checks) signed distances [m] and the names of the checks (pairs, then obstacles)."""
@@ -976,6 +992,10 @@ class MeshEngine(_Base):
         return ~np.asarray(pin.computeCollisionsInParallel(1, self.pool, Q, True), bool)
 
     def cable_bodies_ok(self, q, top, bottom):
+        return np.array([not h for h in self.cable_hits(q, top, bottom)], bool)
+
+    def cable_hits(self, q, top, bottom) -> list[str]:
+        """Per pose the link of the first body the hanging cable meets ('' where it hangs free of the arm)."""
         import coal
         import pinocchio as pin
 
@@ -984,9 +1004,9 @@ class MeshEngine(_Base):
         data = model.createData()
         gd = pin.GeometryData(self.geom)
         req, T_wb = coal.CollisionRequest(), self._T_wb(data)
-        bodies = [(b.index, self._hull_shape(b.index), b.tip) for b in self.bodies]
+        bodies = [(b.index, self._hull_shape(b.index), b.tip, b.link) for b in self.bodies]
         clear = max(1e-6, self.cell.cable_clearance_m)
-        ok = np.ones(len(q), bool)
+        hits = [""] * len(q)
         for i, x in enumerate(Q):
             pin.updateGeometryPlacements(model, data, self.geom, gd, x)
             a, b = T_wb.act(top[i]), T_wb.act(bottom[i])
@@ -1000,15 +1020,14 @@ class MeshEngine(_Base):
             # the bodies the cable hangs from: the cable from just below its start, unless it starts inside one
             s0 = min(clear + CABLE_START_M, length / 2)
             below = (coal.Capsule(clear, length - s0), coal.Transform3s(R, (a + s0 * u + b) / 2))
-            start = (coal.Sphere(1e-9), coal.Transform3s(np.eye(3), a))
-            for index, shape, tip in bodies:
+            for index, shape, tip, link in bodies:
                 T = _transform(gd.oMg[index])
-                if tip and coal.collide(shape, T, *start, req, coal.CollisionResult()):
+                if tip and _deep_inside(shape, T, a, CABLE_START_M):
                     continue  # the tool point inside the body it hangs from (a gripper's hull): not checkable
                 if coal.collide(shape, T, *(below if tip else (cap, M)), req, coal.CollisionResult()):
-                    ok[i] = False
+                    hits[i] = link
                     break
-        return ok
+        return hits
 
     def _T_wb(self, data):
         import pinocchio as pin
@@ -1029,6 +1048,19 @@ class MeshEngine(_Base):
             pin.computeDistances(self.model, self.data, self.geom, self.gdata, x)
             out[i] = [r.min_distance for r in self.gdata.distanceResults]
         return out, [f"{a}-{b}" for a, b, _ in self.labels]
+
+
+def _deep_inside(shape, T, point: np.ndarray, depth: float) -> bool:
+    """Whether ``point`` (3,) [m, world] lies inside the convex ``shape`` placed at ``T`` at least ``depth`` from its
+    surface along every axis (the six points ``depth`` away along +-x, +-y, +-z inside too): a tool point between a
+    gripper's jaws, in its hull, is; one on a fingertip's face is not, and the cable from it is checked."""
+    import coal
+
+    req = coal.CollisionRequest()
+    eye = np.eye(3)
+    probes = [point] + [point + sign * depth * e for e in eye for sign in (1.0, -1.0)]
+    return all(coal.collide(shape, T, coal.Sphere(1e-9), coal.Transform3s(eye, x), req, coal.CollisionResult())
+               for x in probes)
 
 
 def _convex(shape):
@@ -1174,6 +1206,34 @@ def no_pose_hint(robot) -> str:
                 "links that overlap by design are pairs the SRDF should disable (cell.srdf: is it this robot's?), or "
                 "list them under ignore_pairs")
     return "lower the clearance, move the obstacles or widen the joint limits"
+
+
+def cable_hint(robot, q: np.ndarray, hanging, at_most: int = 512) -> str:
+    """Why the hanging masses' cable hangs free at none of the poses q (N, n) [rad] the arm itself can take (at most
+    ``at_most`` of them looked at): how many put the mass or the cable into an obstacle (the mass resting on the table
+    loads nothing) and how many run the cable through the arm, naming the links it meets most often."""
+    from collections import Counter
+
+    eng = engine(robot)
+    q = np.asarray(q, float)[:at_most]
+    top, bottom = eng.cable(q, _offset(hanging))
+    blocked = eng.cable_obstacles_margin(top, bottom) <= 0
+    hits = eng.cable_hits(q, top, bottom)
+    links = Counter(h for h in hits if h).most_common(3)
+    parts = []
+    if blocked.any():
+        length = robot.cell.cable_length_m
+        parts.append(f"at {int(blocked.sum())} the mass or cable meets an obstacle"
+                     + (f" (cable_length_m {length:g} m more than the tool point's height?)"
+                        if length is not None else ""))
+    if links:
+        where = ", ".join(f"{name} {n}" for name, n in links)
+        lower = ", or lower cable_clearance_m" if robot.cell.cable_clearance_m > 0 else ""
+        parts.append(f"at {sum(1 for h in hits if h)} the cable runs through the arm ({where}; from a tool point on "
+                     "a fingertip it runs along it once the tool tilts: set tool_m to a hook past the fingertips"
+                     f"{lower})")
+    return (f"the masses' cable hangs free at none of the {len(q)} the arm can take: " + "; ".join(parts)
+            if parts else "")
 
 
 def clearance(robot, q: np.ndarray) -> tuple[np.ndarray, list[str]]:

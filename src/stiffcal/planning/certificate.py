@@ -92,17 +92,14 @@ def _feasible_only(q: np.ndarray, robot: Robot, problem: Problem | None, what: s
     if robot.cell is None:
         return q
     from ..errors import InputError
-    from ..model.workcell import feasible, no_pose_hint
+    from ..model.workcell import cable_hint, feasible, no_pose_hint
 
     ok = problem.feasible(q) if problem is not None else feasible(robot, q)
     if not ok.any():
         hint = no_pose_hint(robot)
-        if problem is not None and problem.hang_offset is not None and feasible(robot, q).any():
-            length = robot.cell.cable_length_m
-            hint = ("the arm itself can take some of them, but at none does the hanging masses' cable hang free"
-                    + (f" (cable_length_m {length:g} m, from the tool point to the mass's lowest point: is it longer "
-                       "than the tool point's height above the floor or the table?)" if length is not None else "")
-                    + "; " + hint)
+        arm = feasible(robot, q) if problem is not None and problem.hang_offset is not None else None
+        if arm is not None and arm.any():
+            hint = cable_hint(robot, q[arm], problem.hang_offset)
         raise InputError(f"none of the {len(q)} poses {what} can be taken in the cell ({robot.cell.describe()}): "
                          f"{hint}", source=robot.cell.source, field="cell")
     return q[ok]
