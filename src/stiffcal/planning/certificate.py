@@ -99,7 +99,7 @@ def _feasible_only(q: np.ndarray, robot: Robot, problem: Problem | None, what: s
         hint = no_pose_hint(robot)
         arm = feasible(robot, q) if problem is not None and problem.hang_offset is not None else None
         if arm is not None and arm.any():
-            hint = cable_hint(robot, q[arm], problem.hang_offset)
+            hint = cable_hint(robot, q[arm], problem.hang_offset) or hint
         raise InputError(f"none of the {len(q)} poses {what} can be taken in the cell ({robot.cell.describe()}): "
                          f"{hint}", source=robot.cell.source, field="cell")
     return q[ok]
@@ -146,7 +146,7 @@ def _phi_design(W: np.ndarray, M: np.ndarray) -> tuple[float, np.ndarray]:
     pose's deflection does not depend on them either; e.g. the compliance of a joint that the test load does not
     turn, which the design then leaves unloaded): G is then the pseudo-inverse on the other directions. That is
     the design's Phi, taken as singular (a singular optimal design: Pukelsheim, *Optimal Design of Experiments*,
-    1993, secs. 3.10 and 7.19: a generalised inverse of M), and the certified bound Phi^2 / max_x phi holds with
+    1993, whose general equivalence theorem holds with a generalised inverse of M), and the certified bound Phi^2 / max_x phi holds with
     any G (:meth:`ApproximateDesign.bound_with`), where M^-1 has no correct digit along those directions and
     sends phi, and the bound, astray."""
     ev, V = np.linalg.eigh(M)
