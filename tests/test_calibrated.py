@@ -461,6 +461,24 @@ def test_next_round_prior_is_infinite_where_the_test_pose_moves_an_undetermined_
     assert any("did not determine" in n and "O_t_prior is infinite" in n for n in nr.notes)
 
 
+def test_next_round_ignores_the_round_off_of_an_undetermined_parameter_s_covariance(tmp_path):
+    """A fresh user's Panda: the calibration wrote b2, which its data did not determine, with a variance of 8e-40
+    and covariances of 1e-27 (round-off, not zeros); their inverse made an information of 1e31 in an indefinite
+    prior, and the next round said O_t = inf (rms_m "inf"). With that round-off on b2 of the 2-link calibration,
+    the next round equals the one with b2's row exactly zero (the test above), poses and O_t."""
+    robot = _calibrated_2link(tmp_path)
+    cal = robot.calibration
+    clean, noisy = cal.cov.copy(), cal.cov.copy()
+    clean[3, :], clean[:, 3] = 0.0, 0.0
+    noisy[3, :] = noisy[:, 3] = np.sqrt(np.abs(np.diag(cal.cov))) * 1e-27 / np.sqrt(np.abs(cal.cov[0, 0]))
+    noisy[3, 3] = 8e-40
+    rounds = [C.next_round(replace(robot, calibration=replace(cal, cov=c, estimable=(True, True, True, False))),
+                           QT, FT, 3) for c in (clean, noisy)]
+    assert np.isfinite(rounds[0].O_t)
+    assert rounds[1].O_t == pytest.approx(rounds[0].O_t, rel=1e-9)
+    np.testing.assert_array_equal(rounds[1].poses, rounds[0].poses)
+
+
 def _schur_ot(M, Xt, nuisance):
     """tr(X_t S^-1 X_t^T) on the parameters that are not ``nuisance`` (X_t zero on those), S = M_aa - M_an M_nn^+
     M_na: the test pose's variance when the nuisance parameters are estimated alongside (Pukelsheim 1993, sec.

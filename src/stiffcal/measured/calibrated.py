@@ -723,10 +723,14 @@ def prior_information(cal: Calibration, sigma_m: float) -> tuple[np.ndarray, int
     """The information the calibration's data hold on the robot's parameters, in units of the new rows' noise:
     ``sigma_m^2 Cov_rr^+`` (p_r, p_r) with Cov_rr the covariance of the compliances and the robot's extensions
     (a measurement offset belongs to the old tracker set-up: marginalised out, which is the Schur complement of
-    the information matrix). Returns (information, p_r, the robot's causes)."""
+    the information matrix). A parameter the data did not determine (its estimable flag) holds no information,
+    whatever round-off its covariance row carries (a fresh user's Panda: b2 with a variance of 8e-40 and
+    covariances of 1e-27 became an information of 1e31, an indefinite prior, and every next round 'inf').
+    Returns (information, p_r, the robot's causes)."""
     causes = tuple(c for c in cal.causes if c != "measurement_offset")
     p_r = len(cal.theta) - (cal.n_offsets if "measurement_offset" in cal.causes else 0)
-    cov = cal.cov[:p_r, :p_r]
+    determined = np.asarray(cal.estimable, bool)[:p_r]
+    cov = cal.cov[:p_r, :p_r] * np.outer(determined, determined)
     return sigma_m**2 * _psd_inverse(cov), p_r, causes
 
 
