@@ -3253,7 +3253,11 @@ def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives
                 if alternatives else "")
         found.append(f"the extended model ({label[chosen]}) fits with {', '.join(wrong[chosen])} (below zero beyond "
                      f"the 95 % interval: {NOT_PHYSICAL}), so this extension is not physical: the data need an effect "
-                     f"it describes only with a compliance no joint has{also}")
+                     f"it describes only with a compliance no joint has{also}"
+                     + ("; with several joints below zero, check the frames first: a tracker axis flipped against "
+                        "the robot's base frame (a fresh user's Panda, y flipped: four joints below zero, an "
+                        "unexplained verdict and a drift of 1e4 um/h) or a force logged with the wrong sign"
+                        if len(wrong[chosen]) >= 2 else ""))
     names, _, _, _, groups = tables[pick]
     if groups:
         found.append(not_estimable_note(label[pick], _confounded(groups, names, sel.fits[pick], sigma, t)))
