@@ -932,6 +932,14 @@ def test_the_variance_inflation_of_estimated_components_is_what_a_monte_carlo_gi
     assert predicted > 2 * se
 
 
+def _intercept_blocks(Y: np.ndarray, X: list) -> list[dict]:
+    """The blocks (errormodel._block_arrays' form) of a balanced random-intercept design: group g's n rows Y[g] (n,)
+    with one shared error (component 0) and the fixed effects X[g] (n, 1, p)."""
+    G, n = Y.shape
+    return [{"rows": np.arange(n) + g * n, "Y": Y[g][:, None], "Z": {0: np.ones((n, 1))}, "L": np.eye(n), "X": X[g],
+             "D": None} for g in range(G)]
+
+
 def test_the_kenward_roger_f_test_is_the_exact_test_where_the_plug_in_test_is_not():
     """A clean 4R planar log of 10-14 configurations (a fresh user's: a reference per configuration) raised false
     alarms in 3 % of seeds at alpha = 1 %: the plug-in F-test takes the REML ratios as known, and a direction the
@@ -948,8 +956,7 @@ def test_the_kenward_roger_f_test_is_the_exact_test_where_the_plug_in_test_is_no
     p_kr, p_plain, p_exact = [], [], []
     for _ in range(reps):
         Y = rng.normal(size=(G, 1)) * np.sqrt(lam) + rng.normal(size=(G, n))
-        blocks = [{"rows": np.arange(n) + g * n, "Y": Y[g][:, None], "Z": {0: np.ones((n, 1))}, "L": np.eye(n),
-                   "X": X[g], "D": None} for g in range(G)]
+        blocks = _intercept_blocks(Y, X)
         lik = EM._Likelihood.of(blocks, [0])
         lam_hat, _ = EM._maximise(lik, 1)
         kr = EM.kenward_roger(blocks, lam_hat)
@@ -985,8 +992,7 @@ def test_the_kenward_roger_f_test_of_two_directions_is_the_exact_test():
     worst = 0.0
     for _ in range(200):
         Y = rng.normal(size=(G, 1)) * np.sqrt(1.5) + rng.normal(size=(G, n))
-        blocks = [{"rows": np.arange(n) + g * n, "Y": Y[g][:, None], "Z": {0: np.ones((n, 1))}, "L": np.eye(n),
-                   "X": X[g], "D": None} for g in range(G)]
+        blocks = _intercept_blocks(Y, X)
         lik = EM._Likelihood.of(blocks, [0])
         lam_hat, _ = EM._maximise(lik, 1)
         kr = EM.kenward_roger(blocks, lam_hat)
@@ -1021,8 +1027,7 @@ def test_a_shared_error_estimated_at_zero_keeps_its_groups_degrees_of_freedom():
     ms, p_kr, p_exact, p_plain = [], [], [], []
     for _ in range(400):
         Y = rng.normal(size=(G, 1)) * np.sqrt(0.1) + rng.normal(size=(G, n))
-        blocks = [{"rows": np.arange(n) + g * n, "Y": Y[g][:, None], "Z": {0: np.ones((n, 1))}, "L": np.eye(n),
-                   "X": X[g], "D": None} for g in range(G)]
+        blocks = _intercept_blocks(Y, X)
         lik = EM._Likelihood.of(blocks, [0])
         lam_hat, _ = EM._maximise(lik, 1)
         if lam_hat[0] > 0:

@@ -932,12 +932,23 @@ def test_the_cable_is_checked_against_the_link_it_hangs_from(tmp_path):
     assert list(feasible(load_robot(path), q)) == [True, True]  # without a cable both poses are free
 
 
+def _cable_meets(geom, gdata, bodies, top: np.ndarray, length: float) -> bool:
+    """Whether a vertical cable (a line) from ``top`` (3,) [m] down ``length`` [m] meets any of the collision
+    ``bodies`` (indices into Pinocchio's ``geom``, placed in ``gdata``), by coal on the meshes themselves."""
+    import coal
+
+    cable = coal.Capsule(1e-6, length)
+    where = coal.Transform3s(np.eye(3), top - [0.0, 0.0, length / 2])
+    return any(coal.collide(geom.geometryObjects[i].geometry, coal.Transform3s(gdata.oMg[i].rotation,
+                            gdata.oMg[i].translation), cable, where, coal.CollisionRequest(), coal.CollisionResult())
+               for i in bodies)
+
+
 def test_a_ur10_cable_through_its_own_flange_is_refused_as_the_meshes_say(tmp_path):
     """The fresh user's UR10 pose (tool point at tool0's origin, the flange 25 deg above horizontal, 48.5 mm of
     cable inside wrist_3_link by the user's check) against a pose whose flange faces down: stiffcal's check with
     the cable against the link it hangs from agrees with coal on the collision meshes (the cable from 1 mm below
     the tool point)."""
-    import coal
     import pinocchio as pin
 
     from stiffcal.model.workcell import feasible
@@ -959,11 +970,7 @@ def test_a_ur10_cable_through_its_own_flange_is_refused_as_the_meshes_say(tmp_pa
         pin.updateFramePlacements(model, data)
         pin.updateGeometryPlacements(model, data, geom, gdata)
         top = data.oMf[model.getFrameId("tool0")].translation - [0.0, 0.0, 1e-3]
-        cable = coal.Capsule(1e-6, 0.45 - 1e-3)
-        where = coal.Transform3s(np.eye(3), top - [0.0, 0.0, (0.45 - 1e-3) / 2])
-        hits.append(any(coal.collide(geom.geometryObjects[i].geometry, coal.Transform3s(gdata.oMg[i].rotation,
-                                     gdata.oMg[i].translation), cable, where, coal.CollisionRequest(),
-                                     coal.CollisionResult()) for i in wrist))
+        hits.append(_cable_meets(geom, gdata, wrist, top, 0.45 - 1e-3))
     assert hits == [True, False]
     assert list(feasible(robot, q, hanging=True)) == [False, True]
 
@@ -976,7 +983,6 @@ def test_a_cable_from_a_fingertip_is_checked_against_the_fingers(tmp_path):
     held. coal on the collision meshes, from 1 mm below the tool point: the cable meets a finger at that pose and not
     with the hook 15 mm past the fingertips at the ready pose (gripper down); stiffcal agrees, and with no pose left
     its message names the fingers and the hook."""
-    import coal
     import pinocchio as pin
 
     from stiffcal.model.workcell import feasible
@@ -994,11 +1000,7 @@ def test_a_cable_from_a_fingertip_is_checked_against_the_fingers(tmp_path):
         pin.updateGeometryPlacements(model, data, geom, gdata)
         tcp = data.oMf[model.getFrameId("panda_hand_tcp")]
         top = tcp.translation + tcp.rotation @ [0.0, 0.0, hook] - [0.0, 0.0, 1e-3]
-        cable = coal.Capsule(1e-6, 0.3 - 1e-3)
-        where = coal.Transform3s(np.eye(3), top - [0.0, 0.0, (0.3 - 1e-3) / 2])
-        hits.append(any(coal.collide(geom.geometryObjects[i].geometry, coal.Transform3s(gdata.oMg[i].rotation,
-                                     gdata.oMg[i].translation), cable, where, coal.CollisionRequest(),
-                                     coal.CollisionResult()) for i in fingers))
+        hits.append(_cable_meets(geom, gdata, fingers, top, 0.3 - 1e-3))
     assert hits == [True, False]
     ok = []
     for x, hook in zip(poses, (0.0, 0.015)):
