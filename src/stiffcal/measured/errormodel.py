@@ -951,9 +951,7 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     def tests() -> tuple[tuple, "KenwardRoger | None"]:  # the components' likelihood-ratio p-values, Kenward-Roger
         for i, k in enumerate(est):
             pvals[k] = _lrt(lik, lam_u, ll_u, i, None)
-        # a shared error estimated at zero counts (kenward_roger); an effect of each row of its own does not
-        in_use = np.array([lam[k] > 0 or (estimable[k] and structure.components[k].shared) for k in range(K)])
-        return tuple(pvals), kenward_roger(blocks, lam, in_use) if drift is None else None
+        return tuple(pvals), kenward_roger(blocks, lam, _in_use(structure, lam, estimable)) if drift is None else None
 
     sigma2 = lik.sigma2(lam_u)
     replicated = paired and df_pe >= min(MIN_PURE_ERROR_DF, lik.df)
@@ -974,6 +972,12 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     if lrt == "deferred":
         return replace(em, pending=tests)
     return with_tests(replace(em, pending=tests)) if lrt else em
+
+
+def _in_use(structure: ReadingStructure, lam: np.ndarray, estimable: np.ndarray) -> np.ndarray:
+    """(K,) bool: the components :func:`kenward_roger` counts: those estimated above zero, and a shared error the data
+    can estimate at zero too (not an effect of each row of its own, the load's direction)."""
+    return np.array([lam[k] > 0 or (estimable[k] and c.shared) for k, c in enumerate(structure.components)], bool)
 
 
 def _warm_start(prior: "ErrorModel | None", structure: ReadingStructure, est: list) -> np.ndarray | None:
