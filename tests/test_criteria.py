@@ -120,7 +120,7 @@ def test_an_o_t_star_the_loads_cannot_give_is_inf_and_said_so():
         gained = np.linalg.matrix_rank(np.vstack([A1, prob.At])) > np.linalg.matrix_rank(A1)
         assert gained != finite
         assert np.isfinite(prob.ot_star(4)) == finite
-        notes = _ot_star_note(prob, 4)
+        notes = _ot_star_note(prob, prob.ot_star(4))
         assert (notes == []) == finite
         assert finite or ("O_t_star and chi are inf" in notes[0] and spec in notes[0])
 

@@ -501,11 +501,11 @@ def _singular_plan_note(inp: _DesignInputs, summ, ot: float) -> list[str]:
             "maximises the trace of M, whatever its rank): take more poses, or criterion ot, d or a"]
 
 
-def _ot_star_note(base, m: int) -> list[str]:
-    """A note when O_t* (eq. 17: every measurement at the test pose) is inf: the measurement loads at the test pose
-    cannot give its deflection under the test load, so chi = O_t* / O_t is inf too (a fresh user read "chi: inf" as
-    infinitely better)."""
-    if base.loads is None or np.isfinite(base.ot_star(m)):
+def _ot_star_note(base, ot_star: float) -> list[str]:
+    """A note when O_t* (eq. 17: every measurement at the test pose; ``ot_star``, :meth:`Problem.ot_star`) is inf: the
+    measurement loads at the test pose cannot give its deflection under the test load, so chi = O_t* / O_t is inf
+    too (a fresh user read "chi: inf" as infinitely better)."""
+    if base.loads is None or np.isfinite(ot_star):
         return []
     return [f"O_t_star and chi are inf: measured at the test pose itself, the loads {base.loads.spec} cannot give its "
             "deflection under the test load (it is not a combination of theirs), so the paper's reference O_t* "
@@ -534,11 +534,12 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
         notes += _contact_note(c, names)
         notes += _test_pose_cell_note(robot, base, np.radians(inp.q_t))
     ot = float(summ["O_t"])
-    notes += _singular_plan_note(inp, summ, ot) + _ot_star_note(base, inp.m)
+    ot_star = base.ot_star(inp.m)
+    notes += _singular_plan_note(inp, summ, ot) + _ot_star_note(base, ot_star)
     meas_loads, sensing = inp.meas_loads, inp.sensing
     return DesignResult(
         criterion=inp.criterion, criterion_label=criteria.label(inp.criterion), robot=robot.name, experiments=inp.m,
-        poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=base.ot_star(inp.m),
+        poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=ot_star,
         chi=float(summ["chi"]), cov_diag=np.array([float(summ[e]) for e in robot.joint_columns("E_dk")]),
         lower_bound=bound, gap=None if bound is None else ot / bound - 1.0,
         optimal_set_deg=np.asarray(found.optimal_set, float).reshape(-1, robot.n_joints),

@@ -1546,6 +1546,15 @@ def unloaded_rows(meas: Measurements, rw: float) -> np.ndarray:
     return meas.zero_dp if meas.zero_rot is None else np.hstack([meas.zero_dp, rw * meas.zero_rot])
 
 
+def model_rows(Yl: np.ndarray, w: np.ndarray, z: np.ndarray, w0: np.ndarray, index: np.ndarray):
+    """(Y (N + k, d), weights (N + k,)): the loaded rows Yl (N, d) (weighted already, their weights w (N,)) with the
+    unloaded rows ``index`` (k,) of z (N0, d) (:func:`unloaded_rows`) weighted by w0 (N0,) (:func:`zero_weights`)
+    below them, as :func:`stiffcal.measured.errormodel.estimate` takes its model rows."""
+    index = np.asarray(index, int)
+    Y = np.vstack([Yl, z[index] * w0[index, None]]) if len(index) else Yl
+    return Y, np.concatenate([w, w0[index]])
+
+
 def group_indices(group: np.ndarray) -> np.ndarray:
     """(N,) the replicate groups ``group`` (N,) renumbered 0, 1, ... (as :func:`stiffcal.measured.errormodel.estimate`
     takes them)."""
@@ -1629,13 +1638,11 @@ def fit_error_model(meas: Measurements, keep: np.ndarray, des: Design, w: np.nda
     Yl, Xu = des.y.reshape(N, d), des.union().reshape(N, d, -1)
     groups = group_indices(meas.group[keep])
     z = unloaded_rows(meas, rw)
-    zw = z * w0[:, None] if len(z) else z.reshape(0, d)
     out, p_out = [], []
 
     def model(excluded, prior, lrt="deferred"):
         st = EM.reading_structure(meas, keep, excluded, motion, turn)
-        Y = np.vstack([Yl, zw[st.zero_index]]) if len(st.zero_index) else Yl
-        weights = np.concatenate([w, w0[st.zero_index]])
+        Y, weights = model_rows(Yl, w, z, w0, st.zero_index)
         return st, Y, weights, EM.estimate(st, Y, weights, groups, Xu, lrt=lrt, start=prior)
 
     em = start
@@ -1922,9 +1929,9 @@ def _constant_noise_model(meas: Measurements, keep: np.ndarray, des: Design, em,
 
     st, N, d = em.structure, int(keep.sum()), des.d
     z = unloaded_rows(meas, rw)
-    Y = np.vstack([des.y.reshape(N, d), z[st.zero_index].reshape(-1, d)])
+    Y, weights = model_rows(des.y.reshape(N, d), np.ones(N), z, np.ones(len(z)), st.zero_index)
     groups = group_indices(meas.group[keep])
-    return EM.estimate(st, Y, np.ones(len(Y)), groups, des.union().reshape(N, d, -1), lrt=False, start=em)
+    return EM.estimate(st, Y, weights, groups, des.union().reshape(N, d, -1), lrt=False, start=em)
 
 
 def _reml_of_rows(em, X: np.ndarray) -> float:
@@ -2693,12 +2700,11 @@ def _error_model_with(pre: Prepared, C: np.ndarray, lrt: bool):
 
     st = pre.error.structure
     N, d = pre.m.n_rows, pre.des.d
-    idx = st.zero_index
-    z = unloaded_rows(pre.meas, pre.rw)
-    Y = np.vstack([pre.weighted.y.reshape(N, d), z[idx] * pre.w0[idx, None]])
+    Y, weights = model_rows(pre.weighted.y.reshape(N, d), pre.w, unloaded_rows(pre.meas, pre.rw), pre.w0,
+                            st.zero_index)
     groups = group_indices(pre.m.group)
-    return EM.estimate(st, Y, np.concatenate([pre.w, pre.w0[idx]]), groups, pre.weighted.union().reshape(N, d, -1),
-                       drift=C, lrt=lrt, start=pre.error)
+    return EM.estimate(st, Y, weights, groups, pre.weighted.union().reshape(N, d, -1), drift=C, lrt=lrt,
+                       start=pre.error)
 
 
 def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):

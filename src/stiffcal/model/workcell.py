@@ -594,6 +594,11 @@ class _Base:
         length = np.where(np.isfinite(length), length, CABLE_DEFAULT_M)
         return top, top + length[:, None] * g
 
+    def cable_bodies_ok(self, q, top, bottom) -> np.ndarray:
+        """(N,) bool: the poses q (N, n) whose hanging cable (``top``, ``bottom`` (N, 3)) meets no body of the arm (each
+        engine's ``cable_hits``)."""
+        return np.array([not h for h in self.cable_hits(q, top, bottom)], bool)
+
     def cable_obstacles_margin(self, top, bottom) -> np.ndarray:
         out = np.full(len(top), np.inf)
         for o in self.cell.obstacles:
@@ -709,9 +714,6 @@ class CapsuleEngine(_Base):
         if self.obst:
             ok &= np.all(self.obstacle_distances(q, enough=True) >= self.obst_margin - TOL_M, axis=1)
         return ok
-
-    def cable_bodies_ok(self, q, top, bottom):
-        return np.array([not h for h in self.cable_hits(q, top, bottom)], bool)
 
     def cable_hits(self, q, top, bottom) -> list[str]:
         """Per pose the body the hanging cable meets nearest ('' where it hangs free of the arm)."""
@@ -990,9 +992,6 @@ class MeshEngine(_Base):
             return np.ones(len(q), bool)
         Q = np.asfortranarray(full_configuration(self.robot, self.model, q).T)
         return ~np.asarray(pin.computeCollisionsInParallel(1, self.pool, Q, True), bool)
-
-    def cable_bodies_ok(self, q, top, bottom):
-        return np.array([not h for h in self.cable_hits(q, top, bottom)], bool)
 
     def cable_hits(self, q, top, bottom) -> list[str]:
         """Per pose the link of the first body the hanging cable meets ('' where it hangs free of the arm)."""
