@@ -1081,7 +1081,7 @@ class KenwardRoger:
         q = U.shape[1]
         if q == 0 or not s2 > 0:
             return 1.0
-        a = np.einsum("ai,gab,bj->gij", U, self.P, U)  # U^T P_i U (g, q, q)
+        a = U.T @ self.P @ U  # U^T P_i U (g, q, q)
         t = np.einsum("gii->g", a)
         A1 = float(t @ self.W @ t)
         A2 = float(np.einsum("ij,iab,jba->", self.W, a, a))
@@ -1181,8 +1181,8 @@ def kenward_roger(blocks: list[dict], lam: np.ndarray, in_use: np.ndarray | None
     ev, V = np.linalg.eigh(M / np.outer(scale, scale))
     keep = ev > RANK_RTOL * max(float(ev.max(initial=0.0)), 1e-300)
     basis = V[:, keep] / np.sqrt(ev[keep]) / scale[:, None]  # (p, r): basis^T M basis = I
-    Po = np.einsum("pa,ipq,qb->iab", basis, Pm, basis)
-    Qo = np.einsum("pa,ijpq,qb->ijab", basis, Qm, basis)
+    Po = basis.T @ Pm @ basis
+    Qo = basis.T @ Qm @ basis
     info = 0.5 * (t - 2.0 * np.einsum("ijaa->ij", Qo) + np.einsum("iab,jba->ij", Po, Po))
     W = np.linalg.pinv(info)
     inflation = np.einsum("ij,ijab->ab", W, Qo - np.einsum("iab,jbc->ijac", Po, Po))
