@@ -4,9 +4,10 @@ result (issue 26: "freeze golden verdict.json, plan.json, design JSON and the ta
 
 What is written, per tree (each by a child process whose PYTHONPATH puts that tree's src/ first):
 
-- the verdicts of simulated lab logs (stiffcal.rates.simulate_case: the 2-link, 3-link and 6-axis arms under every
-  protocol of the rate matrix, clean and with a hidden backlash, joint coupling or tracker drift; the log written as
-  a CSV with pose_id and analysed as a lab would), as JSON without the fields of the files and the calibrated model;
+- the verdicts of simulated lab logs (stiffcal.testing.rates.simulate_case: the 2-link, 3-link and 6-axis arms under
+  every protocol of the rate matrix, clean and with a hidden backlash, joint coupling or tracker drift; the log
+  written as a CSV with pose_id and analysed as a lab would), as JSON without the fields of the files and the
+  calibrated model;
 - ``stiffcal discrepancy`` (verdict.json, calibrated.yaml) on the two synthetic data sets of data/ (with the test
   pose), a 6-axis case of tests/data/discrepancy and two lab-reference logs;
 - ``stiffcal discriminate`` (plan.json) on the two synthetic data sets;
@@ -57,11 +58,21 @@ KUKA_DESIGN = ["--robot", "config/robots/kuka_kr210_r2700.yaml", "--test-pose-de
                "--force-N", "500,-300,-800", "--experiments", "3"]
 
 
+def _module(path: str):
+    """The module ``stiffcal.<path>`` of the tree on sys.path, or its flat path before the subpackages (a baseline
+    such as 0fbeb92 has ``stiffcal.rates`` where this tree has ``stiffcal.testing.rates``): no deprecation warning
+    from this tree, and older baselines still run."""
+    import importlib
+
+    try:
+        return importlib.import_module(f"stiffcal.{path}")
+    except ModuleNotFoundError:
+        return importlib.import_module(f"stiffcal.{path.rsplit('.', 1)[-1]}")
+
+
 def write_cases(folder: Path, limit: int | None) -> list[str]:
     """The simulated lab logs as CSVs in ``folder`` (this tree's simulator); returns their names."""
-    from stiffcal import rates as R
-    from stiffcal import truth as T
-
+    R, T = _module("testing.rates"), _module("testing.truth")
     arms = R.robots(ROOT)
     names = []
     for arm in ("2-link", "3-link", "6-axis"):
@@ -78,10 +89,9 @@ def write_cases(folder: Path, limit: int | None) -> list[str]:
 
 def dump(cases: Path, out: Path) -> None:
     """Every golden output of the stiffcal on sys.path into ``out`` (run in the child process)."""
-    from stiffcal import discrepancy as D
-    from stiffcal import rates as R
-    from stiffcal.criteria import CRITERIA_KEYS  # the registry of the tree on sys.path (the child's PYTHONPATH)
-    from stiffcal.measurements import read_measurements
+    D, R = _module("measured.discrepancy"), _module("testing.rates")
+    CRITERIA_KEYS = _module("model.criteria").CRITERIA_KEYS  # the registry of the tree on sys.path (the child's)
+    read_measurements = _module("measured.measurements").read_measurements
 
     arms = R.robots(ROOT)
     out.mkdir(parents=True, exist_ok=True)
@@ -152,7 +162,7 @@ def main() -> int:
     if args.dump:
         dump(Path(args.dump[0]), Path(args.dump[1]))
         return 0
-    from stiffcal.criteria import CRITERIA_KEYS
+    CRITERIA_KEYS = _module("model.criteria").CRITERIA_KEYS
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
