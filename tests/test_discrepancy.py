@@ -969,6 +969,21 @@ def test_angles_outside_the_joint_limits_are_named(tmp_path):
     assert not any("joint limits" in x for x in read_measurements(LAB_DIR / "lab_3r_coupling.csv", robot).notes)
 
 
+@pytest.mark.parametrize("q2, named", [("150.0005", False), ("150.01", True)])
+def test_an_angle_at_a_limit_in_the_logged_digits_is_not_named(tmp_path, q2, named):
+    """A plan's pose at a joint limit, logged to the controller's digits, may print a few 1e-4 deg beyond it (a fresh
+    user's iiwa: a URDF limit of 3.05432619 rad logged as 175.0000 deg was named on 32 rows): within
+    LIMIT_TOLERANCE_DEG no note, beyond it the note."""
+    robot = load_robot(LAB_DIR / "lab_3r.yaml")
+
+    def move(header, rows):
+        i, p = header.index("q2_deg"), header.index("pose_id")
+        return header, [[(q2 if k == i and r[p] == "cfg0" else v) for k, v in enumerate(r)] for r in rows]
+
+    notes = read_measurements(_lab_file(tmp_path, "lim.csv", move), robot).notes
+    assert any("outside the joint limits" in x for x in notes) == named
+
+
 def test_a_joint_whose_axis_passes_through_the_measured_point_is_left_out_with_a_note():
     """The new user's UR10 (tool point on wrist 3's axis), positions only: the Jacobian's column of wrist 3 is
     zero at every pose of the file (checked directly), the verdict lists joint 6 as not identifiable and says

@@ -2,6 +2,7 @@
 library (Pinocchio) and finite differences, robot-file errors, and the design with its certificate."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -283,6 +284,10 @@ def test_a_design_that_did_not_converge_is_labelled(irb140, capsys, root):
     early = approximate_design(prob, max_rounds=1)
     assert early.equivalence_gap > 1e-3 and not early.converged
     assert "NOT CONVERGED" in early.convergence_note()
+    # what the bound may lack, 1 - Phi_lower / Phi = gap / (1 + gap), in two digits: a gap of 3e-3 once read "0 %"
+    near = replace(early, max_phi=early.phi * 1.003)
+    note = near.convergence_note()
+    assert f"up to {100 * (1 - 1 / 1.003):.2g} % below" in note and "0.3 %" in note
     assert early.lower_bound(6) <= d.lower_bound(6)  # still a bound, only a looser one
     assert not bool(certificate_table(early, 1.0).converged[0]) and bool(certificate_table(d, 1.0).converged[0])
     assert d.convergence_note() is None

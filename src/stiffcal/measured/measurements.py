@@ -971,7 +971,7 @@ def check_angles(q_deg: np.ndarray, cols: list[str], robot: Robot, source: str, 
         notes.append(f"the joint angles ({', '.join(cols)}) look like radians: {why}; if they are, give them in "
                      "degrees (x 180/pi)")
     if robot.has_joint_limits:
-        tol = 1e-6
+        tol = LIMIT_TOLERANCE_DEG
         for j, col in enumerate(cols):
             if j in robot.unlimited_joints:
                 continue
@@ -981,6 +981,11 @@ def check_angles(q_deg: np.ndarray, cols: list[str], robot: Robot, source: str, 
                              f"{lims[j, 1]:g}] deg) in {out.size} {_rows_text(out)}: check the robot file's "
                              "joint_limits_deg, the order of the joint columns and the angle unit")
     return notes
+
+
+#: how far [deg] a logged angle may lie beyond a joint limit without a note: the digits a controller logs (a plan's
+#: pose at a URDF limit of 3.05432619 rad = 174.99999 deg, logged as 175.0000, is at the limit, not beyond it)
+LIMIT_TOLERANCE_DEG = 1e-3
 
 
 #: exact copies of loaded rows refused as a log pasted twice: at least this many and this share of the loaded rows

@@ -216,7 +216,7 @@ class ApproximateDesign:
             return None
         return (f"the optimal approximate design did not converge (equivalence gap {self.equivalence_gap:.2e} > "
                 f"{EQUIVALENCE_TOL:g}): the lower bound is NOT CONVERGED; it still holds for every plan but may be "
-                f"up to {100 * self.equivalence_gap / (1 + self.equivalence_gap):.0f} % below the best possible O_t")
+                f"up to {100 * self.equivalence_gap / (1 + self.equivalence_gap):.2g} % below the best possible O_t")
 
     def lower_bound(self, m: int, sigma: float = 1.0) -> float:
         """Certified lower bound on O_t (eq. 16) for any plan of m poses."""
