@@ -526,6 +526,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
         notes.append((continuum or approx).convergence_note())
     if continuum is not None and not approx.converged:
         notes.append("over its feasible candidates, " + approx.convergence_note())
+    notes += [d.near_singular_note() for d in (continuum, approx) if d is not None and d.near_singular]
     clear, closest = None, ()
     notes += cell_notes(robot)
     if robot.cell is not None:

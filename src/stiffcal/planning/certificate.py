@@ -137,27 +137,50 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
 #: eigenvalues of a design's information matrix below this fraction of its largest are zero to working precision
 #: (its inverse has no correct digit along them: :func:`_phi_design`)
 SINGULAR_RTOL = 1e-12
+#: ... and below this one nearly so (:func:`_phi_design` with ``near``)
+NEAR_SINGULAR_RTOL = 1e-8
+#: the share of Phi the nearly singular directions W does not weigh may carry and still be left out of G
+NEAR_SINGULAR_SHARE = 1e-4
 
 
-def _phi_design(W: np.ndarray, M: np.ndarray) -> tuple[float, np.ndarray]:
+def _phi_design(W: np.ndarray, M: np.ndarray, near: bool = False) -> tuple[float, np.ndarray]:
     """(Phi, G): Phi(xi) = trace(W G) of a design's information M (n, n), W (n, n) = A_t^T A_t, and G (n, n) the
-    inverse of M that phi(x, xi) = ||A(x) G A_t^T||_F^2 uses. G = M^-1, except where M is singular to working
-    precision (eigenvalues at most :data:`SINGULAR_RTOL` of the largest) in directions W does not weigh (the test
-    pose's deflection does not depend on them either; e.g. the compliance of a joint that the test load does not
+    inverse of M that phi(x, xi) = ||A(x) G A_t^T||_F^2 uses. The certified bound Phi^2 / max_x phi holds with any
+    G (Cauchy-Schwarz: for every design eta, trace(W G)^2 <= Phi(eta) sum_x eta(x) ||A(x) G A_t^T||^2;
+    :meth:`ApproximateDesign.bound_with`); G is chosen to make it tight. G = M^-1, except where M is singular to
+    working precision (eigenvalues at most :data:`SINGULAR_RTOL` of the largest) in directions W does not weigh
+    (the test pose's deflection does not depend on them; e.g. the compliance of a joint that the test load does not
     turn, which the design then leaves unloaded): G is then the pseudo-inverse on the other directions. That is
     the design's Phi, taken as singular (a singular optimal design: Pukelsheim, *Optimal Design of Experiments*,
-    1993, whose general equivalence theorem holds with a generalised inverse of M), and the certified bound Phi^2 / max_x phi holds with
-    any G (:meth:`ApproximateDesign.bound_with`), where M^-1 has no correct digit along those directions and
-    sends phi, and the bound, astray."""
+    1993, whose general equivalence theorem holds with a generalised inverse of M), where M^-1 has no correct digit
+    along those directions and sends phi, and the bound, astray.
+
+    With ``near`` also where M is nearly singular (eigenvalues at most :data:`NEAR_SINGULAR_RTOL` of the largest)
+    in directions W does not weigh that carry at most :data:`NEAR_SINGULAR_SHARE` of Phi: a design that gives
+    them ever less information gains ever less, while phi there, the slope, grows as 1 / eigenvalue^2 (a 7-axis
+    arm under loads in its plane stopped at an equivalence gap of 1e6, its bound 1e-6 of the plan's; the second
+    pass of :func:`approximate_design`)."""
     ev, V = np.linalg.eigh(M)
-    small = ev <= SINGULAR_RTOL * ev[-1]
-    if small.any() and ev[-1] > 0:
-        N = V[:, small]
-        if float(np.sum(N * (W @ N))) <= SINGULAR_RTOL * float(np.trace(W)):
-            G = (V[:, ~small] / ev[~small]) @ V[:, ~small].T
-            return float(np.trace(W @ G)), G
+    if ev[-1] > 0:
+        weight = np.einsum("ik,ij,jk->k", V, W, V)  # W's weight on each eigenvector
+        negligible = SINGULAR_RTOL * float(np.trace(W))
+        tiny = ev <= SINGULAR_RTOL * ev[-1]
+        if near:
+            drop = ev <= NEAR_SINGULAR_RTOL * ev[-1]
+            share = float(np.sum(weight[drop & ~tiny] / ev[drop & ~tiny]))
+            if drop.any() and weight[drop].sum() <= negligible and share <= NEAR_SINGULAR_SHARE * float(
+                    np.sum(weight[~drop] / ev[~drop])):
+                return _truncated(W, V, ev, drop)
+        if tiny.any() and weight[tiny].sum() <= negligible:
+            return _truncated(W, V, ev, tiny)
     Minv = np.linalg.inv(M)
     return float(np.trace(W @ Minv)), Minv
+
+
+def _truncated(W: np.ndarray, V: np.ndarray, ev: np.ndarray, drop: np.ndarray) -> tuple[float, np.ndarray]:
+    """(trace(W G), G): G the inverse of V diag(ev) V^T on the eigenvectors not dropped (``drop`` (n,) bool)."""
+    G = (V[:, ~drop] / ev[~drop]) @ V[:, ~drop].T
+    return float(np.trace(W @ G)), G
 
 
 #: equivalence gap max_x phi / Phi - 1 up to which an approximate design counts as converged (its bound is
@@ -171,7 +194,9 @@ class ApproximateDesign:
 
     support_deg: (k, n) poses [deg]; weights: (k,) summing to 1; phi: Phi(xi) = trace(W M(xi)^-1)
     (O_t of one pose-equivalent with sigma = 1); max_phi: max over poses of phi(x, xi);
-    phi_lower: the certified lower bound Phi(xi)^2 / max_phi on Phi*; iterations of step 1.
+    phi_lower: the certified lower bound Phi(xi)^2 / max_phi on Phi*; iterations of step 1; near_singular: phi
+    and Phi leave out the nearly singular directions the test pose does not need (:func:`_phi_design` with
+    ``near``).
     """
 
     support_deg: np.ndarray
@@ -182,6 +207,7 @@ class ApproximateDesign:
     iterations: int
     region: str = "joint space"
     n_candidates: int = 0
+    near_singular: bool = False
 
     @property
     def exact_over_candidates(self) -> bool:
@@ -194,7 +220,7 @@ class ApproximateDesign:
         (a plan's own poses, polished off the candidates): phi's maximum taken over both."""
         X = np.radians(np.asarray(self.support_deg, float))
         M = np.einsum("k,kij->ij", np.asarray(self.weights, float), _info(problem, X))
-        C = _phi_design(problem.At.T @ problem.At, M)[1] @ problem.At.T
+        C = _phi_design(problem.At.T @ problem.At, M, self.near_singular)[1] @ problem.At.T
         extra = float(np.max(np.sum((problem.rows(np.atleast_2d(poses_rad)) @ C) ** 2, axis=(-2, -1)),
                              initial=0.0))
         return sigma**2 * self.phi**2 / max(self.max_phi, extra) / m
@@ -217,6 +243,14 @@ class ApproximateDesign:
         return (f"the optimal approximate design did not converge (equivalence gap {self.equivalence_gap:.2e} > "
                 f"{EQUIVALENCE_TOL:g}): the lower bound is NOT CONVERGED; it still holds for every plan but may be "
                 f"up to {100 * self.equivalence_gap / (1 + self.equivalence_gap):.2g} % below the best possible O_t")
+
+    def near_singular_note(self) -> str:
+        """One sentence for the outputs of a design whose phi leaves out nearly singular directions
+        (:attr:`near_singular`)."""
+        return (f"the optimal approximate design over the {self.region} leaves some compliances nearly unloaded "
+                "that the test pose's deflection does not depend on (its information there at most "
+                f"{NEAR_SINGULAR_RTOL:g} of its largest): its certificate leaves them out (phi with a generalised "
+                f"inverse; at most {NEAR_SINGULAR_SHARE:g} of Phi), which gave a tighter bound than the plain inverse")
 
     def lower_bound(self, m: int, sigma: float = 1.0) -> float:
         """Certified lower bound on O_t (eq. 16) for any plan of m poses."""
@@ -302,7 +336,7 @@ def _damped_newton_step(P: np.ndarray, w: np.ndarray, phi: np.ndarray, viol: np.
 
 
 def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, tol: float = 1e-9,
-                    max_iter: int = 500) -> np.ndarray:
+                    max_iter: int = 500, near: bool = False) -> np.ndarray:
     """The optimal weights of an approximate design on a fixed set of k poses: min ``Phi(w) =
     trace(W M(w)^-1)``, ``M(w) = sum_i w_i P_i``, over the simplex (a convex problem).
 
@@ -317,8 +351,8 @@ def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, 
     pose of largest phi_i with an exact line search. Stops when ``max_i phi_i / Phi - 1 <= tol`` (the
     equivalence theorem on the k poses) or when no step lowers Phi (round-off).
 
-    P: (k, n, n); W: (n, n); w0: (k,) starting weights (default uniform; M(w0) must be nonsingular).
-    Returns w (k,), summing to 1.
+    P: (k, n, n); W: (n, n); w0: (k,) starting weights (default uniform; M(w0) must be nonsingular); near: Phi
+    as :func:`_phi_design` with ``near`` gives it. Returns w (k,), summing to 1.
     """
     from scipy.optimize import minimize_scalar
 
@@ -328,14 +362,14 @@ def optimal_weights(P: np.ndarray, W: np.ndarray, w0: np.ndarray | None = None, 
 
     def value(v):
         try:
-            val = _phi_design(W, (v @ P2).reshape(n, n))[0]
+            val = _phi_design(W, (v @ P2).reshape(n, n), near)[0]
         except np.linalg.LinAlgError:
             return np.inf
         return val if np.isfinite(val) and val > 0 else np.inf
 
     mu = 1e-8
     for _ in range(max_iter):
-        Phi, Minv = _phi_design(W, (w @ P2).reshape(n, n))
+        Phi, Minv = _phi_design(W, (w @ P2).reshape(n, n), near)
         B = Minv @ W @ Minv
         phi = P2 @ B.ravel()
         viol = phi / Phi - 1.0
@@ -647,42 +681,93 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     w, it = multiplicative(P, W, iters)
     top = np.argsort(-w, kind="stable")[:MAX_START_SUPPORT]
     top = top[w[top] >= 1e-3 * w[top[0]]]
-    X, PS, wS = pool[top], P[top], w[top] / w[top].sum()
-    early = False
+    rounds = functools.partial(_column_generation, problem, W, search, target_gap=target_gap, max_rounds=max_rounds,
+                               n_refine=n_refine, n_certify=n_certify)
+    X, wS, Phi, gap = rounds(pool[top], P[top], w[top] / w[top].sum())
+    d = _design_of(robot, X, wS, Phi, Phi * (1.0 + gap), it)
+    if d.converged or not _nearly_singular(W, problem, X, wS):
+        return d
+    X, wS, Phi, gap = rounds(X, _info(problem, X), wS, near=True)  # the second pass: phi without the slope of unneeded directions
+    near = _design_of(robot, X, wS, Phi, Phi * (1.0 + gap), it, near_singular=True)
+    return near if near.phi_lower > d.phi_lower else d
+
+
+def _design_of(robot: Robot, X: np.ndarray, w: np.ndarray, Phi: float, max_phi: float, it: int,
+               *args, **kwargs) -> ApproximateDesign:
+    """The :class:`ApproximateDesign` of the support X (k, n) [rad] with weights w (k,), its Phi and max_x phi (its
+    bound Phi^2 / max_phi); further arguments as the class's after ``iterations``."""
+    return ApproximateDesign(into_limits(robot, np.degrees(X)), w, Phi, max_phi, Phi**2 / max_phi, it, *args,
+                             **kwargs)
+
+
+def _nearly_singular(W: np.ndarray, problem: Problem, X: np.ndarray, w: np.ndarray) -> bool:
+    """Whether the design of poses X (k, n) [rad] and weights w (k,) has nearly singular directions that W does not
+    weigh (:func:`_phi_design` leaves them out with ``near`` and not without)."""
+    M = np.einsum("k,kij->ij", w, _info(problem, X))
+    return _phi_design(W, M, True)[0] != _phi_design(W, M)[0]
+
+
+def _column_generation(problem: Problem, W: np.ndarray, search: "PhiSearch", X: np.ndarray, PS: np.ndarray,
+                       wS: np.ndarray, target_gap: float, max_rounds: int, n_refine: int, n_certify: int, near: bool = False):
+    """The rounds of :func:`approximate_design` from the support X (k, n) [rad] with weights wS (k,): optimal
+    weights (PS (k, n, n) the support's information), then the maxima of phi over the joint space join the support, until the equivalence gap is at most
+    ``target_gap`` or ``max_rounds``; with ``near`` (:func:`_phi_design`) also when Phi stalls
+    (:func:`_stalled`) far from the optimum after a thorough search. Returns (X, w, Phi, gap), the support by
+    falling weight."""
+    early, history, stalls = False, [], 0
     for rnd in range(max_rounds):
-        wS = optimal_weights(PS, W, wS)
+        wS = optimal_weights(PS, W, wS, near=near)
         keep = wS > MIN_WEIGHT
         X, PS, wS = X[keep], PS[keep], wS[keep] / wS[keep].sum()
-        Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", wS, PS))
+        Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", wS, PS), near)
+        history.append(Phi)
         found = search.maximise(Minv, X, n_refine, climb=int(rnd == 0), xtol=1e-5, drop_below=0.8 * Phi)
         gap = _gap(found, Phi)
         # the thorough search certifies the final design (and confirms the target gap); a lighter one runs once
-        # as soon as the design is near optimal, to bring in the regions the quick searches missed
+        # as soon as the design is near optimal, to bring in the regions the quick searches missed, and a thorough
+        # one where Phi stalls far from the optimum (up to MAX_STALLS times)
         last = gap <= target_gap or rnd == max_rounds - 1
-        if last or (gap <= EQUIVALENCE_TOL and not early):
+        stall = near and gap > EQUIVALENCE_TOL and _stalled(history)
+        if last or stall or (gap <= EQUIVALENCE_TOL and not early):
             early = True
-            found = search.maximise(Minv, X, n_certify if last else 4 * n_refine, climb=2 if last else 1,
-                                    drop_below=0.5 * Phi)
+            found = search.maximise(Minv, X, n_certify if last or stall else 4 * n_refine,
+                                    climb=2 if last or stall else 1, drop_below=0.5 * Phi)
             gap = _gap(found, Phi)
-            if gap <= target_gap or rnd == max_rounds - 1:
+            stalls += stall
+            if gap <= target_gap or rnd == max_rounds - 1 or stalls > MAX_STALLS:
                 break
-        X, wS, PS = _grow_support(problem, W, X, wS, Phi, found)
-    max_phi = Phi * (1.0 + gap)
+            history = [] if stall else history
+        X, wS, PS = _grow_support(problem, W, X, wS, Phi, found, near)
     order = np.argsort(-wS, kind="stable")
-    return ApproximateDesign(into_limits(robot, np.degrees(X[order])), wS[order], Phi, max_phi, Phi**2 / max_phi, it)
+    return X[order], wS[order], Phi, gap
+
+
+#: rounds over which Phi falling by less than STALL_RTOL of itself counts as a stall (:func:`_column_generation`
+#: with ``near``), and the thorough searches after stalls before the design ends there (its bound holds, with the
+#: note that it did not converge)
+STALL_ROUNDS = 5
+STALL_RTOL = 1e-9
+MAX_STALLS = 2
+
+
+def _stalled(history: list[float]) -> bool:
+    """Whether Phi (``history``, one value a round) fell by less than :data:`STALL_RTOL` of itself over the last
+    :data:`STALL_ROUNDS` rounds: the poses that join the support no longer lower it."""
+    return len(history) > STALL_ROUNDS and history[-1 - STALL_ROUNDS] - history[-1] < STALL_RTOL * history[-1]
 
 
 def _grow_support(problem: Problem, W: np.ndarray, X: np.ndarray, wS: np.ndarray, Phi: float,
-                  found) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                  found, singular: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(X, w, P) of the support after a search of phi (``found``: :meth:`PhiSearch.maximise`'s grid and local
     maxima): a support pose whose maximum of phi is near (within MOVE_DEG) moves there when that lowers Phi at
     the same weights; the other maxima above Phi (at most MAX_NEW, the highest) join with weight 0 (the weights
-    step brings them in); poses that coincide or carry the same information merge."""
+    step brings them in); poses that coincide or carry the same information merge. ``singular``: Phi as
+    :func:`_phi_design` with ``near`` gives it."""
     xg, fg, xm, fm = found
     near = np.all(np.abs(angle_diff(xm, X)) <= np.radians(MOVE_DEG), axis=1)
     moved = np.where(near[:, None], xm, X)
     P_moved = _info(problem, moved)
-    if _phi_design(W, np.einsum("k,kij->ij", wS, P_moved))[0] < Phi:
+    if _phi_design(W, np.einsum("k,kij->ij", wS, P_moved), singular)[0] < Phi:
         X, fm = moved, np.where(near, -np.inf, fm)
     xs, fs = np.vstack([xm, xg]), np.concatenate([fm, fg])
     best = np.argsort(-fs, kind="stable")[:MAX_NEW]
@@ -703,20 +788,38 @@ def _feasible_design(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.nd
     plan of these poses (:meth:`ApproximateDesign.bound_with` adds a plan's own, polished, poses); a plan of
     other feasible poses could do better (the feasible continuum is not searched exhaustively: no climbing,
     which does not know the cell)."""
-    robot = problem.robot
-    n = robot.n_joints
-    P2 = P.reshape(len(P), -1)
     w, it = multiplicative(P, W, iters)
     top = np.argsort(-w, kind="stable")[:MAX_START_SUPPORT]
     top = top[w[top] >= 1e-3 * w[top[0]]]
-    X, PS, wS = pool[top], P[top], w[top] / w[top].sum()
+    rounds = functools.partial(_feasible_rounds, problem, pool, P, W, search, target_gap=target_gap,
+                               max_rounds=max_rounds, n_refine=n_refine)
+    X, wS, Phi, top_max, n_found = rounds(pool[top], P[top], w[top] / w[top].sum())
+    d = _design_of(problem.robot, X, wS, Phi, top_max, it, "feasible candidates", len(pool) + len(search.Q) + n_found)
+    if d.converged or not _nearly_singular(W, problem, X, wS):
+        return d
+    X, wS, Phi, top_max, n_found = rounds(X, _info(problem, X), wS, near=True)  # as approximate_design's second pass
+    near = _design_of(problem.robot, X, wS, Phi, top_max, it, "feasible candidates",
+                      len(pool) + len(search.Q) + n_found, near_singular=True)
+    return near if near.phi_lower > d.phi_lower else d
+
+
+def _feasible_rounds(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.ndarray, search: "PhiSearch",
+                     X: np.ndarray, PS: np.ndarray, wS: np.ndarray, target_gap: float, max_rounds: int, n_refine: int,
+                     near: bool = False):
+    """The rounds of :func:`_feasible_design` from the support X (k, n) [rad] (information PS (k, n, n)) with weights
+    wS (k,); ``near`` as
+    :func:`_phi_design`'s (and then at most STALL_ROUNDS rounds once Phi stalls). Returns (X, w, Phi, the largest
+    phi over the candidates, the number of maxima of phi found), the support by falling weight."""
+    robot, n = problem.robot, problem.robot.n_joints
+    P2 = P.reshape(len(P), -1)
     found = np.zeros((0, n))  # the maxima of phi found so far: candidates too
-    rows = problem.rows
+    rows, history = problem.rows, []
     for _ in range(max_rounds):
-        wS = optimal_weights(PS, W, wS)
+        wS = optimal_weights(PS, W, wS, near=near)
         keep = wS > MIN_WEIGHT
         X, PS, wS = X[keep], PS[keep], wS[keep] / wS[keep].sum()
-        Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", wS, PS))
+        Phi, Minv = _phi_design(W, np.einsum("k,kij->ij", wS, PS), near)
+        history.append(Phi)
         B = Minv @ W @ Minv
         C = Minv @ problem.At.T
 
@@ -740,8 +843,7 @@ def _feasible_design(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.nd
                 found = found[np.argsort(-fun(found), kind="stable")[:MAX_FOUND]]
         top_max = max(float(phi_pool.max()), float(phi_q[best_q[0]]) if best_q.size else -np.inf,
                       float(fm.max(initial=-np.inf)), float(fc.max(initial=-np.inf)), Phi)
-        gap = top_max / Phi - 1.0
-        if gap <= target_gap:
+        if top_max / Phi - 1.0 <= target_gap or (near and _stalled(history)):
             break
         xs, fs = np.vstack([cand, xm]), np.concatenate([fc, fm])
         pick = np.argsort(-fs, kind="stable")[:MAX_NEW]
@@ -749,8 +851,7 @@ def _feasible_design(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.nd
         X, wS = _merge(problem, np.vstack([X, new]), np.append(wS, np.zeros(len(new))))
         PS = _info(problem, X)
     order = np.argsort(-wS, kind="stable")
-    return ApproximateDesign(into_limits(robot, np.degrees(X[order])), wS[order], Phi, top_max, Phi**2 / top_max, it,
-                             "feasible candidates", len(pool) + len(search.Q) + len(found))
+    return X[order], wS[order], Phi, top_max, len(found)
 
 
 def _meets_earlier_mask(X: np.ndarray, tol: float) -> np.ndarray:

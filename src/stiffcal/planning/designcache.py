@@ -91,9 +91,10 @@ def _from_json(data: bytes, n_joints: int) -> ApproximateDesign | None:
         if not (len(support) and weights.shape == (len(support),) and np.isfinite(support).all()
                 and np.isfinite(weights).all() and weights.min() >= 0.0 and abs(weights.sum() - 1.0) <= 1e-9
                 and np.isfinite(scalars).all() and scalars.min() > 0.0 and isinstance(doc["region"], str)
-                and all(type(c) is int and 0 <= c < 2**53 for c in counts)):
+                and all(type(c) is int and 0 <= c < 2**53 for c in counts) and type(doc["near_singular"]) is bool):
             return None
-        return ApproximateDesign(support, weights, *map(float, scalars), *counts[:1], doc["region"], counts[1])
+        return ApproximateDesign(support, weights, *map(float, scalars), *counts[:1], doc["region"], counts[1],
+                                 doc["near_singular"])
     except (ValueError, TypeError, KeyError, AttributeError, UnicodeDecodeError, OverflowError, RecursionError):
         return None
 

@@ -153,6 +153,8 @@ def _design_doc(d) -> dict:
            "phi_lower": d.phi_lower, "iterations": d.iterations}
     if d.region != "joint space":
         doc |= {"region": d.region, "n_candidates": d.n_candidates}
+    if d.near_singular:
+        doc["near_singular"] = True
     return doc
 
 
@@ -202,7 +204,8 @@ def _design(path: str, part: str | None = None):
         if d is None:
             return None
     return ApproximateDesign(np.array(d["support_deg"]), np.array(d["weights"]), d["phi"], d["max_phi"],
-                             d["phi_lower"], d["iterations"], d.get("region", "joint space"), d.get("n_candidates", 0))
+                             d["phi_lower"], d["iterations"], d.get("region", "joint space"), d.get("n_candidates", 0),
+                             d.get("near_singular", False))
 
 
 def study_plans(p: dict, robot: str, m_values: list[int], seed: int, design_json: str, pool_npy: str,
