@@ -1075,6 +1075,22 @@ def test_a_cell_in_millimetres_is_refused_naming_the_unit(tmp_path):
             assert load_robot(path).cell is not None
 
 
+def test_a_length_beyond_the_schema_in_millimetres_names_the_unit(tmp_path):
+    """A fresh user's Z1 table of 900 x 1200 x 750 (millimetres) stopped at the schema's 1000 m with 'expected a
+    number <= 1000, got 1200', no word of the unit; a non-length field beyond its bound keeps the plain message."""
+    path = tmp_path / "r.yaml"
+    box = "{name: table, center_m: [0.0, -700.0], size_m: [900, 1200]}"
+    path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  link_radius_m: 0.02\n"
+                    f"  boxes:\n    - {box}\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"size_m\[1\]'.*got 1200: size_m is in metres; millimetres given"):
+        load_robot(path)
+    path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\n"
+                    "joint_limits_deg: [[-180, 180], [-180, 4000]]\n", encoding="utf-8")
+    with pytest.raises(InputError) as err:
+        load_robot(path)
+    assert "millimetres" not in str(err.value)
+
+
 def test_a_test_pose_inside_an_obstacle_names_the_pair(tmp_path):
     """A fresh user's Panda test pose inside a fixture: the note did not say which body met what. The 2-link arm
     at (0, 0) deg lies along the x axis to x = 1 m; a box of 0.1 m about (0.8, 0) m holds link 2 (its axis

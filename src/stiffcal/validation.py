@@ -223,6 +223,15 @@ def _spelling(given: list[str], expected: list[str]) -> str:
     return f" ({'; '.join(f'{g!r}: did you mean {e!r}?' for g, e in pairs)})" if pairs else ""
 
 
+def _metres_hint(error) -> str:
+    """A length in metres (a field named ``*_m``) beyond +-1000: millimetres given as metres (a fresh user's table of
+    900 x 1200 x 750)."""
+    names = [str(k) for k in error.absolute_path if isinstance(k, str)]
+    if names and names[-1].endswith("_m") and abs(float(error.validator_value)) >= 1000:
+        return f": {names[-1]} is in metres; millimetres given as metres? (divide by 1000)"
+    return ""
+
+
 def _explain(error) -> str:
     """Turn a jsonschema error into 'expected ..., got ...' wording (the value shown is cut to a few dozen
     characters)."""
@@ -246,10 +255,9 @@ def _explain(error) -> str:
         return f"expected a number > {v}, {got}"
     if error.validator == "exclusiveMaximum":
         return f"expected a number < {v}, {got}"
-    if error.validator == "minimum":
-        return f"expected a number >= {v}, {got}"
-    if error.validator == "maximum":
-        return f"expected a number <= {v}, {got}"
+    if error.validator in ("minimum", "maximum"):
+        return (f"expected a number {'>=' if error.validator == 'minimum' else '<='} {v}, {got}"
+                + _metres_hint(error))
     if error.validator in ("minItems", "maxItems"):
         return f"expected {'at least' if error.validator == 'minItems' else 'at most'} {v} item(s), {got}"
     if error.validator == "uniqueItems":
