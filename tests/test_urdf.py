@@ -479,3 +479,20 @@ def test_plans_csv_prints_a_pose_at_a_joint_limit_within_it(root):
     df = plans_long({("ot", 1): pose[None]}, robot)
     q = df[[c for c in df.columns if c.endswith("_deg")]].to_numpy()[0]
     assert np.all(q >= lo - 1e-12) and abs(q[3] - lo[3]) < 1e-4, (q[3], lo[3])
+
+
+def test_a_test_pose_of_the_wrong_length_names_the_guessed_chain():
+    """A fresh user gave the Z1's URDF (example-robot-data) directly and six angles: the guessed chain ends at the
+    gripper's jaw, seven joints, and the message said only 'expected 7 joint angles'. It now lists the joints, the
+    frames and how to end the arm elsewhere; with tip_frame link06 the six angles are taken."""
+    from real_arms import robots_dir
+    from stiffcal.planning.study import check_test_inputs
+
+    if robots_dir() is None:
+        pytest.skip("example-robot-data is not installed")
+    urdf = robots_dir() / "z1_description/urdf/z1.urdf"
+    q, f = [0, 80, -60, -20, 0, 0], np.array([0.0, 0.0, -20.0])
+    with pytest.raises(InputError, match=r"7 joints: joint1, .*, jointGripper, from world to gripperMover; a robot "
+                                         r"file's tip_frame"):
+        check_test_inputs(load_robot(urdf), q, f, "test_pose_deg", "force_N")
+    assert check_test_inputs(load_robot(urdf, tip_frame="link06"), q, f, "test_pose_deg", "force_N").size == 6

@@ -125,6 +125,16 @@ def check_sensing(robot: Robot, targets, orientation: bool, sigma_m: float, sigm
     return sensing, str(test_target), float(length_m)
 
 
+def _chain_text(robot: Robot) -> str:
+    """For a URDF arm: ': j1, j2, ... from base to tip frame', and how to choose another tip (a gripper's joint in
+    the chain guessed from a URDF: a fresh user's Z1 had 7 joints where they expected 6)."""
+    info = robot.urdf_info
+    if not info:
+        return ""
+    return (f": {', '.join(map(str, robot.joint_names))}, from {info['base_frame']} to {info['tip_frame']}; a robot "
+            "file's tip_frame (or load_robot(path, tip_frame=...)) ends the arm at another link")
+
+
 def check_test_inputs(robot: Robot, q_deg, force: np.ndarray, pose_field: str, force_field: str,
                       source: str | None = None, moment: np.ndarray | None = None,
                       moment_field: str = "moment_Nm") -> np.ndarray:
@@ -135,8 +145,8 @@ def check_test_inputs(robot: Robot, q_deg, force: np.ndarray, pose_field: str, f
     q_deg = np.asarray(q_deg, float)
     n, d, dm = robot.n_joints, robot.task_dim, moment_dim(robot)
     if q_deg.size != n:
-        raise InputError(f"expected {n} joint angles (robot {robot.source} has {n} joints), got {q_deg.size}",
-                         source=source, field=pose_field)
+        raise InputError(f"expected {n} joint angles (robot {robot.source} has {n} joints{_chain_text(robot)}), got "
+                         f"{q_deg.size}", source=source, field=pose_field)
     if np.size(force) != d:
         raise InputError(f"expected {d} force components for a {robot.kind} robot, got {np.size(force)}",
                          source=source, field=force_field)
