@@ -243,9 +243,10 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
     load = np.atleast_2d(np.asarray(load, float))
     X, mean, unidentified = _motion(robot, cal, q, load, target, orientation)
     cov = np.einsum("nrp,pq,nsq->nrs", X, cal.cov, X)
-    sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
     d = robot.task_dim
-    notes = []
+    cov[:, np.arange(d), np.arange(d)] += cal.model_error_m**2  # a model the data reject: its error beyond the noise
+    sd = np.sqrt(np.clip(np.diagonal(cov, axis1=1, axis2=2), 0.0, None))
+    notes = _model_error_note(cal)
     if getattr(robot, "calibration", None) is None:
         notes.append("the robot file has no calibration section: the predictions use its compliances_rad_per_Nm "
                      "alone, with no extension and no uncertainty (sd 0); give the calibrated.yaml that stiffcal "
@@ -264,6 +265,16 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
                      "they did not determine that the row moves): their error can be far above sd")
     return Prediction(q, load, mean[:, :d], sd[:, :d], mean[:, d:] if orientation else None,
                       sd[:, d:] if orientation else None, cov, tnames, cal.causes, tuple(notes), ok)
+
+
+def _model_error_note(cal) -> list[str]:
+    """A note where the calibration carries a model error (:attr:`Calibration.model_error_m`)."""
+    if not cal.model_error_m > 0:
+        return []
+    return [f"the data reject this model (verdict {cal.source.get('verdict_cause')}): sd includes its error at "
+            f"configurations it was not fitted to, {cal.model_error_m * 1e6:.3g} um "
+            "per coordinate (its held-out RMS beyond the noise, calibration.model_error_m), an estimate from the "
+            "measured configurations: farther from them the error can be larger"]
 
 
 def _negative_compliance_notes(robot: Robot, cal) -> list[str]:

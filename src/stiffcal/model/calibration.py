@@ -29,7 +29,9 @@ class Calibration:
     data determine the parameter (a parameter they do not keeps its minimum-norm value); n_offsets: the
     parameters of ``measurement_offset`` (left out of predictions); sigma_m [m] and rotation_weight_m_per_rad:
     the noise of the analysis; error_model: its summary (the verdict's ``error_model``); source: the data file,
-    its SHA-256, the robot file, the verdict's cause and p-value, alpha, the stiffcal version."""
+    its SHA-256, the robot file, the verdict's cause and p-value, alpha, the stiffcal version; model_error_m [m]:
+    where the data reject this model, its error per position coordinate at a configuration it was not fitted to
+    beyond the noise (0: none known), which predictions add to their variance."""
     causes: tuple[str, ...]
     k_joints: tuple[int, ...]
     names: tuple[str, ...]
@@ -41,6 +43,7 @@ class Calibration:
     rotation_weight_m_per_rad: float | None = None
     error_model: dict = field(default_factory=dict)
     source: dict = field(default_factory=dict)
+    model_error_m: float = 0.0
 
     def compliances(self, n_joints: int) -> np.ndarray:
         """(n,) [rad/(N m)]: the identified compliance of every joint, NaN for one the data did not identify."""
@@ -56,7 +59,8 @@ class Calibration:
                           "estimable": [bool(e) for e in self.estimable], "n_offsets": int(self.n_offsets),
                           "sigma_m": float(self.sigma_m),
                           "rotation_weight_m_per_rad": self.rotation_weight_m_per_rad,
-                          "error_model": self.error_model, "source": self.source})
+                          "error_model": self.error_model, "source": self.source,
+                          **({"model_error_m": float(self.model_error_m)} if self.model_error_m > 0 else {})})
 
 
 #: the largest standard deviation of a calibration's parameter accepted (SI units: rad/(N m), rad, m, 1/(N m^2))
@@ -121,7 +125,7 @@ def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
                   "parameter_names")
     return Calibration(causes, tuple(joints), names, theta, cov, est, int(doc["n_offsets"]), float(doc["sigma_m"]),
                        doc.get("rotation_weight_m_per_rad"), dict(doc.get("error_model") or {}),
-                       dict(doc.get("source") or {}))
+                       dict(doc.get("source") or {}), float(doc.get("model_error_m", 0.0)))
 
 
 def _names_of(cause: str, robot: Robot, n_offsets: int) -> list[str]:
