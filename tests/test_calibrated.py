@@ -1254,9 +1254,9 @@ def test_a_model_the_data_reject_predicts_with_its_held_out_error(tmp_path):
     """The fresh user's iiwa log with a backlash at joint 3 (tests/data/newuser/iiwa_backlash_104.csv): the verdict
     names backlash, but the extension predicts held-out configurations no better, so calibrated.yaml keeps the
     nominal model, which the data reject. Its predictions at four new poses missed the user's truth by up to 88 um
-    with sd of at most 13 um (RMS of the errors in units of sd 5.3). Now the calibration carries the model's held-out error
-    beyond the noise (model_error_m) and the sd includes it: against the independent truth the RMS z is at most 2
-    (a model whose sd were right gives about 1), and a note says so."""
+    with sd of at most 13 um (RMS of the errors in units of sd 5.3). Now the calibration carries the model's
+    held-out error beyond the noise (model_error_m) and the sd includes it: against the independent truth the RMS z
+    is at most 2 (1.5; a model whose sd were right gives about 1), and a note says so."""
     from stiffcal.cli import main
 
     data = ROOT / "tests/data/newuser"
