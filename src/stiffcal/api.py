@@ -512,6 +512,26 @@ def _ot_star_note(base, ot_star: float) -> list[str]:
             "(eq. 17) does not exist here; compare O_t with lower_bound instead"]
 
 
+def weak_compliance_notes(robot, cov_diag: np.ndarray) -> list[str]:
+    """A note naming the compliances a plan determines only to more than their nominal value (the robot file's
+    ``compliances_rad_per_Nm``; none without them): sqrt(cov_diag) (n,) [rad/(N m)] (eq. 11, with the plan's
+    sigma) above it. O_t needs only what the test pose's deflection depends on, so its plan may leave a joint the
+    test load barely turns nearly free; the analysis of the data fits it all the same, and a fresh user's iiwa plan
+    (sd 6 times the nominal k5) gave k5 = -3.5e-5 and predictions 88 um off at other poses."""
+    k = getattr(robot, "compliances", None)
+    if k is None:
+        return []
+    sd = np.sqrt(np.asarray(cov_diag, float))
+    weak = [j for j in range(len(sd)) if np.isfinite(sd[j]) and k[j] > 0 and sd[j] > k[j]]
+    if not weak:
+        return []
+    listed = ", ".join(f"{robot.joint_names[j]} (sd {sd[j]:.2g}, {sd[j] / k[j]:.2g} times its nominal)" for j in weak)
+    return [f"this plan determines the compliance of joint(s) {listed} only to more than its nominal value "
+            "(rad/(N m)): O_t does not need it (the test load barely turns it), but the analysis of the data fits "
+            "every compliance, and one this free can come out far off (below zero) and bias the model at other poses; "
+            "to calibrate the whole arm add poses or plan with --criterion a"]
+
+
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
     from .model import criteria
@@ -536,12 +556,13 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
         notes += _test_pose_cell_note(robot, base, np.radians(inp.q_t))
     ot = float(summ["O_t"])
     ot_star = base.ot_star(inp.m)
-    notes += _singular_plan_note(inp, summ, ot) + _ot_star_note(base, ot_star)
+    cov_diag = np.array([float(summ[e]) for e in robot.joint_columns("E_dk")])
+    notes += _singular_plan_note(inp, summ, ot) + _ot_star_note(base, ot_star) + weak_compliance_notes(robot, cov_diag)
     meas_loads, sensing = inp.meas_loads, inp.sensing
     return DesignResult(
         criterion=inp.criterion, criterion_label=criteria.label(inp.criterion), robot=robot.name, experiments=inp.m,
         poses_deg=np.asarray(poses, float), O_t=ot, O_t_star=ot_star,
-        chi=float(summ["chi"]), cov_diag=np.array([float(summ[e]) for e in robot.joint_columns("E_dk")]),
+        chi=float(summ["chi"]), cov_diag=cov_diag,
         lower_bound=bound, gap=None if bound is None else ot / bound - 1.0,
         optimal_set_deg=np.asarray(found.optimal_set, float).reshape(-1, robot.n_joints),
         degenerate=bool(found.degenerate),
