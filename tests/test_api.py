@@ -219,15 +219,18 @@ def test_api_misuse_names_the_argument(root, monkeypatch, call, field):
 
 def test_a_compliance_the_plan_leaves_free_is_named():
     """A fresh user's iiwa O_t plan left k3 and k5 at 150 and 22 times their nominal in sd (the test load barely
-    turns them) and said nothing; the analysis then fitted k5 = -3.5e-5. A joint whose sqrt(cov_diag) exceeds the
-    robot file's compliance is named with both figures; none without compliances or below them."""
+    turns them; the median joint 0.13) and said nothing; the analysis then fitted k5 = -3.5e-5. A joint whose sd over
+    its compliance is above 1 and 10 times the median joint's is named; none without compliances, none where all
+    are alike (sigma = 1 in the paper's units makes every ratio large)."""
     from dataclasses import replace
 
     from stiffcal.api import weak_compliance_notes
     from stiffcal.model.robot import planar_robot
 
-    robot = replace(planar_robot([0.6, 0.4]), compliances=np.array([2e-6, 1e-6]))
-    note = weak_compliance_notes(robot, np.array([1e-14, 9e-12]))
-    assert len(note) == 1 and "joint(s) 2 (sd 3e-06, 3 times its nominal)" in note[0] and "joint(s) 1" not in note[0]
-    assert weak_compliance_notes(robot, np.array([1e-14, 1e-13])) == []
-    assert weak_compliance_notes(planar_robot([0.6, 0.4]), np.array([1e-14, 9e-12])) == []
+    robot = replace(planar_robot([0.6, 0.4, 0.3]), compliances=np.array([2e-6, 1e-6, 1e-6]))
+    note = weak_compliance_notes(robot, np.array([4e-14, 1e-14, 9e-12]))  # r = 0.1, 0.1, 3
+    assert len(note) == 1 and "joint(s) 3 (3 times its nominal)" in note[0] and "the median joint 0.1" in note[0]
+    assert weak_compliance_notes(robot, np.array([4e-14, 1e-14, 1e-13])) == []  # r 0.32: determined to a third
+    assert weak_compliance_notes(robot, np.array([4e2, 1e2, 4e2])) == []  # sigma = 1: all alike, none named
+    assert "joint(s) 3" in weak_compliance_notes(robot, np.array([4e2, 1e2, 9e6]))[0]
+    assert weak_compliance_notes(planar_robot([0.6, 0.4, 0.3]), np.array([1e-14, 1e-14, 9e-12])) == []

@@ -513,23 +513,32 @@ def _ot_star_note(base, ot_star: float) -> list[str]:
 
 
 def weak_compliance_notes(robot, cov_diag: np.ndarray) -> list[str]:
-    """A note naming the compliances a plan determines only to more than their nominal value (the robot file's
-    ``compliances_rad_per_Nm``; none without them): sqrt(cov_diag) (n,) [rad/(N m)] (eq. 11, with the plan's
-    sigma) above it. O_t needs only what the test pose's deflection depends on, so its plan may leave a joint the
-    test load barely turns nearly free; the analysis of the data fits it all the same, and a fresh user's iiwa plan
-    (sd 6 times the nominal k5) gave k5 = -3.5e-5 and predictions 88 um off at other poses."""
+    """A note naming the compliances a plan determines far worse than the others, relative to their nominal values
+    (the robot file's ``compliances_rad_per_Nm``; none without them): r_j = sqrt(cov_diag_j) / k_j (cov_diag (n,),
+    eq. 11) above 1 and above :data:`WEAK_COMPLIANCE_FACTOR` times the median r over the joints (so the note does not
+    depend on the sigma unit). O_t needs only what the test pose's deflection depends on, so its plan may leave a
+    joint the test load barely turns nearly free; the analysis of the data fits it all the same, and a fresh user's
+    iiwa plan (sd 22 times the nominal k5) gave k5 = -3.5e-5 and predictions 88 um off at other poses."""
     k = getattr(robot, "compliances", None)
     if k is None:
         return []
-    sd = np.sqrt(np.asarray(cov_diag, float))
-    weak = [j for j in range(len(sd)) if np.isfinite(sd[j]) and k[j] > 0 and sd[j] > k[j]]
+    r = np.sqrt(np.asarray(cov_diag, float)) / np.where(np.asarray(k) > 0, k, np.nan)
+    known = np.isfinite(r)
+    if not known.any():
+        return []
+    median = float(np.median(r[known]))
+    weak = [j for j in np.flatnonzero(known) if r[j] > max(1.0, WEAK_COMPLIANCE_FACTOR * median)]
     if not weak:
         return []
-    listed = ", ".join(f"{robot.joint_names[j]} (sd {sd[j]:.2g}, {sd[j] / k[j]:.2g} times its nominal)" for j in weak)
-    return [f"this plan determines the compliance of joint(s) {listed} only to more than its nominal value "
-            "(rad/(N m)): O_t does not need it (the test load barely turns it), but the analysis of the data fits "
-            "every compliance, and one this free can come out far off (below zero) and bias the model at other poses; "
-            "to calibrate the whole arm add poses or plan with --criterion a"]
+    listed = ", ".join(f"{robot.joint_names[j]} ({r[j]:.2g} times its nominal)" for j in weak)
+    return [f"this plan determines the compliance of joint(s) {listed} far worse than the others (sd over the robot "
+            f"file's compliance; the median joint {median:.2g}): O_t does not need it (the test load barely turns "
+            "it), but the analysis of the data fits every compliance, and one this free can come out far off (below "
+            "zero) and bias the model at other poses; to calibrate the whole arm add poses or plan with --criterion a"]
+
+
+#: a compliance whose sd over its nominal value is this many times the median joint's is named (weak_compliance_notes)
+WEAK_COMPLIANCE_FACTOR = 10.0
 
 
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
