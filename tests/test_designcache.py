@@ -234,7 +234,7 @@ def _design_payload(**raw) -> bytes:
     """A design entry's JSON with some values given as raw JSON text (a one-pose design at the paper's optimum
     otherwise, which this code would read back)."""
     doc = {"support_deg": "[[60.0, 30.0]]", "weights": "[1.0]", "phi": "1.0", "max_phi": "1.0", "phi_lower": "1.0",
-           "iterations": "1", "region": '"joint space"', "n_candidates": "0", **raw}
+           "iterations": "1", "region": '"joint space"', "n_candidates": "0", "near_singular": "false", **raw}
     return ("{" + ", ".join(f'"{k}": {v}' for k, v in doc.items()) + "}").encode()
 
 
@@ -244,7 +244,7 @@ def _design_payload(**raw) -> bytes:
     (_design_payload(phi="1" + "0" * 400), False), (_design_payload(region="[" * 100000 + "]" * 100000), False),
     (_design_payload(support_deg="[]", weights="[]"), False), (_design_payload(weights="[-1.0]"), False),
     (_design_payload(support_deg="[[60.0]]"), False), (_design_payload(iterations="-1"), False),
-    (_design_payload(phi="0.0"), False)])
+    (_design_payload(phi="0.0"), False), (_design_payload(near_singular="1"), False)])
 def test_a_well_formed_entry_that_no_computation_gives_is_recomputed(tmp_path, payload, used):
     cache = tmp_path / "cache"
     fresh = _plan()
