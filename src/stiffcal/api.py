@@ -566,7 +566,8 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     ot = float(summ["O_t"])
     ot_star = base.ot_star(inp.m)
     cov_diag = np.array([float(summ[e]) for e in robot.joint_columns("E_dk")])
-    notes += _singular_plan_note(inp, summ, ot) + _ot_star_note(base, ot_star) + weak_compliance_notes(robot, cov_diag)
+    notes += _singular_plan_note(inp, summ, ot) + _ot_star_note(base, ot_star)
+    notes += weak_compliance_notes(robot, cov_diag) if inp.criterion == "ot" else []  # L-optimality's blind spot
     meas_loads, sensing = inp.meas_loads, inp.sensing
     return DesignResult(
         criterion=inp.criterion, criterion_label=criteria.label(inp.criterion), robot=robot.name, experiments=inp.m,
