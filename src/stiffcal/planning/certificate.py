@@ -683,13 +683,22 @@ def approximate_design(problem: Problem, pool_step_deg: float | None = None, sea
     top = top[w[top] >= 1e-3 * w[top[0]]]
     rounds = functools.partial(_column_generation, problem, W, search, target_gap=target_gap, max_rounds=max_rounds,
                                n_refine=n_refine, n_certify=n_certify)
-    X, wS, Phi, gap = rounds(pool[top], P[top], w[top] / w[top].sum())
-    d = _design_of(robot, X, wS, Phi, Phi * (1.0 + gap), it)
-    if d.converged or not _nearly_singular(W, problem, X, wS):
-        return d
-    X, wS, Phi, gap = rounds(X, _info(problem, X), wS, near=True)  # the second pass: phi without the slope of unneeded directions
-    near = _design_of(robot, X, wS, Phi, Phi * (1.0 + gap), it, near_singular=True)
-    return near if near.phi_lower > d.phi_lower else d
+
+    def design(X, P, w, near=False):
+        X, w, Phi, gap = rounds(X, P, w, near=near)
+        return _design_of(robot, X, w, Phi, Phi * (1.0 + gap), it, near_singular=near)
+    return _second_pass(problem, W, design(pool[top], P[top], w[top] / w[top].sum()), design)
+
+
+def _second_pass(problem: Problem, W: np.ndarray, first: ApproximateDesign, design) -> ApproximateDesign:
+    """``first``, or where it did not converge and leaves directions the test pose does not need nearly singular
+    (:func:`_phi_design` with ``near``), the design of a second pass from its support (``design(X (k, n) [rad],
+    P (k, n, n), w (k,), near=True)``, phi without the slope of those directions) when its bound is higher."""
+    X = np.radians(first.support_deg)
+    if first.converged or not _nearly_singular(W, problem, X, first.weights):
+        return first
+    second = design(X, _info(problem, X), first.weights, near=True)
+    return second if second.phi_lower > first.phi_lower else first
 
 
 def _design_of(robot: Robot, X: np.ndarray, w: np.ndarray, Phi: float, max_phi: float, it: int,
@@ -708,12 +717,13 @@ def _nearly_singular(W: np.ndarray, problem: Problem, X: np.ndarray, w: np.ndarr
 
 
 def _column_generation(problem: Problem, W: np.ndarray, search: "PhiSearch", X: np.ndarray, PS: np.ndarray,
-                       wS: np.ndarray, target_gap: float, max_rounds: int, n_refine: int, n_certify: int, near: bool = False):
-    """The rounds of :func:`approximate_design` from the support X (k, n) [rad] with weights wS (k,): optimal
-    weights (PS (k, n, n) the support's information), then the maxima of phi over the joint space join the support, until the equivalence gap is at most
-    ``target_gap`` or ``max_rounds``; with ``near`` (:func:`_phi_design`) also when Phi stalls
-    (:func:`_stalled`) far from the optimum after a thorough search. Returns (X, w, Phi, gap), the support by
-    falling weight."""
+                       wS: np.ndarray, target_gap: float, max_rounds: int, n_refine: int, n_certify: int,
+                       near: bool = False):
+    """The rounds of :func:`approximate_design` from the support X (k, n) [rad] (information PS (k, n, n)) with
+    weights wS (k,): optimal weights, then the maxima of phi over the joint space join the support, until the
+    equivalence gap is at most ``target_gap`` or ``max_rounds``; with ``near`` (:func:`_phi_design`) also when Phi
+    stalls (:func:`_stalled`) far from the optimum after a thorough search. Returns (X, w, Phi, gap), the support
+    by falling weight."""
     early, history, stalls = False, [], 0
     for rnd in range(max_rounds):
         wS = optimal_weights(PS, W, wS, near=near)
@@ -793,23 +803,21 @@ def _feasible_design(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.nd
     top = top[w[top] >= 1e-3 * w[top[0]]]
     rounds = functools.partial(_feasible_rounds, problem, pool, P, W, search, target_gap=target_gap,
                                max_rounds=max_rounds, n_refine=n_refine)
-    X, wS, Phi, top_max, n_found = rounds(pool[top], P[top], w[top] / w[top].sum())
-    d = _design_of(problem.robot, X, wS, Phi, top_max, it, "feasible candidates", len(pool) + len(search.Q) + n_found)
-    if d.converged or not _nearly_singular(W, problem, X, wS):
-        return d
-    X, wS, Phi, top_max, n_found = rounds(X, _info(problem, X), wS, near=True)  # as approximate_design's second pass
-    near = _design_of(problem.robot, X, wS, Phi, top_max, it, "feasible candidates",
-                      len(pool) + len(search.Q) + n_found, near_singular=True)
-    return near if near.phi_lower > d.phi_lower else d
+
+    def design(X, P, w, near=False):
+        X, w, Phi, top_max, n_found = rounds(X, P, w, near=near)
+        return _design_of(problem.robot, X, w, Phi, top_max, it, "feasible candidates",
+                          len(pool) + len(search.Q) + n_found, near_singular=near)
+    return _second_pass(problem, W, design(pool[top], P[top], w[top] / w[top].sum()), design)
 
 
 def _feasible_rounds(problem: Problem, pool: np.ndarray, P: np.ndarray, W: np.ndarray, search: "PhiSearch",
                      X: np.ndarray, PS: np.ndarray, wS: np.ndarray, target_gap: float, max_rounds: int, n_refine: int,
                      near: bool = False):
-    """The rounds of :func:`_feasible_design` from the support X (k, n) [rad] (information PS (k, n, n)) with weights
-    wS (k,); ``near`` as
-    :func:`_phi_design`'s (and then at most STALL_ROUNDS rounds once Phi stalls). Returns (X, w, Phi, the largest
-    phi over the candidates, the number of maxima of phi found), the support by falling weight."""
+    """The rounds of :func:`_feasible_design` from the support X (k, n) [rad] (information PS (k, n, n)) with
+    weights wS (k,); ``near`` as :func:`_phi_design`'s (and then ending once Phi stalls, :func:`_stalled`).
+    Returns (X, w, Phi, the largest phi over the candidates, the number of maxima of phi found), the support by
+    falling weight."""
     robot, n = problem.robot, problem.robot.n_joints
     P2 = P.reshape(len(P), -1)
     found = np.zeros((0, n))  # the maxima of phi found so far: candidates too
