@@ -1023,6 +1023,13 @@ def test_a_joint_the_calibration_did_not_identify_moves_with_the_robot_file_s_co
     assert np.allclose(partial.displacement, full.displacement, rtol=1e-12, atol=1e-18)
     assert any("joint(s) 1 were not identified by the calibration" in n and "whose error the sd does not include" in n
                for n in partial.notes), partial.notes
+    # a load along the line from the base to the tool point turns joint 1 by nothing (J_1^T F = 0): no note (a fresh
+    # user's UR5 under vertical loads was told about its vertical axis 1 at every pose)
+    robot = load_robot(path)
+    qs = np.radians([[40.0, 30.0]])
+    tip = robot.fk(qs)[0]
+    along = C.predict(robot, qs, 100 * tip[None, :2] / np.linalg.norm(tip[:2]))
+    assert np.abs(along.displacement).max() > 0 and not any("joint(s) 1 were not" in n for n in along.notes)
     # the next round's O_t leaves that joint's error out when the test load turns it (tau_1 = J_1^T F != 0), and
     # says so; the full calibration gives no such note
     from stiffcal.api import plan_next_round

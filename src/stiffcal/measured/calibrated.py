@@ -499,8 +499,9 @@ def _second_order(robot: Robot, cal, q: np.ndarray, load: np.ndarray, target) ->
 def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, mean):
     """(mean, note): the predicted motion ``mean`` (N, r) plus that of the joints the calibration did not identify
     (their compliance deflected no measured point of its data), each with the robot file's compliance where it has
-    one (the calibrated file keeps the original's); their error is not in the sd, which the note says. None: every
-    joint identified."""
+    one (the calibrated file keeps the original's); their error is not in the sd, which the note says for those that
+    move a row by more than :data:`UNIDENTIFIED_SHARE` of the largest deflection. None: every joint identified, or
+    none of them moves a row."""
     from . import discrepancy as D
 
     missing = [j for j in range(robot.n_joints) if j not in cal.k_joints]
@@ -514,12 +515,23 @@ def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, m
     ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,
                     np.asarray(missing, int), 0)
     X = D.model_columns(robot, q, load, (), predict=True, observed=ob)[..., : len(missing)]
-    added = np.einsum("nrp,p->nr", X, np.asarray(k, float)[missing])
-    values = ", ".join(f"{k[j]:.3g}" for j in missing)
+    each = X * np.asarray(k, float)[missing]  # (N, r, m): each joint's deflection
+    added = each.sum(axis=-1)
+    size = np.abs(each).max(axis=(0, 1))
+    moved = [j for j, c in zip(missing, size) if c > UNIDENTIFIED_SHARE * float(np.abs(mean + added).max())]
+    if not moved:  # the rows' loads do not turn them (a vertical axis under hanging masses): nothing to say
+        return mean + added, None
+    names = ", ".join(robot.joint_names[j] for j in moved)
+    values = ", ".join(f"{k[j]:.3g}" for j in moved)
     return mean + added, (f"joint(s) {names} were not identified by the calibration (their compliance deflected no "
                           "measured point of its data: no load turned them, or their axis passes through the "
                           f"measured point): their deflection uses the robot file's compliance ({values} rad/(N m)), "
                           "whose error the sd does not include; measure loads that turn them at points they move")
+
+
+#: a joint the calibration did not identify whose deflection in every row is at most this fraction of the largest
+#: predicted one is not named (the rows' loads do not turn it)
+UNIDENTIFIED_SHARE = 1e-3
 
 
 #: a backlash joint whose (total) torque is within this fraction of the row's largest torque of zero: its state is
