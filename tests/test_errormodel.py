@@ -1350,3 +1350,38 @@ def test_a_fixed_tilt_of_the_load_is_not_read_as_a_scatter_of_its_direction(tmp_
         tilt, scatter = v["diagnostics"]["load_direction"], v["diagnostics"]["load_scatter"]
         assert tilt["p_value"] < 1e-6 and abs(tilt["angle_deg"] - 5.0) < 1.0
         assert scatter["p_value"] > 0.01 and not any("scatters push by push" in n for n in v["notes"])
+
+
+def test_kenward_roger_intervals_are_the_exact_ones_in_a_balanced_design():
+    """errormodel.kr_intervals in the random-intercept design of 6 groups of 4 rows with a covariate that varies
+    between groups only: the slope's exact 95 % interval is that of the regression of the 6 group means, t on 4
+    degrees of freedom with their residual mean square (Searle, Casella & McCulloch 1992, sec. 4.3). Kenward-Roger's
+    half-width equals it to 1e-6 in every replicate where the ratio is estimated above zero; the plug-in one (t on
+    22 degrees of freedom) is narrower."""
+    from stiffcal.measured import distributions as dist
+
+    rng = np.random.default_rng(12)
+    G, n = 6, 4
+    x = np.linspace(-1.0, 1.0, G)
+    X = [np.stack([np.ones(n), np.full(n, x[g])], -1)[:, None, :] for g in range(G)]
+    checked = 0
+    for _ in range(40):
+        Y = rng.normal(size=(G, 1)) * np.sqrt(2.0) + rng.normal(size=(G, n))
+        blocks = _intercept_blocks(Y, X)
+        lik = EM._Likelihood.of(blocks, [0])
+        lam_hat, _ = EM._maximise(lik, 1)
+        kr = EM.kenward_roger(blocks, lam_hat)
+        if kr is None:
+            continue
+        s2, df = lik.sigma2(lam_hat), G * n - 2
+        factor, dofs = EM.kr_intervals(kr, df)
+        phi = np.einsum("jr,jr->j", kr.basis, kr.basis)
+        half = dist.t_isf(0.025, dofs[1]) * np.sqrt(s2 * factor[1] * phi[1])
+        means = Y.mean(axis=1)
+        slope, icept = np.polyfit(x, means, 1)
+        ms = np.sum((means - (slope * x + icept)) ** 2) / (G - 2)
+        exact = dist.t_isf(0.025, G - 2) * np.sqrt(ms / np.sum((x - x.mean()) ** 2))
+        assert half == pytest.approx(exact, rel=1e-6)
+        assert dist.t_isf(0.025, df) * np.sqrt(s2 * phi[1]) < exact
+        checked += 1
+    assert checked >= 20

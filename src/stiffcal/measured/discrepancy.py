@@ -2373,8 +2373,13 @@ def _named_causes(sel: Selection, chosen: frozenset, alternatives: list, alone: 
 def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: float, lof_nominal) -> tuple[dict, list]:
     """(the verdict's ``nominal``, the plausibility notes on its compliances): the paper's model fitted by the
     analysis (f0), its noise sigma [m], the t quantile of its 95 % intervals, its lack-of-fit p-value."""
+    from . import errormodel as EM
+
     m, ob, noise, vm = pre.m, pre.ob, pre.noise, pre.vm
     k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
+    adjusted = EM.parameter_intervals(pre.error, len(f0.beta), noise.df)  # the shared errors' ratios estimated
+    if adjusted is not None:
+        k_ci = dist.t_isf(0.025, adjusted[1]) * sigma * np.sqrt(np.diag(f0.cov_unscaled) * adjusted[0])
     notes = plausibility(robot, m, f0.beta, k_ci, ob)
     misfit = float(np.sqrt(f0.rss / f0.df)) / sigma if f0.df > 0 and sigma > 0 else 0.0
     misfits = misfit > RADIANS_MISFIT or (lof_nominal is not None and lof_nominal < RADIANS_LACK_OF_FIT_P)

@@ -1189,6 +1189,39 @@ def kenward_roger(blocks: list[dict], lam: np.ndarray, in_use: np.ndarray | None
     return KenwardRoger(basis, Po, W, 0.5 * (inflation + inflation.T))
 
 
+def parameter_intervals(em: "ErrorModel", p: int, df: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Kenward-Roger's 95 % intervals of a model whose regressors are the first p columns of the union (the nominal
+    model's compliances), as (factor (p,), degrees of freedom (p,)) of :func:`kr_intervals`. None where no shared
+    error is estimated (the plug-in intervals are then exact) or the error model keeps no arrays. The plug-in
+    intervals take the estimated variance ratios as known: on simulated logs with a reference per configuration at
+    15 configurations they held 93.8 % of the truths, these 94.3-94.4 % (docs/measured-data.md)."""
+    if em.arrays is None:
+        return None
+    (Y, groups, X_union, weights), _ = em.arrays
+    st = em.structure
+    kr = kenward_roger(_block_arrays(st, Y, groups, X_union[..., :p], weights), em.ratios,
+                       _in_use(st, em.ratios, em.estimable))
+    return None if kr is None else kr_intervals(kr, df)
+
+
+def kr_intervals(kr: KenwardRoger, df: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per fixed effect j of ``kr``'s model: the factor (p,) by which its plug-in variance sigma^2 Phi_jj grows,
+    [Phi + 2 Lambda]_jj / Phi_jj (Kenward & Roger 1997, eq. 3; at least 1), and the degrees of freedom (p,) of its
+    t quantile (:func:`kr_degrees` with q = 1, at most ``df``): the interval c_j +- t_m(0.975) sqrt(factor
+    sigma^2 Phi_jj). In a balanced random-intercept design it is the exact t interval (tests)."""
+    B = kr.basis  # (p, r): Phi / sigma^2 = B B^T
+    p = B.shape[0]
+    plain = np.einsum("jr,jr->j", B, B)
+    adjusted = np.einsum("jr,rs,js->j", B, np.eye(B.shape[1]) + 2.0 * kr.inflation, B)
+    factor = np.where(plain > 0, adjusted / np.where(plain > 0, plain, 1.0), 1.0)
+    dofs = np.full(p, float(df))
+    for j in np.flatnonzero(plain > 0):
+        a = np.einsum("r,grs,s->g", B[j], kr.P, B[j]) / plain[j]  # U^T P_i U, U = B_j / |B_j|
+        A = float(a @ kr.W @ a)  # A1 = A2 for one direction
+        dofs[j] = kr_degrees(1, A, A, df)[0]
+    return np.maximum(factor, 1.0), dofs
+
+
 def variance_inflation(blocks: list[dict], lam: np.ndarray) -> float:
     """The largest relative increase of a fixed-effect combination's variance when the variance components are
     estimated rather than known: the largest eigenvalue of 2 Lambda in the metric of Phi (:func:`kenward_roger`;
