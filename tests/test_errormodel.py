@@ -940,6 +940,21 @@ def _intercept_blocks(Y: np.ndarray, X: list) -> list[dict]:
              "D": None} for g in range(G)]
 
 
+def _intercept_fits(rng, X: list, lam: float, reps: int):
+    """Per replicate of the balanced random-intercept design with fixed effects X (one (n, 1, p) per group) and
+    ratio lam: (Y (G, n), its blocks, the REML likelihood, lambda_hat, the KenwardRoger quantities); replicates whose
+    lambda_hat is 0 (the boundary: no component to account for) are left out."""
+    G, n = len(X), X[0].shape[0]
+    for _ in range(reps):
+        Y = rng.normal(size=(G, 1)) * np.sqrt(lam) + rng.normal(size=(G, n))
+        blocks = _intercept_blocks(Y, X)
+        lik = EM._Likelihood.of(blocks, [0])
+        lam_hat, _ = EM._maximise(lik, 1)
+        kr = EM.kenward_roger(blocks, lam_hat)
+        if kr is not None:
+            yield Y, blocks, lik, lam_hat, kr
+
+
 def test_the_kenward_roger_f_test_is_the_exact_test_where_the_plug_in_test_is_not():
     """A clean 4R planar log of 10-14 configurations (a fresh user's: a reference per configuration) raised false
     alarms in 3 % of seeds at alpha = 1 %: the plug-in F-test takes the REML ratios as known, and a direction the
@@ -954,14 +969,7 @@ def test_the_kenward_roger_f_test_is_the_exact_test_where_the_plug_in_test_is_no
     x = np.linspace(-1.0, 1.0, G)
     X = [np.stack([np.ones(n), np.full(n, x[g])], -1)[:, None, :] for g in range(G)]
     p_kr, p_plain, p_exact = [], [], []
-    for _ in range(reps):
-        Y = rng.normal(size=(G, 1)) * np.sqrt(lam) + rng.normal(size=(G, n))
-        blocks = _intercept_blocks(Y, X)
-        lik = EM._Likelihood.of(blocks, [0])
-        lam_hat, _ = EM._maximise(lik, 1)
-        kr = EM.kenward_roger(blocks, lam_hat)
-        if kr is None:  # lambda_hat = 0 (the boundary): no component to account for
-            continue
+    for Y, blocks, lik, lam_hat, kr in _intercept_fits(rng, X, lam, reps):
         s2, df = lik.sigma2(lam_hat), G * n - 2
         Hs = [EM._covariance(b, lam_hat) for b in blocks]
         M = sum(b["X"][:, 0].T @ np.linalg.solve(H, b["X"][:, 0]) for b, H in zip(blocks, Hs))
@@ -990,14 +998,7 @@ def test_the_kenward_roger_f_test_of_two_directions_is_the_exact_test():
     X = [np.stack([np.ones(n), np.full(n, x1[g]), np.full(n, x2[g])], -1)[:, None, :] for g in range(G)]
     D = np.stack([np.ones(G), x1, x2], -1)
     worst = 0.0
-    for _ in range(200):
-        Y = rng.normal(size=(G, 1)) * np.sqrt(1.5) + rng.normal(size=(G, n))
-        blocks = _intercept_blocks(Y, X)
-        lik = EM._Likelihood.of(blocks, [0])
-        lam_hat, _ = EM._maximise(lik, 1)
-        kr = EM.kenward_roger(blocks, lam_hat)
-        if kr is None:
-            continue
+    for Y, blocks, lik, lam_hat, kr in _intercept_fits(rng, X, 1.5, 200):
         Hs = [EM._covariance(b, lam_hat) for b in blocks]
         M = sum(b["X"][:, 0].T @ np.linalg.solve(H, b["X"][:, 0]) for b, H in zip(blocks, Hs))
         beta = np.linalg.solve(M, sum(b["X"][:, 0].T @ np.linalg.solve(H, b["Y"][:, 0]) for b, H in zip(blocks, Hs)))
@@ -1365,14 +1366,7 @@ def test_kenward_roger_intervals_are_the_exact_ones_in_a_balanced_design():
     x = np.linspace(-1.0, 1.0, G)
     X = [np.stack([np.ones(n), np.full(n, x[g])], -1)[:, None, :] for g in range(G)]
     checked = 0
-    for _ in range(40):
-        Y = rng.normal(size=(G, 1)) * np.sqrt(2.0) + rng.normal(size=(G, n))
-        blocks = _intercept_blocks(Y, X)
-        lik = EM._Likelihood.of(blocks, [0])
-        lam_hat, _ = EM._maximise(lik, 1)
-        kr = EM.kenward_roger(blocks, lam_hat)
-        if kr is None:
-            continue
+    for Y, _, lik, lam_hat, kr in _intercept_fits(rng, X, 2.0, 40):
         s2, df = lik.sigma2(lam_hat), G * n - 2
         factor, dofs = EM.kr_intervals(kr, df)
         phi = np.einsum("jr,jr->j", kr.basis, kr.basis)
