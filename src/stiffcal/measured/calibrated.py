@@ -507,9 +507,9 @@ def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, m
     missing = [j for j in range(robot.n_joints) if j not in cal.k_joints]
     if not missing:
         return mean, None
-    names = ", ".join(robot.joint_names[j] for j in missing)
     k = robot.compliances
     if k is None or not all(np.isfinite(k[j]) and k[j] > 0 for j in missing):
+        names = ", ".join(robot.joint_names[j] for j in missing)
         return mean, (f"joint(s) {names} were not identified by the calibration and the robot file gives no "
                       "compliance for them: their deflection is left out of the prediction")
     ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,

@@ -2376,10 +2376,9 @@ def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: floa
     from . import errormodel as EM
 
     m, ob, noise, vm = pre.m, pre.ob, pre.noise, pre.vm
-    k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled))
     adjusted = EM.parameter_intervals(pre.error, len(f0.beta), noise.df)  # the shared errors' ratios estimated
-    if adjusted is not None:
-        k_ci = dist.t_isf(0.025, adjusted[1]) * sigma * np.sqrt(np.diag(f0.cov_unscaled) * adjusted[0])
+    factor, t = (1.0, t) if adjusted is None else (adjusted[0], dist.t_isf(0.025, adjusted[1]))
+    k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled) * factor)
     notes = plausibility(robot, m, f0.beta, k_ci, ob)
     misfit = float(np.sqrt(f0.rss / f0.df)) / sigma if f0.df > 0 and sigma > 0 else 0.0
     misfits = misfit > RADIANS_MISFIT or (lof_nominal is not None and lof_nominal < RADIANS_LACK_OF_FIT_P)

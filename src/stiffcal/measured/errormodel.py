@@ -1081,13 +1081,17 @@ class KenwardRoger:
         q = U.shape[1]
         if q == 0 or not s2 > 0:
             return 1.0
+        F = float(zU @ np.linalg.solve(np.eye(q) + 2.0 * U.T @ self.inflation @ U, zU)) / q / s2
+        m, scale = self.degrees(U, df)
+        return float(dist.f_sf(scale * F, q, m)) if F > 0 else 1.0
+
+    def degrees(self, U: np.ndarray, df: float) -> tuple[float, float]:
+        """(m, lambda) of :func:`kr_degrees` for the combinations U (r, q) (orthonormal columns in :attr:`basis`'s
+        coordinates): from A1 = sum_ij W_ij tr(U^T P_i U) tr(U^T P_j U) and A2 = sum_ij W_ij tr(U^T P_i U U^T P_j U)
+        (Kenward & Roger 1997, eq. 10)."""
         a = U.T @ self.P @ U  # U^T P_i U (g, q, q)
         t = np.einsum("gii->g", a)
-        A1 = float(t @ self.W @ t)
-        A2 = float(np.einsum("ij,iab,jba->", self.W, a, a))
-        F = float(zU @ np.linalg.solve(np.eye(q) + 2.0 * U.T @ self.inflation @ U, zU)) / q / s2
-        m, scale = kr_degrees(q, A1, A2, df)
-        return float(dist.f_sf(scale * F, q, m)) if F > 0 else 1.0
+        return kr_degrees(U.shape[1], float(t @ self.W @ t), float(np.einsum("ij,iab,jba->", self.W, a, a)), df)
 
 
 def kr_degrees(q: int, A1: float, A2: float, df: float) -> tuple[float, float]:
@@ -1210,16 +1214,12 @@ def kr_intervals(kr: KenwardRoger, df: float) -> tuple[np.ndarray, np.ndarray]:
     t quantile (:func:`kr_degrees` with q = 1, at most ``df``): the interval c_j +- t_m(0.975) sqrt(factor
     sigma^2 Phi_jj). In a balanced random-intercept design it is the exact t interval (tests)."""
     B = kr.basis  # (p, r): Phi / sigma^2 = B B^T
-    p = B.shape[0]
-    plain = np.einsum("jr,jr->j", B, B)
-    adjusted = np.einsum("jr,rs,js->j", B, np.eye(B.shape[1]) + 2.0 * kr.inflation, B)
-    factor = np.where(plain > 0, adjusted / np.where(plain > 0, plain, 1.0), 1.0)
-    dofs = np.full(p, float(df))
-    for j in np.flatnonzero(plain > 0):
-        a = np.einsum("r,grs,s->g", B[j], kr.P, B[j]) / plain[j]  # U^T P_i U, U = B_j / |B_j|
-        A = float(a @ kr.W @ a)  # A1 = A2 for one direction
-        dofs[j] = kr_degrees(1, A, A, df)[0]
-    return np.maximum(factor, 1.0), dofs
+    factor, dofs = np.ones(B.shape[0]), np.full(B.shape[0], float(df))
+    for j in np.flatnonzero(np.einsum("jr,jr->j", B, B) > 0):
+        U = B[j][:, None] / np.linalg.norm(B[j])  # parameter j's direction
+        factor[j] = max(1.0 + 2.0 * float((U.T @ kr.inflation @ U)[0, 0]), 1.0)
+        dofs[j] = kr.degrees(U, df)[0]
+    return factor, dofs
 
 
 def variance_inflation(blocks: list[dict], lam: np.ndarray) -> float:
