@@ -619,6 +619,72 @@ def test_a_log_without_its_reference_rows_is_noted(tmp_path, paper_robot):
     assert not any(words in n for n in notes_of(own))
 
 
+def test_a_lost_reference_row_is_named_and_one_visit_is_no_variance_component(tmp_path, paper_robot):
+    """A fresh user's KR 120 log (a reference per visit, no visit or reference column) with one exact-zero reference
+    row deleted was read in silence, and the one visit left without a known reference became a variance component
+    of one group, estimated at zero, that inflated every parameter's Kenward-Roger variance by 287 % (13.5 % with
+    the row). The 2-link arm's log of the same protocol with the first visit's reference row deleted: a note names
+    that visit's loaded rows, a note says the one-group component is left out, and the variance inflation stays
+    within 1.5 times the intact log's."""
+    pr = R.PROTOCOLS["hanging x3, reference per visit, 2 passes"]
+    _, _, path = _log_csv(tmp_path, paper_robot, pr, n_configs=10, seed=3)
+    intact = D.analyse(paper_robot, read_measurements(path, paper_robot), gain=False)
+    lines = path.read_text(encoding="utf-8").splitlines()
+    head = lines[0].split(",")
+    zero = [i for i, ln in enumerate(lines[1:], 1)
+            if all(float(ln.split(",")[head.index(c)]) == 0.0 for c in ("fx_N", "fy_N", "dx_m", "dy_m"))]
+    lost = zero[0]
+    loaded = [i for i in range(lost + 1, next(i for i in zero if i > lost))  # the first visit's loaded rows
+              if any(float(lines[i].split(",")[head.index(c)]) != 0.0 for c in ("fx_N", "fy_N"))]
+    cut = tmp_path / "lost.csv"
+    cut.write_text("\n".join(ln for i, ln in enumerate(lines) if i != lost) + "\n", encoding="utf-8")
+    v = D.analyse(paper_robot, read_measurements(cut, paper_robot), gain=False)
+    named = [n for n in v["notes"] if "no exact-zero reference row before them" in n]
+    assert named and f"data rows {', '.join(str(i - 2) for i in loaded)}" in named[0], (named, loaded)
+    assert not any("no exact-zero reference row before them" in n for n in intact["notes"])
+    assert v["error_model"]["variance_inflation"] <= 1.5 * intact["error_model"]["variance_inflation"]
+    assert v["cause"] == intact["cause"] == "none"
+
+
+def test_shuffled_rows_without_timestamps_are_noted(tmp_path, paper_robot):
+    """A fresh user's gauge log with its rows shuffled and no timestamp_s, visit or reference column was analysed in
+    silence (102 visits read for 18 configurations). The 2-link arm's log of a reference per visit, written without
+    timestamps: as logged, no note; its rows shuffled, a note that the row order is taken as the time order."""
+    pr = R.PROTOCOLS["hanging x3, reference per visit, 2 passes"]
+    rng = np.random.default_rng(3)
+    log = T.lab_log(paper_robot, pr, rng, 10)
+    lines = T.lab_csv(paper_robot, log, T.measure(paper_robot, T.Truth(R.compliances(paper_robot)), log, rng),
+                      timestamps=False).splitlines()
+    assert "timestamp_s" not in lines[0]
+    words = "the rows of a configuration are scattered through the file"
+    for shuffled in (False, True):
+        body = [lines[1 + i] for i in (rng.permutation(len(lines) - 1) if shuffled else range(len(lines) - 1))]
+        path = tmp_path / f"log{int(shuffled)}.csv"
+        path.write_text("\n".join([lines[0], *body]) + "\n", encoding="utf-8")
+        notes = D.analyse(paper_robot, read_measurements(path, paper_robot), gain=False)["notes"]
+        assert any(words in n for n in notes) == shuffled, notes
+
+
+def test_a_drift_test_left_out_for_rows_read_a_fixed_time_after_their_reference_says_why(tmp_path, paper_robot):
+    """A fresh user's Panda log, each loaded reading 30 s after its own reference: the drift test was left out with
+    'timestamp_s is the same for every row and the reference reading' (it was not: the interval was). Now the note
+    says that a drift then shifts every row alike, which measurement_offset describes as well."""
+    pr = R.PROTOCOLS["4 directions x 2, repeated"]  # every loaded row against an unloaded reading of its own
+    _, _, path = _log_csv(tmp_path, paper_robot, pr, n_configs=10, seed=3)
+    rows = list(csv.reader(path.open(encoding="utf-8")))
+    head, out, t = rows[0] + ["timestamp_s"], [], 0.0
+    zero = {c: "0" for c in ("fx_N", "fy_N", "dx_m", "dy_m")}
+    for r in rows[1:]:
+        out.append([zero.get(c, v) for c, v in zip(rows[0], r)] + [f"{t:.1f}"])
+        out.append(r + [f"{t + 30.0:.1f}"])
+        t += 60.0
+    timed = tmp_path / "timed.csv"
+    timed.write_text("\n".join(",".join(r) for r in [head, *out]) + "\n", encoding="utf-8")
+    v = D.analyse(paper_robot, read_measurements(timed, paper_robot), gain=False)
+    assert v["diagnostics"]["time"] is None
+    assert any("every row is read 30 s after the reference reading" in n for n in v["notes"]), v["notes"]
+
+
 def test_a_loading_bar_logged_without_its_moments_is_warned_of(tmp_path):
     """A fresh user's UR3 with a loading bar, its moment columns left out: nonlinear_joint_stiffness, unexplained or
     none, and nothing said. The 6-axis arm with a one-sided bar (0.3 m): with the moment columns no load_offset
@@ -1354,28 +1420,37 @@ def test_a_fixed_tilt_of_the_load_is_not_read_as_a_scatter_of_its_direction(tmp_
 
 
 def test_kenward_roger_intervals_are_the_exact_ones_in_a_balanced_design():
-    """errormodel.kr_intervals in the random-intercept design of 6 groups of 4 rows with a covariate that varies
-    between groups only: the slope's exact 95 % interval is that of the regression of the 6 group means, t on 4
-    degrees of freedom with their residual mean square (Searle, Casella & McCulloch 1992, sec. 4.3). Kenward-Roger's
-    half-width equals it to 1e-6 in every replicate where the ratio is estimated above zero; the plug-in one (t on
-    22 degrees of freedom) is narrower."""
+    """errormodel.kr_intervals and the analysis's intervals of any combination of the parameters
+    (discrepancy.Intervals, used for the nominal and the extended models' k_ci95, parameters_ci95 and
+    not_estimable combinations) in the random-intercept design of 6 groups of 4 rows with a covariate that varies
+    between groups only: the exact 95 % interval of the slope, and of the mean at x0 = 0.7 (intercept + 0.7 slope),
+    is that of the regression of the 6 group means, t on 4 degrees of freedom with their residual mean square
+    (Searle, Casella & McCulloch 1992, sec. 4.3). Kenward-Roger's half-width equals it to 1e-6 in every replicate
+    where the ratio is estimated above zero; the plug-in one (t on 22 degrees of freedom) is narrower."""
+    from stiffcal.measured import discrepancy as D
     from stiffcal.measured import distributions as dist
 
     rng = np.random.default_rng(12)
-    G, n = 6, 4
+    G, n, x0 = 6, 4, 0.7
     x = np.linspace(-1.0, 1.0, G)
     X = [np.stack([np.ones(n), np.full(n, x[g])], -1)[:, None, :] for g in range(G)]
+    L = np.array([[0.0, 1.0], [1.0, x0]])  # the slope; the mean at x0
     checked = 0
     for Y, _, lik, lam_hat, kr in _intercept_fits(rng, X, 2.0, 40):
         s2, df = lik.sigma2(lam_hat), G * n - 2
         factor, dofs = EM.kr_intervals(kr, df)
         phi = np.einsum("jr,jr->j", kr.basis, kr.basis)
         half = dist.t_isf(0.025, dofs[1]) * np.sqrt(s2 * factor[1] * phi[1])
+        fitted = D.Fit(np.zeros(2), 0.0, 2, df, kr.basis @ kr.basis.T)
+        halves = D.Intervals(float(np.sqrt(s2)), df, kr).half_widths(fitted, L)
         means = Y.mean(axis=1)
         slope, icept = np.polyfit(x, means, 1)
         ms = np.sum((means - (slope * x + icept)) ** 2) / (G - 2)
-        exact = dist.t_isf(0.025, G - 2) * np.sqrt(ms / np.sum((x - x.mean()) ** 2))
-        assert half == pytest.approx(exact, rel=1e-6)
-        assert dist.t_isf(0.025, df) * np.sqrt(s2 * phi[1]) < exact
+        sxx = np.sum((x - x.mean()) ** 2)
+        exact = dist.t_isf(0.025, G - 2) * np.sqrt(ms * np.array([1.0 / sxx, 1.0 / G + (x0 - x.mean()) ** 2 / sxx]))
+        assert half == pytest.approx(exact[0], rel=1e-6)
+        assert halves == pytest.approx(exact, rel=1e-6)
+        plug_in = D.Intervals(float(np.sqrt(s2)), df).half_widths(fitted, L)
+        assert np.all(plug_in < exact)
         checked += 1
     assert checked >= 20

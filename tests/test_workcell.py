@@ -862,7 +862,8 @@ def test_a_test_pose_whose_cable_meets_the_cell_is_said_so(tmp_path):
 @needs_arms
 def test_self_collision_without_an_srdf_is_noted(tmp_path):
     """A fresh user's Panda without its SRDF: accepted in silence (the pairs the SRDF disables then checked). The
-    cell's notes say the SRDF is missing; with it, no such note."""
+    cell's notes say the SRDF is missing; with it, no such note; with an SRDF that disables nothing, a note says
+    so."""
     from stiffcal.model.workcell import cell_notes
 
     root = real_arms.robots_dir()
@@ -874,6 +875,16 @@ def test_self_collision_without_an_srdf_is_noted(tmp_path):
                         + (f"  srdf: {root / srdf}\n" if given else ""), encoding="utf-8")
         missing = any("without an SRDF" in n for n in cell_notes(load_robot(path)))
         assert missing == (not given)
+        assert not any("disables no pair" in n for n in cell_notes(load_robot(path)))
+    # another's Z1 SRDF (example-robot-data's has no disable_collisions entry) given for the arm: accepted in silence
+    # before; now a note says it disables nothing
+    empty = tmp_path / "empty.srdf"
+    empty.write_text('<?xml version="1.0"?>\n<robot name="panda"></robot>\n', encoding="utf-8")
+    path = tmp_path / "panda_empty.yaml"
+    path.write_text(f"name: panda\nkind: urdf\nurdf: {root / urdf}\nbase_frame: {base}\ntip_frame: {tip}\n"
+                    f"tool_m: {tool}\ncell:\n  floor_m: 0.0\n  self_collision: true\n  srdf: {empty}\n",
+                    encoding="utf-8")
+    assert any("disables no pair of links" in n for n in cell_notes(load_robot(path)))
 
 
 def test_the_cable_keeps_its_clearance(tmp_path):
@@ -1084,6 +1095,14 @@ def test_a_length_beyond_the_schema_in_millimetres_names_the_unit(tmp_path):
                     f"  boxes:\n    - {box}\n", encoding="utf-8")
     with pytest.raises(InputError, match=r"size_m\[1\]'.*got 1200: size_m is in metres; millimetres given"):
         load_robot(path)
+    # another's whole cell in millimetres stopped first at a clearance of 20 against the bound of 10, no word of the
+    # unit; a clearance beyond the bound that no unit slip explains keeps the plain message
+    for clearance, hinted in ((20, True), (20000, False)):
+        path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  link_radius_m: 0.02\n"
+                        f"  clearance_m: {clearance}\n", encoding="utf-8")
+        with pytest.raises(InputError, match="clearance_m") as err:
+            load_robot(path)
+        assert ("millimetres given as metres" in str(err.value)) == hinted, str(err.value)
     path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\n"
                     "joint_limits_deg: [[-180, 180], [-180, 4000]]\n", encoding="utf-8")
     with pytest.raises(InputError) as err:

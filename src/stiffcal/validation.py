@@ -224,10 +224,13 @@ def _spelling(given: list[str], expected: list[str]) -> str:
 
 
 def _metres_hint(error) -> str:
-    """A length in metres (a field named ``*_m``) beyond +-1000: millimetres given as metres (a fresh user's table of
-    900 x 1200 x 750)."""
+    """A length in metres (a field named ``*_m``) beyond its bound that a thousandth of it would meet: millimetres
+    given as metres (a fresh user's table of 900 x 1200 x 750; another's clearance of 20 against a bound of 10)."""
     names = [str(k) for k in error.absolute_path if isinstance(k, str)]
-    if names and names[-1].endswith("_m") and abs(float(error.validator_value)) >= 1000:
+    if not names or not names[-1].endswith("_m") or isinstance(error.instance, bool):
+        return ""
+    bound, value = float(error.validator_value), float(error.instance) / 1000.0
+    if (value <= bound) if error.validator == "maximum" else (value >= bound):
         return f": {names[-1]} is in metres; millimetres given as metres? (divide by 1000)"
     return ""
 

@@ -56,7 +56,8 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
     """The :class:`Calibration` of an analysis (:func:`stiffcal.measured.discrepancy.prepare` and the verdict of it):
     the verdict's extended model (its causes; the nominal model for ``none`` or ``unexplained``), refitted by the
     analysis's generalised least squares (the same numbers as the verdict's), its covariance sigma^2 (X^T X)^+
-    in the whitened rows."""
+    in the whitened rows, where the rows share estimated errors grown by Kenward-Roger's 2 Lambda for the estimated
+    variance ratios (Kenward & Roger 1997, eq. 3; :class:`stiffcal.measured.discrepancy.Intervals`)."""
     from .. import __version__
     from . import discrepancy as D
 
@@ -73,8 +74,10 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
            "p_value": verdict["p_value"], "alpha": verdict["alpha"], "stiffcal": __version__}
     if any(n.startswith(D.GEOMETRY_NOTE) for n in pre.meas.notes):  # the rows were corrected for the exact statics:
         src["second_order"] = True                                   # predictions add it back (predict)
+    kr = D.intervals(pre, causes).kr
+    cov = f.cov_unscaled if kr is None else f.cov_unscaled + kr.extra_covariance
     return Calibration(causes, tuple(int(j) for j in params), tuple(names), np.asarray(f.beta, float),
-                       pre.noise.s2 * f.cov_unscaled, tuple(bool(e) for e in ok), pre.ob.rows_per(robot),
+                       pre.noise.s2 * cov, tuple(bool(e) for e in ok), pre.ob.rows_per(robot),
                        float(np.sqrt(pre.noise.s2)), verdict["nominal"]["rotation_weight_m_per_rad"],
                        verdict.get("error_model") or {}, src)
 
@@ -258,11 +261,12 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
     notes += _uncertain_rows_note(cal, X, mean[:, :d], sd[:, :d])
     names = robot.target_names
     tnames = tuple(names[t] for t in (np.zeros(len(q), int) if target is None else np.asarray(target, int)))
-    ok = determined_rows(robot, cal, q, load, X)
+    ok = determined_rows(robot, cal, q, load, X, target, orientation)
     if not ok.all():
         notes.append(f"{int((~ok).sum())} of {len(ok)} row(s) (determined False) rest on what the calibration's data "
-                     "did not determine (a joint they did not identify that the row's load turns, or a parameter "
-                     "they did not determine that the row moves): their error can be far above sd")
+                     "did not determine (a joint they did not identify that the row's load turns and that moves what "
+                     "the row measures, or a parameter they did not determine that the row moves): their error can be "
+                     "far above sd")
     return Prediction(q, load, mean[:, :d], sd[:, :d], mean[:, d:] if orientation else None,
                       sd[:, d:] if orientation else None, cov, tnames, cal.causes, tuple(notes), ok)
 
@@ -359,21 +363,27 @@ def _uncertain_rows_note(cal, X: np.ndarray, mean: np.ndarray, sd: np.ndarray) -
             "measure such poses and loads in the next round (stiffcal design --prior)"]
 
 
-def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.ndarray) -> np.ndarray:
+def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.ndarray, target=None,
+                    orientation: bool = False) -> np.ndarray:
     """(N,) bool: the rows whose prediction rests only on what the calibration's data determined: no joint the
-    calibration did not identify (:attr:`Calibration.k_joints`) is turned by the row's load (its torque above
-    round-off: 1e-9 of the row's largest), and no parameter it did not determine (its estimable flag; the
-    prediction uses its minimum-norm value) has a column of X (N, r, p) above 1e-9 of the row's largest (scaled by
-    the parameter's standard deviation, so that units do not decide)."""
+    calibration did not identify (:attr:`Calibration.k_joints`) moves what the row measures (``target``,
+    ``orientation`` as :func:`predict`) under the row's load (its deflection per unit compliance above round-off:
+    1e-9 of the row's largest identified joint's; a joint whose axis passes through the measured point, a Panda's
+    flange joint turned by a loading bar's moment, moves nothing there), and no parameter it did not determine (its
+    estimable flag; the prediction uses its minimum-norm value) has a column of X (N, r, p) above 1e-9 of the row's
+    largest (scaled by the parameter's standard deviation, so that units do not decide)."""
     from . import discrepancy as D
     from ..model.catalogue import TORQUE_RTOL
 
     n = robot.n_joints
     missing = np.array([j for j in range(n) if j not in cal.k_joints], int)
     ok = np.ones(len(q), bool)
-    if missing.size:  # turned: above the round-off of the analysis's rule (catalogue.unturned_to_zero), row by row
-        tau = np.abs(D.torques(robot, q, load))
-        ok &= ~np.any(tau[:, missing] > TORQUE_RTOL * tau.max(axis=1, keepdims=True), axis=1)
+    if missing.size:  # moved: above the round-off of the analysis's rule (catalogue.unturned_to_zero), row by row
+        ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,
+                        missing, 0)
+        moves = np.abs(D.model_columns(robot, q, load, (), predict=True, observed=ob)[..., : missing.size]).max(axis=1)
+        scale = np.abs(X[..., : len(cal.k_joints)]).max(axis=(1, 2)) if len(cal.k_joints) else moves.max(axis=1)
+        ok &= ~np.any(moves > TORQUE_RTOL * scale[:, None], axis=1)
     undetermined = ~np.asarray(cal.estimable, bool)[: X.shape[-1]]
     if undetermined.any():
         sd = np.sqrt(np.clip(np.diag(cal.cov), 0.0, None))[: X.shape[-1]]

@@ -53,6 +53,7 @@ from __future__ import annotations
 
 import re
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from itertools import combinations
 
@@ -323,6 +324,50 @@ def fit(X: np.ndarray, y: np.ndarray) -> Fit:
 
 
 @dataclass(frozen=True)
+class Intervals:
+    """How the 95 % intervals of a fitted model's parameters are formed: sigma [m] the noise, df its degrees of
+    freedom, kr the model's :class:`stiffcal.measured.errormodel.KenwardRoger` where the rows share estimated
+    errors (None: the plug-in interval, exact where nothing but sigma is estimated)."""
+    sigma: float
+    df: float
+    kr: object = None
+
+    def half_widths(self, f: Fit, L: np.ndarray) -> np.ndarray:
+        """(k,) the 95 % half-widths of the combinations L (k, p) of ``f``'s parameters: t_df(0.975) sigma
+        sqrt(l^T C l) with C the fit's cov_unscaled; with ``kr``, Kenward-Roger's: the variance grown for the
+        estimated variance ratios and the t quantile on its degrees of freedom
+        (:meth:`stiffcal.measured.errormodel.KenwardRoger.combination`; on simulated logs with a reference per
+        configuration at 15 configurations the nominal compliances' intervals held 94.3-94.4 % of the truths, the
+        plug-in ones 93.8 %; docs/measured-data.md)."""
+        var = np.clip(np.einsum("kp,pq,kq->k", L, f.cov_unscaled, L), 0.0, None)
+        if self.kr is None:
+            return dist.t_isf(0.025, self.df) * self.sigma * np.sqrt(var)
+        factor, dofs = np.array([self.kr.combination(lam, self.df) for lam in L]).reshape(-1, 2).T
+        return dist.t_isf(0.025, dofs) * self.sigma * np.sqrt(var * factor)
+
+
+def intervals(pre: "Prepared", causes=()) -> Intervals:
+    """The :class:`Intervals` of the model nominal + ``causes`` of the analysis ``pre``: Kenward-Roger's where the
+    rows share estimated errors."""
+    from . import errormodel as EM
+
+    kr = EM.model_kenward_roger(pre.error, pre.des.columns(causes))
+    return Intervals(float(np.sqrt(pre.noise.s2)), float(pre.noise.df), kr)
+
+
+def interval_cache(pre: "Prepared") -> Callable:
+    """causes -> :func:`intervals` of the model nominal + causes, each model's computed once."""
+    cache: dict[tuple, Intervals] = {}
+
+    def of(causes) -> Intervals:
+        key = tuple(sorted(causes, key=CAUSES.index))
+        if key not in cache:
+            cache[key] = intervals(pre, key)
+        return cache[key]
+    return of
+
+
+@dataclass(frozen=True)
 class Reduced:
     """Least squares on column subsets of one matrix X (N, P), reduced once by a QR decomposition of X with
     its columns scaled to unit norm: X_s = Q R, z = Q^T y. A subset fit then needs only R[:, cols] (P x p):
@@ -433,14 +478,17 @@ HANGING_ANGLE_DEG = 1.0
 def lab_loads(robot: Robot, meas: Measurements):
     """The loads the lab applied, as the next round's (:class:`stiffcal.model.observation.Loads`): the data's distinct
     forces (merged within the load cell's resolution), hanging masses (their cable checked in the cell) when every
-    one is within :data:`HANGING_ANGLE_DEG` of the robot's gravity; None (the next round then measures under the test
-    load) when the data have moments (a loading bar's turn with the tool: its wrench at one pose is not at another)
-    or more distinct loads than :data:`stiffcal.model.loads.MAX_DATA_LOADS`."""
+    one is within :data:`HANGING_ANGLE_DEG` of the robot's gravity; with moments, masses on a loading bar where one
+    lever in the tool frame gives every row's moment (:func:`bar_lever`: the bar turns with the tool, and its end's
+    cable is checked in the cell), else None (the next round then measures under the test load: a moment that is no
+    bar's is not known at another pose); None too for more distinct loads than
+    :data:`stiffcal.model.loads.MAX_DATA_LOADS`."""
     from ..model.loads import load_set
     from ..model.observation import Loads
     from .measurements import cluster
 
-    if meas.has_moment:
+    arm = bar_lever(robot, meas.q, load_of(meas)) if meas.has_moment else None
+    if meas.has_moment and arm is None:
         return None
     try:
         forces = load_set("data", robot.task_dim, meas.force, meas.resolutions[1], cluster=cluster).forces
@@ -449,8 +497,10 @@ def lab_loads(robot: Robot, meas: Measurements):
     g = np.asarray(robot.gravity, float)[: robot.task_dim]
     cos = forces @ g / (np.linalg.norm(forces, axis=1) * np.linalg.norm(g))
     hanging = bool(np.all(cos >= np.cos(np.radians(HANGING_ANGLE_DEG))))
-    spec = f"the data's {len(forces)} {'hanging masses' if hanging else 'loads'}"
-    return Loads(np.asarray(forces, float), None, hanging, spec)
+    if arm is not None and not hanging:
+        return None
+    what = "masses on a loading bar" if arm is not None else "hanging masses" if hanging else "loads"
+    return Loads(np.asarray(forces, float), arm, hanging, f"the data's {len(forces)} {what}")
 
 
 def observations(meas: Measurements, observed: Observed) -> np.ndarray:
@@ -1742,10 +1792,11 @@ def error_model_notes(em) -> list[str]:
                  + "; ".join(comps) + " RMS, estimated by REML on " + em.stage
                  + "; every fit, test and interval is generalised least squares for them (error_model)")
     if em.inflation > INFLATION_NOTE:
-        notes.append(f"the shared errors are estimated from few groups: taking them as known (as the intervals and the "
-                     f"diagnostics' tests do) understates a parameter's variance by up to {100 * em.inflation:.3g} % "
-                     "(Kenward-Roger; error_model.variance_inflation; the closed test's F-tests allow for it): read "
-                     "intervals, and diagnostics' p-values near alpha, with care")
+        notes.append(f"the shared errors are estimated from few groups: taking them as known (as the diagnostics' "
+                     f"tests do) understates a parameter's variance by up to {100 * em.inflation:.3g} % "
+                     "(Kenward-Roger; error_model.variance_inflation; the closed test's F-tests, the parameters' "
+                     "intervals and calibrated.yaml's covariance allow for it): read the diagnostics' p-values near "
+                     "alpha with care")
     return notes
 
 
@@ -2050,27 +2101,98 @@ GEOMETRY_NOTE = "the rows are corrected for the geometry's change under load"
 EQUILIBRIUM_ITERATIONS = 6
 
 
+#: a logged moment is a load on one lever fixed in the tool frame (:func:`lever_turned`) where that lever gives
+#: every row's moment within this fraction of the largest (the moments' printed digits)
+LEVER_RTOL = 1e-5
+
+
+def bar_lever(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray | None:
+    """(3,) [m]: the one lever r in the tool frame that gives every row's logged moment as a mass hung from it,
+    M = (R(q) r) x F (a loading bar bolted to the tool), within :data:`LEVER_RTOL` of the largest moment; None where
+    no such lever exists, without moments, or for a planar arm. q (N, n) [rad], load (N, 6) [N, N m]."""
+    if load.shape[-1] != 6 or robot.task_dim != 3 or not np.any(load[:, 3:]):
+        return None
+    F, M = load[:, :3], load[:, 3:]
+    R0 = np.asarray(robot.tool_frame(q)[0], float)
+    skew = np.zeros((len(F), 3, 3))
+    skew[:, [2, 0, 1], [1, 2, 0]] = F
+    skew[:, [1, 2, 0], [2, 0, 1]] = -F  # skew @ v = F x v
+    A = -np.einsum("nij,njk->nik", skew, R0)  # M = (R0 r) x F = -F x (R0 r)
+    r_tool = np.linalg.lstsq(A.reshape(-1, 3), M.reshape(-1), rcond=None)[0]
+    return r_tool if np.abs(A @ r_tool - M).max() <= LEVER_RTOL * np.abs(M).max() else None
+
+
+def load_levers(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray | None:
+    """(N, 3) [m]: each row's lever in the base frame at the commanded pose q (N, n) [rad], the point, relative to the
+    tool point, where its logged force F acts so that its logged moment is M = r x F (load (N, 6) [N, N m]): the one
+    lever in the tool frame that gives every row's moment (:func:`bar_lever`: a loading bar bolted to the tool) turned
+    by R(q), else each row's own lever normal to its force, r = F x M / |F|^2 (a bar level under a hanging mass; rows
+    without a moment: 0). None without moments, or for a planar arm (an in-plane lever normal to the force: a load
+    turned in the plane keeps its moment)."""
+    if load.shape[-1] != 6 or robot.task_dim != 3 or not np.any(load[:, 3:]):
+        return None
+    F, M = load[:, :3], load[:, 3:]
+    R0 = np.asarray(robot.tool_frame(q)[0], float)
+    r_tool = bar_lever(robot, q, load)
+    if r_tool is not None:
+        return np.einsum("nij,j->ni", R0, r_tool)
+    f2 = np.einsum("ni,ni->n", F, F)
+    return np.cross(F, M) / np.where(f2 > 0, f2, 1.0)[:, None]
+
+
+def lever_turned(robot: Robot, q: np.ndarray, load: np.ndarray) -> Callable:
+    """x (N, n) [rad] -> (N, d + d_m): the rows' loads (N, d + d_m) logged at the commanded poses q (N, n), at the
+    deflected poses x: a moment M logged with the force F is a mass hung from a lever r fixed to the tool (a loading
+    bar, M = r x F, :func:`load_levers`), and the lever turns with the tool: M(x) = (R(x) R(q)^T r) x F, the force as
+    logged (a hanging mass keeps its direction). Without moments, for a moment without a force (a couple: no lever)
+    or a planar arm: the loads as logged. A fresh user's Panda under a 0.3 m bar (1e-4..1e-3 rad/(N m)) raised a
+    false alarm on every clean log with the moment held fixed in the base frame."""
+    levers = load_levers(robot, q, load)
+    if levers is None:
+        return lambda x: load
+    F, M = load[:, :3], load[:, 3:]
+    lever = np.einsum("nji,nj->ni", np.asarray(robot.tool_frame(q)[0], float), levers)  # in the tool frame
+    moved = np.any(M != 0, axis=1) & np.any(F != 0, axis=1)  # a moment without a force (a couple) as logged
+
+    def at(x):
+        R = np.asarray(robot.tool_frame(x)[0], float)
+        turned = np.cross(np.einsum("nij,nj->ni", R, lever), F)
+        return np.hstack([F, np.where(moved[:, None], turned, M)])
+    return at
+
+
+def _second_order_compliances(robot: Robot, ob: Observed, k: np.ndarray, clip: bool = True) -> np.ndarray:
+    """(n,) [rad/(N m)]: the compliances k (of the joints ``ob.model_params``) at every joint, the robot file's at the
+    others (else 0), negative values 0 (``clip``; else as they are)."""
+    kf = np.zeros(robot.n_joints) if robot.compliances is None else np.asarray(robot.compliances, float).copy()
+    kf[np.asarray(ob.model_params(robot), int)] = k
+    return np.clip(kf, 0.0, None) if clip else kf
+
+
 def second_order_part(robot: Robot, meas: Measurements, ob: Observed, k: np.ndarray) -> np.ndarray:
     """(N, d) [m]: what eq. 4's first order leaves of each row's displacement under compliances k (of the joints
-    ``ob.model_params``; the others, and negative values, 0). The exact statics of elastic joints: the joint
-    deflection dq = k tau(q + dq) with the torques of the load (moment included) and of the arm's own weight (with
-    masses) taken at the deflected pose (a fixed point, :data:`EQUILIBRIUM_ITERATIONS` steps), the reference
-    reading's dq_w = k t0(q + dq_w) under the weight alone, and the measured point's exact motion P(q + dq) -
-    P(q + dq_w) (P the row's target: the tip frame's point tool_m + its offset); less eq. 4's J(q) k tau(q), the
-    model's own first order (:func:`nominal_columns` times k). Positions only."""
-    n, d = robot.n_joints, robot.task_dim
-    kf = np.zeros(n)
-    kf[np.asarray(ob.model_params(robot), int)] = np.clip(k, 0.0, None)
+    ``ob.model_params``; the others the robot file's, else 0: a joint that does not move the measured point still
+    turns a loading bar's lever, a Panda's flange joint by 0.01 rad and the tool point by 12 um at a fresh user's
+    loads; negative values 0). The exact statics of elastic joints: the joint deflection dq = k tau(q + dq) with
+    the torques of the load (moment included) and of the arm's own weight (with masses) taken at the deflected pose
+    (a fixed point, :data:`EQUILIBRIUM_ITERATIONS` steps), the reference reading's dq_w = k t0(q + dq_w) under the
+    weight alone, and the measured point's exact motion P(q + dq) - P(q + dq_w) (P the row's target: the tip
+    frame's point tool_m + its offset); less eq. 4's J(q) k tau(q), the model's own first order
+    (:func:`nominal_columns` times k). A moment is a load's lever fixed to the tool, which turns with it
+    (:func:`lever_turned`). Positions only."""
+    d = robot.task_dim
+    kf = _second_order_compliances(robot, ob, k)
     load, q = load_of(meas), meas.q
     heavy = getattr(robot, "masses", None) is not None
 
     def weight(x):
         return robot.gravity_torques(x) if heavy else np.zeros_like(x)
 
+    at = lever_turned(robot, q, load)
     dq_w, dq = np.zeros_like(q), np.zeros_like(q)
     for _ in range(EQUILIBRIUM_ITERATIONS):
         dq_w = kf * weight(q + dq_w)
-        dq = kf * (weight(q + dq) + torques(robot, q + dq, load))
+        dq = kf * (weight(q + dq) + torques(robot, q + dq, at(q + dq)))
     first = np.einsum("ndp,p->nd", nominal_columns(robot, q, load, ob)[:, :d], np.asarray(k, float))
     tool = np.zeros(3) if getattr(robot, "tool_m", None) is None else np.asarray(robot.tool_m, float)
     off = tool + ob.offsets(robot, meas.n_rows)[:, 0, :]
@@ -2088,9 +2210,9 @@ def _second_order_bound(robot: Robot, meas: Measurements, ob: Observed, k: np.nd
     load's and, doubled, the weight's, with the torques at the commanded pose), so the point's motion differs from
     its first order by at most L s^2 (here 4 L s^2); and the torques at the deflected pose differ from those at the
     commanded one by at most T s (T: the torques' sum and the loads' moment arms, a bound of their derivative), which
-    moves the point by at most L sum_j k_j T s (here doubled). A stiff arm's bound is far below the noise."""
-    kf = np.zeros(robot.n_joints)
-    kf[np.asarray(ob.model_params(robot), int)] = np.abs(k)
+    moves the point by at most L sum_j k_j T s (here doubled). A stiff arm's bound is far below the noise. The
+    compliances as :func:`second_order_part`'s (:func:`_second_order_compliances`), in absolute value."""
+    kf = np.abs(_second_order_compliances(robot, ob, k, clip=False))
     tool = getattr(robot, "tool_m", None)
     lever = robot.reach_m + (0.0 if tool is None else float(np.linalg.norm(tool)))
     tau = np.abs(torques(robot, meas.q, load_of(meas)))
@@ -2228,11 +2350,11 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     alone = {c: sel.alone.get(c, 1.0) for c in CAUSES}  # each cause against the nominal model alone
     chosen = sel.explanations[0] if sel.explanations else frozenset(testable)
     alternatives = [S for S in sel.explanations[1:] if len(S) == len(chosen)]
-    chosen, alternatives, notes = physical_choice(des, sel, chosen, alternatives, noise, robot, ob, notes)
+    intervals_of = interval_cache(pre)
+    chosen, alternatives, notes = physical_choice(des, sel, chosen, alternatives, intervals_of, robot, ob, notes)
     cause, ranked, indistinct, p_value, p_of = _named_causes(sel, chosen, alternatives, alone, noise, alpha)
     sigma = float(np.sqrt(noise.s2))
-    t = dist.t_isf(0.025, noise.df)
-    nominal, more = _nominal_summary(robot, pre, f0, sigma, t, lof(frozenset(), sel.fits[frozenset()]))
+    nominal, more = _nominal_summary(robot, pre, f0, sigma, lof(frozenset(), sel.fits[frozenset()]), intervals_of)
     notes += more
     tests = {c: {"extra_parameters": int(sel.fits[frozenset([c])].rank - f0.rank) if c in testable else 0,
                  "p_value": alone[c],
@@ -2257,7 +2379,7 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     notes += more
     if out["diagnostics"]["outside_catalogue"] and ranked:
         out.update(_outside_verdict(out["diagnostics"], ranked))
-    out["extended"] = _extended(des, sel.fits[chosen], ext, sigma, t, robot, ob) if ext else None
+    out["extended"] = _extended(des, sel.fits[chosen], ext, intervals_of(ext), robot, ob) if ext else None
     notes += _negative_gap_note(out["extended"])
     held = held_out(robot, pre, ext) if gain else None
     out["held_out"] = None if held is None else held.as_dict()
@@ -2370,15 +2492,12 @@ def _named_causes(sel: Selection, chosen: frozenset, alternatives: list, alone: 
     return cause, ranked, indistinct, p_value, p_of
 
 
-def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, t: float, lof_nominal) -> tuple[dict, list]:
+def _nominal_summary(robot: Robot, pre: Prepared, f0: Fit, sigma: float, lof_nominal,
+                     intervals_of: Callable) -> tuple[dict, list]:
     """(the verdict's ``nominal``, the plausibility notes on its compliances): the paper's model fitted by the
-    analysis (f0), its noise sigma [m], the t quantile of its 95 % intervals, its lack-of-fit p-value."""
-    from . import errormodel as EM
-
+    analysis (f0), its noise sigma [m], its lack-of-fit p-value; intervals_of: :func:`interval_cache`'s."""
     m, ob, noise, vm = pre.m, pre.ob, pre.noise, pre.vm
-    adjusted = EM.parameter_intervals(pre.error, len(f0.beta), noise.df)  # the shared errors' ratios estimated
-    factor, t = (1.0, t) if adjusted is None else (adjusted[0], dist.t_isf(0.025, adjusted[1]))
-    k_ci = t * sigma * np.sqrt(np.diag(f0.cov_unscaled) * factor)
+    k_ci = intervals_of(()).half_widths(f0, np.eye(len(f0.beta)))
     notes = plausibility(robot, m, f0.beta, k_ci, ob)
     misfit = float(np.sqrt(f0.rss / f0.df)) / sigma if f0.df > 0 and sigma > 0 else 0.0
     misfits = misfit > RADIANS_MISFIT or (lof_nominal is not None and lof_nominal < RADIANS_LACK_OF_FIT_P)
@@ -2742,9 +2861,14 @@ def _time_diagnostic(pre: Prepared, chosen, f: Fit, alpha: float):
                               f_test(g0.rss, g0.df, g.rss, g.df, em.sigma2, em.df), beyond)
     if not tests:
         timed = pre.meas.log is not None and pre.meas.log.has_time and not np.ptp(since) > 0
+        if not timed:
+            return None, None
+        if since.size and since[0] != 0:  # a drift adds rate * since to every row: a constant shift
+            return None, (f"the drift test (diagnostics.time) is left out: every row is read {since[0]:.3g} s after "
+                          "the reference reading it was taken from, so a drift of the tracker shifts every row by the "
+                          "same amount, which measurement_offset describes as well and no test can tell from it")
         return None, ("the drift test (diagnostics.time) is left out: timestamp_s is the same for every row and the "
-                      "reference reading it was taken from (timestamps rounded or tied?); log each reading's own time"
-                      if timed else None)
+                      "reference reading it was taken from (timestamps rounded or tied?); log each reading's own time")
     (rate, sd, p, p_nominal, beyond), = tests.values()
     r = _time_load_correlation(pre, since[:N])
     out = {"p_value": p, "rate_m_per_h": [float(r) * 3600 for r in rate],
@@ -2788,13 +2912,19 @@ def _time_load_correlation(pre: Prepared, since: np.ndarray) -> float | None:
 
 
 def _turned_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
-    """Per axis a (z for a planar arm, x, y, z for a spatial one): the rows' loads a x F (N, d) [N] turned about
-    it (the moment, if any, left out: zero columns)."""
+    """Per axis a (z for a planar arm, x, y, z for a spatial one): the rows' loads turned about it, the force a x F
+    (N, d) [N] and, with moments, the moment of the turned force about the tool point, r x (a x F) with r the row's
+    lever (:func:`load_levers`: a mass on a loading bar pulled off its logged direction turns its moment too; a
+    planar arm's moment, of a lever normal to the force, does not change)."""
     axes = [np.array([0.0, 0.0, 1.0])] if robot.task_dim == 2 else list(np.eye(3))
+    levers = load_levers(robot, m.q, load_of(m)) if m.has_moment else None
     out = []
     for a in axes:
         turned = np.cross(a, as_xyz(m.force))[:, : robot.task_dim]
-        out.append(np.hstack([turned, np.zeros_like(m.moment)]) if m.has_moment else turned)
+        if not m.has_moment:
+            out.append(turned)
+        else:
+            out.append(np.hstack([turned, np.zeros_like(m.moment) if levers is None else np.cross(levers, turned)]))
     return out
 
 
@@ -3144,15 +3274,15 @@ def estimability(X: np.ndarray) -> tuple[np.ndarray, list[Confounded]]:
     return ok, groups
 
 
-def _parameters(des: Design, f: Fit, causes, sigma: float, t: float, robot: Robot, observed: Observed | None):
-    """Names, values, 95 % half-widths (None where not estimable), the estimable mask and the
+def _parameters(des: Design, f: Fit, causes, iv: Intervals, robot: Robot, observed: Observed | None):
+    """Names, values, 95 % half-widths (``iv``'s; None where not estimable), the estimable mask and the
     :class:`Confounded` groups of the model nominal + ``causes`` fitted as ``f``."""
     causes = sorted(causes, key=CAUSES.index)
     params = (observed or Observed()).model_params(robot)
     k_names = [robot.joint_columns("k")[int(j)] for j in params]
     names = k_names + [name for c in causes for name in parameter_names(c, robot, observed)]
     ok, groups = estimability(des.model(causes))
-    ci = t * sigma * np.sqrt(np.clip(np.diag(f.cov_unscaled), 0.0, None))
+    ci = iv.half_widths(f, np.eye(len(f.beta)))
     value = [float(b) if e else None for b, e in zip(f.beta, ok)]
     half = [float(c) if e else None for c, e in zip(ci, ok)]
     return names, value, half, ok, groups
@@ -3163,10 +3293,10 @@ def _short(name: str) -> str:
     return name.rsplit("_", 1)[0] if "/" in name or name.endswith(("_rad", "_m")) else name
 
 
-def _confounded(groups: list[Confounded], names: list[str], f: Fit, sigma: float, t: float) -> list[dict]:
+def _confounded(groups: list[Confounded], names: list[str], f: Fit, iv: Intervals) -> list[dict]:
     """The verdict's ``extended.not_estimable``: per group its parameters, the number of linear relations their
     regressors satisfy and, when the data determine one combination of them, that combination (coefficients by
-    name), its value and 95 % half-width."""
+    name), its value and 95 % half-width (``iv``'s)."""
     out = []
     for g in groups:
         entry = {"parameters": [names[i] for i in g.members], "relations": g.relations, "combination": None,
@@ -3176,20 +3306,20 @@ def _confounded(groups: list[Confounded], names: list[str], f: Fit, sigma: float
             lam[g.members] = g.combination
             entry.update({"combination": {names[i]: float(c) for i, c in zip(g.members, g.combination)},
                           "value": float(lam @ f.beta),
-                          "ci95": float(t * sigma * np.sqrt(max(lam @ f.cov_unscaled @ lam, 0.0)))})
+                          "ci95": float(iv.half_widths(f, lam[None])[0])})
         out.append(entry)
     return out
 
 
-def _extended(des: Design, f: Fit, causes: list[str], sigma: float, t: float, robot: Robot,
+def _extended(des: Design, f: Fit, causes: list[str], iv: Intervals, robot: Robot,
               observed: Observed | None = None) -> dict:
-    """The verdict's ``extended``: the fit ``f`` of nominal + ``causes``; a parameter the data do not determine
-    (:func:`estimability`) has value and interval None and is listed in ``not_estimable``."""
+    """The verdict's ``extended``: the fit ``f`` of nominal + ``causes`` with ``iv``'s intervals; a parameter the
+    data do not determine (:func:`estimability`) has value and interval None and is listed in ``not_estimable``."""
     n = des.X0.shape[1]
-    names, value, half, _, groups = _parameters(des, f, causes, sigma, t, robot, observed)
+    names, value, half, _, groups = _parameters(des, f, causes, iv, robot, observed)
     return {"cause": "+".join(causes), "causes": causes, "k": value[:n], "k_ci95": half[:n],
             "parameters": value[n:], "parameters_ci95": half[n:], "parameter_names": names[n:],
-            "not_estimable": _confounded(groups, names, f, sigma, t), "rss": f.rss, "df": f.df}
+            "not_estimable": _confounded(groups, names, f, iv), "rss": f.rss, "df": f.df}
 
 
 def not_estimable_note(cause: str, entries: list[dict]) -> str:
@@ -3227,8 +3357,8 @@ def _negative(names: list[str], value: list, half: list, n: int) -> list[str]:
             if value[i] is not None and value[i] + half[i] < 0]
 
 
-def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives: list, noise: Noise, robot: Robot,
-                    observed: Observed, notes: list[str]) -> tuple[frozenset, list, list[str]]:
+def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives: list, intervals_of: Callable,
+                    robot: Robot, observed: Observed, notes: list[str]) -> tuple[frozenset, list, list[str]]:
     """The combination the extended model holds, among the smallest compatible ones closed testing found equally
     good (``chosen`` first, then ``alternatives``: the verdict's ``equivalent_combinations``): the first whose
     joint compliances are nowhere below zero beyond their 95 % interval, else ``chosen``. The selection itself
@@ -3237,13 +3367,13 @@ def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives
     Returns (the combination, the others in their order, ``notes`` with what was found: a combination passed
     over, an extension that is not physical, parameters the data do not determine (:func:`estimability`)).
     Nothing is judged when the nominal model's compliances are already negative (:func:`plausibility` names
-    the likely cause: the data's signs or frames, which every extension inherits)."""
+    the likely cause: the data's signs or frames, which every extension inherits). intervals_of: causes -> the
+    :class:`Intervals` of the model nominal + causes (:func:`interval_cache`)."""
     if not chosen:
         return chosen, alternatives, notes
-    sigma, t = float(np.sqrt(noise.s2)), float(dist.t_isf(0.025, noise.df))
     n = des.X0.shape[1]
     candidates = [chosen, *alternatives]
-    tables = {S: _parameters(des, sel.fits[S], sorted(S, key=CAUSES.index), sigma, t, robot, observed)
+    tables = {S: _parameters(des, sel.fits[S], sorted(S, key=CAUSES.index), intervals_of(S), robot, observed)
               for S in [frozenset(), *candidates]}
     judged = not _negative(*tables[frozenset()][:3], n)
     wrong = {S: _negative(*tables[S][:3], n) if judged else [] for S in candidates}
@@ -3270,7 +3400,7 @@ def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives
                         if len(wrong[chosen]) >= 2 else ""))
     names, _, _, _, groups = tables[pick]
     if groups:
-        found.append(not_estimable_note(label[pick], _confounded(groups, names, sel.fits[pick], sigma, t)))
+        found.append(not_estimable_note(label[pick], _confounded(groups, names, sel.fits[pick], intervals_of(pick))))
     return pick, [S for S in candidates if S != pick], notes + found
 
 

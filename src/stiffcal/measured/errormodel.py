@@ -85,6 +85,11 @@ from .measurements import rows_by_label
 
 #: a component is estimated only where its groups have some row left after the fixed effects (relative norm)
 IDENTIFIABLE_RTOL = 1e-8
+#: fewest groups of a component for its variance to be estimated: one group's shared error is one draw, which REML
+#: cannot tell from the noise with any reliability (a fresh user's log with one reference row lost: a 'visit'
+#: component of one group, estimated at zero, inflated every parameter's Kenward-Roger variance by 287 %); lme4
+#: refuses a grouping factor of one level for the same reason (Bates et al., J. Stat. Softw. 67(1), 2015, sec. 2.2)
+MIN_COMPONENT_GROUPS = 2
 #: largest variance ratio searched (a shared error 1000 times the row's own noise is not a tracker's)
 MAX_RATIO = 1e6
 #: variance inflation (:func:`variance_inflation`) above which the verdict says the plug-in understates the
@@ -366,7 +371,50 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None, turn=Non
     return ReadingStructure(int(f["loaded"].sum()), f["zero_idx"][zero_model], block, _renumber(visit[idx]),
                             tuple(comps), kind, source, len(set(visit[f["loaded"]].tolist())),
                             sum(len(v) > 1 for v in visits_at.values()), len(holder), int(f["exact"].sum()),
-                            tuple(_label_notes(f, visit)), np.asarray(f["time"][idx], float), ref_time[idx])
+                            tuple(_label_notes(f, visit) + _lost_reference_notes(f, ref, how)
+                                  + _scattered_rows_notes(f, meas)),
+                            np.asarray(f["time"][idx], float), ref_time[idx])
+
+
+#: runs of consecutive rows per configuration (on average) beyond which rows without timestamps or visit columns
+#: look sorted or shuffled: a lab's protocols visit a configuration once or twice (passes), three times at most
+SCATTERED_RUNS = 3.0
+
+
+def _scattered_rows_notes(f: dict, meas) -> list[str]:
+    """A note where the file has no ``timestamp_s``, ``visit`` or ``reference`` column and its rows of a configuration
+    are scattered through it (more than :data:`SCATTERED_RUNS` runs of consecutive rows per configuration): the row
+    order is then taken as the time order, and the visits and references inferred from it are wrong if the rows were
+    sorted or shuffled (a fresh user's gauge log shuffled: 102 visits read for 18 configurations, in silence)."""
+    if (meas.log is not None and meas.log.has_time) or f["visit"] is not None or f["reference"] is not None:
+        return []
+    config = f["config"][np.argsort(f["rows"], kind="stable")]
+    n_configs = len(np.unique(config))
+    runs = 1 + int(np.sum(config[1:] != config[:-1])) if len(config) else 0
+    if not n_configs or runs <= SCATTERED_RUNS * n_configs:
+        return []
+    return [f"the rows of a configuration are scattered through the file ({runs} runs of consecutive rows for "
+            f"{n_configs} configurations) and it has no timestamp_s, visit or reference column: the row order is taken "
+            "as the time order, so if the rows were sorted or shuffled, the visits and reference readings read from "
+            "it are wrong; log timestamp_s (or visit and reference) to make the protocol known"]
+
+
+def _lost_reference_notes(f: dict, ref: np.ndarray, how: str | None) -> list[str]:
+    """A note naming the loaded rows that no exact-zero reference row precedes at their configuration and target,
+    where the exact-zero rows give the other rows' references (no ``reference`` or ``visit`` column:
+    :func:`_visit_column_notes` says it with one) and most loaded rows have one: a reference row lost (a fresh
+    user's log without its columns and one zero row deleted was read in silence, as an unlogged reference of its
+    own)."""
+    if how != "the exact-zero reference rows" or f["visit"] is not None:
+        return []
+    lost = f["loaded"] & (ref < 0)
+    if not lost.any() or lost.sum() >= f["loaded"].sum() / 2:
+        return []
+    from .measurements import _rows_text
+
+    return [f"{_rows_text(np.sort(f['rows'][lost]))} have no exact-zero reference row before them at their "
+            "configuration, while most loaded rows do: a reference row lost? They are read as measured from an "
+            "unlogged reference reading of their own"]
 
 
 def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
@@ -940,7 +988,7 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     notes = []
     if X_union is None:
         raise InputError("no regressors: the noise cannot be estimated")
-    est = _estimable(blocks, K)
+    est = [k for k in _estimable(blocks, K) if structure.components[k].n_groups >= MIN_COMPONENT_GROUPS]
     lik = _Likelihood.of(blocks, est)
     if lik.df <= 0:
         raise InputError("no degree of freedom is left to estimate the noise")
@@ -962,16 +1010,25 @@ def estimate(structure: ReadingStructure, Y: np.ndarray, weights: np.ndarray, gr
     stage = "the residuals of the union of all extensions" + (", with the unloaded rows" if R > N else "")
     source = ("replicates (pure error)" + (" and the unloaded rows" if R > N else "") if replicated
               else "residuals of the union of all extensions" + (" and the unloaded rows" if R > N else ""))
-    for k in range(K):
-        if not estimable[k]:
-            notes.append(f"a shared error per {KINDS[structure.components[k].name]} cannot be estimated from these "
-                         "data (the fixed effects absorb it): it is left out")
+    notes += _left_out_notes(structure, estimable)
     em = _finish(structure, blocks, lam, estimable, tuple(pvals), stage, sigma2, None if replicated else lik.df,
                  source, w, notes, Y[N:])
     em = replace(em, arrays=((Y, groups, X_union, weights), blocks) if drift is None else None, loglik=ll_u)
     if lrt == "deferred":
         return replace(em, pending=tests)
     return with_tests(replace(em, pending=tests)) if lrt else em
+
+
+def _left_out_notes(structure: ReadingStructure, estimable: np.ndarray) -> list[str]:
+    """A note per component :func:`estimate` could not estimate, and why."""
+    out = []
+    for comp, ok in zip(structure.components, estimable):
+        if not ok:
+            why = ("it has one group only: one draw of it cannot be told from the noise"
+                   if comp.n_groups < MIN_COMPONENT_GROUPS else "the fixed effects absorb it")
+            out.append(f"a shared error per {KINDS[comp.name]} cannot be estimated from these data ({why}): it is "
+                       "left out")
+    return out
 
 
 def _in_use(structure: ReadingStructure, lam: np.ndarray, estimable: np.ndarray) -> np.ndarray:
@@ -1085,6 +1142,24 @@ class KenwardRoger:
         m, scale = self.degrees(U, df)
         return float(dist.f_sf(scale * F, q, m)) if F > 0 else 1.0
 
+    @property
+    def extra_covariance(self) -> np.ndarray:
+        """(p, p): 2 Lambda / sigma^2 in the fixed effects' own coordinates, what estimating the variance ratios adds
+        to their plug-in covariance Phi / sigma^2 (Kenward & Roger 1997, eq. 3: Phi_A = Phi + 2 Lambda)."""
+        return 2.0 * self.basis @ self.inflation @ self.basis.T
+
+    def combination(self, lam: np.ndarray, df: float) -> tuple[float, float]:
+        """(factor, m) for the combination lam^T beta of the fixed effects (lam (p,)): the factor (at least 1) by
+        which its plug-in variance grows, [Phi + 2 Lambda] / Phi along lam (Kenward & Roger 1997, eq. 3), and the
+        degrees of freedom of its t quantile (:meth:`degrees` with q = 1, at most ``df``); (1, df) for a
+        combination the model does not inform."""
+        u = self.basis.T @ lam  # (r,): lam^T beta in the orthonormal coordinates
+        norm = float(np.sqrt(u @ u))
+        if not norm > 0:
+            return 1.0, float(df)
+        U = (u / norm)[:, None]
+        return max(1.0 + 2.0 * float((U.T @ self.inflation @ U)[0, 0]), 1.0), self.degrees(U, df)[0]
+
     def degrees(self, U: np.ndarray, df: float) -> tuple[float, float]:
         """(m, lambda) of :func:`kr_degrees` for the combinations U (r, q) (orthonormal columns in :attr:`basis`'s
         coordinates): from A1 = sum_ij W_ij tr(U^T P_i U) tr(U^T P_j U) and A2 = sum_ij W_ij tr(U^T P_i U U^T P_j U)
@@ -1193,33 +1268,26 @@ def kenward_roger(blocks: list[dict], lam: np.ndarray, in_use: np.ndarray | None
     return KenwardRoger(basis, Po, W, 0.5 * (inflation + inflation.T))
 
 
-def parameter_intervals(em: "ErrorModel", p: int, df: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """Kenward-Roger's 95 % intervals of a model whose regressors are the first p columns of the union (the nominal
-    model's compliances), as (factor (p,), degrees of freedom (p,)) of :func:`kr_intervals`. None where no shared
-    error is estimated (the plug-in intervals are then exact) or the error model keeps no arrays. The plug-in
-    intervals take the estimated variance ratios as known: on simulated logs with a reference per configuration at
-    15 configurations they held 93.8 % of the truths, these 94.3-94.4 % (docs/measured-data.md)."""
+def model_kenward_roger(em: "ErrorModel", columns: np.ndarray) -> KenwardRoger | None:
+    """:func:`kenward_roger` for the model whose regressors are the union's ``columns`` (indices into the last axis
+    of the union the error model was estimated with: the nominal model's compliances first, then each cause's,
+    :meth:`stiffcal.measured.discrepancy.Design.columns`). None where no shared error is estimated (the plug-in
+    intervals and tests are then exact) or the error model keeps no arrays (a drift among its fixed effects)."""
     if em.arrays is None:
         return None
     (Y, groups, X_union, weights), _ = em.arrays
     st = em.structure
-    kr = kenward_roger(_block_arrays(st, Y, groups, X_union[..., :p], weights), em.ratios,
-                       _in_use(st, em.ratios, em.estimable))
-    return None if kr is None else kr_intervals(kr, df)
+    return kenward_roger(_block_arrays(st, Y, groups, X_union[..., np.asarray(columns)], weights), em.ratios,
+                         _in_use(st, em.ratios, em.estimable))
 
 
 def kr_intervals(kr: KenwardRoger, df: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per fixed effect j of ``kr``'s model: the factor (p,) by which its plug-in variance sigma^2 Phi_jj grows,
-    [Phi + 2 Lambda]_jj / Phi_jj (Kenward & Roger 1997, eq. 3; at least 1), and the degrees of freedom (p,) of its
-    t quantile (:func:`kr_degrees` with q = 1, at most ``df``): the interval c_j +- t_m(0.975) sqrt(factor
-    sigma^2 Phi_jj). In a balanced random-intercept design it is the exact t interval (tests)."""
-    B = kr.basis  # (p, r): Phi / sigma^2 = B B^T
-    factor, dofs = np.ones(B.shape[0]), np.full(B.shape[0], float(df))
-    for j in np.flatnonzero(np.einsum("jr,jr->j", B, B) > 0):
-        U = B[j][:, None] / np.linalg.norm(B[j])  # parameter j's direction
-        factor[j] = max(1.0 + 2.0 * float((U.T @ kr.inflation @ U)[0, 0]), 1.0)
-        dofs[j] = kr.degrees(U, df)[0]
-    return factor, dofs
+    """Per fixed effect j of ``kr``'s model: (factor (p,), degrees of freedom (p,)) of
+    :meth:`KenwardRoger.combination` for the unit combination e_j: the interval
+    c_j +- t_m(0.975) sqrt(factor sigma^2 Phi_jj). In a balanced random-intercept design it is the exact t
+    interval (tests)."""
+    out = np.array([kr.combination(e, df) for e in np.eye(kr.basis.shape[0])]).reshape(-1, 2)
+    return out[:, 0], out[:, 1]
 
 
 def variance_inflation(blocks: list[dict], lam: np.ndarray) -> float:

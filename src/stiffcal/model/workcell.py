@@ -1190,7 +1190,20 @@ def cell_notes(robot) -> list[str]:
              "give the robot's SRDF (cell.srdf) for the pairs its makers disabled"]
             if robot.cell.self_collision and getattr(robot, "urdf_info", None) and not robot.cell.srdf
             and isinstance(eng, MeshEngine) else [])
-    return [] if eng is None else bare + list(eng.notes)
+    empty = ([f"the SRDF {robot.cell.srdf} disables no pair of links: the self-collision check is as without an "
+              "SRDF (every pair of bodies that are not adjacent, a pair that overlaps by design left out only where it "
+              "collides at every probe pose); is it this robot's, and complete?"]
+             if robot.cell.self_collision and robot.cell.srdf and isinstance(eng, MeshEngine)
+             and not _srdf_disabled(robot.cell.srdf) else [])
+    return [] if eng is None else bare + empty + list(eng.notes)
+
+
+def _srdf_disabled(path) -> int:
+    """The number of ``disable_collisions`` entries of the SRDF at ``path`` (read before, by the engine)."""
+    import xml.etree.ElementTree as ET
+
+    return sum(1 for _ in ET.fromstring(Path(path).read_text(encoding="utf-8", errors="replace"))
+               .iter("disable_collisions"))
 
 
 def no_pose_hint(robot) -> str:

@@ -196,12 +196,20 @@ def link_bending_motion(robot: Robot, q: np.ndarray, force: np.ndarray, c: np.nd
     return disp, rot
 
 
-def _tilted(robot: Robot, truth: Truth, force: np.ndarray) -> np.ndarray:
-    """The real force of a logged one (N, d): turned by ``truth.load_tilt`` (small rotation vector)."""
+def _tilted(robot: Robot, truth: Truth, force: np.ndarray, moment: np.ndarray | None = None):
+    """(force, moment): the real load of a logged one, the force (N, d) turned by ``truth.load_tilt`` (small
+    rotation vector) and, for a spatial arm's moment (N, 3) of a mass on a loading bar (the bar level, its lever r
+    normal to the force: r = F x M / |F|^2), the moment of the turned force about the tool point, r x F_real (a
+    planar arm's in-plane lever normal to the force keeps its moment under an in-plane turn)."""
     if truth.load_tilt is None:
-        return force
-    real = as_xyz(force) + np.cross(np.asarray(truth.load_tilt, float), as_xyz(force))
-    return real[:, : robot.task_dim]
+        return force, moment
+    turn = np.cross(np.asarray(truth.load_tilt, float), as_xyz(force))
+    real = (as_xyz(force) + turn)[:, : robot.task_dim]
+    if moment is None or robot.task_dim != 3 or not np.any(moment):
+        return real, moment
+    f2 = np.einsum("ni,ni->n", force, force)
+    lever = np.cross(force, moment) / np.where(f2 > 0, f2, 1.0)[:, None]
+    return real, moment + np.cross(lever, turn)
 
 
 def deflection(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, moment: np.ndarray | None = None,
@@ -212,7 +220,7 @@ def deflection(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, mom
     ``orientation``: joint laws on the total torque (:func:`loaded_deflections`), link bending, the load's
     tilt. No measuring-system effect (offset, drift)."""
     q = np.asarray(q, float)
-    force = _tilted(robot, truth, np.asarray(force, float))
+    force, moment = _tilted(robot, truth, np.asarray(force, float), moment)
     tau = joint_torques(robot, q, force, moment)
     dq = loaded_deflections(truth, tau, self_weight_torques(robot, q), q)
     plain = (moment is None or not np.any(moment)) and target is None and not orientation
@@ -653,8 +661,8 @@ def gear_sides(robot: Robot, truth: Truth, log: LabLog) -> np.ndarray:
     load = np.zeros_like(weight)
     on = log.r_loaded
     if on.any():
-        load[on] = joint_torques(robot, log.r_q[on], _tilted(robot, truth, log.r_force[on]),
-                                 None if log.r_moment is None else log.r_moment[on])
+        load[on] = joint_torques(robot, log.r_q[on], *_tilted(robot, truth, log.r_force[on],
+                                                              None if log.r_moment is None else log.r_moment[on]))
     push = np.sign(weight + load) * (np.abs(weight + load) > hold)  # (R, n): where the torque moves the gear
     start = np.where(np.abs(weight) > hold, np.sign(weight), 1.0)
     sides = np.empty_like(weight)
