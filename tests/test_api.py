@@ -40,6 +40,21 @@ def test_design_reproduces_the_paper_in_degrees(root):
     assert res.cov_diag.shape == (2,)
 
 
+def test_a_plan_that_repeats_a_configuration_says_how_to_measure_the_repeats(root):
+    """A fresh user measured a plan's repeated poses back to back without a visit column: the analysis read 17 visits
+    for the protocol's 24 (back-to-back rows of one configuration are one visit). The design's notes now say to
+    measure each repeat as a visit of its own, where the plan repeats a configuration, and only there (the count of
+    distinct rows of its poses)."""
+    robot = stiffcal.load_robot(root / PAPER_ROBOT)
+    seen = set()
+    for m in (1, 2, 4, 6):
+        res = stiffcal.design(robot, test_pose_deg=[60, 30], force_N=[0, -1], experiments=m)
+        repeats = len(np.unique(np.round(res.poses_deg, 6), axis=0)) < m
+        seen.add(repeats)
+        assert any("measure each repeat as a visit of its own" in n for n in res.notes) == repeats, (m, res.notes)
+    assert seen == {True, False}
+
+
 def test_design_result_is_the_cli_json(root, capsys, monkeypatch):
     monkeypatch.chdir(root)
     res = stiffcal.design(PAPER_ROBOT, [60, 30], [0, -1], criterion="a", seed=3)

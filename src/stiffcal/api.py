@@ -512,6 +512,22 @@ def _ot_star_note(base, ot_star: float) -> list[str]:
             "(eq. 17) does not exist here; compare O_t with lower_bound instead"]
 
 
+def repeated_poses_note(poses_deg: np.ndarray) -> list[str]:
+    """A note where the plan (poses_deg (M, n) [deg]) repeats a configuration: each repeat is a visit of its own (the
+    robot leaving and returning), and the analysis tells visits apart by a ``visit`` column or the row order (a fresh
+    user measured a plan's repeats back to back without one: 17 visits read for 24)."""
+    _, first, counts = np.unique(np.round(np.asarray(poses_deg, float), 6), axis=0, return_index=True,
+                                 return_counts=True)
+    repeated = [(int(i) + 1, int(c)) for i, c in sorted(zip(first, counts)) if c > 1]
+    if not repeated:
+        return []
+    which = ", ".join(f"pose {i} x{c}" for i, c in repeated[:6]) + (" ..." if len(repeated) > 6 else "")
+    return [f"the plan repeats {len(repeated)} configuration(s) ({which}): measure each repeat as a visit of its own "
+            "(the robot leaving the configuration and returning to it: replicates), and log a visit column, or measure "
+            "the repeats apart in the session: rows of one configuration measured back to back without a visit column "
+            "are read as one visit"]
+
+
 def weak_compliance_notes(robot, cov_diag: np.ndarray) -> list[str]:
     """A note naming the compliances a plan determines far worse than the others, relative to their nominal values
     (the robot file's ``compliances_rad_per_Nm``; none without them): r_j = sqrt(cov_diag_j) / k_j (cov_diag (n,),
@@ -568,6 +584,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     cov_diag = np.array([float(summ[e]) for e in robot.joint_columns("E_dk")])
     notes += _singular_plan_note(inp, summ, ot) + _ot_star_note(base, ot_star)
     notes += weak_compliance_notes(robot, cov_diag) if inp.criterion == "ot" else []  # L-optimality's blind spot
+    notes += repeated_poses_note(poses)
     meas_loads, sensing = inp.meas_loads, inp.sensing
     return DesignResult(
         criterion=inp.criterion, criterion_label=criteria.label(inp.criterion), robot=robot.name, experiments=inp.m,

@@ -2029,6 +2029,39 @@ def held_out_variance_factor(gls: Design, held: np.ndarray) -> float:
     return float(np.exp(-held) @ r2 / total) if total > 0 else 1.0
 
 
+#: a moment counts as normal to its force where |cos| of their angle is at most this (the columns' printed digits);
+#: one as logged in the tool frame where it is normal there in every row with a moment while, as logged, its |cos|
+#: exceeds :data:`MOMENT_FRAME_COS` in at least half of them
+MOMENT_NORMAL_COS = 1e-3
+MOMENT_FRAME_COS = 0.1
+
+
+def check_moment_frame(robot: Robot, meas: Measurements) -> None:
+    """Refuse moments logged in the tool frame: a mass on a loading bar has a moment M = r x F about the tool point,
+    normal to its force, in the base frame as the CSV contract has it. Where every row's moment turned into the base
+    frame (R(q) M) is normal to its force and the moments as logged are not (:data:`MOMENT_FRAME_COS` in half the
+    rows or more), the moments are the tool frame's (a fresh user's UR10 under a bar: read as logged,
+    joint_coupling at p = 3.6e-88, a negative compliance and calibrated.yaml with wrist 2 at a fifth of its truth).
+    Raises :class:`InputError` naming the moment columns. Spatial arms with moment columns only; a wrench whose
+    moment is not normal to its force either way (a 6-axis gauge) is left as logged."""
+    if not meas.has_moment or robot.task_dim != 3:
+        return
+    F, M = as_xyz(meas.force), np.asarray(meas.moment, float)
+    on = (np.linalg.norm(M, axis=1) > 0) & (np.linalg.norm(F, axis=1) > 0)
+    if on.sum() < 2:
+        return
+    R = np.asarray(robot.tool_frame(meas.q[on])[0], float)
+
+    def cos(m):
+        return np.abs(np.einsum("ni,ni->n", m, F[on])) / (np.linalg.norm(m, axis=1) * np.linalg.norm(F[on], axis=1))
+    logged, turned = cos(M[on]), cos(np.einsum("nij,nj->ni", R, M[on]))
+    if np.all(turned <= MOMENT_NORMAL_COS) and np.mean(logged > MOMENT_FRAME_COS) >= 0.5:
+        raise InputError("the moments look like the tool frame's: turned into the base frame each is normal to its "
+                         "force, as a mass's moment about the tool point (r x F) is, and as logged most are not; give "
+                         "the moments in the robot's base frame, about the tool point (docs/measured-data.md)",
+                         source=meas.source, field="columns mx_Nm, my_Nm, mz_Nm")
+
+
 def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: float | None = None,
             sigma_rad: float | None = None) -> Prepared:
     """Everything the verdict's tests need (:class:`Prepared`): the joints the data can identify, the weight of
@@ -2036,6 +2069,7 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
     (:mod:`stiffcal.measured.errormodel`) and the whitened design. Raises :class:`InputError` when the data cannot
     identify the compliances or estimate the noise."""
     check_moves(meas)
+    check_moment_frame(robot, meas)
     full = Observed.of(robot, meas)
     dropped = check_identifiable(robot, meas, full)
     check_testable(robot, meas, len(full.model_params(robot)) - len(dropped))
@@ -2091,8 +2125,13 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
 
 
 #: the second-order part of the rows (:func:`second_order_part`), in RMS over the rows and coordinates, relative to
-#: the nominal fit's residual RMS, above which the rows are corrected for it (:func:`geometry_corrected`)
-GEOMETRY_CORRECTION = 0.3
+#: the residual RMS of the union of all extensions (the noise's scale, which an effect of the catalogue does not
+#: inflate), above which the rows are corrected for it (:func:`geometry_corrected`). A fresh user's UR10 under pushes
+#: (exact statics, 0.30 of it; skipped at 0.3 of the nominal fit's residuals) named joint_coupling on a clean log
+#: and a second cause beside an offset in 5 of 5. Below 0.2, whether the rows are exact statics' or a first-order
+#: simulator's is no longer told reliably by their fit (the handed 7-axis logs, 0.10 of it, a first-order simulator's:
+#: the comparison took one of two for exact statics); this project's first-order simulator leaves at most 0.057 of it
+GEOMETRY_CORRECTION = 0.2
 #: the start of the note of a corrected data set
 GEOMETRY_NOTE = "the rows are corrected for the geometry's change under load"
 
@@ -2228,7 +2267,7 @@ def _second_order_bound(robot: Robot, meas: Measurements, ob: Observed, k: np.nd
 def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Design) -> tuple[Measurements, bool]:
     """``meas`` with each row's displacement less its second-order part (:func:`second_order_part` at the nominal
     fit's compliances, refitted once on the corrected rows), and True, where that part's RMS exceeds
-    :data:`GEOMETRY_CORRECTION` times the nominal fit's residual RMS and the corrected rows fit the nominal model
+    :data:`GEOMETRY_CORRECTION` times the union's residual RMS and the corrected rows fit the nominal model
     better (the same parameters: the physics that fits the data better; rows of a first-order simulator are left as
     they are); else ``meas`` and False. Eq. 4 is first order:
     on a soft arm (a fresh user's Panda, 1e-4..1e-3 rad/(N m) under 3 kg; a Jaco2 before it) the exact motion
@@ -2238,7 +2277,8 @@ def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Desi
     f = fit(des.X0, des.y)
     if not f.df > 0:
         return meas, False
-    resid = np.sqrt(f.rss / f.df)
+    u = fit(des.union(), des.y)  # the noise's scale: an effect of the catalogue inflates the nominal fit's residuals
+    resid = np.sqrt(u.rss / u.df) if u.df > 0 else np.sqrt(f.rss / f.df)
     cols = slice(0, robot.task_dim)
     step = meas.dp_step_m  # rows the model fits to round-off, or to their printed digits: refused later, untouched
     if not resid > max(1e-9 * np.sqrt(np.mean(des.y**2)), ROUNDING_NOISE_FACTOR * (step or 0.0) / np.sqrt(12.0)):
@@ -2259,8 +2299,8 @@ def geometry_corrected(robot: Robot, meas: Measurements, ob: Observed, des: Desi
     rms = float(np.sqrt(np.mean(part**2)))
     note = (f"{GEOMETRY_NOTE} ({rms * 1e6:.3g} um RMS, the largest {np.abs(part).max() * 1e6:.3g} um): eq. 4 is "
             "first order, and with these compliances and loads the measured point's exact motion differs from it by "
-            "more than 0.3 of the residuals (RMS); every fit, test and the calibrated model are of the corrected rows "
-            "(the second-order part at the nominal compliances, second_order_part)")
+            f"more than {GEOMETRY_CORRECTION:g} of the residuals (RMS); every fit, test and the calibrated model are "
+            "of the corrected rows (the second-order part at the nominal compliances, second_order_part)")
     dp[:, cols] -= part[:, cols]
     return replace(meas, dp=dp, notes=(*meas.notes, note)), True
 

@@ -145,11 +145,11 @@ class ReadingStructure:
     that carry noise (M: not exact zeros, at a configuration with loaded rows, not blunders); ``zero_index``
     (M,) their indices into ``Measurements.zero_rows``; ``block`` (R,) int the configuration of every model row
     (configurations are independent); ``visit`` (R,) int; ``components``; ``kind`` what the references are
-    ("independent", "load", "visit", "configuration", "mixed", or "unknown: from the row order"); ``source``
-    how it was found; counts: visits, configurations visited more than once, known references, exact-zero
-    reference rows; ``notes``; ``time`` (R,) [s] every model row's time (or file order) and ``ref_time`` (R,) that
-    of the reading it was taken from (the exact-zero reference row; where it is not known, the first row of
-    the visit)."""
+    ("independent", "load", "visit", "configuration", "mixed", "unknown: from the row order" or
+    :data:`SCATTERED_KIND`); ``source`` how it was found; counts: visits, configurations visited more than once,
+    known references, exact-zero reference rows; ``notes``; ``time`` (R,) [s] every model row's time (or file
+    order) and ``ref_time`` (R,) that of the reading it was taken from (the exact-zero reference row; where it is
+    not known, the first row of the visit)."""
     n_loaded: int
     zero_index: np.ndarray
     block: np.ndarray
@@ -332,9 +332,9 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None, turn=Non
     f = _file_rows(meas, np.asarray(keep, bool), zero_out)
     loaded_cfg = set(f["config"][f["loaded"]].tolist())
     at_loaded = np.array([c in loaded_cfg for c in f["config"]])
-    visit = _visits(f)
-    ref, holder, how = _references(f, visit)
     model = f["loaded"] | (~f["exact"] & at_loaded)  # rows with noise, at a configuration with loads
+    scattered = _scattered_runs(f, meas)
+    visit, ref, holder, how, evidence = _visits_and_references(f, model, scattered)
     first_visit = {}
     for i in np.lexsort((f["rows"], f["time"])):
         first_visit.setdefault(int(f["config"][i]), visit[i])
@@ -342,7 +342,6 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None, turn=Non
     comps = []
     if known.any():
         comps.append(Component("reference", _renumber(np.where(known & model, ref, -1))))
-    evidence = _shared_reference_evidence(f, visit, model)
     unknown = ~known & model & np.array([int(c) in evidence for c in f["config"]])
     if unknown.any():
         comps.append(Component("visit", _pairs(visit, f["target"], unknown)))
@@ -361,6 +360,7 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None, turn=Non
     cfg = f["config"][idx]
     block = _renumber(cfg)
     kind = _kind(f, ref, visit, known, holder) if any(c.shared for c in comps) else "independent"
+    kind = SCATTERED_KIND if scattered is not None and kind != "independent" else kind
     source = (how or ("the visit column" if f["visit"] is not None else "the row order"
                       + (" (timestamp_s)" if meas.log is not None and meas.log.has_time else "")))
     visits_at = {}
@@ -372,31 +372,64 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None, turn=Non
                             tuple(comps), kind, source, len(set(visit[f["loaded"]].tolist())),
                             sum(len(v) > 1 for v in visits_at.values()), len(holder), int(f["exact"].sum()),
                             tuple(_label_notes(f, visit) + _lost_reference_notes(f, ref, how)
-                                  + _scattered_rows_notes(f, meas)),
+                                  + _scattered_rows_notes(scattered)),
                             np.asarray(f["time"][idx], float), ref_time[idx])
 
 
+#: the error model's kind where rows scattered through a file without a clock share one error per configuration
+SCATTERED_KIND = "unknown: per configuration (rows scattered)"
 #: runs of consecutive rows per configuration (on average) beyond which rows without timestamps or visit columns
 #: look sorted or shuffled: a lab's protocols visit a configuration once or twice (passes), three times at most
 SCATTERED_RUNS = 3.0
 
 
-def _scattered_rows_notes(f: dict, meas) -> list[str]:
-    """A note where the file has no ``timestamp_s``, ``visit`` or ``reference`` column and its rows of a configuration
-    are scattered through it (more than :data:`SCATTERED_RUNS` runs of consecutive rows per configuration): the row
-    order is then taken as the time order, and the visits and references inferred from it are wrong if the rows were
-    sorted or shuffled (a fresh user's gauge log shuffled: 102 visits read for 18 configurations, in silence)."""
+def _scattered_runs(f: dict, meas) -> tuple[int, int] | None:
+    """(runs, configurations) where the file has no ``timestamp_s``, ``visit`` or ``reference`` column and its rows of
+    a configuration are scattered through it (more than :data:`SCATTERED_RUNS` runs of consecutive rows per
+    configuration, not in rounds over the configurations in one order, :func:`_rounds`: sorted or shuffled rows),
+    else None. The row order is then no clock: a fresh user's shuffled gauge log read as 102 visits for 18
+    configurations, another's shuffled log of a reference per configuration raised a tilted load and a load offset
+    (p = 0.002 and 1.5e-5) that the intact log did not."""
     if (meas.log is not None and meas.log.has_time) or f["visit"] is not None or f["reference"] is not None:
-        return []
+        return None
     config = f["config"][np.argsort(f["rows"], kind="stable")]
     n_configs = len(np.unique(config))
-    runs = 1 + int(np.sum(config[1:] != config[:-1])) if len(config) else 0
-    if not n_configs or runs <= SCATTERED_RUNS * n_configs:
+    order = config[np.r_[True, config[1:] != config[:-1]]] if len(config) else config  # the configuration of each run
+    if not n_configs or len(order) <= SCATTERED_RUNS * n_configs or _rounds(order) >= ROUNDS_SHARE:
+        return None
+    return len(order), n_configs
+
+
+#: the share of a file's runs of one configuration followed by that configuration's most frequent successor at or
+#: above which the runs are rounds over the configurations in one order (a protocol, not a shuffle)
+ROUNDS_SHARE = 0.5
+
+
+def _rounds(order: np.ndarray) -> float:
+    """The share of the runs ``order`` (the configuration of each run of consecutive rows, in file order) whose
+    successor is their configuration's most frequent one: about 1 for rounds over the configurations in one order
+    (every load measured at every configuration in turn: a fresh user's 2R log, 95 runs for 12 configurations), about
+    1/runs-per-configuration for shuffled rows."""
+    if len(order) < 2:
+        return 1.0
+    pairs = np.stack([order[:-1], order[1:]], axis=1)
+    kinds, counts = np.unique(pairs, axis=0, return_counts=True)
+    best = {}
+    for (a, _), c in zip(kinds, counts):
+        best[int(a)] = max(best.get(int(a), 0), int(c))
+    return sum(best.values()) / len(pairs)
+
+
+def _scattered_rows_notes(scattered: tuple[int, int] | None) -> list[str]:
+    """The note on rows scattered through the file (:func:`_scattered_runs`)."""
+    if scattered is None:
         return []
+    runs, n_configs = scattered
     return [f"the rows of a configuration are scattered through the file ({runs} runs of consecutive rows for "
-            f"{n_configs} configurations) and it has no timestamp_s, visit or reference column: the row order is taken "
-            "as the time order, so if the rows were sorted or shuffled, the visits and reference readings read from "
-            "it are wrong; log timestamp_s (or visit and reference) to make the protocol known"]
+            f"{n_configs} configurations) and it has no timestamp_s, visit or reference column: the row order is no "
+            "clock (sorted or shuffled rows?), so each configuration's rows are taken to share one unknown reference "
+            "error, whatever visits and reference readings they came from; log timestamp_s (or visit and reference) to "
+            "make the protocol known"]
 
 
 def _lost_reference_notes(f: dict, ref: np.ndarray, how: str | None) -> list[str]:
@@ -415,6 +448,19 @@ def _lost_reference_notes(f: dict, ref: np.ndarray, how: str | None) -> list[str
     return [f"{_rows_text(np.sort(f['rows'][lost]))} have no exact-zero reference row before them at their "
             "configuration, while most loaded rows do: a reference row lost? They are read as measured from an "
             "unlogged reference reading of their own"]
+
+
+def _visits_and_references(f: dict, model: np.ndarray, scattered) -> tuple:
+    """(visit (n,), reference (n,) (-1: not known), the visit holding each reference, how they were found, the
+    configurations whose rows show a shared reference) of :func:`_file_rows`' rows; where the rows are scattered
+    (:func:`_scattered_runs`) the row order is no clock: one visit, of an unknown reference, per configuration."""
+    if scattered is None:
+        visit = _visits(f)
+        ref, holder, how = _references(f, visit)
+        return visit, ref, holder, how, _shared_reference_evidence(f, visit, model)
+    evidence = set(np.unique(f["config"][model]).tolist()) if f["exact"].any() else set()
+    return (_renumber(f["config"]), np.full(len(f["rows"]), -1), np.zeros(0, int),
+            "the configurations (rows scattered: the row order is no clock)", evidence)
 
 
 def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
