@@ -1040,6 +1040,20 @@ def test_a_joint_the_calibration_did_not_identify_moves_with_the_robot_file_s_co
                                                                    experiments=2)["notes"])
 
 
+def _jaco2_file(tmp_path, extra: str = "") -> Path:
+    """A robot file of example-robot-data's Jaco2 (tests/real_arms.py; ``extra``: further YAML lines), or the test
+    skipped where the package is not installed."""
+    from real_arms import ARMS as REAL, robots_dir
+
+    if robots_dir() is None:
+        pytest.skip("example-robot-data is not installed (requirements-test.lock)")
+    urdf, _, base, tip, tool, _, _ = REAL["jaco2"]
+    path = tmp_path / "jaco2.yaml"
+    path.write_text(f"name: jaco2\nkind: urdf\nurdf: {robots_dir() / urdf}\nbase_frame: {base}\n"
+                    f"tip_frame: {tip}\ntool_m: {tool}\n" + extra, encoding="utf-8")
+    return path
+
+
 def test_a_joint_no_hanging_mass_turns_has_no_extension_parameter_and_its_rows_are_not_determined(tmp_path):
     """A fresh user's Kinova Jaco2 (example-robot-data's URDF, pinned in requirements-test.lock) under hanging
     masses, a nonlinear stiffness in joint 2: joint 1 (a vertical axis) is turned only by round-off (1e-13 of the
@@ -1048,16 +1062,9 @@ def test_a_joint_no_hanging_mass_turns_has_no_extension_parameter_and_its_rows_a
     other parameter is finite and small; the calibrated file predicts, and a row whose load turns joint 1 (a
     sideways push) is flagged not determined: against the simulator its error is many times its sd, while a
     hanging load's is within it."""
-    from real_arms import ARMS as REAL, robots_dir
-
-    if robots_dir() is None:
-        pytest.skip("example-robot-data is not installed (requirements-test.lock)")
     import stiffcal
 
-    urdf, _, base, tip, tool, _, _ = REAL["jaco2"]
-    robot_file = tmp_path / "jaco2.yaml"
-    robot_file.write_text(f"name: jaco2\nkind: urdf\nurdf: {robots_dir() / urdf}\nbase_frame: {base}\n"
-                          f"tip_frame: {tip}\ntool_m: {tool}\n", encoding="utf-8")
+    robot_file = _jaco2_file(tmp_path)
     robot = load_robot(robot_file)
     k = np.array([2e-4, 1e-4, 1.5e-4, 4e-4, 4e-4, 5e-4])
     rng = np.random.default_rng(5)
@@ -1288,3 +1295,75 @@ def test_a_model_the_data_reject_predicts_with_its_held_out_error(tmp_path):
     np.testing.assert_array_equal(pred.displacement, without.displacement)  # the same model, only its sd
     assert np.sqrt(np.mean(((without.displacement - truth) / without.sd) ** 2)) > 4.0  # as before
     assert any("the data reject this model" in n for n in pred.notes)
+
+
+def test_a_backlash_near_balance_is_noted_where_the_sag_reverses_the_weight(tmp_path):
+    """A fresh user's Jaco2 (example-robot-data; its own pinocchio simulator of the exact statics, a 2e-4 rad backlash
+    in joint 3 on the total torque; the calibration of its two rounds, tests/data/newuser) compensated an 11-pose
+    path under 3 kg: 10 poses within their band95, the one at +3 deg left 135 um against 30 um with no word. There the
+    weight's torque on joint 3 is +0.005 N m at the commanded pose and of the other sign at the sagged one, so the
+    gear's side is the deflection's, not the load's. predict names that row, and only it, as a joint near balance;
+    pinocchio's gravity torque (not stiffcal's) changes sign between the commanded and the sagged pose there."""
+    from real_arms import ARMS as REAL, robots_dir
+
+    if robots_dir() is None:
+        pytest.skip("example-robot-data is not installed (requirements-test.lock)")
+    import pinocchio as pin
+
+    urdf = robots_dir() / REAL["jaco2"][0]
+    newuser = ROOT / "tests/data/newuser"
+    text = (newuser / "jaco2_backlash_calibrated.yaml").read_text(encoding="utf-8").replace("urdf: URDF",
+                                                                                           f"urdf: {urdf}")
+    (tmp_path / "jaco2.yaml").write_text(text, encoding="utf-8")
+    robot = load_robot(tmp_path / "jaco2.yaml")
+    path = np.loadtxt(newuser / "jaco2_path.csv", delimiter=",", skiprows=1)
+    q, load = np.radians(path[:, :6]), path[:, 6:]
+    notes = [n for n in C.predict(robot, q, load).notes if "near balance" in n]
+    assert len(notes) == 1 and "j2s6s200_joint_3" in notes[0] and "row(s) (0-based) 8;" in notes[0], notes
+    model = pin.buildModelFromUrdf(str(urdf))
+    data = model.createData()
+    arm = [model.joints[model.getJointId(f"j2s6s200_joint_{j}")] for j in range(1, 7)]
+    k = np.asarray(robot.compliances, float)
+
+    def weight(x):  # the weight's torque on every arm joint at the arm's angles x (6,) [rad]
+        full = pin.neutral(model)
+        for joint, angle in zip(arm, x):  # a continuous joint is (cos, sin) in pinocchio's configuration
+            full[joint.idx_q: joint.idx_q + joint.nq] = [np.cos(angle), np.sin(angle)] if joint.nq == 2 else [angle]
+        return -pin.computeGeneralizedGravity(model, data, full)[[joint.idx_v for joint in arm]]
+    flips = [np.sign(weight(x)[2]) != np.sign(weight(x + k * weight(x))[2]) for x in q]
+    assert flips[8] and sum(flips) == 1, flips
+
+
+def test_a_joint_whose_backlash_the_data_could_not_test_is_flagged_where_a_load_reverses_it(tmp_path):
+    """A fresh user's Jaco2 (two rounds of its own simulator, a backlash in joint 3): round 1's hanging masses never
+    reversed joint 3's total torque, the verdict said its backlash could not be tested, and predict at the test pose,
+    whose load reverses it, was 138 um off with sd 6 um, `determined` True and no word. example-robot-data's Jaco2
+    (its URDF's weights) under hanging masses: calibrated.yaml lists as untested the joints the loads turn whose total
+    torque (the simulator's weight and load torques) no row reverses; a row whose load reverses one of them is not
+    determined, with a note naming it, and the next round at that pose and load says its O_t leaves that out."""
+    import stiffcal
+
+    robot_file = _jaco2_file(tmp_path, "gravity: [0, 0, -1]\n")
+    robot = load_robot(robot_file)
+    rng = np.random.default_rng(4)
+    log = T.lab_log(robot, R.PROTOCOLS["hanging x3, reference per visit, 2 passes"], rng, 16)
+    data = tmp_path / "hanging.csv"
+    truth = T.Truth(np.array([2e-4, 1e-4, 1.5e-4, 4e-4, 4e-4, 5e-4]))
+    data.write_text(T.lab_csv(robot, log, T.measure(robot, truth, log, rng)), encoding="utf-8")
+    v = stiffcal.analyse_measurements(str(robot_file), str(data), out=str(tmp_path / "out"), figures=False)
+    t0 = T.self_weight_torques(robot, log.q)
+    total = t0 + T.joint_torques(robot, log.q, log.force)
+    turned = np.array(v["nominal"]["k_joints"]) - 1
+    never = [int(j) for j in turned if not np.any(np.sign(total[:, j]) * np.sign(t0[:, j]) < 0)]
+    calibrated = load_robot(tmp_path / "out" / "calibrated.yaml")
+    assert never and list(calibrated.calibration.untested_backlash) == never
+    q = np.repeat(log.q[:1], 2, axis=0)
+    j = never[0]
+    unit = T.joint_torques(robot, q[:1], np.eye(3)[[2]])[0, j]  # joint j's torque per newton along +z
+    loads = np.array([[0.0, 0.0, -5.0], [0.0, 0.0, -2.0 * t0[0, j] / unit]])  # a hanging mass; a pull reversing j
+    reverses = np.sign(t0[0, j] + T.joint_torques(robot, q, loads)[:, j]) * np.sign(t0[0, j]) < 0
+    pred = C.predict(calibrated, q, loads)
+    assert pred.determined.tolist() == (~reverses).tolist() and reverses.tolist() == [False, True]
+    assert any("could not test" in n and robot.joint_names[j] in n for n in pred.notes), pred.notes
+    nr = C.next_round(calibrated, q[1], loads[1], 3)  # the next round at that pose and load says it leaves it out
+    assert any("could not test" in n and robot.joint_names[j] in n for n in nr.notes), nr.notes

@@ -79,7 +79,8 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
     return Calibration(causes, tuple(int(j) for j in params), tuple(names), np.asarray(f.beta, float),
                        pre.noise.s2 * cov, tuple(bool(e) for e in ok), pre.ob.rows_per(robot),
                        float(np.sqrt(pre.noise.s2)), verdict["nominal"]["rotation_weight_m_per_rad"],
-                       verdict.get("error_model") or {}, src)
+                       verdict.get("error_model") or {}, src,
+                       untested_backlash=tuple(D.unseen_backlash_joints(robot, pre)))
 
 
 def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
@@ -257,7 +258,7 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
     notes += [unidentified] if unidentified else []
     notes += _negative_compliance_notes(robot, cal)
     notes += _negative_backlash_notes(robot, cal)
-    notes += _unset_backlash_notes(robot, cal, q, load)
+    notes += _unset_backlash_notes(robot, cal, q, load) + _untested_backlash_notes(robot, cal, q, load)
     notes += _uncertain_rows_note(cal, X, mean[:, :d], sd[:, :d])
     names = robot.target_names
     tnames = tuple(names[t] for t in (np.zeros(len(q), int) if target is None else np.asarray(target, int)))
@@ -265,8 +266,8 @@ def predict(robot: Robot, q: np.ndarray, load: np.ndarray, target=None, orientat
     if not ok.all():
         notes.append(f"{int((~ok).sum())} of {len(ok)} row(s) (determined False) rest on what the calibration's data "
                      "did not determine (a joint they did not identify that the row's load turns and that moves what "
-                     "the row measures, or a parameter they did not determine that the row moves): their error can be "
-                     "far above sd")
+                     "the row measures, a joint whose backlash they could not test that the row's load reverses, or a "
+                     "parameter they did not determine that the row moves): their error can be far above sd")
     return Prediction(q, load, mean[:, :d], sd[:, :d], mean[:, d:] if orientation else None,
                       sd[:, d:] if orientation else None, cov, tnames, cal.causes, tuple(notes), ok)
 
@@ -369,7 +370,9 @@ def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.nd
     calibration did not identify (:attr:`Calibration.k_joints`) moves what the row measures (``target``,
     ``orientation`` as :func:`predict`) under the row's load (its deflection per unit compliance above round-off:
     1e-9 of the row's largest identified joint's; a joint whose axis passes through the measured point, a Panda's
-    flange joint turned by a loading bar's moment, moves nothing there), and no parameter it did not determine (its
+    flange joint turned by a loading bar's moment, moves nothing there), the row's load reverses the total torque of
+    no joint whose backlash the data could not test (:func:`untested_backlash_reversed`), and no parameter it did not
+    determine (its
     estimable flag; the prediction uses its minimum-norm value) has a column of X (N, r, p) above 1e-9 of the row's
     largest (scaled by the parameter's standard deviation, so that units do not decide)."""
     from . import discrepancy as D
@@ -384,6 +387,7 @@ def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.nd
         moves = np.abs(D.model_columns(robot, q, load, (), predict=True, observed=ob)[..., : missing.size]).max(axis=1)
         scale = np.abs(X[..., : len(cal.k_joints)]).max(axis=(1, 2)) if len(cal.k_joints) else moves.max(axis=1)
         ok &= ~np.any(moves > TORQUE_RTOL * scale[:, None], axis=1)
+    ok &= ~untested_backlash_reversed(robot, cal, q, load).any(axis=1)
     undetermined = ~np.asarray(cal.estimable, bool)[: X.shape[-1]]
     if undetermined.any():
         sd = np.sqrt(np.clip(np.diag(cal.cov), 0.0, None))[: X.shape[-1]]
@@ -549,11 +553,58 @@ UNIDENTIFIED_SHARE = 1e-3
 UNSET_TORQUE_FRACTION = 1e-6
 
 
+def untested_backlash_reversed(robot: Robot, cal, q: np.ndarray, load: np.ndarray) -> np.ndarray:
+    """(N, n) bool: where the row's load (N, d (+ d_m)) at q (N, n) [rad] reverses the total torque (the arm's weight's
+    and the load's) of a joint of :attr:`Calibration.untested_backlash`, against the weight's alone."""
+    out = np.zeros(q.shape, bool)
+    joints = [j for j in cal.untested_backlash if j < robot.n_joints]
+    if not joints or robot.masses is None:
+        return out
+    from .discrepancy import torques
+
+    t0 = robot.gravity_torques(q)
+    out[:, joints] = (np.sign(t0 + torques(robot, q, load)) * np.sign(t0) < 0)[:, joints]
+    return out
+
+
+def _untested_at_test_pose(robot: Robot, cal, test_pose: np.ndarray, test_load: np.ndarray) -> list[str]:
+    """A note where the test load reverses the total torque of a joint whose backlash the calibration's data could
+    not test (:func:`untested_backlash_reversed`): the next round's O_t values leave that backlash out (a fresh
+    user's Jaco2: rms_prior_m 6.3 um against an error of 138 um there), and the plan does not aim at it."""
+    q, load = np.atleast_2d(np.asarray(test_pose, float)), np.atleast_2d(np.asarray(test_load, float))
+    joints = [robot.joint_names[j] for j in np.flatnonzero(untested_backlash_reversed(robot, cal, q, load)[0])]
+    if not joints:
+        return []
+    return [f"the test load reverses the total torque of joint(s) {', '.join(joints)}, whose backlash the "
+            "calibration's data could not test (no load of theirs reversed it): the O_t values leave that backlash "
+            "out and the plan does not aim at it; measure loads that reverse it (the test load at poses near the test "
+            "pose) to test it"]
+
+
+def _untested_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) -> list[str]:
+    """A note on the rows whose load reverses the total torque (the weight's and the load's) of a joint whose backlash
+    the calibration's data could not test (:attr:`Calibration.untested_backlash`: no load of theirs reversed it): a
+    gap there would add its jump, which neither the prediction nor its sd holds (a fresh user's Jaco2: 138 um off at
+    its test pose, sd 6 um, where the verdict had said joint 3's backlash could not be tested)."""
+    reversed_ = untested_backlash_reversed(robot, cal, q, load)
+    hit = {j: np.flatnonzero(reversed_[:, j]) for j in cal.untested_backlash if reversed_[:, j].any()}
+    if not hit:
+        return []
+    where = "; ".join(f"joint {robot.joint_names[j]} at row(s) (0-based) {', '.join(str(int(r)) for r in rows[:5])}"
+                      f"{' ...' if rows.size > 5 else ''}" for j, rows in hit.items())
+    return [f"the load reverses the total torque of a joint whose backlash the calibration's data could not test (no "
+            f"load of theirs reversed it; calibration.untested_backlash_joints): {where}; a gap there would add its "
+            "jump, which neither the prediction nor sd holds: measure such loads (stiffcal design --prior) to test it"]
+
+
 def _unset_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) -> list[str]:
     """A note on the rows where a joint of the calibration's backlash carries no torque (its total torque, with the
-    arm's own weight where the backlash is preloaded, zero to :data:`UNSET_TORQUE_FRACTION` of the row's largest):
-    the load does not say on which side of its gap the joint rests, so the prediction (the gap's centre, sign 0)
-    may be off by the jump b_j either way, which its sd does not include."""
+    arm's own weight where the backlash is preloaded, zero to :data:`UNSET_TORQUE_FRACTION` of the row's largest),
+    or a torque that the joints' own deflection reverses (the weight's torque at the sagged pose q + k t0, or the
+    total torque at the loaded pose q + k (t0 + tau), of the other sign than at the commanded pose: a fresh user's
+    Jaco2 at +0.005 N m commanded, -0.002 N m sagged, left 135 um against a band of 30 um): the load does not say on
+    which side of its gap the joint rests, so the prediction may be off by the jump b_j either way, which its sd does
+    not include."""
     if "backlash" not in cal.causes:
         return []
     from .discrepancy import _preload, torques
@@ -563,16 +614,26 @@ def _unset_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) ->
     total = tau if t0 is None else tau + t0
     scale = np.abs(tau).max(axis=1, keepdims=True) + (0.0 if t0 is None else np.abs(t0).max(axis=1, keepdims=True))
     gaps = {j: b for j, (b, _) in _backlash_gaps(robot, cal).items()}
-    unset = {j: np.flatnonzero(np.abs(total[:, j]) <= UNSET_TORQUE_FRACTION * scale[:, 0]) for j in gaps}
+    loose = np.abs(total) <= UNSET_TORQUE_FRACTION * scale
+    if t0 is not None:  # near balance: the deflection itself reverses the weight's torque, or the total torque
+        k = np.nan_to_num(np.asarray(cal.compliances(robot.n_joints), float))
+        if robot.compliances is not None:
+            k = np.where(k > 0, k, np.asarray(robot.compliances, float))
+        sagged, loaded = q + k * t0, q + k * total
+        flipped = ((np.sign(robot.gravity_torques(sagged)) != np.sign(t0))
+                   | (np.sign(robot.gravity_torques(loaded) + torques(robot, loaded, load)) != np.sign(total)))
+        loose |= flipped
+    unset = {j: np.flatnonzero(loose[:, j]) for j in gaps}
     unset = {j: rows for j, rows in unset.items() if rows.size and abs(gaps[j]) > 0}
     if not unset:
         return []
     where = "; ".join(f"joint {robot.joint_names[j]} (b = {gaps[j]:.3g} rad) at row(s) (0-based) "
                       f"{', '.join(str(int(r)) for r in rows[:5])}{' ...' if rows.size > 5 else ''}"
                       for j, rows in unset.items())
-    return [f"a joint with backlash carries no torque under the load: {where}; the load does not set on which side "
-            "of its gap the joint rests, so the prediction there (the gap's centre) may be off by the joint's jump b "
-            "either way, which sd does not include: load the joint, or measure that pose"]
+    return [f"a joint with backlash carries no torque under the load, or one its own deflection reverses (near "
+            f"balance): {where}; the load does not set on which side of its gap the joint rests, so the prediction "
+            "there may be off by the joint's jump b either way, which sd does not include: load the joint, or measure "
+            "that pose"]
 
 
 def band95(cov: np.ndarray) -> np.ndarray:
@@ -860,7 +921,8 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     if not np.isfinite(fresh.value):
         notes.append(f"{m} new poses alone cannot identify the {Xp.shape[-1]} parameters of the model that the "
                      f"candidate poses or the test pose move (of {len(live)}): O_t_fresh is infinite")
-    notes += _shared_error_note(cal, sigma_m) + cell_notes(robot)
+    notes += _shared_error_note(cal, sigma_m) + cell_notes(robot) + _untested_at_test_pose(robot, cal, test_pose,
+                                                                                           test_load)
     W = Xt.T @ Xt
     bound, w, gap = prior_design_bound(P, ridged, W, m)
     cov_rr = cal.cov[:p_r, :p_r]

@@ -2435,18 +2435,24 @@ def verdict_of(robot: Robot, pre: Prepared, alpha: float = 0.01, test_pose=None,
     return Verdict(**out, robot=robot.source)
 
 
-def _unseen_backlash_note(robot: Robot, pre: Prepared) -> list[str]:
-    """A note naming the joints whose backlash no row can show (the catalogue's backlash column zero in every row:
-    with the arm's weight, no load reverses the joint's total torque), so that ``none`` is not read as 'no backlash'
-    there (a fresh user's UR10 under hanging masses: the elbow's torque 31 -> 212 N m, never reversed)."""
+def unseen_backlash_joints(robot: Robot, pre: Prepared) -> list[int]:
+    """The joints (0-based) the data's loads turn whose catalogue backlash column is zero in every row: no load
+    reversed their total torque (the arm's weight preloads them), so a backlash there cannot show in these data."""
     if "backlash" not in pre.des.blocks or not robot.n_joints:
         return []
     block = pre.des.blocks["backlash"].reshape(pre.m.n_rows, pre.des.d, -1)
     names = parameter_names("backlash", robot, pre.ob)
-    joints = [int(re.match(r"b(\d+)", n).group(1)) for n in names if re.match(r"b(\d+)", n)]
-    turned = {int(j) + 1 for j in pre.ob.model_params(robot)}  # the joints the loads turn (others noted apart)
-    dead = [robot.joint_names[j - 1] for j, col in zip(joints, np.moveaxis(block, -1, 0))
-            if j in turned and not np.any(col)]
+    joints = [int(re.match(r"b(\d+)", n).group(1)) - 1 for n in names if re.match(r"b(\d+)", n)]
+    turned = {int(j) for j in pre.ob.model_params(robot)}
+    return [j for j, col in zip(joints, np.moveaxis(block, -1, 0)) if j in turned and not np.any(col)]
+
+
+def _unseen_backlash_note(robot: Robot, pre: Prepared) -> list[str]:
+    """A note naming the joints whose backlash no row can show (the catalogue's backlash column zero in every row:
+    with the arm's weight, no load reverses the joint's total torque), so that ``none`` is not read as 'no backlash'
+    there (a fresh user's UR10 under hanging masses: the elbow's torque 31 -> 212 N m, never reversed)."""
+    turned = pre.ob.model_params(robot)  # the joints the loads turn (others noted apart)
+    dead = [robot.joint_names[j] for j in unseen_backlash_joints(robot, pre)]
     if not dead or len(dead) == len(turned):
         return []
     return [f"the loads never reverse the total torque of joint(s) {', '.join(dead)} (the arm's weight preloads them): "

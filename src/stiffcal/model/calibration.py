@@ -31,7 +31,10 @@ class Calibration:
     the noise of the analysis; error_model: its summary (the verdict's ``error_model``); source: the data file,
     its SHA-256, the robot file, the verdict's cause and p-value, alpha, the stiffcal version; model_error_m [m]:
     where the data reject this model, its error per position coordinate at a configuration it was not fitted to
-    beyond the noise (0: none known), which predictions add to their variance."""
+    beyond the noise (0: none known), which predictions add to their variance; untested_backlash: the joints
+    (0-based) the loads turned but whose total torque no load of the data reversed (the arm's weight preloads them),
+    so that a backlash there could not show (the verdict's note), which predictions name where their load reverses
+    it."""
     causes: tuple[str, ...]
     k_joints: tuple[int, ...]
     names: tuple[str, ...]
@@ -44,6 +47,7 @@ class Calibration:
     error_model: dict = field(default_factory=dict)
     source: dict = field(default_factory=dict)
     model_error_m: float = 0.0
+    untested_backlash: tuple[int, ...] = ()
 
     def compliances(self, n_joints: int) -> np.ndarray:
         """(n,) [rad/(N m)]: the identified compliance of every joint, NaN for one the data did not identify."""
@@ -60,7 +64,9 @@ class Calibration:
                           "sigma_m": float(self.sigma_m),
                           "rotation_weight_m_per_rad": self.rotation_weight_m_per_rad,
                           "error_model": self.error_model, "source": self.source,
-                          **({"model_error_m": float(self.model_error_m)} if self.model_error_m > 0 else {})})
+                          **({"model_error_m": float(self.model_error_m)} if self.model_error_m > 0 else {}),
+                          **({"untested_backlash_joints": [int(j) + 1 for j in self.untested_backlash]}
+                             if self.untested_backlash else {})})
 
 
 #: the largest standard deviation of a calibration's parameter accepted (SI units: rad/(N m), rad, m, 1/(N m^2))
@@ -125,7 +131,8 @@ def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
                   "parameter_names")
     return Calibration(causes, tuple(joints), names, theta, cov, est, int(doc["n_offsets"]), float(doc["sigma_m"]),
                        doc.get("rotation_weight_m_per_rad"), dict(doc.get("error_model") or {}),
-                       dict(doc.get("source") or {}), float(doc.get("model_error_m", 0.0)))
+                       dict(doc.get("source") or {}), float(doc.get("model_error_m", 0.0)),
+                       _untested(doc, robot, bad))
 
 
 def _names_of(cause: str, robot: Robot, n_offsets: int) -> list[str]:
@@ -136,3 +143,12 @@ def _names_of(cause: str, robot: Robot, n_offsets: int) -> list[str]:
 
 def _extension_size(robot: Robot, causes, n_offsets: int) -> int:
     return sum(extension_size(c, robot, n_offsets) for c in causes)
+
+
+def _untested(doc: dict, robot: Robot, bad) -> tuple[int, ...]:
+    """The section's ``untested_backlash_joints`` (1-based) as 0-based joints, each within the robot's."""
+    joints = [int(j) for j in doc.get("untested_backlash_joints") or []]
+    if any(not 1 <= j <= robot.n_joints for j in joints):
+        raise bad(f"expected joint numbers 1..{robot.n_joints}, got {joints}", "untested_backlash_joints")
+    return tuple(j - 1 for j in joints)
+
