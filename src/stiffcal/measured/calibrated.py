@@ -372,19 +372,15 @@ def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.nd
     1e-9 of the row's largest identified joint's; a joint whose axis passes through the measured point, a Panda's
     flange joint turned by a loading bar's moment, moves nothing there), the row's load reverses the total torque of
     no joint whose backlash the data could not test (:func:`untested_backlash_reversed`), and no parameter it did not
-    determine (its
-    estimable flag; the prediction uses its minimum-norm value) has a column of X (N, r, p) above 1e-9 of the row's
-    largest (scaled by the parameter's standard deviation, so that units do not decide)."""
-    from . import discrepancy as D
+    determine (its estimable flag; the prediction uses its minimum-norm value) has a column of X (N, r, p) above 1e-9
+    of the row's largest (scaled by the parameter's standard deviation, so that units do not decide)."""
     from ..model.catalogue import TORQUE_RTOL
 
     n = robot.n_joints
     missing = np.array([j for j in range(n) if j not in cal.k_joints], int)
     ok = np.ones(len(q), bool)
     if missing.size:  # moved: above the round-off of the analysis's rule (catalogue.unturned_to_zero), row by row
-        ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,
-                        missing, 0)
-        moves = np.abs(D.model_columns(robot, q, load, (), predict=True, observed=ob)[..., : missing.size]).max(axis=1)
+        moves = np.abs(_joint_columns(robot, q, load, target, orientation, missing)).max(axis=1)
         scale = np.abs(X[..., : len(cal.k_joints)]).max(axis=(1, 2)) if len(cal.k_joints) else moves.max(axis=1)
         ok &= ~np.any(moves > TORQUE_RTOL * scale[:, None], axis=1)
     ok &= ~untested_backlash_reversed(robot, cal, q, load).any(axis=1)
@@ -510,13 +506,22 @@ def _second_order(robot: Robot, cal, q: np.ndarray, load: np.ndarray, target) ->
     return D.second_order_part(robot, meas, ob, np.asarray(cal.theta[: len(cal.k_joints)], float))
 
 
+def _joint_columns(robot: Robot, q: np.ndarray, load: np.ndarray, target, orientation: bool, joints) -> np.ndarray:
+    """(N, r, m): the motion of what each row measures (``target``, ``orientation`` as :func:`predict`) per unit
+    compliance of each of the m ``joints`` (0-based) under the row's load (eq. 4's columns)."""
+    from . import discrepancy as D
+
+    ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,
+                    np.asarray(joints, int), 0)
+    return D.model_columns(robot, q, load, (), predict=True, observed=ob)[..., : len(joints)]
+
+
 def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, mean):
     """(mean, note): the predicted motion ``mean`` (N, r) plus that of the joints the calibration did not identify
     (their compliance deflected no measured point of its data), each with the robot file's compliance where it has
     one (the calibrated file keeps the original's); their error is not in the sd, which the note says for those that
     move a row by more than :data:`UNIDENTIFIED_SHARE` of the largest deflection. None: every joint identified, or
     none of them moves a row."""
-    from . import discrepancy as D
 
     missing = [j for j in range(robot.n_joints) if j not in cal.k_joints]
     if not missing:
@@ -526,9 +531,7 @@ def _with_unidentified_joints(robot: Robot, cal, q, load, target, orientation, m
         names = ", ".join(robot.joint_names[j] for j in missing)
         return mean, (f"joint(s) {names} were not identified by the calibration and the robot file gives no "
                       "compliance for them: their deflection is left out of the prediction")
-    ob = D.Observed(robot.target_names, None if target is None else np.asarray(target, int), orientation, 1.0,
-                    np.asarray(missing, int), 0)
-    X = D.model_columns(robot, q, load, (), predict=True, observed=ob)[..., : len(missing)]
+    X = _joint_columns(robot, q, load, target, orientation, missing)
     each = X * np.asarray(k, float)[missing]  # (N, r, m): each joint's deflection
     added = each.sum(axis=-1)
     size = np.abs(each).max(axis=(0, 1))

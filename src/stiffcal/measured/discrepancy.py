@@ -2145,20 +2145,43 @@ EQUILIBRIUM_ITERATIONS = 6
 LEVER_RTOL = 1e-5
 
 
-def bar_lever(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray | None:
-    """(3,) [m]: the one lever r in the tool frame that gives every row's logged moment as a mass hung from it,
-    M = (R(q) r) x F (a loading bar bolted to the tool), within :data:`LEVER_RTOL` of the largest moment; None where
-    no such lever exists, without moments, or for a planar arm. q (N, n) [rad], load (N, 6) [N, N m]."""
-    if load.shape[-1] != 6 or robot.task_dim != 3 or not np.any(load[:, 3:]):
-        return None
-    F, M = load[:, :3], load[:, 3:]
-    R0 = np.asarray(robot.tool_frame(q)[0], float)
+def _has_levers(robot: Robot, load: np.ndarray) -> bool:
+    """Whether the loads (N, d + d_m) carry moments that levers can give: a spatial arm's wrenches, not all zero."""
+    return load.shape[-1] == 6 and robot.task_dim == 3 and bool(np.any(load[:, 3:]))
+
+
+def _common_lever(F: np.ndarray, M: np.ndarray, R0: np.ndarray) -> np.ndarray | None:
+    """(3,) [m]: the one lever r in the tool frame (R0 (N, 3, 3) the tool's rotations) with M = (R0 r) x F in every
+    row (F, M (N, 3)), within :data:`LEVER_RTOL` of the largest moment; else None."""
     skew = np.zeros((len(F), 3, 3))
     skew[:, [2, 0, 1], [1, 2, 0]] = F
     skew[:, [1, 2, 0], [2, 0, 1]] = -F  # skew @ v = F x v
     A = -np.einsum("nij,njk->nik", skew, R0)  # M = (R0 r) x F = -F x (R0 r)
     r_tool = np.linalg.lstsq(A.reshape(-1, 3), M.reshape(-1), rcond=None)[0]
     return r_tool if np.abs(A @ r_tool - M).max() <= LEVER_RTOL * np.abs(M).max() else None
+
+
+def bar_lever(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray | None:
+    """(3,) [m]: the one lever r in the tool frame that gives every row's logged moment as a mass hung from it,
+    M = (R(q) r) x F (a loading bar bolted to the tool), within :data:`LEVER_RTOL` of the largest moment; None where
+    no such lever exists, without moments, or for a planar arm. q (N, n) [rad], load (N, 6) [N, N m]."""
+    if not _has_levers(robot, load):
+        return None
+    return _common_lever(load[:, :3], load[:, 3:], np.asarray(robot.tool_frame(q)[0], float))
+
+
+def _levers(robot: Robot, q: np.ndarray, load: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """(levers (N, 3) [m] in the base frame, R0 (N, 3, 3) the tool's rotations at q) of :func:`load_levers`, or
+    None without levers."""
+    if not _has_levers(robot, load):
+        return None
+    F, M = load[:, :3], load[:, 3:]
+    R0 = np.asarray(robot.tool_frame(q)[0], float)
+    r_tool = _common_lever(F, M, R0)
+    if r_tool is not None:
+        return np.einsum("nij,j->ni", R0, r_tool), R0
+    f2 = np.einsum("ni,ni->n", F, F)
+    return np.cross(F, M) / np.where(f2 > 0, f2, 1.0)[:, None], R0
 
 
 def load_levers(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray | None:
@@ -2168,15 +2191,8 @@ def load_levers(robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray | N
     by R(q), else each row's own lever normal to its force, r = F x M / |F|^2 (a bar level under a hanging mass; rows
     without a moment: 0). None without moments, or for a planar arm (an in-plane lever normal to the force: a load
     turned in the plane keeps its moment)."""
-    if load.shape[-1] != 6 or robot.task_dim != 3 or not np.any(load[:, 3:]):
-        return None
-    F, M = load[:, :3], load[:, 3:]
-    R0 = np.asarray(robot.tool_frame(q)[0], float)
-    r_tool = bar_lever(robot, q, load)
-    if r_tool is not None:
-        return np.einsum("nij,j->ni", R0, r_tool)
-    f2 = np.einsum("ni,ni->n", F, F)
-    return np.cross(F, M) / np.where(f2 > 0, f2, 1.0)[:, None]
+    found = _levers(robot, q, load)
+    return None if found is None else found[0]
 
 
 def lever_turned(robot: Robot, q: np.ndarray, load: np.ndarray) -> Callable:
@@ -2186,16 +2202,14 @@ def lever_turned(robot: Robot, q: np.ndarray, load: np.ndarray) -> Callable:
     logged (a hanging mass keeps its direction). Without moments, for a moment without a force (a couple: no lever)
     or a planar arm: the loads as logged. A fresh user's Panda under a 0.3 m bar (1e-4..1e-3 rad/(N m)) raised a
     false alarm on every clean log with the moment held fixed in the base frame."""
-    levers = load_levers(robot, q, load)
-    if levers is None:
+    found = _levers(robot, q, load)
+    if found is None:
         return lambda x: load
-    F, M = load[:, :3], load[:, 3:]
-    lever = np.einsum("nji,nj->ni", np.asarray(robot.tool_frame(q)[0], float), levers)  # in the tool frame
+    lever, F, M = np.einsum("nji,nj->ni", found[1], found[0]), load[:, :3], load[:, 3:]  # in the tool frame
     moved = np.any(M != 0, axis=1) & np.any(F != 0, axis=1)  # a moment without a force (a couple) as logged
 
     def at(x):
-        R = np.asarray(robot.tool_frame(x)[0], float)
-        turned = np.cross(np.einsum("nij,nj->ni", R, lever), F)
+        turned = np.cross(np.einsum("nij,nj->ni", np.asarray(robot.tool_frame(x)[0], float), lever), F)
         return np.hstack([F, np.where(moved[:, None], turned, M)])
     return at
 

@@ -898,7 +898,11 @@ class MeshEngine(_Base):
         if "<!ENTITY" in text or "<!DOCTYPE" in text:
             raise InputError("XML entity or DOCTYPE declarations are not allowed", source=self.cell.source,
                              field="cell.srdf")
-        _srdf_links_known(text, {f.name for f in self.model.frames}, self.cell)
+        if not _srdf_links_known(text, {f.name for f in self.model.frames}, self.cell) and self.cell.self_collision:
+            self.notes.append(f"the SRDF {self.cell.srdf} disables no pair of links: the self-collision check is as "
+                              "without an SRDF (every pair of bodies that are not adjacent, a pair that overlaps by "
+                              "design left out only where it collides at every probe pose); is it this robot's, and "
+                              "complete?")
         try:
             pin.removeCollisionPairs(self.model, geom, self.cell.srdf)
         except (ValueError, RuntimeError) as err:
@@ -1162,19 +1166,22 @@ def feasible(robot, q: np.ndarray, hanging=None) -> np.ndarray:
     return eng.feasible(flat, hanging).reshape(q.shape[:-1])
 
 
-def _srdf_links_known(text: str, links: set, cell) -> None:
-    """Refuse an SRDF whose ``disable_collisions`` pairs name no link of the URDF (another robot's SRDF: a Panda's
-    given for a Baxter disabled nothing, and the cell then left no pose, with a message about clearances)."""
+def _srdf_links_known(text: str, links: set, cell) -> int:
+    """The number of the SRDF's ``disable_collisions`` entries; refuse an SRDF whose pairs name no link of the URDF
+    (another robot's SRDF: a Panda's given for a Baxter disabled nothing, and the cell then left no pose, with a
+    message about clearances)."""
     import xml.etree.ElementTree as ET
 
     try:
         root = ET.fromstring(text)
     except ET.ParseError as err:
         raise InputError(f"cannot read the SRDF {cell.srdf}: {err}", source=cell.source, field="cell.srdf") from None
-    named = {e.get(k) for e in root.iter("disable_collisions") for k in ("link1", "link2")} - {None}
+    entries = list(root.iter("disable_collisions"))
+    named = {e.get(k) for e in entries for k in ("link1", "link2")} - {None}
     if named and not named & links:
         raise InputError(f"the SRDF {cell.srdf} disables pairs of links none of which is in the URDF (e.g. "
                          f"{sorted(named)[0]!r}): expected this robot's SRDF", source=cell.source, field="cell.srdf")
+    return len(entries)
 
 
 def cell_notes(robot) -> list[str]:
@@ -1190,20 +1197,7 @@ def cell_notes(robot) -> list[str]:
              "give the robot's SRDF (cell.srdf) for the pairs its makers disabled"]
             if robot.cell.self_collision and getattr(robot, "urdf_info", None) and not robot.cell.srdf
             and isinstance(eng, MeshEngine) else [])
-    empty = ([f"the SRDF {robot.cell.srdf} disables no pair of links: the self-collision check is as without an "
-              "SRDF (every pair of bodies that are not adjacent, a pair that overlaps by design left out only where it "
-              "collides at every probe pose); is it this robot's, and complete?"]
-             if robot.cell.self_collision and robot.cell.srdf and isinstance(eng, MeshEngine)
-             and not _srdf_disabled(robot.cell.srdf) else [])
-    return [] if eng is None else bare + empty + list(eng.notes)
-
-
-def _srdf_disabled(path) -> int:
-    """The number of ``disable_collisions`` entries of the SRDF at ``path`` (read before, by the engine)."""
-    import xml.etree.ElementTree as ET
-
-    return sum(1 for _ in ET.fromstring(Path(path).read_text(encoding="utf-8", errors="replace"))
-               .iter("disable_collisions"))
+    return [] if eng is None else bare + list(eng.notes)
 
 
 def no_pose_hint(robot) -> str:
