@@ -860,6 +860,13 @@ def test_absolute_positions_and_millimetres_labelled_metres_are_refused(tmp_path
         with pytest.raises(InputError, match=rf"{name}.*columns dx_m, dy_m.*expected deflections.*% of the arm's "
                                              r"reach.*absolute positions, or millimetres"):
             read_measurements(_lab_file(tmp_path, name, shifted(by, scale)), robot)
+
+    def one_in_mm(h, rows):  # a fresh user's dz_m alone in mm: the column is named, with each column's median
+        j = h.index("dy_m")
+        return h, [[f"{float(v) * 1000.0:.6e}" if i == j else v for i, v in enumerate(r)] for r in rows]
+    with pytest.raises(InputError, match=r"one.csv: field 'column dy_m'.*millimetres.*dy_m [0-9.e-]+ m in the median, "
+                                         r"the other column\(s\) [0-9.e-]+ m"):
+        read_measurements(_lab_file(tmp_path, "one.csv", one_in_mm), robot)
     meas = read_measurements(LAB_DIR / "lab_3r_coupling.csv", robot)
     large = Measurements.from_arrays(meas.q, meas.force, meas.dp * 200.0, moment=meas.moment)
     size = np.median(np.linalg.norm(large.dp, axis=1)) / robot.reach_m
@@ -1780,3 +1787,65 @@ def test_moments_logged_in_the_tool_frame_are_refused(tmp_path):
         D.analyse(arm, read_measurements(path, arm), 0.01, gain=False)
     assert err.value.field == "columns mx_Nm, my_Nm, mz_Nm"
 
+
+def test_discriminate_plans_under_the_data_s_loading_bar_its_moment_turning_with_the_tool(tmp_path):
+    """A fresh user's bar log (an IRB 6640, 15 configurations, 45 distinct wrenches) was refused for its count of
+    loads: each logged wrench is the bar's at one pose, and the plan held each point's wrench fixed. The Panda bar
+    log: the default loads are the bar's masses at the lever the data give (0.3 m along the tool's x, as the log was
+    made), and every point of the plan (here the O_t plan, with the test pose) carries the moment the bar applies at
+    its own pose, (R(q) r) x F with R from Pinocchio's forward kinematics of the URDF; its O_t is at least the
+    certified lower bound."""
+    import pinocchio as pin
+
+    from stiffcal.measured import discrimination as X
+
+    path = _real_arm_file(tmp_path, "panda", "tip_frame: panda_link8\ntool_m: [0.0, 0.0, 0.12]\ngravity: [0, 0, -1]\n"
+                                 "compliances_rad_per_Nm: [2.0e-4, 3.0e-4, 4.0e-4, 5.0e-4, 6.0e-4, 8.0e-4, 1.0e-3]\n")
+    robot = load_robot(path)
+    out = X.planned(robot, str(NEWUSER / "panda_bar_clean_s0.csv"), 3,
+                    test_pose=np.radians([0, 30, 0, -120, 0, 150, 45]), test_force=np.array([0.0, 0.0, -30.0]),
+                    effort=X.Effort(pool_log2=7, search_log2=8, n_starts=1, rounds=1)).to_dict()
+    assert out["loads"]["kind"] == "bar" and "loading bar" in out["loads"]["description"]
+    assert out["loads"]["bar_end_m"] == pytest.approx([0.3, 0.0, 0.0], abs=1e-5)
+    model = pin.buildModelFromUrdf(str(robot.urdf_info["path"]))
+    data, frame = model.createData(), model.getFrameId("panda_link8")
+    plan = out["ot_plan"]
+    for pt in plan["points"]:
+        pin.framesForwardKinematics(model, data, np.r_[np.radians(pt["pose_deg"]), np.zeros(model.nq - 7)])
+        want = np.cross(data.oMf[frame].rotation @ [0.3, 0.0, 0.0], pt["force_N"])
+        assert pt["moment_Nm"] == pytest.approx(want, abs=2e-4)  # the moment's printed digits
+    assert plan["O_t_m2"] >= plan["lower_bound_m2"] * (1 - 1e-9)
+
+
+def test_a_negative_compliance_is_no_joint_s_in_the_geometry_correction(tmp_path):
+    """A fresh user's UR5 (example-robot-data, two SMRs, 5-15 kg hung at the flange, a reference per configuration
+    reused on a shuffled second pass; its own Pinocchio simulator of the exact statics, compliances 1.2e-6..5e-6):
+    on one clean log the nominal fit puts k_wrist_1 at -1e-5, and the correction's first order kept that negative
+    compliance while its exact motion took it as zero, so the rows were 'corrected' by 27 um RMS and the wrist
+    compliance came out 10 sd off, with a note blaming the data. The second-order part at the fit's compliances is
+    now within a factor 3 of the part at the simulator's true compliances (0.014 um: no correction), and the verdict
+    has neither the correction's note nor a negative compliance beyond its interval."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import real_arms
+
+    if real_arms.robots_dir() is None:
+        pytest.skip("example-robot-data is not installed")
+    path = tmp_path / "ur5.yaml"
+    path.write_text(f"name: ur5\nkind: urdf\nurdf: {real_arms.robots_dir()}/ur_description/urdf/ur5_robot.urdf\n"
+                    "base_frame: base_link\ntip_frame: tool0\ntool_m: [0, 0, 0]\ntargets:\n  A: [0.03, 0.0, 0.05]\n"
+                    "  B: [-0.03, 0.0, 0.05]\ncompliances_rad_per_Nm: [3.0e-6, 3.0e-6, 3.0e-6, 3.0e-6, 3.0e-6, 3.0e-6]"
+                    "\ngravity: [0, 0, -1]\n", encoding="utf-8")
+    robot = load_robot(path)
+    meas = read_measurements(NEWUSER / "ur5_smr_clean_s12.csv", robot)
+    ob = D.reduced(robot, D.Observed.of(robot, meas), D.check_identifiable(robot, meas, D.Observed.of(robot, meas)))
+    des = D.build_design(robot, meas, ob)
+    beta = D.fit(des.X0, des.y).beta
+    assert beta.min() < -5e-6  # the fit's negative wrist compliance
+    truth = np.array([2.0e-6, 1.2e-6, 1.8e-6, 3.5e-6, 4.0e-6, 5.0e-6])[np.asarray(ob.model_params(robot))]
+    rms = [np.sqrt(np.mean(D.second_order_part(robot, meas, ob, k) ** 2)) for k in (beta, truth)]
+    assert rms[1] < 1e-7 and rms[0] < 3 * rms[1], rms
+    assert D.geometry_corrected(robot, meas, ob, des)[1] is False
+    v = D.analyse(robot, meas, 0.01, gain=False)
+    assert not any(n.startswith(D.GEOMETRY_NOTE) or "negative compliance" in n for n in v["notes"])

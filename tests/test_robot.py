@@ -48,6 +48,8 @@ def test_paper_robot_file(paper_robot):
     assert not paper_robot.has_joint_limits
 
 
+_TWO_DH = ("name: x\nkind: spatial\ndh_convention: standard\n"
+           "dh: [{a_m: 0.5, alpha_deg: 90, d_m: 0.3}, {a_m: 0.4, alpha_deg: 0, d_m: 0}]\n")
 BAD_FILES = {
     "missing_links": ("name: x\nkind: planar\n", "links_m"),
     "negative_link": ("name: x\nkind: planar\nlinks_m: [0.6, -0.4]\n", "links_m[1]"),
@@ -59,6 +61,9 @@ BAD_FILES = {
     "limits_order": ("name: x\nkind: planar\nlinks_m: [0.6, 0.4]\njoint_limits_deg: [[-90, 90], [10, -10]]\n",
                      "joint_limits_deg[1]"),
     "typo_field": ("name: x\nkind: planar\nlinks_m: [0.6]\nlink_m: [1]\n", "<top level>"),
+    # a fresh user's tool point and a target in millimetres (a 104 m tool on a 0.95 m arm was planned in silence)
+    "tool_in_mm": (f"{_TWO_DH}tool_m: [100, 30, 0]\n", "tool_m"),
+    "target_in_mm": (f"{_TWO_DH}tool_m: [0.1, 0, 0]\ntargets:\n  A: [30, 0, 50]\n", "targets.A"),
 }
 
 

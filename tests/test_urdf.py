@@ -422,6 +422,17 @@ def test_an_unknown_tip_frame_lists_every_link_the_closest_first(root, tmp_path)
     links = [link.get("name") for link in ET.parse(tmp_path / "panda.urdf").getroot().iter("link")]
     assert len(links) > 12 and sorted(listed) == sorted(links)
     assert listed[0] == "panda_hand_tcp"
+    # a name that begins every link of a numbered chain lists them in the file's order (a fresh user's Z1 'link0'
+    # listed link06 .. link00, the one meant last); a name wrong only in case comes first
+    for given, first in (("panda_link", "panda_link0"), ("PANDA_LINK3", "panda_link3")):
+        (tmp_path / "p.yaml").write_text(text.replace("tip_frame: panda_hand_tcp", f"tip_frame: {given}"))
+        with pytest.raises(InputError) as err:
+            load_robot(tmp_path / "p.yaml")
+        listed = re.search(r"closest names first: (.*)$", err.value.message).group(1).split(", ")
+        assert listed[0] == first
+        if given == "panda_link":
+            numbered = [n for n in links if n.startswith("panda_link")]
+            assert listed[:len(numbered)] == numbered
 
 
 def test_the_report_says_why_a_joint_is_not_identifiable_as_the_design_does(root):

@@ -792,6 +792,39 @@ def test_bodies_that_never_move_relative_to_each_other_are_not_a_pair(tmp_path):
 
 
 @needs_arms
+def test_a_foreign_srdf_that_disables_nothing_is_refused_naming_its_field(tmp_path):
+    """A fresh user's Z1 given the Kinova's SRDF (robot 'kinova', joints j2s6s200_*, no disabled pair) ran with a
+    note only; now an SRDF none of whose links and joints (groups, chains, states: read here with the standard
+    library's XML parser) is in the URDF is refused, in a robot file as cell.srdf and in a cell file (--cell) as its
+    own field srdf; the Z1's own SRDF, which disables nothing either, is taken."""
+    import xml.etree.ElementTree as ET
+
+    from stiffcal.model.workcell import feasible
+
+    root = real_arms.robots_dir()
+    kinova, z1 = root / "kinova_description/srdf/kinova.srdf", root / "z1_description/srdf/z1.srdf"
+    names = {e.get("name") for e in ET.parse(kinova).getroot().iter("joint")}
+    urdf = root / "z1_description/urdf/z1.urdf"
+    assert names and not names & {e.get("name") for e in ET.parse(urdf).getroot().iter("joint")}
+    head = f"name: z1\nkind: urdf\nurdf: {urdf}\nbase_frame: link00\ntip_frame: link06\n"
+    for srdf, refused in ((kinova, True), (z1, False)):
+        path = tmp_path / f"z1_{srdf.stem}.yaml"
+        path.write_text(head + f"cell:\n  floor_m: 0\n  srdf: {srdf}\n", encoding="utf-8")
+        if refused:
+            with pytest.raises(InputError, match="names links and joints none of which is in the URDF") as err:
+                feasible(load_robot(path), np.zeros((1, 6)))
+            assert err.value.field == "cell.srdf"
+        else:
+            assert feasible(load_robot(path), np.radians([[0.0, 60.0, -60.0, 0.0, 0.0, 0.0]])).shape == (1,)
+    (tmp_path / "z1.yaml").write_text(head, encoding="utf-8")
+    (tmp_path / "cell.yaml").write_text(f"floor_m: 0\nsrdf: {kinova}\n", encoding="utf-8")
+    with pytest.raises(InputError) as err:
+        stiffcal.design(tmp_path / "z1.yaml", [0, 60, -60, 0, 0, 0], [0, 0, -20], experiments=2,
+                        cell=tmp_path / "cell.yaml", cache_dir=None)
+    assert err.value.field == "srdf" and "none of which is in the URDF" in str(err.value)
+
+
+@needs_arms
 def test_a_missing_or_foreign_srdf_is_named(tmp_path, capsys):
     """A fresh user's Baxter (left arm, self-collision): without its SRDF the cell left no pose, and the message asked
     to lower a clearance of 0 and move obstacles there were none of; a Panda's SRDF given for it was taken in
@@ -1023,6 +1056,12 @@ def test_a_cable_from_a_fingertip_is_checked_against_the_fingers(tmp_path):
     with pytest.raises(InputError, match=r"cable runs through the arm \(panda_\w*finger.*a hook past the fingertips"):
         stiffcal.design(tmp_path / "panda0.0.yaml", [0, 30, 0, -120, 0, 150, 45], [0, 0, -29.42], experiments=4,
                         loads="hanging:9.81,19.61", cache_dir=None)
+    # discriminate's candidates say the same (a fresh user's IRB 6640 got "no pose ... can be taken" alone)
+    from stiffcal.measured import discrimination as X
+
+    robot = load_robot(tmp_path / "panda0.0.yaml")
+    with pytest.raises(InputError, match=r"none of the 256 candidate poses .* cable runs through the arm \(panda_"):
+        X.make_pool(robot, X.pose_pool(robot, log2_count=8), np.array([[0.0, 0.0, -9.81]]), hanging=True)
 
 
 @needs_arms
@@ -1125,3 +1164,23 @@ def test_a_test_pose_inside_an_obstacle_names_the_pair(tmp_path):
     res = stiffcal.design(path, [0, 0], [0, -100], experiments=2)
     assert any("the test pose itself cannot be taken" in n and f"closest: link2-fixture at {d[0] * 1e3:.3g} mm" in n
                for n in res.notes), res.notes
+
+
+@needs_arms
+def test_a_pose_s_clearance_does_not_depend_on_the_poses_before_it(tmp_path):
+    """A fresh user's Z1 plan printed 0.015061 and 0.015062 m for one pose measured twice (its CLI), 0.015061 for both
+    (the workflow): coal's mesh distance starts where the last query ended. The clearance of each pose, alone, after
+    the others or in reverse order: bit for bit the same."""
+    from stiffcal.model.workcell import clearance
+
+    root = real_arms.robots_dir()
+    path = tmp_path / "z1.yaml"
+    path.write_text(f"name: z1\nkind: urdf\nurdf: {root}/z1_description/urdf/z1.urdf\nbase_frame: link00\n"
+                    f"tip_frame: gripperStator\ncell:\n  floor_m: -0.5\n  srdf: {root}/z1_description/srdf/z1.srdf\n",
+                    encoding="utf-8")
+    robot = load_robot(path)
+    q = np.radians([[-32.89, 32.63, -58.77, -6.44, 34.98, 12.20], [0.05, 21.94, -61.48, 21.95, -19.89, 1.57],
+                    [40.0, 50.0, -100.0, 30.0, 60.0, -20.0]])
+    together = clearance(robot, np.vstack([q, q[::-1]]))[0]
+    alone = np.array([clearance(robot, x[None])[0][0] for x in q])
+    assert np.array_equal(together[:3], alone) and np.array_equal(together[3:], alone[::-1])

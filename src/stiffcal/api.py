@@ -828,7 +828,8 @@ def plan_discrimination(robot, data, experiments, *, loads: str | None = None, r
     efficiency against the equivalence-theorem bound, and a compound plan with the extended model's O_t.
 
     robot: a Robot or a robot file; data: the measured-data CSV; experiments: M (whole number >= 1); loads: a
-    load set ('hanging:M1,M2' [N], 'directions:K:M1,M2', 'forces:FX,FY;...'; default the data's loads);
+    load set ('hanging:M1,M2' [N], 'directions:K:M1,M2', 'forces:FX,FY;...', 'wrenches:...', 'bar:AX,AY,AZ:M1,M2';
+    default the data's loads, or a loading bar's masses at the lever the data's moments give);
     repeats: times each point is measured; weight: kappa of the discrimination in the compound plan, in [0, 1];
     truth: 'best' (the best-fitting model as the truth) or 'each'; alpha: family-wise rate; test_pose_deg (n,)
     [deg] and force_N (d,) [N]: for the compound plan's O_t; out: a directory for plan.json and plan.png/svg

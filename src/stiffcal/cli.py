@@ -389,8 +389,9 @@ def _discriminate_parser(sub) -> None:
     t.add_argument("--data", required=True, help="measured-data CSV (docs/measured-data.md)")
     t.add_argument("--experiments", type=int, required=True, help="number of measurements M in the plan")
     t.add_argument("--out", required=True, help="output directory (plan.json, plan.png/svg)")
-    t.add_argument("--loads", help="loads the lab can apply: 'hanging:M1,M2' [N], 'directions:K:M1,M2' or "
-                                   "'forces:FX,FY;...' (default: the loads of the data)")
+    t.add_argument("--loads", help="loads the lab can apply: 'hanging:M1,M2' [N], 'directions:K:M1,M2', "
+                                   "'forces:FX,FY;...', 'wrenches:FX,..,MZ;...' or 'bar:AX,AY,AZ:M1,M2' (a loading "
+                                   "bar; default: the loads of the data, a loading bar's masses at its lever)")
     t.add_argument("--repeats", type=int, default=1, help="times each point of the plan is measured (default 1)")
     t.add_argument("--weight", default=0.5,
                    help="weight kappa of the discrimination in the compound plan, in [0, 1] (default 0.5)")

@@ -39,6 +39,10 @@ import os
 MAX_LENGTH_M = 1000.0
 #: shortest planar link, and the smallest distance of the measured point from the joint axes, accepted [m]
 MIN_LINK_M = 1e-6
+#: a spatial arm's tool point or target farther from the tip frame than this many times the arm's own length (its
+#: joint origins from the base, the tool left out) is refused: millimetres given as metres (a fresh user's tool_m
+#: [100, 30, 0] on a 0.95 m arm was planned in silence)
+TOOL_LENGTHS = 10.0
 #: largest force component or hanging weight accepted [N] (10 MN: a thousand tonnes)
 MAX_FORCE_N = 1e7
 #: largest moment component accepted [N m]

@@ -163,8 +163,11 @@ BACKLASH_TORQUE_FLOOR = 0.05
 
 @dataclass(frozen=True)
 class Pool:
-    """Candidate design points: q (K, n) [rad], force (K, d) [N], load (K,) the index of each point's load in
-    ``loads`` (L, d); tau_floor (n,) [N m]: the smallest joint torque a point may have (zero: no floor)."""
+    """Candidate design points: q (K, n) [rad], force (K, w) [N, N m] each point's load at its pose, load (K,) the
+    index of each point's load in ``loads`` (L, w); tau_floor (n,) [N m]: the smallest joint torque a point may have
+    (zero: no floor); hanging: the loads hang from a cable (masses), kept free in the cell; arm (3,) [m]: for masses
+    on a loading bar, the bar's end from the tool point in the tip frame (``loads`` then the masses' forces (L, d),
+    and a point's moment about the tool point turns with the tool: :meth:`at`)."""
 
     q: np.ndarray
     force: np.ndarray
@@ -172,58 +175,83 @@ class Pool:
     loads: np.ndarray
     tau_floor: np.ndarray
     hanging: bool = False
+    arm: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.q)
+
+    def at(self, robot: Robot, q: np.ndarray, load: np.ndarray) -> np.ndarray:
+        """(k, w): the loads of index ``load`` (k,) at the poses q (k, n) [rad]: as given, or a loading bar's force
+        with its moment (R(q) arm) x F (:meth:`stiffcal.model.observation.Loads.at`)."""
+        load = np.asarray(load, int)
+        if self.arm is None:
+            return self.loads[load]
+        from ..model.observation import Loads
+
+        W = Loads(self.loads, self.arm).at(robot, q)  # (k, L, w)
+        return W[np.arange(len(load)), load]
+
+    @property
+    def hang_offset(self) -> np.ndarray | None:
+        """Where the hanging masses' cable starts, from the tool point in the tip frame [m] (None: no cable)."""
+        return None if not self.hanging else np.zeros(3) if self.arm is None else np.asarray(self.arm, float)
 
     def joined(self, robot: Robot, q: np.ndarray, load: np.ndarray) -> "Pool":
         """The pool with the points q (k, n) [rad] under the loads of index ``load`` (k,) added (those above
         the torque floor)."""
         load = np.asarray(load, int)
-        F = self.loads[load]
+        F = self.at(robot, q, load)
         keep = self.admissible(robot, q, F)
         return replace(self, q=np.vstack([self.q, q[keep]]), force=np.vstack([self.force, F[keep]]),
                        load=np.concatenate([self.load, load[keep]]))
 
     def admissible(self, robot: Robot, q: np.ndarray, force: np.ndarray) -> np.ndarray:
-        """(k,) bool: points q (k, n), force (k, d) whose joint torques are all at least :attr:`tau_floor` and
+        """(k,) bool: points q (k, n), force (k, w) whose joint torques are all at least :attr:`tau_floor` and
         whose poses the robot can take in its cell, a hanging mass's cable free (:mod:`stiffcal.model.workcell`)."""
         from ..model.workcell import feasible
 
         ok = np.all(np.abs(D.torques(robot, q, force)) >= self.tau_floor, axis=-1)
         if robot.cell is not None:
-            ok &= feasible(robot, q, np.zeros(3) if self.hanging else None)
+            ok &= feasible(robot, q, self.hang_offset)
         return ok
 
 
 def _load_index(pool: Pool, forces: np.ndarray) -> np.ndarray:
-    """(k,): the index in ``pool.loads`` of each force (k, d) [N] (each must be one of them)."""
-    return np.array([int(np.flatnonzero(np.all(np.isclose(pool.loads, f), axis=1))[0]) for f in np.atleast_2d(forces)],
-                    int)
+    """(k,): the index in ``pool.loads`` of each load (k, w) [N, N m] (each must be one of them; a loading bar's by
+    its force)."""
+    width = pool.loads.shape[1]
+    return np.array([int(np.flatnonzero(np.all(np.isclose(pool.loads, f[:width]), axis=1))[0])
+                     for f in np.atleast_2d(forces)], int)
 
 
-def make_pool(robot: Robot, poses: np.ndarray, loads: np.ndarray, causes=(), hanging: bool = False) -> Pool:
-    """Every pose (P, n) [rad] under every load (L, d) [N]; when ``causes`` include backlash, without the
-    points below :data:`BACKLASH_TORQUE_FLOOR`; in a cell only the poses the robot can take there (with
-    ``hanging`` masses, their cable free). Raises :class:`InputError` when no point is left."""
-    if robot.cell is not None:
-        from ..model.workcell import feasible
-
-        poses = poses[feasible(robot, poses, np.zeros(3) if hanging else None)]
-        if not len(poses):
-            raise InputError(f"no pose within the joint limits can be taken in the cell ({robot.cell.describe()})",
-                             source=robot.cell.source, field="cell")
+def make_pool(robot: Robot, poses: np.ndarray, loads: np.ndarray, causes=(), hanging: bool = False,
+              arm: np.ndarray | None = None) -> Pool:
+    """Every pose (P, n) [rad] under every load (L, w) [N, N m] (or, with ``arm``, the forces (L, d) of masses on a
+    loading bar whose end is ``arm`` (3,) [m] from the tool point in the tip frame: :class:`Pool`); when ``causes``
+    include backlash, without the points below :data:`BACKLASH_TORQUE_FLOOR`; in a cell only the poses the robot can
+    take there (with ``hanging`` masses, their cable free). Raises :class:`InputError` when no point is left."""
     L = len(loads)
-    q, F = np.repeat(poses, L, axis=0), np.tile(loads, (len(poses), 1))
-    load = np.tile(np.arange(L), len(poses))
+    empty = Pool(np.zeros((0, robot.n_joints)), np.zeros((0, np.shape(loads)[1])), np.zeros(0, int),
+                 np.asarray(loads, float), np.zeros(robot.n_joints), hanging, None if arm is None else
+                 np.asarray(arm, float))
+    if robot.cell is not None:
+        from ..model.workcell import feasible, no_pose_reason
+
+        ok = feasible(robot, poses, empty.hang_offset)
+        if not ok.any():
+            raise InputError(f"none of the {len(poses)} candidate poses within the joint limits can be taken in the "
+                             f"cell ({robot.cell.describe()}): {no_pose_reason(robot, poses, empty.hang_offset)}",
+                             source=robot.cell.source, field="cell")
+        poses = poses[ok]
+    q, load = np.repeat(poses, L, axis=0), np.tile(np.arange(L), len(poses))
+    F = empty.at(robot, q, load)
     floor = np.zeros(robot.n_joints)
     if "backlash" in causes:
         floor = BACKLASH_TORQUE_FLOOR * np.abs(D.torques(robot, q, F)).max(axis=0)
-    pool = Pool(q, F, load, np.asarray(loads, float), floor, hanging)
     keep = np.all(np.abs(D.torques(robot, q, F)) >= floor, axis=-1)  # the poses' feasibility is checked above
     if not keep.any():
         raise InputError("no pose within the joint limits loads every joint under these loads", field="--loads")
-    return Pool(q[keep], F[keep], load[keep], pool.loads, floor, hanging)
+    return replace(empty, q=q[keep], force=F[keep], load=load[keep], tau_floor=floor)
 
 
 def pose_pool(robot: Robot, step_deg: float | None = None, log2_count: int = 12) -> np.ndarray:
@@ -577,20 +605,24 @@ def polish(crit: Criterion, robot: Robot, pool: Pool, idx, max_evaluations: int 
     from ..planning.problem import _is_full_turn
     from ..model.workcell import feasible
 
-    q0, F = pool.q[np.asarray(idx, int)], pool.force[np.asarray(idx, int)]
+    q0, F0 = pool.q[np.asarray(idx, int)], pool.force[np.asarray(idx, int)]
     m, n = q0.shape
     floor = np.where(pool.tau_floor > 0, pool.tau_floor, 1.0)
+    load = pool.load[np.asarray(idx, int)]
+
+    def wrench(q):  # a loading bar's moment turns with the tool: each point's load at its pose
+        return F0 if pool.arm is None else pool.at(robot, q, load)
 
     def value(q):
-        return crit.on(q, F).value(np.arange(m))
+        return crit.on(q, wrench(q)).value(np.arange(m))
 
     v0 = value(q0)
 
     def f(z):
         q = z.reshape(m, n)
-        if robot.cell is not None and not feasible(robot, q, np.zeros(3) if pool.hanging else None).all():
+        if robot.cell is not None and not feasible(robot, q, pool.hang_offset).all():
             return -v0 + 1e3 * (abs(v0) + 1.0)  # out of the cell: refused (the line search backtracks; checked below)
-        short = np.maximum(pool.tau_floor - np.abs(D.torques(robot, q, F)), 0.0) / floor
+        short = np.maximum(pool.tau_floor - np.abs(D.torques(robot, q, wrench(q))), 0.0) / floor
         return -value(q) + 1e3 * float(short.sum())
 
     lims = robot.joint_limits_rad
@@ -598,11 +630,11 @@ def polish(crit: Criterion, robot: Robot, pool: Pool, idx, max_evaluations: int 
     res = optimize.minimize(f, q0.ravel(), method="L-BFGS-B", bounds=bounds,
                             options=dict(maxfun=max_evaluations, maxiter=max_evaluations))
     q = res.x.reshape(m, n)
-    if pool.admissible(robot, q, F).all() and np.isfinite(res.fun):
+    if pool.admissible(robot, q, wrench(q)).all() and np.isfinite(res.fun):
         v = value(q)
         if v > v0:
-            return q, F, float(v)
-    return q0, F, float(v0)
+            return q, wrench(q), float(v)
+    return q0, F0, float(v0)
 
 
 def _optimise(crit: Criterion, robot: Robot, pool: Pool, m: int, n_starts: int, seed: int, known=()):
@@ -760,10 +792,10 @@ def design_pairs(rm: RivalModels, seps: list[Separability], truth: str = "best")
 
 # --- certificates ------------------------------------------------------------------------------------------
 
-def _continuum_max(fun, robot: Robot, loads: np.ndarray, effort: Effort, extra_q=None, extra_load=None):
-    """The local maxima over every pose within the joint limits and every load of fun(q (k, n) [rad], force (d,))
-    -> (k,): per load, a grid over the joint space (:func:`stiffcal.planning.problem.joint_grids` at
-    ``effort.search_step_deg``) whose best local maxima, and the ``extra_q`` (k, n) [rad] under that load
+def _continuum_max(fun, robot: Robot, pool: Pool, effort: Effort, extra_q=None, extra_load=None):
+    """The local maxima over every pose within the joint limits and every load of ``pool`` of fun(q (k, n) [rad],
+    loads (k, w) [N, N m] at those poses, :meth:`Pool.at`) -> (k,): per load, a grid over the joint space
+    (:func:`stiffcal.planning.problem.joint_grids` at ``effort.search_step_deg``) whose best local maxima, and the ``extra_q`` (k, n) [rad] under that load
     (``extra_load`` (k,) load indices), are polished (L-BFGS-B, batched central differences); for 4+ joints
     :func:`stiffcal.planning.problem.sampled_minimise` with the extra points among its samples. Returns values (k,),
     poses (k, n) [rad] and load indices (k,), largest first."""
@@ -774,9 +806,10 @@ def _continuum_max(fun, robot: Robot, loads: np.ndarray, effort: Effort, extra_q
     extra_q = np.zeros((0, n)) if extra_q is None else np.atleast_2d(extra_q)
     extra_load = np.zeros(0, int) if extra_load is None else np.asarray(extra_load, int)
     vals, poses, which = [], [], []
-    for i, f in enumerate(loads):
-        def neg(q, f=f):
-            return -fun(np.atleast_2d(q), f).reshape(np.shape(q)[:-1])
+    for i in range(len(pool.loads)):
+        def neg(q, i=i):
+            x = np.atleast_2d(q).reshape(-1, n)
+            return -fun(x, pool.at(robot, x, np.full(len(x), i))).reshape(np.shape(q)[:-1])
 
         extra = extra_q[extra_load == i]
         if is_sampled(robot, step):
@@ -801,7 +834,7 @@ class TCertificate:
     lack of fit over the design pairs; bound [m^2], no plan of the same size can exceed it; efficiency =
     delta / bound; pair: the (truth, rival) whose bound is smallest; power_bound: the power of that pair's
     F-test at the bound with the fewest numerator and most denominator degrees of freedom any plan of M points
-    can have (:func:`_df_extremes`; no plan of M points does better); where_deg (k, n), where_load (k, d): the local
+    can have (:func:`_df_extremes`; no plan of M points does better); where_deg (k, n), where_load (k, w): the local
     maxima of psi over the joint space and the loads (the first is the maximum), where an optimal design puts
     its points (Atkinson & Fedorov 1975, Theorem 1)."""
     delta: float
@@ -859,14 +892,13 @@ def t_certificate(crit: Criterion, rm: RivalModels, pool: Pool, q: np.ndarray, f
         theta = _minimax_theta(pair, B, mu, R * m, theta_plan)
         T, J = rm.models[pair.truth], rm.models[pair.rival]
 
-        def psi(x, f):
-            F = np.broadcast_to(f, (len(x), len(f)))
+        def psi(x, F):
             e = mm.columns(robot, x, F, T.causes) @ T.beta - (mm.columns(robot, x, F, J.causes) @ pair.old.T) @ theta
             return np.sum(e**2, axis=-1) * pool.admissible(robot, x, F)
 
         r = pair.old.z - pair.old.R @ theta
         on_pool = np.sum((mu - B @ theta) ** 2, axis=-1)
-        vals, poses, li = _continuum_max(psi, robot, pool.loads, effort, q, plan_loads)
+        vals, poses, li = _continuum_max(psi, robot, pool, effort, q, plan_loads)
         k = int(np.argmax(on_pool))  # the search cannot miss a pool point: keep the larger (the bound must hold)
         vals, poses, li = np.r_[vals, on_pool[k]], np.vstack([poses, pool.q[k]]), np.r_[li, pool.load[k]]
         order = np.argsort(-vals, kind="stable")
@@ -880,7 +912,7 @@ def t_certificate(crit: Criterion, rm: RivalModels, pool: Pool, q: np.ndarray, f
     df_num, df_den = _df_extremes(rm, rm.models[pr[0]], J, m, R, mm)
     power_bound = f_power(bound / rm.sigma**2, df_num, df_den, test.level)
     return TCertificate(delta, float(bound), float(delta / bound) if bound > 0 else 1.0, pr, power_bound,
-                        np.degrees(pose), pool.loads[li])
+                        np.degrees(pose), pool.at(robot, pose, li))
 
 
 def _df_extremes(rm: RivalModels, truth: Rival, rival: Rival, m: int, repeats: int, mm) -> tuple[int, int]:
@@ -912,12 +944,11 @@ def ot_lower_bound(crit: Criterion, rm: RivalModels, pool: Pool, q: np.ndarray, 
     C = np.linalg.solve(N, Xt.T)  # (p, d_t)
     robot, ext = rm.robot, rm.extended
 
-    def phi(q, f):
-        F = np.broadcast_to(f, (len(q), len(f)))
+    def phi(q, F):
         return np.sum((mm.columns(robot, q, F, ext) @ old.T @ C) ** 2, axis=(-2, -1)) * pool.admissible(robot, q, F)
 
     on_plan = float(np.sum((local.ot[1] @ C) ** 2))
-    top = max(float(_continuum_max(phi, robot, pool.loads, effort, q, _load_index(pool, force))[0].max(initial=0.0)),
+    top = max(float(_continuum_max(phi, robot, pool, effort, q, _load_index(pool, force))[0].max(initial=0.0)),
               float(np.max(np.sum((B @ C) ** 2, axis=(-2, -1)))))
     return float(local.o_t(every) - rm.sigma**2 * crit.repeats * (len(q) * top - on_plan))
 
@@ -1027,7 +1058,7 @@ def discriminate(robot: Robot, meas: Measurements, m: int, loads: LoadSet, verdi
         verdict = D.verdict_of(robot, pre, alpha, gain=False)
     rm = rivals_from_verdict(robot, meas, verdict, prepared=pre)
     pool = make_pool(robot, pose_pool(robot, effort.pool_step_deg, effort.pool_log2), loads.forces,
-                     {c for mdl in rm.models for c in mdl.causes}, loads.kind == "hanging")
+                     {c for mdl in rm.models for c in mdl.causes}, loads.kind in ("hanging", "bar"), loads.arm)
     seps = separability(rm, pool, measurement)
     pairs = design_pairs(rm, seps, truth)
     notes += _rival_notes(verdict, rm, seps, pairs)
@@ -1068,19 +1099,28 @@ def _check_request(robot: Robot, m: int, repeats: int, weight: float, loads: Loa
     if not 0 <= weight <= 1:
         raise InputError(f"expected a weight in [0, 1], got {weight}", field="--weight")
     wrench_dim = robot.task_dim + D.moment_dim(robot)
-    if loads.kind == "bar":
-        raise InputError("a loading bar's moment turns with the tool, so it differs from pose to pose; the next "
-                         "experiment holds each point's load fixed: give the bar's wrenches at the tool point "
-                         "('wrenches:FX,..,MZ;...'), or use stiffcal design --loads bar:...", field="--loads")
     if loads.forces.shape[1] not in (robot.task_dim, wrench_dim):
         raise InputError(f"expected loads of {robot.task_dim} components (forces) or {wrench_dim} (force and moment) "
                          f"for robot {robot.name}, got {loads.forces.shape[1]}", field="--loads")
 
 
+def _bar_of_data(robot: Robot, meas: Measurements, loads: str | None) -> LoadSet | None:
+    """The data's loads as the default, where they are masses on a loading bar (one lever in the tool frame gives
+    every row's moment, :func:`stiffcal.measured.discrepancy.lab_loads`): the bar's masses, whose moment turns with
+    the tool at every pose of the plan (a fresh user's bar log of 15 configurations was refused for its 45 distinct
+    wrenches, each logged at one pose); else None."""
+    if loads is not None or not meas.has_moment:
+        return None
+    lab = D.lab_loads(robot, meas)
+    if lab is None or lab.arm is None:
+        return None
+    return LoadSet(np.asarray(lab.wrenches, float), "bar", "data", robot.task_dim, np.asarray(lab.arm, float))
+
+
 def _with_data_moments(robot: Robot, meas: Measurements, loads: LoadSet, notes: list) -> LoadSet:
     """The loads to plan with: the data's own wrenches when the data's loads carry moments (a loading bar) and
     the loads are the data's; a note when pure forces are given for such data."""
-    if meas.has_moment and loads.moments is None:
+    if meas.has_moment and loads.moments is None and loads.arm is None:
         if loads.kind == "data":  # the data's loads are wrenches (a loading bar): keep their moments
             return load_set("data", robot.task_dim, D.load_of(meas), meas.resolutions[1],
                             moment_resolution_Nm=meas.resolutions[2])
@@ -1236,7 +1276,8 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
            "experiments": res.m, "repeats": res.repeats, "truth_mode": res.truth,
            "loads": {"kind": res.loads.kind, "spec": res.loads.spec, "description": res.loads.describe(),
                      "forces_N": _split(res.loads.forces, rm.robot.task_dim)[0],
-                     "moments_Nm": _split(res.loads.forces, rm.robot.task_dim)[1]},
+                     "moments_Nm": _split(res.loads.forces, rm.robot.task_dim)[1],
+                     "bar_end_m": None if res.loads.arm is None else [float(x) for x in res.loads.arm]},
            "verdict": {"cause": rm.verdict["cause"], "causes": rm.verdict["causes"],
                        "equivalent_combinations": rm.verdict["equivalent_combinations"],
                        "p_value": rm.verdict["p_value"], "p_value_of": rm.verdict.get("p_value_of"),
@@ -1293,8 +1334,8 @@ def planned(robot: Robot, data_path: str, experiments: int, loads: str | None = 
     meas = M.read_measurements(data_path, robot,
                                M.ANGLE_RESOLUTION_DEG if angle_resolution_deg is None else angle_resolution_deg,
                                M.FORCE_RESOLUTION_N if force_resolution_N is None else force_resolution_N)
-    ls = load_set(loads, robot.task_dim, D.load_of(meas), meas.resolutions[1],
-                  moment_resolution_Nm=meas.resolutions[2], gravity=robot.gravity)
+    ls = _bar_of_data(robot, meas, loads) or load_set(loads, robot.task_dim, D.load_of(meas), meas.resolutions[1],
+                                                      moment_resolution_Nm=meas.resolutions[2], gravity=robot.gravity)
     res = discriminate(robot, meas, experiments, ls, repeats=repeats, weight=weight, truth=truth, test_pose=test_pose,
                        test_force=test_force, alpha=alpha, effort=effort, seed=seed)
     return DiscriminationPlan(**json.loads(json.dumps(to_json(res, str(data_path)), allow_nan=False)))

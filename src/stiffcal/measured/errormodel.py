@@ -471,10 +471,12 @@ def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
     notes = _visit_column_notes(f, visit) if f["visit"] is not None else []
     exact = np.flatnonzero(f["exact"])
     if f["visit"] is not None and exact.size:
-        per = np.unique(np.column_stack([visit[exact], f["target"][exact]]), axis=0, return_counts=True)[1]
+        kinds, per = np.unique(np.column_stack([visit[exact], f["target"][exact]]), axis=0, return_counts=True)
         if (per > 1).any():
+            twice = [_visit_name(f, visit, int(v)) for v in np.unique(kinds[per > 1, 0])]
             notes.append(f"{int((per > 1).sum())} visit(s) of the visit column hold two or more reference readings "
-                         "(exact-zero rows) of one target: each reference reading is taken as the start of a "
+                         f"(exact-zero rows) of one target ({'; '.join(twice[:3])}{' ...' if len(twice) > 3 else ''}): "
+                         "each reference reading is taken as the start of a "
                          "reference of its own, the visits as the column says; if the robot left and came back "
                          "between them, give each return a visit label of its own (the robot's return error is "
                          "modelled per visit)")
@@ -487,6 +489,16 @@ def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
                          "exact-zero row while other labels do: a typo? Their rows are taken as measured from an "
                          "unlogged reading of their own")
     return notes
+
+
+def _visit_name(f: dict, visit: np.ndarray, v: int) -> str:
+    """'label 1 at configuration C05 (rows 34, 35 (data rows 32, 33))': the visit v of :func:`_visits` as the file
+    gives it (its configuration by its ``pose_id``, else by its first row)."""
+    from .measurements import _rows_text
+
+    rows = np.sort(f["rows"][visit == v])
+    at = f"configuration {f['label'][visit == v][0]}" if f["label"] is not None else "the configuration of its rows"
+    return f"label {f['visit'][visit == v][0]} at {at} ({_rows_text(rows)})"
 
 
 def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:
@@ -510,21 +522,21 @@ def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:
         mine = [(v, t) for v, t, first in measured if first == kind]
         has = [k for k in mine if k in with_zero]
         if len(has) > len(mine) / 2:
-            lost += [label[v] for v, t in mine if (v, t) not in with_zero]
+            lost += [v for v, t in mine if (v, t) not in with_zero]
     notes = []
     if lost:
-        lost = sorted(set(lost))
-        notes.append(f"visit(s) {', '.join(lost[:5])}{' ...' if len(lost) > 5 else ''} of the visit column have no "
+        lost = [_visit_name(f, visit, v) for v in sorted(set(lost))]
+        notes.append(f"the visit(s) {'; '.join(lost[:3])}{' ...' if len(lost) > 3 else ''} have no "
                      "exact-zero reference row of a target they measure, while most visits of their kind do: a "
                      "reference row lost, or a label that splits a visit? Their rows are read against the last "
                      "reference of their target at their configuration before them (else as measured from an unlogged "
                      "reading of their own)")
     runs = [int(order[0])] + [int(b) for a, b in zip(order[:-1], order[1:]) if visit[a] != visit[b]] if len(order) \
         else []
-    seen = [label[int(visit[i])] for i in runs]
-    split = sorted({v for v in seen if seen.count(v) > 1})
+    seen = [int(visit[i]) for i in runs]  # a visit is a configuration and a label: labels may repeat across them
+    split = [_visit_name(f, visit, v) for v in sorted({v for v in seen if seen.count(v) > 1})]
     if split:
-        notes.append(f"visit label(s) {', '.join(split[:5])}{' ...' if len(split) > 5 else ''} hold rows that are not "
+        notes.append(f"the visit(s) {'; '.join(split[:3])}{' ...' if len(split) > 3 else ''} hold rows that are not "
                      "consecutive in time (rows of other visits between them): one label used for two visits? Rows of "
                      "one configuration and label are read as one visit")
     own = {v for v, _ in with_zero}  # a visit that begins with its own reference reading is a new visit
@@ -1325,6 +1337,27 @@ def model_kenward_roger(em: "ErrorModel", columns: np.ndarray) -> KenwardRoger |
     st = em.structure
     return kenward_roger(_block_arrays(st, Y, groups, X_union[..., np.asarray(columns)], weights), em.ratios,
                          _in_use(st, em.ratios, em.estimable))
+
+
+def further_effects_p(em: "ErrorModel", columns: np.ndarray, further: np.ndarray, arrays: tuple) -> float | None:
+    """The p-value of Kenward-Roger's F-test (:meth:`KenwardRoger.f_test`) that the further fixed effects
+    ``further`` (R, w, k) on every model row (loaded and unloaded: a tracker's drift) are zero, added to the model of
+    the union's ``columns``, with ``em`` the error model estimated with them (its ratios, sigma^2 and degrees of
+    freedom): the generalised least-squares estimate over every model row, sum_b X_b^T H_b^-1 y_b in the orthonormal
+    coordinates of :func:`kenward_roger` (in which its plug-in covariance is sigma^2 I). ``arrays``: the
+    :attr:`ErrorModel.arrays` of the error model of the same rows without them. None where no shared error is in
+    use (the plug-in test is then exact)."""
+    (Y, groups, X_union, weights), _ = arrays
+    st = em.structure
+    blocks = _block_arrays(st, Y, groups, X_union[..., np.asarray(columns)], weights, further)
+    kr = kenward_roger(blocks, em.ratios, _in_use(st, em.ratios, em.estimable))
+    if kr is None:
+        return None
+    g = sum(_fixed(b).reshape(b["Y"].size, -1).T @ np.linalg.solve(_covariance(b, em.ratios), b["Y"].ravel())
+            for b in blocks)
+    U, sv, _ = np.linalg.svd(kr.basis[-further.shape[-1]:].T, full_matrices=False)  # their directions there
+    U = U[:, sv > RANK_RTOL * max(float(sv.max(initial=0.0)), 1e-300)]
+    return kr.f_test(U, U.T @ (kr.basis.T @ g), em.sigma2, em.df) if U.shape[1] else 1.0
 
 
 def kr_intervals(kr: KenwardRoger, df: float) -> tuple[np.ndarray, np.ndarray]:

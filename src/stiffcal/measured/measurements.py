@@ -639,17 +639,27 @@ def _pose_labels(df, source: str) -> tuple[np.ndarray | None, list[str]]:
 MAX_DISPLACEMENT_OF_REACH = 0.02
 
 
+def _medians(values) -> str:
+    return ", ".join(f"{v:.3g}" for v in values)
+
+
 def check_displacement_size(robot: Robot, dp: np.ndarray, columns: list[str], source: str) -> None:
     """Raise :class:`InputError` when the loaded rows' displacements ``dp`` (N, d) [m] are, in the median, more than
     :data:`MAX_DISPLACEMENT_OF_REACH` of the robot's reach: not deflections."""
     reach = robot.reach_m
     size = float(np.median(np.linalg.norm(dp, axis=1))) if len(dp) else 0.0
     if reach > 0 and size > MAX_DISPLACEMENT_OF_REACH * reach:
+        each = np.median(np.abs(dp), axis=0)  # the columns that alone reach the bound: one column in mm is named
+        big = each > MAX_DISPLACEMENT_OF_REACH * reach / np.sqrt(len(columns))
+        named = [c for c, b in zip(columns, big) if b] if 0 < big.sum() < len(columns) else list(columns)
+        which = "" if len(named) == len(columns) else (
+            f"; {', '.join(named)} {_medians(each[big])} m in the median, the other column(s) "
+            f"{_medians(each[~big])} m")
         raise InputError(f"expected deflections (each loaded reading less its unloaded reference reading, in metres), "
                          f"but the loaded rows' displacements are {size:.3g} m in the median, {100 * size / reach:.3g} "
                          f"% of the arm's reach ({reach:.3g} m): no serial robot deflects that far elastically; "
-                         "absolute positions, or millimetres in columns labelled metres?", source=source,
-                         field=f"columns {', '.join(columns)}")
+                         f"absolute positions, or millimetres in columns labelled metres?{which}", source=source,
+                         field=f"column{'s' if len(named) > 1 else ''} {', '.join(named)}")
 
 
 def _unit_checks(robot: Robot, df, q_deg, dp, loaded: np.ndarray, cols: list[str], source: str) -> list[str]:

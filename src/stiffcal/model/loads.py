@@ -47,7 +47,10 @@ class LoadSet:
     def describe(self) -> str:
         mags = sorted({round(float(np.linalg.norm(f)), 2) for f in self.force_part})
         text = {"hanging": f"hanging weights of {', '.join(f'{m:g}' for m in mags)} N",
-                "bar": f"weights of {', '.join(f'{m:g}' for m in mags)} N hung from a loading bar",
+                "bar": f"weights of {', '.join(f'{m:g}' for m in mags)} N hung from a loading bar"
+                       + ("" if self.arm is None else " whose end is at "
+                          f"({', '.join(f'{round(float(x), 4) + 0.0:g}' for x in self.arm)}) m from the tool point in "
+                          "the tip frame (its moment turns with the tool)"),
                 "wrenches": f"{len(self.forces)} given wrenches",
                 "directions": f"{len(self.forces)} pushes ({', '.join(f'{m:g}' for m in mags)} N in several "
                               "directions)",
@@ -132,7 +135,7 @@ def _data_loads(data_forces, d, resolution_N, moment_resolution_Nm, cluster, fie
     if labels.max() + 1 > MAX_DATA_LOADS:
         raise InputError(f"expected the loads the lab can apply: the data have {labels.max() + 1} distinct loads "
                          f"(more than {MAX_DATA_LOADS} to plan over); give them as 'hanging:M1,M2', "
-                         "'directions:K:M1,M2' or 'forces:FX,FY;...'", field=field_name)
+                         "'directions:K:M1,M2', 'forces:FX,FY;...' or 'wrenches:FX,..,MZ;...'", field=field_name)
     return np.array([data_forces[labels == g].mean(axis=0) for g in range(labels.max() + 1)])
 
 

@@ -37,7 +37,7 @@ from typing import Callable
 import numpy as np
 
 from ..errors import InputError, short_repr
-from ..limits import MAX_JOINTS, MIN_LINK_M
+from ..limits import MAX_JOINTS, MIN_LINK_M, TOOL_LENGTHS
 from ..validation import read_yaml, validate
 
 #: the smallest joint compliance accepted [rad/(N m)]
@@ -537,6 +537,8 @@ def _with_geometry(robot: Robot, advice: str, field_: str, lengths: str) -> Robo
                          f"physical range of lengths; docs/contracts.md, 'Limits'); check {lengths}",
                          source=robot.source, field=field_)
     links = np.linalg.norm(np.diff(robot.link_points(np.zeros(n)), axis=0), axis=-1)
+    if robot.tool_m is not None:
+        check_tool_length(float(np.linalg.norm(robot.tool_m)), float(links[:-1].sum()), robot.source, "tool_m")
     inert = inert_joints(robot)
     if len(inert) == n:
         raise InputError(f"no joint moves the measured point: {advice}", source=robot.source, field="tool_m")
@@ -558,6 +560,15 @@ def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, 
 TOOL_TARGET = "tool"
 
 
+def check_tool_length(length: float, arm: float, source: str | None, field_: str) -> None:
+    """Refuse a tool point or target ``length`` [m] from the tip frame that is more than
+    :data:`~stiffcal.limits.TOOL_LENGTHS` times the arm's own length ``arm`` [m], naming ``field_`` of the robot file
+    ``source``."""
+    if arm > 0 and length > TOOL_LENGTHS * arm:
+        raise InputError(f"{length:.4g} m from the tip frame, more than {TOOL_LENGTHS:g} times the arm's own length "
+                         f"({arm:.3g} m): lengths are in metres (millimetres given?)", source=source, field=field_)
+
+
 def with_targets(robot: Robot, targets, src: str) -> Robot:
     """``robot`` with the robot file's ``targets`` {name: [x, y] (planar) or [x, y, z] [m] in the tip frame},
     checked: one coordinate per tip-frame axis of the arm, and no target named ``"tool"`` (the tool point's
@@ -572,6 +583,9 @@ def with_targets(robot: Robot, targets, src: str) -> Robot:
             raise InputError(f"expected {d} coordinates [m] in the tip frame for a {robot.kind} robot, got {len(xyz)}",
                              source=src, field=f"targets.{name}")
         out[str(name)] = as_xyz(np.asarray(xyz, float))
+        if d == 3 and robot.links_m is not None and len(robot.links_m) > 1:
+            check_tool_length(float(np.linalg.norm(out[str(name)])), float(np.sum(robot.links_m[:-1])), src,
+                              f"targets.{name}")
     return replace(robot, targets=out)
 
 

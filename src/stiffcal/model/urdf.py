@@ -59,12 +59,21 @@ class UrdfArm:
 
 
 def _listing(names, near: str | None = None) -> str:
-    """``names`` for a message, the ones closest to ``near`` (the name given, by :mod:`difflib`) first."""
+    """``names`` for a message, the ones closest to ``near`` (the name given) first: the same name but for case,
+    then names that begin with it, then by :mod:`difflib`'s similarity (at least 0.5), ties in the file's order (a
+    fresh user's 'link0' listed link06 .. link00, the one meant last)."""
     import difflib
 
     names = list(dict.fromkeys(names))
     if near is not None:
-        close = difflib.get_close_matches(near, names, n=len(names), cutoff=0.5)
+        low = near.lower()
+
+        def rank(i_name):
+            i, n = i_name
+            return (n.lower() != low, not n.lower().startswith(low),
+                    -round(difflib.SequenceMatcher(None, near, n).ratio(), 12), i)
+        close = [n for _, n in sorted(enumerate(names), key=rank)
+                 if n.lower().startswith(low) or difflib.SequenceMatcher(None, near, n).ratio() >= 0.5]
         names = close + [n for n in names if n not in close]
     more = f", ... ({len(names) - _MAX_LISTED} more)" if len(names) > _MAX_LISTED else ""
     return ", ".join(names[:_MAX_LISTED]) + more

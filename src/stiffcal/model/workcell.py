@@ -274,7 +274,13 @@ class WorkCell:
     source: str = "<memory>"
     spec: str = ""
     cable_clearance_m: float = 0.0
+    prefix: str = field(default="cell", compare=False)  # the fields' prefix in ``source`` ('': a cell file's own)
     _engines: dict = field(default_factory=dict, compare=False, repr=False, hash=False)
+
+    @property
+    def srdf_field(self) -> str:
+        """The name of the ``srdf`` field in :attr:`source` (for messages)."""
+        return _at(self.prefix, "srdf")
 
     @property
     def self_margin(self) -> float:
@@ -387,7 +393,7 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
     spec = json.dumps({**doc, **({"srdf": srdf} if srdf else {})}, sort_keys=True, allow_nan=False)
     return WorkCell(tuple(obstacles), float(doc.get("clearance_m", 0.0)), doc.get("self_clearance_m"), self_collision,
                     radius, srdf, pairs, doc.get("cable_length_m"), source, spec,
-                    float(doc.get("cable_clearance_m", 0.0)))
+                    float(doc.get("cable_clearance_m", 0.0)), prefix)
 
 
 def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
@@ -501,6 +507,7 @@ def _srdf_path(srdf, robot, base_dir, source: str, prefix: str) -> str | None:
     srdf = str((Path(base_dir) / srdf).resolve())
     if not Path(srdf).is_file():
         raise InputError(f"no such file: {srdf}", source=source, field=_at(prefix, "srdf"))
+    _check_srdf(srdf, robot, source, _at(prefix, "srdf"))
     return srdf
 
 
@@ -894,11 +901,8 @@ class MeshEngine(_Base):
     def _remove_srdf(self, geom) -> None:
         import pinocchio as pin
 
-        text = Path(self.cell.srdf).read_text(encoding="utf-8", errors="replace")
-        if "<!ENTITY" in text or "<!DOCTYPE" in text:
-            raise InputError("XML entity or DOCTYPE declarations are not allowed", source=self.cell.source,
-                             field="cell.srdf")
-        if not _srdf_links_known(text, {f.name for f in self.model.frames}, self.cell) and self.cell.self_collision:
+        root = _srdf_root(self.cell.srdf, self.cell.source, self.cell.srdf_field)
+        if not any(True for _ in root.iter("disable_collisions")) and self.cell.self_collision:
             self.notes.append(f"the SRDF {self.cell.srdf} disables no pair of links: the self-collision check is as "
                               "without an SRDF (every pair of bodies that are not adjacent, a pair that overlaps by "
                               "design left out only where it collides at every probe pose); is it this robot's, and "
@@ -907,7 +911,7 @@ class MeshEngine(_Base):
             pin.removeCollisionPairs(self.model, geom, self.cell.srdf)
         except (ValueError, RuntimeError) as err:
             raise InputError(f"cannot read the SRDF {self.cell.srdf}: {err}", source=self.cell.source,
-                             field="cell.srdf") from None
+                             field=self.cell.srdf_field) from None
 
     def _rebuild(self, pairs, margins, labels):
         import pinocchio as pin
@@ -1042,14 +1046,17 @@ class MeshEngine(_Base):
 
     def distances(self, q):
         """(N, checks) signed distances [m] of every checked pair and their names (mesh distances: slow,
-        for the few poses of a plan)."""
+        for the few poses of a plan). Each pose from a fresh geometry data: coal's distance starts its search where
+        the last one ended (a cached guess), and its result within its tolerance depends on that start, so the same
+        pose gave 0.015061 and 0.015062 m after different poses (a fresh user's CLI and workflow printed them)."""
         import pinocchio as pin
 
         Q = full_configuration(self.robot, self.model, q)
         out = np.empty((len(q), len(self.pairs)))
         for i, x in enumerate(Q):
-            pin.computeDistances(self.model, self.data, self.geom, self.gdata, x)
-            out[i] = [r.min_distance for r in self.gdata.distanceResults]
+            gdata = pin.GeometryData(self.geom)
+            pin.computeDistances(self.model, self.data, self.geom, gdata, x)
+            out[i] = [r.min_distance for r in gdata.distanceResults]
         return out, [f"{a}-{b}" for a, b, _ in self.labels]
 
 
@@ -1166,22 +1173,56 @@ def feasible(robot, q: np.ndarray, hanging=None) -> np.ndarray:
     return eng.feasible(flat, hanging).reshape(q.shape[:-1])
 
 
-def _srdf_links_known(text: str, links: set, cell) -> int:
-    """The number of the SRDF's ``disable_collisions`` entries; refuse an SRDF whose pairs name no link of the URDF
-    (another robot's SRDF: a Panda's given for a Baxter disabled nothing, and the cell then left no pose, with a
-    message about clearances)."""
-    import xml.etree.ElementTree as ET
+def _srdf_root(srdf: str, source: str, field_: str):
+    """The SRDF's parsed XML (its root element; ``defusedxml``), refused (naming ``field_`` of ``source``) with a
+    DOCTYPE or entity declarations or when not well-formed."""
+    import defusedxml.ElementTree as DET
+    from defusedxml import DefusedXmlException
 
+    text = Path(srdf).read_text(encoding="utf-8", errors="replace")
     try:
-        root = ET.fromstring(text)
-    except ET.ParseError as err:
-        raise InputError(f"cannot read the SRDF {cell.srdf}: {err}", source=cell.source, field="cell.srdf") from None
-    entries = list(root.iter("disable_collisions"))
-    named = {e.get(k) for e in entries for k in ("link1", "link2")} - {None}
-    if named and not named & links:
-        raise InputError(f"the SRDF {cell.srdf} disables pairs of links none of which is in the URDF (e.g. "
-                         f"{sorted(named)[0]!r}): expected this robot's SRDF", source=cell.source, field="cell.srdf")
-    return len(entries)
+        return DET.fromstring(text, forbid_dtd=True, forbid_entities=True, forbid_external=True)
+    except DefusedXmlException:
+        raise InputError("XML entity or DOCTYPE declarations are not allowed", source=source, field=field_) from None
+    except DET.ParseError as err:
+        raise InputError(f"cannot read the SRDF {srdf}: {err}", source=source, field=field_) from None
+
+
+def _check_srdf(srdf: str, robot, source: str, field_: str) -> None:
+    """Refuse another robot's SRDF (naming ``field_`` of ``source``): one whose disabled pairs name no link of the
+    robot's URDF (a Panda's given for a Baxter disabled nothing, and the cell then left no pose, with a message about
+    clearances), or that disables nothing and whose groups, chains and states name none of its links and joints (a
+    Kinova's given for a Z1 ran with a note only). Read when the cell is parsed, so that the workflow's config check
+    refuses it before any job runs."""
+    root = _srdf_root(srdf, source, field_)
+    info = getattr(robot, "urdf_info", None)
+    if not info:
+        return
+    import defusedxml.ElementTree as DET
+
+    urdf = DET.parse(info["path"], forbid_dtd=True, forbid_entities=True, forbid_external=True).getroot()
+    known = {e.get("name") for tag in ("link", "joint") for e in urdf.iter(tag)} - {None}
+    named = {e.get(k) for e in root.iter("disable_collisions") for k in ("link1", "link2")} - {None}
+    if named and not named & known:
+        raise InputError(f"the SRDF {srdf} disables pairs of links none of which is in the URDF (e.g. "
+                         f"{sorted(named)[0]!r}): expected this robot's SRDF", source=source, field=field_)
+    mentioned = _srdf_names(root)
+    if not named and mentioned and not mentioned & known:
+        raise InputError(f"the SRDF {srdf} (robot {root.get('name')!r}) names links and joints none of which is in "
+                         f"the URDF (e.g. {sorted(mentioned)[0]!r}): expected this robot's SRDF", source=source,
+                         field=field_)
+
+
+#: the attributes of an SRDF's elements that name a link or a joint of the robot (groups, chains, states, end
+#: effectors, virtual and passive joints)
+SRDF_NAME_ATTRIBUTES = {"link": ("name",), "joint": ("name",), "chain": ("base_link", "tip_link"),
+                        "end_effector": ("parent_link",), "virtual_joint": ("child_link",),
+                        "passive_joint": ("name",), "link_sphere_approximation": ("link",)}
+
+
+def _srdf_names(root) -> set:
+    """Every link and joint name an SRDF's elements give (:data:`SRDF_NAME_ATTRIBUTES`)."""
+    return {e.get(a) for tag, attrs in SRDF_NAME_ATTRIBUTES.items() for e in root.iter(tag) for a in attrs} - {None}
 
 
 def cell_notes(robot) -> list[str]:
@@ -1212,6 +1253,17 @@ def no_pose_hint(robot) -> str:
                 "links that overlap by design are pairs the SRDF should disable (cell.srdf: is it this robot's?), or "
                 "list them under ignore_pairs")
     return "lower the clearance, move the obstacles or widen the joint limits"
+
+
+def no_pose_reason(robot, q: np.ndarray, hanging=None) -> str:
+    """Why none of the poses q (N, n) [rad] can be taken in the cell: where the arm itself can take some of them but
+    the hanging masses' cable (``hanging``: where it starts, :func:`feasible`'s) hangs free at none,
+    :func:`cable_hint`; else :func:`no_pose_hint`."""
+    if hanging is not None:
+        arm = feasible(robot, q)
+        if arm.any():
+            return cable_hint(robot, q[arm], hanging) or no_pose_hint(robot)
+    return no_pose_hint(robot)
 
 
 def cable_hint(robot, q: np.ndarray, hanging, at_most: int = 512) -> str:

@@ -92,14 +92,11 @@ def _feasible_only(q: np.ndarray, robot: Robot, problem: Problem | None, what: s
     if robot.cell is None:
         return q
     from ..errors import InputError
-    from ..model.workcell import cable_hint, feasible, no_pose_hint
+    from ..model.workcell import feasible, no_pose_reason
 
     ok = problem.feasible(q) if problem is not None else feasible(robot, q)
     if not ok.any():
-        hint = no_pose_hint(robot)
-        arm = feasible(robot, q) if problem is not None and problem.hang_offset is not None else None
-        if arm is not None and arm.any():
-            hint = cable_hint(robot, q[arm], problem.hang_offset) or hint
+        hint = no_pose_reason(robot, q, problem.hang_offset if problem is not None else None)
         raise InputError(f"none of the {len(q)} poses {what} can be taken in the cell ({robot.cell.describe()}): "
                          f"{hint}", source=robot.cell.source, field="cell")
     return q[ok]
