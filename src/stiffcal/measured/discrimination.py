@@ -795,10 +795,10 @@ def design_pairs(rm: RivalModels, seps: list[Separability], truth: str = "best")
 def _continuum_max(fun, robot: Robot, pool: Pool, effort: Effort, extra_q=None, extra_load=None):
     """The local maxima over every pose within the joint limits and every load of ``pool`` of fun(q (k, n) [rad],
     loads (k, w) [N, N m] at those poses, :meth:`Pool.at`) -> (k,): per load, a grid over the joint space
-    (:func:`stiffcal.planning.problem.joint_grids` at ``effort.search_step_deg``) whose best local maxima, and the ``extra_q`` (k, n) [rad] under that load
-    (``extra_load`` (k,) load indices), are polished (L-BFGS-B, batched central differences); for 4+ joints
-    :func:`stiffcal.planning.problem.sampled_minimise` with the extra points among its samples. Returns values (k,),
-    poses (k, n) [rad] and load indices (k,), largest first."""
+    (:func:`stiffcal.planning.problem.joint_grids` at ``effort.search_step_deg``) whose best local maxima, and the
+    ``extra_q`` (k, n) [rad] under that load (``extra_load`` (k,) load indices), are polished (L-BFGS-B, batched
+    central differences); for 4+ joints :func:`stiffcal.planning.problem.sampled_minimise` with the extra points
+    among its samples. Returns values (k,), poses (k, n) [rad] and load indices (k,), largest first."""
     from ..planning.problem import _is_full_turn, _polish_all, evaluate_grid, grid_local_minima
 
     step = effort.search_step_deg or SEARCH_STEP_DEG.get(robot.n_joints, 10.0)
