@@ -449,11 +449,21 @@ def test_bad_cell_loads_and_candidates_are_one_line_and_exit_2(tmp_path, capsys,
     assert "Traceback" not in err.err
 
 
-def test_a_loading_bar_is_refused_by_discriminate_with_a_message(root, tmp_path, capsys):
+def test_discriminate_plans_under_a_loading_bar_whose_moment_turns_with_the_tool(root, tmp_path, capsys):
+    """discriminate --loads bar: (refused before: a plan held each point's load fixed): every point of the plan
+    carries the bar's moment at its own pose, for the paper's arm m_z = (R(q1 + q2) r) x F with r = (0.2, 0) m in
+    the tip frame (the planar rotation written out here)."""
     code = main(["discriminate", "--robot", str(PAPER), "--data", str(root / "data/synthetic_paper_2r_hanging.csv"),
                  "--experiments", "2", "--loads", "bar:0.2,0:100", "--out", str(tmp_path / "out")])
-    err = capsys.readouterr().err
-    assert code == 2 and "loading bar" in err and not (tmp_path / "out").exists()
+    capsys.readouterr()
+    assert code == 0
+    out = json.loads((tmp_path / "out/plan.json").read_text())
+    assert out["loads"]["kind"] == "bar" and out["loads"]["bar_end_m"] == [0.2, 0.0, 0.0]
+    for pt in out["plan"]["points"]:
+        a = np.radians(sum(pt["pose_deg"]))
+        r = 0.2 * np.array([np.cos(a), np.sin(a)])
+        F = np.asarray(pt["force_N"])
+        assert pt["moment_Nm"] == pytest.approx([r[0] * F[1] - r[1] * F[0]], abs=1e-3)
 
 
 def test_discriminate_and_the_verdict_s_plan_keep_their_poses_in_the_cell(root, tmp_path, capsys):
@@ -1184,3 +1194,22 @@ def test_a_pose_s_clearance_does_not_depend_on_the_poses_before_it(tmp_path):
     together = clearance(robot, np.vstack([q, q[::-1]]))[0]
     alone = np.array([clearance(robot, x[None])[0][0] for x in q])
     assert np.array_equal(together[:3], alone) and np.array_equal(together[3:], alone[::-1])
+
+
+def test_a_loading_bar_of_length_0_or_in_millimetres_is_refused(root, tmp_path, capsys):
+    """A fresh user's 'bar:400,0,0:196' (a 0.4 m bar in mm) planned 46 kN m moments in silence, and 'bar:0,0,0:..'
+    was taken too: both refused, by design and discriminate, naming --loads (the paper's arm of 1 m: a bar over
+    10 m is refused, one of 8 m taken)."""
+    data = str(root / "data/synthetic_paper_2r_hanging.csv")
+    for spec, words in (("bar:400,0:100", "400 m from the tool point, more than 10 times the arm's own length"),
+                        ("bar:0,0:100", "a loading bar of length 0")):
+        for argv in (["discriminate", "--robot", str(PAPER), "--data", data, "--experiments", "2", "--out",
+                      str(tmp_path / "out")],
+                     ["design", "--robot", str(PAPER), "--test-pose-deg", "60,30", "--force-N", "0,-300",
+                      "--experiments", "2", "--no-cache"]):
+            assert main([*argv, "--loads", spec]) == 2
+            err = capsys.readouterr().err
+            assert "field '--loads'" in err and words in err, err
+    assert not (tmp_path / "out").exists()
+    assert main(["design", "--robot", str(PAPER), "--test-pose-deg", "60,30", "--force-N", "0,-300", "--experiments",
+                 "2", "--no-cache", "--quiet", "--loads", "bar:8,0:100"]) == 0

@@ -950,7 +950,9 @@ def ot_lower_bound(crit: Criterion, rm: RivalModels, pool: Pool, q: np.ndarray, 
     on_plan = float(np.sum((local.ot[1] @ C) ** 2))
     top = max(float(_continuum_max(phi, robot, pool, effort, q, _load_index(pool, force))[0].max(initial=0.0)),
               float(np.max(np.sum((B @ C) ** 2, axis=(-2, -1)))))
-    return float(local.o_t(every) - rm.sigma**2 * crit.repeats * (len(q) * top - on_plan))
+    # the bound holds for any plan, but may fall below zero (where the plan's own phi is far from its maximum): O_t
+    # is a mean square, so zero bounds it too (a fresh user's UR10 plan printed -5.7e-11 m^2)
+    return max(float(local.o_t(every) - rm.sigma**2 * crit.repeats * (len(q) * top - on_plan)), 0.0)
 
 
 # --- the next session -------------------------------------------------------------------------------------
@@ -1099,6 +1101,9 @@ def _check_request(robot: Robot, m: int, repeats: int, weight: float, loads: Loa
     if not 0 <= weight <= 1:
         raise InputError(f"expected a weight in [0, 1], got {weight}", field="--weight")
     wrench_dim = robot.task_dim + D.moment_dim(robot)
+    from ..model.observation import check_bar
+
+    check_bar(robot, loads.arm, "--loads")
     if loads.forces.shape[1] not in (robot.task_dim, wrench_dim):
         raise InputError(f"expected loads of {robot.task_dim} components (forces) or {wrench_dim} (force and moment) "
                          f"for robot {robot.name}, got {loads.forces.shape[1]}", field="--loads")
@@ -1277,7 +1282,7 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
            "loads": {"kind": res.loads.kind, "spec": res.loads.spec, "description": res.loads.describe(),
                      "forces_N": _split(res.loads.forces, rm.robot.task_dim)[0],
                      "moments_Nm": _split(res.loads.forces, rm.robot.task_dim)[1],
-                     "bar_end_m": None if res.loads.arm is None else [float(x) for x in res.loads.arm]},
+                     "bar_end_m": None if res.loads.arm is None else [round(float(x), 6) + 0.0 for x in res.loads.arm]},
            "verdict": {"cause": rm.verdict["cause"], "causes": rm.verdict["causes"],
                        "equivalent_combinations": rm.verdict["equivalent_combinations"],
                        "p_value": rm.verdict["p_value"], "p_value_of": rm.verdict.get("p_value_of"),

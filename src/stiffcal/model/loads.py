@@ -161,6 +161,9 @@ def _bar_loads(rest, text, d, resolution_N, field_name, gravity) -> tuple[np.nda
     if arm.size != d:
         raise InputError(f"expected 'bar:AX,AY{',AZ' if d == 3 else ''}:M1,M2' with {d} coordinates of the bar's "
                          f"end [m] in the tip frame, got {text!r}", field=field_name)
+    if not np.any(arm):
+        raise InputError(f"a loading bar of length 0 (its end at the tool point), got {text!r}: masses hung at the "
+                         "tool point are 'hanging:M1,M2'", field=field_name)
     mags = _weights(mtext, "the weights [N]", lambda n: n, resolution_N, field_name)
     g = _gravity(d) if gravity is None else gravity
     return (np.r_[arm, 0.0] if d == 2 else arm), mags[:, None] * g

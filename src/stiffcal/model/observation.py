@@ -263,9 +263,22 @@ def measurement_loads(robot: Robot, spec: str, field: str = "loads", source: str
                          field=field)
     try:
         ls = load_set(spec, force_dim(robot), resolution_N=None, field_name=field, gravity=robot.gravity)
+        check_bar(robot, ls.arm, field)
     except InputError as err:
         raise err.renamed(field=field, source=source) if source else err from None
     return Loads(np.asarray(ls.forces, float), ls.arm, ls.kind in ("hanging", "bar"), ls.spec)
+
+
+def check_bar(robot: Robot, arm, field: str) -> None:
+    """Refuse a loading bar whose end ``arm`` (3,) [m] (None: no bar) is more than
+    :data:`~stiffcal.limits.TOOL_LENGTHS` times the arm's own length from the tool point (a fresh user's
+    'bar:400,0,0:...' meant in millimetres planned 46 kN m moments in silence)."""
+    if arm is None:
+        return
+    from .robot import check_tool_length, own_length
+
+    check_tool_length(float(np.linalg.norm(arm)), own_length(robot), None, field, "the loading bar's end is ",
+                      "the tool point")
 
 
 def loaded_rows(robot: Robot, q: np.ndarray, loads: Loads, sensing: Sensing,

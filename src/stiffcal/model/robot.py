@@ -560,13 +560,21 @@ def inert_joints(robot: Robot, samples: int = 512, seed: int = 0) -> tuple[int, 
 TOOL_TARGET = "tool"
 
 
-def check_tool_length(length: float, arm: float, source: str | None, field_: str) -> None:
-    """Refuse a tool point or target ``length`` [m] from the tip frame that is more than
-    :data:`~stiffcal.limits.TOOL_LENGTHS` times the arm's own length ``arm`` [m], naming ``field_`` of the robot file
-    ``source``."""
+def check_tool_length(length: float, arm: float, source: str | None, field_: str, what: str = "",
+                      origin: str = "the tip frame") -> None:
+    """Refuse a tool point, target or loading bar (``what``, to begin the message) ``length`` [m] from ``origin``
+    that is more than :data:`~stiffcal.limits.TOOL_LENGTHS` times the arm's own length ``arm`` [m], naming
+    ``field_`` of ``source``."""
     if arm > 0 and length > TOOL_LENGTHS * arm:
-        raise InputError(f"{length:.4g} m from the tip frame, more than {TOOL_LENGTHS:g} times the arm's own length "
-                         f"({arm:.3g} m): lengths are in metres (millimetres given?)", source=source, field=field_)
+        raise InputError(f"{what}{length:.4g} m from {origin}, more than {TOOL_LENGTHS:g} times the arm's own "
+                         f"length ({arm:.3g} m): lengths are in metres (millimetres given?)", source=source,
+                         field=field_)
+
+
+def own_length(robot: Robot) -> float:
+    """[m] the arm's own length: its links (a spatial arm's joint origins from the base, the tool left out)."""
+    links = np.asarray(robot.links_m, float)
+    return float(links.sum() if robot.planar else links[:-1].sum())
 
 
 def with_targets(robot: Robot, targets, src: str) -> Robot:
