@@ -1341,6 +1341,31 @@ def test_a_misspelled_column_the_analysis_reads_is_refused_with_the_likely_name(
     assert str(err.value).startswith(f"{path}: field 'column {column}'") and f"looks like {likely}" in str(err.value)
 
 
+def test_a_spreadsheet_s_headers_comments_and_utf16_are_named_for_what_they_are(tmp_path, paper_robot):
+    """Another lab's ways of writing the CSV (a fresh user's KR 210 logs): units in brackets, every column named at
+    once (one run per column before), and a displacement in mm told to convert, not just to rename (the advice
+    'rename dx [mm] to dx_m' read millimetres as metres); a comment line before the header; Excel's 'Unicode text'
+    (UTF-16, its byte-order mark read as Latin-1 before); an ISO-8601 time under timestamp_s."""
+    header = LAB.splitlines()[0]
+    brackets = header.replace("q1_deg", "q1 [deg]").replace("dx_m", "dx [mm]").replace("dy_m", "dy [mm]")
+    with pytest.raises(InputError) as err:
+        read_measurements(_write(tmp_path, LAB.replace(header, brackets, 1)), paper_robot)
+    msg = str(err.value)
+    assert "columns q1 [deg], dx [mm], dy [mm]'" in msg and "'q1 [deg]' looks like q1_deg;" in msg
+    assert "'dx [mm]' looks like dx_m in mm (convert it to m)" in msg
+    with pytest.raises(InputError, match=r"row 1'.*the first line \('# cell 3'\) is a comment"):
+        read_measurements(_write(tmp_path, "# cell 3\n" + LAB, "comment.csv"), paper_robot)
+    lines = LAB.splitlines()
+    iso = "\n".join([lines[0] + ",timestamp_s"] + [ln + f",2024-03-05T08:0{i}:00" for i, ln in enumerate(lines[1:])])
+    with pytest.raises(InputError, match=r"column timestamp_s'.*a date or clock time\? give the time in seconds"):
+        read_measurements(_write(tmp_path, iso + "\n", "iso.csv"), paper_robot)
+    path = tmp_path / "utf16.csv"
+    path.write_bytes(LAB.encode("utf-16"))  # with its byte-order mark, as Excel writes it
+    assert path.read_bytes()[:2] in (b"\xff\xfe", b"\xfe\xff")
+    with pytest.raises(InputError, match="not UTF-8 text: UTF-16"):
+        read_measurements(path, paper_robot)
+
+
 def test_misspelled_optional_columns_are_refused_and_other_columns_get_no_suggestion(tmp_path, paper_robot):
     """'Target' (the targets would be dropped: every row taken for the tool point) and 'MZ_Nm' beside mx_Nm,
     my_Nm (the moment would be dropped) are refused naming the likely column; the UR10 file's timestamp and

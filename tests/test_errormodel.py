@@ -569,6 +569,11 @@ def test_a_visit_column_that_disagrees_with_the_rows_is_noted(tmp_path, paper_ro
             r[-1] = str(mine.setdefault(r[-1], len(mine) + 1))
         return header, body
     assert not any(w in n for n in notes_of(_with_visit_column(path, passes)) for w in words)
+    # the verdict says the column was read (a fresh reviewer saw only "the exact-zero reference rows", with or without)
+    source = D.analyse(paper_robot, read_measurements(_with_visit_column(path), paper_robot), gain=False)
+    assert source["error_model"]["source"] == "the visit column and the exact-zero reference rows"
+    assert D.analyse(paper_robot, read_measurements(path, paper_robot), gain=False)["error_model"]["source"] == (
+        "the exact-zero reference rows")
 
     def lose(header, body):  # the reference row of visit V7
         return header, [r for r in body if not (r[-1] == "V7" and all(float(r[header.index(c)]) == 0.0

@@ -193,6 +193,9 @@ REPORT = {"report_html": 1, "report_pdf": 1}
       # both measured data sets are of the paper's arm: their gain and their compound plans use the test pose
       "discrepancy": 2, "discriminate": 2, **REPORT}),
     ("the Monte Carlo samples", lambda c: c["monte_carlo"].update(samples=600), {"validation": 1, **REPORT}),
+    # a fresh reviewer's edit of the next experiment's size reran the analysis too (its params held the whole entry)
+    ("one data set's next experiment", lambda c: c["measured_data"][0].setdefault("discriminate", {}).update(
+        experiments=5), {"discriminate": 1, **REPORT}),
     # the map grid: every map (one tile each on a 15-degree grid, computed in its map_merge job), its figures
     # and statistics and the comparison (the Figure-6 numbers of the text), not the pairs (their own
     # pairs_step_deg)

@@ -16,7 +16,9 @@ rule discrepancy:
         machining_svg="results/discrepancy/{dataset}/machining.svg",
         calibrated="results/discrepancy/{dataset}/calibrated.yaml",
     params:
-        entry=lambda wc: {**MEASURED[wc.dataset], "study_test_pose_deg": STUDY["test_pose_deg"]},
+        # the entry without its next experiment's settings, which only rule discriminate reads
+        entry=lambda wc: {**{k: v for k, v in MEASURED[wc.dataset].items() if k != "discriminate"},
+                          "study_test_pose_deg": STUDY["test_pose_deg"]},
         code=code_version("discrepancy"),
     log:
         f"{LOGS}/discrepancy/{{dataset}}.log",

@@ -363,6 +363,8 @@ def reading_structure(meas, keep: np.ndarray, zero_out=(), motion=None, turn=Non
     kind = SCATTERED_KIND if scattered is not None and kind != "independent" else kind
     source = (how or ("the visit column" if f["visit"] is not None else "the row order"
                       + (" (timestamp_s)" if meas.log is not None and meas.log.has_time else "")))
+    if how and f["visit"] is not None and "visit" not in how:  # a reviewer could not tell the column was read
+        source = f"the visit column and {how}"
     visits_at = {}
     for c, v in zip(f["config"][f["loaded"]], visit[f["loaded"]]):
         visits_at.setdefault(int(c), set()).add(int(v))

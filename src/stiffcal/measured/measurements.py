@@ -387,6 +387,25 @@ def _misspelled(columns, known) -> dict[str, str]:
     return out
 
 
+#: a unit written in a column's name in brackets, as spreadsheets label them ('dx [mm]', 'q1 (deg)')
+_BRACKET_UNIT = re.compile(r"[\[(]\s*([^\])]+?)\s*[\])]")
+
+
+def _renaming(read: dict, needed) -> str:
+    """What to do with the columns {column: the name it looks like} of :func:`_misspelled`: rename them (or remove
+    one the analysis does not need, not in ``needed``), and where a column's name carries a unit in brackets other
+    than that name's, convert it first (a fresh user's 'dx [mm]' was told to rename it dx_m, the millimetres then
+    read as metres)."""
+    items = []
+    for col, name in read.items():
+        unit, want = _BRACKET_UNIT.search(col), name.rsplit("_", 1)[-1]
+        converted = unit is not None and unit.group(1).replace(" ", "") != want
+        items.append(f"{col!r} looks like {name}" + (f" in {unit.group(1)} (convert it to {want})" if converted else "")
+                     + ("" if name in needed else " (or remove it)"))
+    return (f"{'; '.join(items)}: the analysis reads each only under its name (a misspelling, a unit in brackets?); "
+            "rename the column(s) (docs/measured-data.md)")
+
+
 def _check_units(columns, source: str) -> None:
     for col in columns:
         m = _PATTERN.match(col)
@@ -435,7 +454,8 @@ def _numbers(df, cols: list[str], source: str) -> np.ndarray:
             r = bad[0]
             cell = str(df[c].iloc[r])
             hint = (": a decimal comma? write numbers with a decimal point" if re.fullmatch(r"\s*[-+]?\d+,\d+\s*", cell)
-                    else "")
+                    else ": a date or clock time? give the time in seconds (any origin)"
+                    if c.endswith("_s") and re.search(r"\d[-/.:]\d", cell) else "")
             raise InputError(f"expected a finite number, got {cell!r}{hint}", source=source,
                              field=f"row {r + 2} (data row {r}), column {c}")
         limit = _MAX_ABS[c[0]]
@@ -568,11 +588,10 @@ def _data_columns(df, robot: Robot, source: str) -> tuple[list[str], dict, list[
     cols = angle_columns(list(df.columns), robot, source) + expected_columns(robot)[robot.n_joints:]
     misspelled = _misspelled(df.columns, cols + sum(optional_columns(robot).values(), []) + ["target", "pose_id",
                                                                                             *LOG_COLUMNS])
-    for col, name in misspelled.items():
-        if name not in ("pose_id", *LOG_COLUMNS):  # the analysis would go on without a quantity it reads: refuse
-            raise InputError(f"the column {col!r} looks like {name} (a misspelling?); the analysis reads {name} only "
-                             f"under that name: rename the column {name}{'' if name in cols else ', or remove it'}",
-                             source=source, field=f"column {col}")
+    read = {col: name for col, name in misspelled.items() if name not in ("pose_id", *LOG_COLUMNS)}
+    if read:  # the analysis would go on without a quantity it reads: refuse, naming every such column at once
+        raise InputError(_renaming(read, cols), source=source,
+                         field=f"column{'s' if len(read) > 1 else ''} {', '.join(read)}")
     missing = [c for c in cols if c not in df.columns]
     if missing:
         bare = [c for c in df.columns if c in robot.joint_names]  # a joint's name alone, as ROS logs it
@@ -887,6 +906,9 @@ def _not_utf8(path, source: str) -> InputError:
         raw.decode("utf-8")
     except UnicodeDecodeError as err:
         row = raw.count(b"\n", 0, err.start) + 1
+        if raw[:2] in (b"\xff\xfe", b"\xfe\xff"):  # UTF-16's byte-order mark (Excel's "Unicode text")
+            return InputError("not UTF-8 text: UTF-16 (the file begins with its byte-order mark, as Excel's "
+                              "'Unicode text' writes it); save it as 'CSV UTF-8'", source=source, field="row 1")
         return InputError(f"not UTF-8 text: byte 0x{raw[err.start]:02x} (a file saved as Latin-1 or Windows-1252, "
                           "whose degree sign or accented letters UTF-8 cannot read?); save it as UTF-8",
                           source=source, field=f"row {row}")
@@ -935,6 +957,10 @@ def _header_and_rows(path, line: str, source: str, max_rows: int | None, hint: s
                 raise InputError(f"more than {max_rows:,} data rows {hint}", source=source)
             if filled and len(row) != len(names):
                 r = line_no - 2
+                if line.lstrip().startswith("#"):
+                    raise InputError(f"the first line ({line.strip()[:60]!r}) is a comment, read as the header: "
+                                     "comment lines are not read; remove them (the header must be the first line)",
+                                     source=source, field="row 1")
                 raise InputError(f"expected {len(names)} fields as in the header, got {len(row)}: a comma too "
                                  f"{'many' if len(row) > len(names) else 'few'} (a trailing comma, a decimal comma, "
                                  "a value or a header name missing?)", source=source,
