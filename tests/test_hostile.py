@@ -605,10 +605,12 @@ def test_provenance_names_pinocchio_and_flint_and_every_untracked_input(tmp_path
     config = {"robot": "lab/robot.yaml"}
     status = A.run_status(config, tmp_path)
     assert status["commit"].endswith("-dirty") and status["untracked_inputs"] == ["lab/robot.yaml"]
+    # its content pinned (a fresh reviewer could not tell which of two versions of an untracked data file ran)
+    assert status["input_sha256"] == {"lab/robot.yaml": hashlib.sha256(b"b: 2\n").hexdigest()}
     assert status["packages"]["pin"] == metadata.version("pin")
     assert A.run_status({"robot": "tracked.yaml"}, tmp_path, packages=False) == {
         "commit": A.run_status({}, tmp_path)["commit"], "untracked_inputs": [], "modified_inputs": [],
-        "code_outside_tree": None}
+        "code_outside_tree": None, "input_sha256": {}}
     assert not A.run_status({}, tmp_path)["commit"].endswith("-dirty")
     assert A.run_status({}, tmp_path, config_source="my.yaml")["commit"].endswith("-dirty")
     monkeypatch.setattr(A, "code_outside_tree", lambda root=".": package)

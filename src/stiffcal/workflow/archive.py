@@ -97,7 +97,8 @@ def run_status(config, root: str | Path = ".", config_source: str | None = None,
     """What the report and the archive's name say of a run: ``commit`` (12 hex digits, '-dirty' when the work tree
     has changes or an input git does not vouch for, or the code that ran is not the tree's: ``code_outside_tree``,
     :func:`code_outside_tree`), ``untracked_inputs`` and ``modified_inputs``
-    (:func:`input_status` of ``config_source``, the config file, and :func:`config_files`), and ``packages``
+    (:func:`input_status` of ``config_source``, the config file, and :func:`config_files`) with their SHA-256
+    (``input_sha256``, :func:`input_digests`), and ``packages``
     (the installed version of every library of :data:`PACKAGES`, those installed; left out with
     ``packages=False``)."""
 
@@ -108,9 +109,24 @@ def run_status(config, root: str | Path = ".", config_source: str | None = None,
                                                                    or outside):
         commit += "-dirty"
     out = {"commit": commit, "untracked_inputs": status["untracked"], "modified_inputs": status["modified"],
-           "code_outside_tree": outside}
+           "code_outside_tree": outside,
+           "input_sha256": input_digests([*status["untracked"], *status["modified"]], root)}
     if packages:
         out["packages"] = {k: v for k, v in package_versions().items() if v is not None}
+    return out
+
+
+def input_digests(paths, root: str | Path = ".") -> dict[str, str]:
+    """{path: SHA-256 hex digest} of the files ``paths`` (relative to ``root``; those that exist): what pins an
+    input git does not vouch for (a fresh reviewer could not tell from the report which of two versions of an
+    untracked data file was analysed)."""
+    import hashlib
+
+    out = {}
+    for p in paths:
+        f = Path(root) / p
+        if f.is_file():
+            out[str(p)] = hashlib.sha256(f.read_bytes()).hexdigest()
     return out
 
 
