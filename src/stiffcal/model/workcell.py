@@ -275,6 +275,7 @@ class WorkCell:
     spec: str = ""
     cable_clearance_m: float = 0.0
     prefix: str = field(default="cell", compare=False)  # the fields' prefix in ``source`` ('': a cell file's own)
+    srdf_disabled: int = field(default=0, compare=False)  # the SRDF's disable_collisions entries (read once)
     _engines: dict = field(default_factory=dict, compare=False, repr=False, hash=False)
 
     @property
@@ -376,7 +377,7 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
     obstacles = _obstacles(doc, robot, source, prefix)
     names = {o.name for o in obstacles}
     radius = _link_radii(doc.get("link_radius_m"), robot, source, prefix)
-    srdf = _srdf_path(doc.get("srdf"), robot, base_dir, source, prefix)
+    srdf, disabled = _srdf_path(doc.get("srdf"), robot, base_dir, source, prefix)
     self_collision = bool(doc.get("self_collision", True))
     if (self_collision or obstacles) and radius is None and not _has_meshes(robot):
         what = "a URDF without collision geometry" if robot.kind == "urdf" else f"a {robot.kind} robot"
@@ -393,7 +394,7 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
     spec = json.dumps({**doc, **({"srdf": srdf} if srdf else {})}, sort_keys=True, allow_nan=False)
     return WorkCell(tuple(obstacles), float(doc.get("clearance_m", 0.0)), doc.get("self_clearance_m"), self_collision,
                     radius, srdf, pairs, doc.get("cable_length_m"), source, spec,
-                    float(doc.get("cable_clearance_m", 0.0)), prefix)
+                    float(doc.get("cable_clearance_m", 0.0)), prefix, disabled)
 
 
 def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
@@ -498,17 +499,17 @@ def _link_radii(radius, robot, source: str, prefix: str) -> tuple[float, ...] | 
     return tuple(float(r) for r in radius)
 
 
-def _srdf_path(srdf, robot, base_dir, source: str, prefix: str) -> str | None:
-    """The absolute path of ``srdf`` (relative to ``base_dir``), a file; only for a URDF robot."""
+def _srdf_path(srdf, robot, base_dir, source: str, prefix: str) -> tuple[str | None, int]:
+    """(the absolute path of ``srdf`` (relative to ``base_dir``), a file, this robot's (:func:`_check_srdf`); the
+    number of pairs it disables); only for a URDF robot."""
     if srdf is None:
-        return None
+        return None, 0
     if robot.kind != "urdf":
         raise InputError("'srdf' belongs to a URDF robot (kind: urdf)", source=source, field=_at(prefix, "srdf"))
     srdf = str((Path(base_dir) / srdf).resolve())
     if not Path(srdf).is_file():
         raise InputError(f"no such file: {srdf}", source=source, field=_at(prefix, "srdf"))
-    _check_srdf(srdf, robot, source, _at(prefix, "srdf"))
-    return srdf
+    return srdf, _check_srdf(srdf, robot, source, _at(prefix, "srdf"))
 
 
 def _at(prefix: str, fld: str) -> str:
@@ -901,8 +902,7 @@ class MeshEngine(_Base):
     def _remove_srdf(self, geom) -> None:
         import pinocchio as pin
 
-        root = _srdf_root(self.cell.srdf, self.cell.source, self.cell.srdf_field)
-        if not any(True for _ in root.iter("disable_collisions")) and self.cell.self_collision:
+        if not self.cell.srdf_disabled and self.cell.self_collision:  # counted when the cell was parsed
             self.notes.append(f"the SRDF {self.cell.srdf} disables no pair of links: the self-collision check is as "
                               "without an SRDF (every pair of bodies that are not adjacent, a pair that overlaps by "
                               "design left out only where it collides at every probe pose); is it this robot's, and "
@@ -1188,16 +1188,18 @@ def _srdf_root(srdf: str, source: str, field_: str):
         raise InputError(f"cannot read the SRDF {srdf}: {err}", source=source, field=field_) from None
 
 
-def _check_srdf(srdf: str, robot, source: str, field_: str) -> None:
-    """Refuse another robot's SRDF (naming ``field_`` of ``source``): one whose disabled pairs name no link of the
+def _check_srdf(srdf: str, robot, source: str, field_: str) -> int:
+    """The number of the SRDF's ``disable_collisions`` entries; refuse another robot's SRDF (naming ``field_`` of
+    ``source``): one whose disabled pairs name no link of the
     robot's URDF (a Panda's given for a Baxter disabled nothing, and the cell then left no pose, with a message about
     clearances), or that disables nothing and whose groups, chains and states name none of its links and joints (a
     Kinova's given for a Z1 ran with a note only). Read when the cell is parsed, so that the workflow's config check
     refuses it before any job runs."""
     root = _srdf_root(srdf, source, field_)
+    entries = sum(1 for _ in root.iter("disable_collisions"))
     info = getattr(robot, "urdf_info", None)
     if not info:
-        return
+        return entries
     import defusedxml.ElementTree as DET
 
     urdf = DET.parse(info["path"], forbid_dtd=True, forbid_entities=True, forbid_external=True).getroot()
@@ -1211,6 +1213,7 @@ def _check_srdf(srdf: str, robot, source: str, field_: str) -> None:
         raise InputError(f"the SRDF {srdf} (robot {root.get('name')!r}) names links and joints none of which is in "
                          f"the URDF (e.g. {sorted(mentioned)[0]!r}): expected this robot's SRDF", source=source,
                          field=field_)
+    return entries
 
 
 #: the attributes of an SRDF's elements that name a link or a joint of the robot (groups, chains, states, end
