@@ -657,6 +657,8 @@ def test_a_lost_reference_row_is_named_and_one_visit_is_no_variance_component(tm
     v = D.analyse(paper_robot, read_measurements(cut, paper_robot), gain=False)
     named = [n for n in v["notes"] if "no exact-zero reference row before them" in n]
     assert named and f"data rows {', '.join(str(i - 2) for i in loaded)}" in named[0], (named, loaded)
+    label = lines[loaded[0]].split(",")[head.index("pose_id")]  # and its configuration by the file's name
+    assert f") ({label}) have no exact-zero reference row" in named[0], named
     assert not any("no exact-zero reference row before them" in n for n in intact["notes"])
     assert v["error_model"]["variance_inflation"] <= 1.5 * intact["error_model"]["variance_inflation"]
     assert v["cause"] == intact["cause"] == "none"

@@ -209,7 +209,7 @@ def _file_rows(meas, keep: np.ndarray, zero_out) -> dict:
             "visit": None if get["visit"] is None else get["visit"][rows],
             "reference": None if get["reference"] is None else get["reference"][rows],
             "config": config[rows], "target": target[rows], "exact": exact[rows], "group": group[rows],
-            "q": np.vstack([meas.q[loaded_idx], zero_q])}
+            "q": np.vstack([meas.q[loaded_idx], zero_q]), "target_names": tuple(meas.target_names)}
 
 
 def _visits(f: dict) -> np.ndarray:
@@ -447,7 +447,13 @@ def _lost_reference_notes(f: dict, ref: np.ndarray, how: str | None) -> list[str
         return []
     from .measurements import _rows_text
 
-    return [f"{_rows_text(np.sort(f['rows'][lost]))} have no exact-zero reference row before them at their "
+    where = ""
+    if f["label"] is not None:  # the configurations and targets by the file's names (a fresh user had only rows)
+        pairs = sorted({(str(f["label"][i]), int(f["target"][i])) for i in np.flatnonzero(lost)})
+        names = f.get("target_names") or ()
+        where = " (" + ", ".join(f"{c}" + (f" target {names[t]}" if len(names) > 1 else "") for c, t in pairs[:4]) \
+            + (" ..." if len(pairs) > 4 else "") + ")"
+    return [f"{_rows_text(np.sort(f['rows'][lost]))}{where} have no exact-zero reference row before them at their "
             "configuration, while most loaded rows do: a reference row lost? They are read as measured from an "
             "unlogged reference reading of their own"]
 

@@ -260,7 +260,7 @@ class Measurements:
     def structure(self) -> dict:
         """Counts that say how the data were taken: configurations, loads per configuration, replicate
         groups and their sizes, unloaded rows (all plain ints, JSON-ready)."""
-        loads = [len(np.unique(self.group[r])) for r in rows_by_label(self.config, self.n_configurations)]
+        loads = [_loads_at(self.group[r], self.target[r]) for r in rows_by_label(self.config, self.n_configurations)]
         sizes = np.bincount(self.group)
         return {"n_rows": int(self.n_rows), "n_configurations": self.n_configurations,
                 "loads_per_configuration": _span(loads), "n_replicate_groups": int(len(sizes)),
@@ -350,6 +350,12 @@ def angle_columns(columns, robot: Robot, source: str) -> list[str]:
                              field=f"column {col}")
         out[j] = col
     return out
+
+
+def _loads_at(group: np.ndarray, target: np.ndarray) -> int:
+    """The distinct loads of one configuration's rows: replicate groups are per target, so the most groups of any one
+    target (a fresh user's one load read by two SMRs counted 2, and the one-load warning stayed silent)."""
+    return max((len(np.unique(group[target == t])) for t in np.unique(target)), default=0)
 
 
 def _rows_text(rows: np.ndarray) -> str:
