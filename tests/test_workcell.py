@@ -466,7 +466,7 @@ def test_discriminate_plans_under_a_loading_bar_whose_moment_turns_with_the_tool
         assert pt["moment_Nm"] == pytest.approx([r[0] * F[1] - r[1] * F[0]], abs=1e-3)
 
 
-def test_discriminate_and_the_verdict_s_plan_keep_their_poses_in_the_cell(root, tmp_path, capsys):
+def test_discriminate_and_the_verdict_s_plan_keep_their_poses_in_the_cell(root, tmp_path, capsys, monkeypatch):
     """stiffcal discriminate with a cell (hanging masses: the cable too) and the verdict's O_t-optimal plan of the
     extended model: every point of every plan against the dense-sample check."""
     cell = tmp_path / "cell.yaml"
@@ -487,6 +487,17 @@ def test_discriminate_and_the_verdict_s_plan_keep_their_poses_in_the_cell(root, 
                          effort=X.Effort(pool_step_deg=10.0, search_step_deg=10.0, n_starts=1, rounds=1))
     plan = X.to_json(res, data)
     assert plan["cell"] is not None and plan["plan"] is not None and "clearance_m" in plan["plan"]
+    # a pose within 1 mm of contact is named, as the design names it (a fresh user's discriminating plan put two
+    # Panda links 0.12 mm apart without a word); here the cell's 20 mm clearance keeps every pose far from it
+    assert min(plan["plan"]["clearance_m"]) >= 0.02 and not any("of contact" in n for n in plan["notes"])
+    import stiffcal.model.workcell as W
+
+    monkeypatch.setattr(W, "clearance", lambda robot, q: (np.full(len(q), 5e-4), ["link2-link1"] * len(q)))
+    near = X.to_json(res, data)
+    m = len(near["plan"]["poses_deg"])
+    assert any(n.startswith(f"{m} pose(s) of the discriminating plan lie within 1 mm of contact (pose 1: 0.5 mm "
+                            "(link2-link1)") for n in near["notes"]), near["notes"]
+    monkeypatch.undo()
     poses = [p for k in ("plan", "compound", "ot_plan") if plan[k] for p in plan[k]["poses_deg"]]
     assert poses
     for pose in poses:

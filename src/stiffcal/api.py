@@ -265,23 +265,6 @@ def _stages(progress, stages):
     return Progress("design", stages, enabled=progress)
 
 
-#: a plan's pose closer than this [m] to contact (over the cell's checked pairs) is noted
-CONTACT_NOTE_M = 1e-3
-
-
-def _contact_note(clear: np.ndarray, names: list[str]) -> list[str]:
-    """A note naming the plan's poses whose smallest distance over the cell's pairs is below
-    :data:`CONTACT_NOTE_M`: feasible (the clearances the cell asks for hold) but touching, which no operator sends a
-    robot to; the cure is a clearance in the cell file."""
-    close = [i for i, v in enumerate(clear) if v < CONTACT_NOTE_M]
-    if not close:
-        return []
-    where = "; ".join(f"pose {i + 1}: {1e3 * clear[i]:.3g} mm ({names[i]})" for i in close[:5])
-    return [f"{len(close)} pose(s) of the plan lie within {1e3 * CONTACT_NOTE_M:g} mm of contact ({where}): within "
-            "the cell's clearances (self_clearance_m is 0 unless given), but touching; give the cell file a "
-            "self_clearance_m (e.g. 0.005) or a larger clearance_m to keep the bodies apart"]
-
-
 def design(robot, test_pose_deg, force_N=None, *, wrench=None, experiments: int = 1, criterion: str = "ot",
            sigma: float = 1.0, targets=None, orientation: bool = False, sigma_rad: float | None = None,
            test_target: str = "tool", orientation_length_m: float = 0.0, joint_limits_deg=None, loads=None,
@@ -560,7 +543,7 @@ WEAK_COMPLIANCE_FACTOR = 10.0
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
     from .model import criteria
-    from .model.workcell import cell_notes, clearance
+    from .model.workcell import cell_notes, clearance, contact_note
     from .planning.problem import plan_summary, unidentified_notes
 
     robot, base, approx, continuum, poses = inp.robot, inp.base, found.approx, found.continuum, found.poses
@@ -577,7 +560,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     if robot.cell is not None:
         c, names = clearance(robot, np.radians(poses))
         clear, closest = c, tuple(names)
-        notes += _contact_note(c, names)
+        notes += contact_note(c, names)
         notes += _test_pose_cell_note(robot, base, np.radians(inp.q_t))
     ot = float(summ["O_t"])
     ot_star = base.ot_star(inp.m)

@@ -1297,6 +1297,25 @@ def cable_hint(robot, q: np.ndarray, hanging, at_most: int = 512) -> str:
             if parts else "")
 
 
+#: a plan's pose closer than this [m] to contact (over the cell's checked pairs) is noted
+CONTACT_NOTE_M = 1e-3
+
+
+def contact_note(clear: np.ndarray, names: list[str], what: str = "the plan") -> list[str]:
+    """A note naming ``what``'s poses (the design's plan, a discriminating or compound plan) whose smallest distance
+    over the cell's pairs (:func:`clearance`: ``clear`` (M,) [m], ``names`` the closest pair of each) is below
+    :data:`CONTACT_NOTE_M`: feasible (the clearances the cell asks for hold) but touching, which no operator sends a
+    robot to; the cure is a clearance in the cell file (a fresh user's discriminating plan put two Panda links
+    0.12 mm apart without a word)."""
+    close = [i for i, v in enumerate(clear) if v < CONTACT_NOTE_M]
+    if not close:
+        return []
+    where = "; ".join(f"pose {i + 1}: {1e3 * clear[i]:.3g} mm ({names[i]})" for i in close[:5])
+    return [f"{len(close)} pose(s) of {what} lie within {1e3 * CONTACT_NOTE_M:g} mm of contact ({where}): within "
+            "the cell's clearances (self_clearance_m is 0 unless given), but touching; give the cell file a "
+            "self_clearance_m (e.g. 0.005) or a larger clearance_m to keep the bodies apart"]
+
+
 def clearance(robot, q: np.ndarray) -> tuple[np.ndarray, list[str]]:
     """The smallest distance [m] of every pose q (N, n) [rad] over the pairs its cell checks (bodies against the
     obstacles and against each other) and the pair it belongs to; (inf, '') without a cell or without pairs."""
