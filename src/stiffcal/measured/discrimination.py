@@ -1319,13 +1319,21 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
         ot_eff = res.ot_bound / res.compound.o_t if res.ot_bound is not None and res.compound.o_t else None
         out["compound"] = comp | {"weight": res.weight, "t_efficiency": t_eff,
                                   "ot_efficiency": ot_eff if ot_eff is None or ot_eff > 0 else None}
+    out["notes"] += _contact_notes(out)
+    return json_safe(out, out["notes"])
+
+
+def _contact_notes(out: dict) -> list[str]:
+    """The notes of :func:`stiffcal.model.workcell.contact_note` for the plans of plan.json's dict ``out`` (their
+    ``clearance_m``, in a cell)."""
     from ..model.workcell import contact_note
 
+    notes = []
     for key, what in (("plan", "the discriminating plan"), ("compound", "the compound plan"),
                       ("ot_plan", "the O_t plan")):
         if out[key] and "clearance_m" in out[key]:
-            out["notes"] += contact_note(out[key]["clearance_m"], out[key]["closest"], what)
-    return json_safe(out, out["notes"])
+            notes += contact_note(out[key]["clearance_m"], out[key]["closest"], what)
+    return notes
 
 
 def planned(robot: Robot, data_path: str, experiments: int, loads: str | None = None, repeats: int = 1,
