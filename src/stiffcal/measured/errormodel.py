@@ -504,9 +504,9 @@ def _visit_name(f: dict, visit: np.ndarray, v: int) -> str:
     gives it (its configuration by its ``pose_id``, else by its first row)."""
     from .measurements import _rows_text
 
-    rows = np.sort(f["rows"][visit == v])
-    at = f"configuration {f['label'][visit == v][0]}" if f["label"] is not None else "the configuration of its rows"
-    return f"label {f['visit'][visit == v][0]} at {at} ({_rows_text(rows)})"
+    mine = visit == v
+    at = f"configuration {f['label'][mine][0]}" if f["label"] is not None else "the configuration of its rows"
+    return f"label {f['visit'][mine][0]} at {at} ({_rows_text(np.sort(f['rows'][mine]))})"
 
 
 def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:

@@ -1200,9 +1200,9 @@ def _check_srdf(srdf: str, robot, source: str, field_: str) -> int:
     info = getattr(robot, "urdf_info", None)
     if not info:
         return entries
-    import defusedxml.ElementTree as DET
+    from .urdf import _check_text  # the URDF's own reader (bounded, defused, checked), as the robot was loaded
 
-    urdf = DET.parse(info["path"], forbid_dtd=True, forbid_entities=True, forbid_external=True).getroot()
+    urdf = _check_text(Path(info["path"]), source)
     known = {e.get("name") for tag in ("link", "joint") for e in urdf.iter(tag)} - {None}
     named = {e.get(k) for e in root.iter("disable_collisions") for k in ("link1", "link2")} - {None}
     if named and not named & known:
