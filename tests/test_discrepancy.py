@@ -1930,3 +1930,64 @@ def test_a_drift_larger_than_every_deflection_is_said_to_be_no_tracker_s(tmp_pat
     assert time["p_value"] < 0.01 and np.linalg.norm(time["rate_m_per_h"]) * span_h > largest
     assert any("more than the largest deflection measured: no tracker drifts so" in n for n in v["notes"])
     assert not any("a drift of the tracker (or of the zero point)" in n for n in v["notes"])
+
+
+def test_a_blunder_the_union_model_absorbs_is_named_by_its_leverage():
+    """A fresh user's iiwa (its own URDF and pinocchio simulator) under 5, 10 and 20 kg, a reference per visit, half
+    the configurations revisited: a 0.2 mm blunder in a random direction (13 sd) on data row 95 (a 20 kg row, which
+    the union model's cubic stiffness loads most) and on row 75 (a configuration visited once), the rows of the
+    simulator's record. The plain residual length missed both; studentised by the row's leverage it names that row
+    and no other. The clean twin (the same seed, no blunder) has none, and the leverage statistic equals the
+    deleted residual's Mahalanobis length (a refit without the row, brute force)."""
+    robot = load_robot(NEWUSER / "iiwa14_h53.yaml")
+    for name, want in (("iiwa_hang_blunder_row95_s405.csv", [95]), ("iiwa_hang_blunder_row75_s201.csv", [75]),
+                       ("iiwa_hang_clean_s405.csv", [])):
+        meas = read_measurements(NEWUSER / name, robot)
+        ob = D.reduced(robot, D.Observed.of(robot, meas), D.check_identifiable(robot, meas, D.Observed.of(robot, meas)))
+        des = D.build_design(robot, meas, ob)
+        found = D.find_blunders(des, meas.n_rows, 0.01)
+        assert [int(meas.rows[i]) for i in found] == want, name
+    X, y, d = des.union(), des.y, des.d
+    f = D.fit(X, y)
+    e = (y - X @ f.beta).reshape(-1, d)
+    lengths = D._studentised_lengths(X.reshape(-1, d, X.shape[1]), f, e)
+    for i in (3, 40, 95):
+        rest = np.ones(len(y), bool)
+        rest[i * d:(i + 1) * d] = False
+        g = D.fit(X[rest], y[rest])
+        Xi = X[~rest]
+        r = y[~rest] - Xi @ g.beta  # the deleted residual, covariance sigma^2 (I + X_i (X^T X)_(i)^-1 X_i^T)
+        V = np.eye(d) + Xi @ g.cov_unscaled @ Xi.T
+        assert lengths[i] == pytest.approx(np.sqrt(r @ np.linalg.solve(V, r)), rel=1e-6)
+
+
+def test_a_pulley_tilting_the_load_is_named_as_outside_the_catalogue_whatever_the_closed_test_found():
+    """A fresh user's planar 4R in its vertical plane (its own simulator): a hand-held gauge whose every push is
+    tilted 8 deg by a pulley. Seed 1's closed test found a lack of fit with no cause (``unexplained`` with no word of
+    what); seed 11's found nothing (``none``, the tilt at p = 1e-11 only a note). Both now name the tilt
+    (``outside_catalogue``) with its angle near the simulator's 8 deg, and not the load offset that also moves a planar
+    arm's tool (the tilt adds to it, it adds nothing to the tilt)."""
+    robot = load_robot(NEWUSER / "planar_4r_vertical.yaml")
+    for name in ("r4v_pulley8deg_s1.csv", "r4v_pulley8deg_s11.csv"):
+        v = D.analyse(robot, read_measurements(NEWUSER / name, robot), 0.01, gain=False)
+        diag = v["diagnostics"]
+        assert v["cause"] == "unexplained" and diag["outside_catalogue"] == ["load_direction"], name
+        assert 6.0 < diag["load_direction"]["angle_deg"] < 10.0 and v["p_value"] < 1e-6
+        assert diag["load_offset"]["beyond_load_direction_p"] > 0.01 > diag["load_direction"]["beyond_load_offset_p"]
+        assert "the load acts in its logged direction" in v["p_value_statement"]
+
+
+def test_an_arm_analysed_without_its_masses_is_said_to_be_taken_as_weightless():
+    """A fresh user's 150 kg-class arm in modified DH (its own simulator, gravity-preloaded backlash on joints 2 and 3,
+    hanging masses, a reference per configuration reused on a second pass). With the robot file's masses the backlash
+    is named; without them the verdict goes wrong and a note says the arm was taken as weightless. On the same arm
+    with loads that never reverse a joint's total torque, a note says backlash was not tested at all."""
+    masses, bare = load_robot(NEWUSER / "mdh150_masses.yaml"), load_robot(NEWUSER / "mdh150_nomass.yaml")
+    data = NEWUSER / "mdh150_backlash_s1.csv"
+    v = D.analyse(masses, read_measurements(data, masses), 0.01, gain=False)
+    assert v["cause"] == "backlash" and not any("took the arm as weightless" in n for n in v["notes"])
+    v = D.analyse(bare, read_measurements(data, bare), 0.01, gain=False)
+    assert v["cause"] != "backlash" and any("took the arm as weightless" in n for n in v["notes"])
+    unreversed = NEWUSER / "mdh150_backlash_unreversed_s1.csv"
+    v = D.analyse(masses, read_measurements(unreversed, masses), 0.01, gain=False)
+    assert v["cause"] == "none" and any("backlash is not tested at all" in n for n in v["notes"])

@@ -724,6 +724,16 @@ def test_the_next_round_plans_in_the_cell_the_data_were_analysed_in(tmp_path):
     robot = load_robot(robot_file)
     for pose in res["poses_deg"]:
         assert _planar_violations(_points_along(robot, pose)) == (False, False), pose
+    # each pose's clearance, as design's: the smallest distance to the floor or the fixture, sampled here
+    assert len(res["clearance_m"]) == len(res["closest"]) == 3
+    for pose, clear in zip(res["poses_deg"], res["clearance_m"]):
+        pts = _points_along(robot, pose)
+        above = np.concatenate([pts[1:].reshape(-1, 3), pts[0, -1:]])
+        every = pts.reshape(-1, 3)
+        dx = np.maximum(np.maximum(0.3 - every[:, 0], every[:, 0] - 0.6), 0)
+        dy = np.maximum(np.maximum(0.15 - every[:, 1], every[:, 1] - 0.35), 0)
+        sampled = min(above[:, 1].min() + 0.1, np.hypot(dx, dy).min()) - 0.04
+        assert clear == pytest.approx(sampled, abs=2e-3), (pose, clear, sampled)
     with pytest.raises(InputError, match=r"joint_limits_deg\[1\].*within joint 2's robot file's limits \[-150, 150\]"):
         stiffcal.design(robot_file, [60, 30], [0, -1], joint_limits_deg=[[-180, 180], [-170, 170]])
 
@@ -1144,6 +1154,51 @@ def test_a_cell_in_millimetres_is_refused_naming_the_unit(tmp_path):
                 load_robot(path)
         else:
             assert load_robot(path).cell is not None
+
+
+def test_a_clearance_longer_than_the_arm_is_refused_naming_the_field(tmp_path):
+    """A fresh user's clearance_m: 5 (meant as 5 mm) on a Panda planned in silence, every link checked for contact
+    only. The 2-link arm (its links 1 m in all): a clearance of 1.5 m from the cell's solids or between the arm's
+    bodies is refused naming that field; 0.9 m is accepted (the cable's clearance has the schema's bound of 1 m)."""
+    for key in ("clearance_m", "self_clearance_m"):
+        for value, refused in ((1.5, True), (0.9, False)):
+            path = tmp_path / "r.yaml"
+            path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n"
+                            f"  link_radius_m: 0.02\n  {key}: {value}\n", encoding="utf-8")
+            if refused:
+                with pytest.raises(InputError, match=rf"cell.{key}.*longer than the arm itself \(1 m\).*millimetres"):
+                    load_robot(path)
+            else:
+                assert load_robot(path).cell is not None
+
+
+def test_a_plan_without_a_cell_names_its_poses_below_the_base(root):
+    """A fresh user's next round under hanging masses, the robot without a cell, put the tool 13 mm under the plane
+    its base stands on, with no word of it. The note names exactly the poses whose tool point lies more than 1 mm
+    below that plane, by the tool point's height written out here from the DH chain (independent of the robot's
+    own forward kinematics), and gives the deepest."""
+    from stiffcal.model.workcell import below_base_note
+
+    robot = load_robot(root / "config/robots/kuka_kr210_r2700.yaml")
+    rng = np.random.default_rng(3)
+    lo, hi = np.radians(robot.limits_deg).T
+    q = lo + (hi - lo) * rng.random((40, robot.n_joints))
+
+    def height(qi):  # standard DH: T = Rz(theta) Tz(d) Tx(a) Rx(alpha), then the tool point in the tip frame
+        T = np.eye(4)
+        for (a, alpha, d, off), th in zip(robot.dh, qi):
+            ct, st, ca, sa = np.cos(th + off), np.sin(th + off), np.cos(alpha), np.sin(alpha)
+            T = T @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st], [0, sa, ca, d],
+                              [0, 0, 0, 1]])
+        return (T @ np.append(robot.tool_m, 1.0))[2]
+
+    z = np.array([height(qi) for qi in q])
+    low = np.flatnonzero(z < -1e-3)
+    assert low.size and low.size < len(q)
+    note, = below_base_note(robot, q)
+    assert note.startswith(f"pose(s) {', '.join(str(i + 1) for i in low)} put the tool point up to "
+                           f"{-1e3 * z.min():.3g} mm below")
+    assert below_base_note(robot, q[z > 0]) == []
 
 
 def test_a_length_beyond_the_schema_in_millimetres_names_the_unit(tmp_path):

@@ -543,7 +543,7 @@ WEAK_COMPLIANCE_FACTOR = 10.0
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
     from .model import criteria
-    from .model.workcell import cell_notes, clearance, contact_note
+    from .model.workcell import cell_notes
     from .planning.problem import plan_summary, unidentified_notes
 
     robot, base, approx, continuum, poses = inp.robot, inp.base, found.approx, found.continuum, found.poses
@@ -555,12 +555,9 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     if continuum is not None and not approx.converged:
         notes.append("over its feasible candidates, " + approx.convergence_note())
     notes += [d.near_singular_note() for d in (continuum, approx) if d is not None and d.near_singular]
-    clear, closest = None, ()
-    notes += cell_notes(robot)
+    clear, closest, near = _clearances(robot, np.radians(poses))
+    notes += cell_notes(robot, np.radians(poses)) + near
     if robot.cell is not None:
-        c, names = clearance(robot, np.radians(poses))
-        clear, closest = c, tuple(names)
-        notes += contact_note(c, names)
         notes += _test_pose_cell_note(robot, base, np.radians(inp.q_t))
     ot = float(summ["O_t"])
     ot_star = base.ot_star(inp.m)
@@ -859,7 +856,8 @@ def predict_deflection(robot, poses, *, out=None, orientation: bool = False) -> 
     ``compliances_rad_per_Nm`` predicts with those, no extension, no interval); poses: a CSV of poses and loads
     (:func:`stiffcal.measured.calibrated.read_poses`); out: a CSV to write (the poses with ``dx_m`` .. and their
     standard deviations ``sd_dx_m`` ..; None: nothing written); orientation: predict the tool's rotation too.
-    Returns ``{"rows", "causes", "max_deflection_m", "max_sd_m", "out", "notes"}``; raises :class:`InputError`."""
+    Returns ``{"rows", "causes", "max_deflection_m", "max_sd_m", "n_undetermined", "out", "notes"}``; raises
+    :class:`InputError`."""
     from .measured import calibrated as C
 
     robot = _robot(robot)
@@ -871,6 +869,7 @@ def predict_deflection(robot, poses, *, out=None, orientation: bool = False) -> 
     size = np.linalg.norm(pred.displacement, axis=1)
     return json_safe({"rows": len(pf.q), "causes": list(pred.causes), "max_deflection_m": float(size.max()),
                       "max_sd_m": float(np.linalg.norm(pred.sd, axis=1).max()),
+                      "n_undetermined": _undetermined(pred.determined),
                       "out": None if out_path is None else str(out_path), "notes": [*pf.notes, *pred.notes]})
 
 
@@ -880,7 +879,7 @@ def compensate_path(robot, path, *, out=None) -> dict:
     predicted deflection of the tool point, the corrected target and the corrected joint angles (iterated, and first
     order), and the predicted residual error. out: a CSV to write (None: nothing written). Returns ``{"rows",
     "causes", "max_deflection_m", "max_residual_m", "max_first_order_residual_m", "max_band95_m", "converged",
-    "out", "notes"}``; raises :class:`InputError`."""
+    "n_undetermined", "out", "notes"}``; raises :class:`InputError`."""
     from .measured import calibrated as C
 
     robot = _robot(robot)
@@ -897,8 +896,15 @@ def compensate_path(robot, path, *, out=None) -> dict:
                       "max_residual_m": float(comp.residual_m.max()),
                       "max_first_order_residual_m": float(comp.first_order_residual_m.max()),
                       "max_band95_m": float(comp.band95_m.max()),
-                      "converged": bool(comp.converged.all()), "out": None if out_path is None else str(out_path),
+                      "converged": bool(comp.converged.all()), "n_undetermined": _undetermined(comp.determined),
+                      "out": None if out_path is None else str(out_path),
                       "notes": [*pf.notes, *comp.notes]})
+
+
+def _undetermined(determined: np.ndarray | None) -> int:
+    """The rows whose prediction rests on parameters the calibration's data did not determine (their sd and band
+    do not hold the model's error there)."""
+    return 0 if determined is None else int(np.count_nonzero(~np.asarray(determined, bool)))
 
 
 def _calibration_causes(robot: Robot) -> tuple:
@@ -1019,6 +1025,7 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
     meas_loads = None if loads is None else measurement_loads(robot, loads, "loads")
     with one_blas_thread():
         nr = C.next_round(robot, np.radians(q_t), load, m, sigma, seed=seed, loads=meas_loads)
+    clear, closest, near = _clearances(robot, nr.poses)
     return json_safe({
         "robot": robot.name, "prior": prior.source, "experiments": m, "causes": list(nr.causes),
         "joint_names": list(robot.joint_names),
@@ -1034,4 +1041,17 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
                                "weights": nr.weights.tolist(), "equivalence_gap": nr.equivalence_gap},
         "parameter_names": list(nr.names), "cov_diag": nr.cov_diag.tolist(), "sigma_m": nr.sigma_m, "seed": seed,
         "test_pose_deg": q_t.tolist(), "force_N": force.tolist(),
-        "moment_Nm": None if moment is None else np.asarray(moment).tolist(), "notes": inherited + list(nr.notes)})
+        "moment_Nm": None if moment is None else np.asarray(moment).tolist(),
+        "clearance_m": None if clear is None else [round(float(c), 6) for c in clear],
+        "closest": list(closest), "notes": inherited + list(nr.notes) + near})
+
+
+def _clearances(robot: Robot, q: np.ndarray) -> tuple[list | None, tuple, list[str]]:
+    """(each pose's smallest distance (M,) [m] over the cell's checked pairs, the closest pair of each, the notes of
+    the poses within 1 mm of contact) of the poses q (M, n) [rad]; (None, (), []) without a cell."""
+    from .model.workcell import clearance, contact_note
+
+    if robot.cell is None:
+        return None, (), []
+    c, names = clearance(robot, q)
+    return c, tuple(names), contact_note(c, names)

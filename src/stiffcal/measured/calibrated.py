@@ -924,8 +924,8 @@ def next_round(robot: Robot, test_pose: np.ndarray, test_load: np.ndarray, m: in
     if not np.isfinite(fresh.value):
         notes.append(f"{m} new poses alone cannot identify the {Xp.shape[-1]} parameters of the model that the "
                      f"candidate poses or the test pose move (of {len(live)}): O_t_fresh is infinite")
-    notes += _shared_error_note(cal, sigma_m) + cell_notes(robot) + _untested_at_test_pose(robot, cal, test_pose,
-                                                                                           test_load)
+    notes += (_shared_error_note(cal, sigma_m) + cell_notes(robot, pool[with_old.indices])
+              + _untested_at_test_pose(robot, cal, test_pose, test_load))
     W = Xt.T @ Xt
     bound, w, gap = prior_design_bound(P, ridged, W, m)
     cov_rr = cal.cov[:p_r, :p_r]

@@ -35,8 +35,6 @@ class _Record(Mapping):
         return len(self.keys_in_order())
 
 
-#: the fields of a verdict written only when they apply (absent from the JSON when None)
-_OPTIONAL = ("residual_structure",)
 #: the fields of the files analysed and of the calibrated model, around the analysis's own
 _FILES_FIRST = ("data", "robot")
 _FILES_LAST = ("next_round", "machining_path", "calibrated_model")
@@ -50,7 +48,7 @@ class Verdict(_Record):
     Of the analysis (:func:`stiffcal.measured.discrepancy.verdict_of`): cause, causes, indistinguishable_from,
     equivalent_combinations, p_value, p_value_of, p_value_statement, alpha, structure, nominal, tests,
     lack_of_fit_adjusted_p, absorbed_by_nominal, outlier_rows, separation, zero_point, error_model, notes,
-    diagnostics, extended, held_out, gain, residual_structure (only for ``unexplained``). Of the files and the
+    diagnostics, extended, held_out, gain, residual_structure (None but for ``unexplained``). Of the files and the
     calibrated model (:func:`stiffcal.measured.discrepancy.complete`): data, robot, next_round, machining_path,
     calibrated_model (None when not computed or not written)."""
     cause: str
@@ -85,8 +83,7 @@ class Verdict(_Record):
     def keys_in_order(self) -> tuple[str, ...]:
         """The JSON's keys in the file's order: the input files, the analysis, the calibrated model."""
         names = [f.name for f in fields(self)]
-        middle = [n for n in names if n not in _FILES_FIRST + _FILES_LAST
-                  and not (n in _OPTIONAL and getattr(self, n) is None)]
+        middle = [n for n in names if n not in _FILES_FIRST + _FILES_LAST]
         return (*_FILES_FIRST, *middle, *_FILES_LAST)
 
     def __repr__(self) -> str:  # the headline (the whole verdict: to_dict())

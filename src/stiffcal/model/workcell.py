@@ -374,6 +374,7 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
     from ..validation import validate
 
     validate(doc, "cell", source, prefix)
+    _check_clearances(doc, robot, source, prefix)
     obstacles = _obstacles(doc, robot, source, prefix)
     names = {o.name for o in obstacles}
     radius = _link_radii(doc.get("link_radius_m"), robot, source, prefix)
@@ -395,6 +396,21 @@ def parse_cell(doc: dict, robot, source: str, base_dir: Path | str = ".", prefix
     return WorkCell(tuple(obstacles), float(doc.get("clearance_m", 0.0)), doc.get("self_clearance_m"), self_collision,
                     radius, srdf, pairs, doc.get("cable_length_m"), source, spec,
                     float(doc.get("cable_clearance_m", 0.0)), prefix, disabled)
+
+
+def _check_clearances(doc: dict, robot, source: str, prefix: str) -> None:
+    """Refuse a clearance (``clearance_m``, ``self_clearance_m``, ``cable_clearance_m``) longer than the arm itself
+    (:func:`stiffcal.model.robot.own_length`): no pose keeps a mounted arm that far from its surroundings (a fresh
+    user's ``clearance_m: 5``, meant as 5 mm, planned in silence, every link checked for contact only)."""
+    from .robot import own_length
+
+    arm = own_length(robot)
+    for key in ("clearance_m", "self_clearance_m", "cable_clearance_m"):
+        value = doc.get(key)
+        if value is not None and arm > 0 and float(value) > arm:
+            raise InputError(f"{float(value):.4g} m, longer than the arm itself ({arm:.3g} m): no pose keeps that far "
+                             "from everything; clearances are in metres (millimetres given?)", source=source,
+                             field=_at(prefix, key))
 
 
 def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
@@ -1228,13 +1244,15 @@ def _srdf_names(root) -> set:
     return {e.get(a) for tag, attrs in SRDF_NAME_ATTRIBUTES.items() for e in root.iter(tag) for a in attrs} - {None}
 
 
-def cell_notes(robot) -> list[str]:
+def cell_notes(robot, q: np.ndarray | None = None) -> list[str]:
     """What the cell's engine decided about pairs (pairs not checked, checked for contact only); for a spatial
-    robot without a cell, that its poses are checked against the joint limits only."""
+    robot without a cell, that its poses are checked against the joint limits only, and which of the planned poses
+    ``q`` (M, n) [rad] (None: not known) reach below the base's mounting plane (:func:`below_base_note`)."""
     if robot.cell is None:
         return [] if robot.planar else [
             "the robot has no cell: the poses are checked against the joint limits only, not against the table, the "
-            "arm itself or obstacles (a cell in the robot file, or --cell, keeps them out)"]
+            "arm itself or obstacles (a cell in the robot file, or --cell, keeps them out)",
+            *([] if q is None else below_base_note(robot, q))]
     eng = engine(robot)
     bare = (["the cell checks the arm's self-collision without an SRDF: every pair of bodies that are not adjacent is "
              "checked, and a pair that overlaps by design is left out only where it collides at every probe pose; "
@@ -1242,6 +1260,27 @@ def cell_notes(robot) -> list[str]:
             if robot.cell.self_collision and getattr(robot, "urdf_info", None) and not robot.cell.srdf
             and isinstance(eng, MeshEngine) else [])
     return [] if eng is None else bare + list(eng.notes)
+
+
+#: a point this far [m] below the base's mounting plane is named by :func:`below_base_note`
+BELOW_BASE_M = 1e-3
+
+
+def below_base_note(robot, q: np.ndarray) -> list[str]:
+    """A note naming the poses q (M, n) [rad] of a spatial robot whose tool point lies more than
+    :data:`BELOW_BASE_M` below the plane through the base normal to ``gravity``: with no cell nothing keeps the arm
+    off the table it stands on (a fresh user's next round under hanging masses put the tool 13 mm below it)."""
+    q = np.atleast_2d(np.asarray(q, float))
+    if robot.planar or not len(q):
+        return []
+    up = -np.asarray(robot.gravity, float)
+    depth = -(np.asarray(robot.link_points(q), float)[:, -1, :] @ up)  # (M,) [m] the tool point below the plane
+    low = np.flatnonzero(depth > BELOW_BASE_M)
+    if not low.size:
+        return []
+    return [f"pose(s) {', '.join(str(i + 1) for i in low)} put the tool point up to {1e3 * depth[low].max():.3g} mm "
+            "below the plane of the base (normal to gravity): on a table or a floor it goes through it; give the "
+            "robot a cell (floor_m, docs/contracts.md \"The cell\") to keep them above it"]
 
 
 def no_pose_hint(robot) -> str:

@@ -289,6 +289,7 @@ def study_plan_row(study: Study, m: int, seed: int, design, pool=None, continuum
     q = np.radians(plan.poses_deg)
     if study.robot.cell is not None:
         fb = design.bound_with(study.problem("ot"), q, m, study.sigma)
+        fb = fb if continuum is None else max(fb, bound)  # the joint-space bound holds for these plans too (api)
         row |= {"feasible_lower_bound": fb, "feasible_gap": ot / fb - 1.0}
     row |= {e: float(summ[e]) for e in study.robot.joint_columns("E_dk")}
     row["within_limits"] = not study.robot.outside_limits(q).any()

@@ -202,6 +202,8 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     import numpy as np
     import pandas as pd
 
+    from ..model.workcell import contact_note
+
     robot = study.robot
     versus_m = pd.read_csv(paths["studym"], keep_default_na=False, na_values=[""])
     long = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
@@ -209,13 +211,15 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     poses = {int(m): g[cols].to_numpy(float).tolist() for m, g in long.groupby("m", sort=True)}
     clearance = ({int(m): [(float(c), str(n)) for c, n in zip(g["clearance_m"], g["closest"])]
                   for m, g in long.groupby("m", sort=True)} if "clearance_m" in long.columns else None)
+    contact = [n for m, pairs in (clearance or {}).items()
+               for n in contact_note(np.array([c for c, _ in pairs]), [nm for _, nm in pairs], f"the plan of M = {m}")]
     certificates = pd.read_csv(paths["studycert"], keep_default_na=False, na_values=[""]).to_dict("records")
     return {
         "entry": entry, "robot": robot_summary(study),
         "test_pose_deg": np.degrees(study.test_pose).round(6).tolist(), "force_N": study.force.tolist(),
         "sigma": study.sigma, "micro": study.sigma < 1e-2,
         "certificate": certificates[0], "certificates": certificates,
-        "plans": versus_m.to_dict("records"), "poses": poses, "clearance": clearance,
+        "plans": versus_m.to_dict("records"), "poses": poses, "clearance": clearance, "contact_notes": contact,
         "cell": None if robot.cell is None else robot.cell.describe(),
         "loads": None if study.loads is None else study.loads.spec,
         "candidates": entry.get("candidates"),
