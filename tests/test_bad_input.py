@@ -382,3 +382,6 @@ def test_a_misspelt_config_key_is_named_with_the_key_it_looks_like():
                                          r"'tip_frame'\?\)$"):
         validate({"name": "x", "kind": "urdf", "urdf": "x.urdf", "base_frame": "base", "tip_fram": "tool0"}, "robot",
                  "r.yaml")
+    # another's file without base_frame: its correct `tip_frame:` was offered as a typo of it
+    with pytest.raises(InputError, match=r"missing required field\(s\) 'base_frame'$"):
+        validate({"name": "x", "kind": "urdf", "urdf": "x.urdf", "tip_frame": "tool0"}, "robot", "r.yaml")

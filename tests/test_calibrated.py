@@ -1303,6 +1303,13 @@ def test_a_model_the_data_reject_predicts_with_its_held_out_error(tmp_path):
     np.testing.assert_array_equal(pred.displacement, without.displacement)  # the same model, only its sd
     assert np.sqrt(np.mean(((without.displacement - truth) / without.sd) ** 2)) > 4.0  # as before
     assert any("the data reject this model" in n for n in pred.notes)
+    # the next round's figures are the parameters' uncertainty alone: it says the model error adds to them
+    nr = C.next_round(robot, q[0], np.array(IIWA_NEW_POSES[0][1], float), 3)
+    assert any(n.startswith("the data reject the calibrated model") and f"{cal.model_error_m * 1e6:.3g} um" in n
+               for n in nr.notes)
+    assert not any("the data reject" in n for n in C.next_round(
+        replace(robot, calibration=replace(cal, model_error_m=0.0)), q[0], np.array(IIWA_NEW_POSES[0][1], float),
+        3).notes)
 
 
 def test_a_backlash_near_balance_is_noted_where_the_sag_reverses_the_weight(tmp_path):

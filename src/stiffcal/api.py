@@ -1046,7 +1046,7 @@ def plan_next_round(prior, test_pose_deg, force_N=None, *, wrench=None, experime
         "closest": list(closest), "notes": inherited + list(nr.notes) + near})
 
 
-def _clearances(robot: Robot, q: np.ndarray) -> tuple[list | None, tuple, list[str]]:
+def _clearances(robot: Robot, q: np.ndarray) -> tuple[np.ndarray | None, tuple, list[str]]:
     """(each pose's smallest distance (M,) [m] over the cell's checked pairs, the closest pair of each, the notes of
     the poses within 1 mm of contact) of the poses q (M, n) [rad]; (None, (), []) without a cell."""
     from .model.workcell import clearance, contact_note

@@ -203,6 +203,9 @@ def validate(document: Any, schema_name: str, source: str, prefix: str = "") -> 
     error = jsonschema.exceptions.best_match(validator.iter_errors(document))
     if error is None:
         return
+    if error.validator == "required" and not error.absolute_path:  # keys the document's own schema knows are no
+        error.schema = {**error.schema, "properties": {**schema.get("properties", {}),  # typos (a sub-schema's
+                                                       **error.schema.get("properties", {})}}  # 'required' knows few)
     where = json_path(error.absolute_path)
     if prefix:
         where = prefix if where == "<top level>" else prefix + ("" if where.startswith("[") else ".") + where

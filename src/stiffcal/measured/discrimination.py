@@ -1319,8 +1319,18 @@ def to_json(res: Discrimination, data: str | None = None) -> dict:
         ot_eff = res.ot_bound / res.compound.o_t if res.ot_bound is not None and res.compound.o_t else None
         out["compound"] = comp | {"weight": res.weight, "t_efficiency": t_eff,
                                   "ot_efficiency": ot_eff if ot_eff is None or ot_eff > 0 else None}
-    out["notes"] += _contact_notes(out)
+    out["notes"] += _contact_notes(out) + _vacuous_bound_note(None if res.ot_plan is None else res.ot_bound)
     return json_safe(out, out["notes"])
+
+
+def _vacuous_bound_note(bound: float | None) -> list[str]:
+    """A note where the O_t plan's lower bound is 0: the equivalence theorem's bound came out at or below zero
+    (:func:`ot_lower_bound` clips it) and certifies nothing (a fresh user's soft Panda read it as a bound)."""
+    if bound != 0.0:
+        return []
+    return ["ot_plan.lower_bound_m2 is 0: the equivalence theorem's bound on O_t came out at or below zero (the "
+            "approximate design far from its optimum, or the model's parameters barely determined), so it certifies "
+            "nothing about the plan"]
 
 
 def _contact_notes(out: dict) -> list[str]:

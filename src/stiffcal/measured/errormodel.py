@@ -476,7 +476,7 @@ def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
     holding two reference readings of one target (two visits under one label?), reference labels without an
     exact-zero row beside labels with one (a typo?). The exact-zero rows decide which reading a row was taken from
     only where no ``reference`` column is given."""
-    notes = _visit_column_notes(f, visit) if f["visit"] is not None else []
+    notes = _visit_column_notes(f, visit) if f["visit"] is not None else _repeated_load_notes(f, visit)
     exact = np.flatnonzero(f["exact"])
     if f["visit"] is not None and exact.size:
         kinds, per = np.unique(np.column_stack([visit[exact], f["target"][exact]]), axis=0, return_counts=True)
@@ -497,6 +497,29 @@ def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
                          "exact-zero row while other labels do: a typo? Their rows are taken as measured from an "
                          "unlogged reading of their own")
     return notes
+
+
+def _repeated_load_notes(f: dict, visit: np.ndarray) -> list[str]:
+    """Without a ``visit`` column: a note naming the visits (read from the row order) that hold every one of their
+    loads two or more times where more visits hold each once (a fresh user's shuffled second pass began at the
+    configuration the first ended at, its reference reused: two visits back to back, read as one, in silence; a
+    protocol that repeats every load within every visit is not named)."""
+    from .measurements import _rows_text
+
+    loaded = np.flatnonzero(f["loaded"])
+    twice, once = [], 0
+    for v in np.unique(visit[loaded]):
+        mine = loaded[visit[loaded] == v]
+        _, counts = np.unique(f["group"][mine], return_counts=True)
+        if counts.min() >= 2:
+            twice.append(_rows_text(np.sort(f["rows"][visit == v])))
+        once += int(counts.max() == 1)
+    if not twice or len(twice) >= once:
+        return []
+    return [f"{len(twice)} visit(s) read from the row order hold each of their loads two or more times with no "
+            f"reference reading between ({'; '.join(twice[:3])}{' ...' if len(twice) > 3 else ''}): two visits back to "
+            "back (the robot leaving and returning to the configuration)? They are read as one visit, whose loads "
+            "repeat within it; a visit column tells them apart"]
 
 
 def _visit_name(f: dict, visit: np.ndarray, v: int) -> str:

@@ -86,7 +86,8 @@ def load_set(spec: str | None, d: int, data_forces: np.ndarray | None = None, re
 
     - ``hanging:M1,M2,...``: hanging weights, forces of M_k newtons along gravity (``gravity``, the robot file's
       direction; default -y for a planar arm in its vertical plane, -z for a spatial one, as
-      :class:`stiffcal.testing.truth.Protocol` has them);
+      :class:`stiffcal.testing.truth.Protocol` has them); a weight given as a mass, ``5kg``, is its weight in
+      newtons at standard gravity (here and in ``bar:``);
     - ``bar:AX,AY[,AZ]:M1,M2,...``: weights of M_k newtons hung from the end of a loading bar clamped to the
       tool, at (AX, AY, AZ) [m] from the tool point in the tip frame: at the tool point a force along gravity
       and its moment, which turns with the tool (``arm``; :class:`stiffcal.model.observation.Loads`, for ``design``);
@@ -139,9 +140,30 @@ def _data_loads(data_forces, d, resolution_N, moment_resolution_Nm, cluster, fie
     return np.array([data_forces[labels == g].mean(axis=0) for g in range(labels.max() + 1)])
 
 
+def _masses_in_newtons(text: str) -> str:
+    """``text`` with every comma-separated weight given as a mass in kilograms (``5kg``) written in newtons (standard
+    gravity, 9.80665 m/s^2), and a trailing ``N`` dropped: ``hanging:5kg,10kg`` is ``hanging:49.03325,98.0665``."""
+    from .robot import STANDARD_GRAVITY_M_S2
+
+    out = []
+    for t in text.split(","):
+        t = t.strip()
+        low = t.lower()
+        if low.endswith("kg") and t[:-2].strip():
+            try:
+                t = repr(float(t[:-2]) * STANDARD_GRAVITY_M_S2)
+            except ValueError:
+                pass  # left as it is: _numbers names it
+        elif t.endswith("N") and t[:-1].strip():
+            t = t[:-1]
+        out.append(t)
+    return ",".join(out)
+
+
 def _weights(mtext, what, count, resolution_N, field_name, noun="weight") -> np.ndarray:
-    """The magnitudes [N] of ``mtext``, each > 0 and within the lab's range (:func:`check_lab_loads`)."""
-    mags = _numbers(mtext, what, field_name)
+    """The magnitudes [N] of ``mtext`` (a weight may be given as a mass, ``5kg``: :func:`_masses_in_newtons`), each
+    > 0 and within the lab's range (:func:`check_lab_loads`)."""
+    mags = _numbers(_masses_in_newtons(mtext) if noun == "weight" else mtext, what, field_name)
     if np.any(mags <= 0):
         raise InputError(f"expected {noun}s > 0 N, got {mtext!r}", field=field_name)
     check_lab_loads(mags, count(len(mags)), resolution_N, field_name, noun)

@@ -1259,7 +1259,7 @@ def cell_notes(robot, q: np.ndarray | None = None) -> list[str]:
              "give the robot's SRDF (cell.srdf) for the pairs its makers disabled"]
             if robot.cell.self_collision and getattr(robot, "urdf_info", None) and not robot.cell.srdf
             and isinstance(eng, MeshEngine) else [])
-    return [] if eng is None else bare + list(eng.notes)
+    return [] if eng is None else bare + list(dict.fromkeys(eng.notes))  # a link of several collision shapes: once
 
 
 #: a point this far [m] below the base's mounting plane is named by :func:`below_base_note`
