@@ -1145,15 +1145,22 @@ def test_a_cell_in_millimetres_is_refused_naming_the_unit(tmp_path):
     into the base. The 2-link arm (reach 1 m): a square box of side 80 m (113 m across, its diagonal) is refused
     naming the unit; one of side 14.14 m (20 m across: a hall's floor as a box) is accepted."""
     for size, refused in ((80.0, True), (14.14, False)):
-        path = tmp_path / "r.yaml"
         box = f"{{name: table, center_m: [0.0, {-size / 2 - 0.5}], size_m: [{size}, {size}]}}"
-        path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  link_radius_m: 0.02\n"
-                        f"  boxes:\n    - {box}\n", encoding="utf-8")
-        if refused:
-            with pytest.raises(InputError, match=r"'table' is 113.1 m across.*\(millimetres given\?\)"):
-                load_robot(path)
-        else:
-            assert load_robot(path).cell is not None
+        _refused_or_read(tmp_path, f"  boxes:\n    - {box}\n",
+                         r"'table' is 113.1 m across.*\(millimetres given\?\)" if refused else None)
+
+
+def _refused_or_read(tmp_path, cell: str, refused: str | None) -> None:
+    """The 2-link arm (links 0.6 and 0.4 m) with a cell of capsules 0.02 m and the further cell lines ``cell``:
+    refused with a message matching ``refused``, or (None) read with its cell."""
+    path = tmp_path / "r.yaml"
+    path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n  link_radius_m: 0.02\n"
+                    + cell, encoding="utf-8")
+    if refused:
+        with pytest.raises(InputError, match=refused):
+            load_robot(path)
+    else:
+        assert load_robot(path).cell is not None
 
 
 def test_a_clearance_longer_than_the_arm_is_refused_naming_the_field(tmp_path):
@@ -1162,14 +1169,8 @@ def test_a_clearance_longer_than_the_arm_is_refused_naming_the_field(tmp_path):
     bodies is refused naming that field; 0.9 m is accepted (the cable's clearance has the schema's bound of 1 m)."""
     for key in ("clearance_m", "self_clearance_m"):
         for value, refused in ((1.5, True), (0.9, False)):
-            path = tmp_path / "r.yaml"
-            path.write_text("name: r\nkind: planar\nlinks_m: [0.6, 0.4]\ngravity: [0, -1]\ncell:\n"
-                            f"  link_radius_m: 0.02\n  {key}: {value}\n", encoding="utf-8")
-            if refused:
-                with pytest.raises(InputError, match=rf"cell.{key}.*longer than the arm itself \(1 m\).*millimetres"):
-                    load_robot(path)
-            else:
-                assert load_robot(path).cell is not None
+            _refused_or_read(tmp_path, f"  {key}: {value}\n",
+                             rf"cell.{key}.*longer than the arm itself \(1 m\).*millimetres" if refused else None)
 
 
 def test_a_plan_without_a_cell_names_its_poses_below_the_base(root):

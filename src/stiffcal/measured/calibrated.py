@@ -277,9 +277,15 @@ def _model_error_note(cal) -> list[str]:
     if not cal.model_error_m > 0:
         return []
     return [f"the data reject this model (verdict {cal.source.get('verdict_cause')}): sd includes its error at "
-            f"configurations it was not fitted to, {cal.model_error_m * 1e6:.3g} um "
-            "per coordinate (its held-out RMS beyond the noise, calibration.model_error_m), an estimate from the "
-            "measured configurations: farther from them the error can be larger"]
+            f"configurations it was not fitted to, {_model_error_um(cal)} (its held-out RMS beyond the noise, "
+            "calibration.model_error_m), an estimate from the measured configurations: farther from them the error "
+            "can be larger"]
+
+
+def _model_error_um(cal) -> str:
+    """'12.3 um per coordinate': the calibration's model error (:attr:`Calibration.model_error_m`) as the notes give
+    it."""
+    return f"{cal.model_error_m * 1e6:.3g} um per coordinate"
 
 
 def _negative_compliance_notes(robot: Robot, cal) -> list[str]:
@@ -957,9 +963,8 @@ def _model_error_plan_note(cal: Calibration) -> list[str]:
     if not cal.model_error_m > 0:
         return []
     return [f"the data reject the calibrated model (verdict {cal.source.get('verdict_cause')}; its error beyond the "
-            f"noise at configurations it was not fitted to, {cal.model_error_m * 1e6:.3g} um per coordinate, "
-            "calibration.model_error_m): O_t and every RMS figure here are its parameters' uncertainty alone, and the "
-            "model's error adds to them"]
+            f"noise at configurations it was not fitted to, {_model_error_um(cal)}, calibration.model_error_m): O_t "
+            "and every RMS figure here are its parameters' uncertainty alone, and the model's error adds to them"]
 
 
 def _left_undetermined_note(names, post: np.ndarray, finite: bool) -> list[str]:

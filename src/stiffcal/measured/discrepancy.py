@@ -65,7 +65,8 @@ from ..planning.problem import joint_space_pool
 from . import distributions as dist
 from ..errors import InputError
 from ..jsonsafe import json_safe
-from .measurements import Measurements, check_displacement_size, looks_like_radians, rows_by_label, rows_by_value
+from .measurements import (Measurements, check_displacement_size, expected_columns, looks_like_radians,
+                           optional_columns, rows_by_label, rows_by_value)
 from ..model.observation import (Sensing, as_wrench, force_dim, moment_dim, observe, sensed_params, target_offsets,
                           tool_twists)
 from ..model.observation import torques as observation_torques
@@ -1436,8 +1437,9 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
               "base frame, or absolute positions instead of displacements")
     check_displacement_size(robot, meas.dp, [f"d{a}_m" for a in "xyz"[: robot.task_dim]], meas.source)
     _check_rotation_unit(robot, meas, ob)  # a unit off first: it can make compliances negative too
-    _check_moment_unit(robot, meas, ob)
-    _check_load_frame(robot, meas, ob)
+    rss_logged = _nominal_rss(robot, meas, ob, load_of(meas))
+    _check_moment_unit(robot, meas, ob, rss_logged)
+    _check_load_frame(robot, meas, ob, rss_logged)
     if len(neg) >= max(2, len(k) // 2) and not pos:  # not one chance negative among compliances nothing determines
         raise InputError(f"no identified joint compliance is above zero beyond its 95 % interval and "
                          f"{'every one' if len(neg) == len(k) else f'{len(neg)} of {len(k)}'} below it "
@@ -1499,20 +1501,24 @@ def _check_rotation_unit(robot: Robot, meas: Measurements, ob: Observed) -> None
                          "unit off?", source=meas.source, field=f"columns {', '.join(f'{c}_rad' for c in cols)}")
 
 
-def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed) -> None:
-    """Raise :class:`InputError` when the nominal model fits the data ten times better (residual sum of squares)
-    with the moments divided by 1000: moments in N mm in columns labelled N m (a 1000 N force with 200 N m logged
-    as 200000). Nothing without moments. (A lever |M| / |F| would misread a pure moment logged beside a load
-    cell's small force readings.)"""
+def _nominal_rss(robot: Robot, meas: Measurements, ob: Observed, load: np.ndarray) -> float:
+    """The residual sum of squares of the nominal model fitted to the rows of ``meas`` under ``load`` (N, d + d_m)
+    instead of theirs: the unit and frame checks' comparison of the loads as logged with a reading of them."""
+    return fit(_stack(nominal_columns(robot, meas.q, load, ob)), observations(meas, ob).ravel()).rss
+
+
+def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed, rss_logged: float | None = None) -> None:
+    """Raise :class:`InputError` when the nominal model fits the data ten times better (residual sum of squares;
+    ``rss_logged`` that of the loads as logged, :func:`_nominal_rss`, computed if None) with the moments divided by
+    1000: moments in N mm in columns labelled N m (a 1000 N force with 200 N m logged as 200000). Nothing without
+    moments. (A lever |M| / |F| would misread a pure moment logged beside a load cell's small force readings.)"""
     if not meas.has_moment:
         return
-    d = force_dim(robot)
-    rss = []
-    for scale in (1.0, 1e-3):
-        load = load_of(meas).copy()
-        load[:, d:] *= scale
-        rss.append(fit(_stack(nominal_columns(robot, meas.q, load, ob)), observations(meas, ob).ravel()).rss)
-    cols = [f"m{a}_Nm" for a in ("z" if robot.planar else "xyz")]
+    load = load_of(meas).copy()
+    load[:, force_dim(robot):] *= 1e-3
+    rss = [_nominal_rss(robot, meas, ob, load_of(meas)) if rss_logged is None else rss_logged,
+           _nominal_rss(robot, meas, ob, load)]
+    cols = optional_columns(robot)["moment"]
     if rss[1] < 0.1 * rss[0]:
         raise InputError(f"expected moments in N m, but the nominal model fits the data {rss[0] / rss[1]:.3g} times "
                          "better (residual sum of squares) with them divided by 1000: moments in N mm labelled N m?",
@@ -1525,24 +1531,25 @@ def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed) -> None:
                          source=meas.source, field=f"columns {', '.join(cols)}")
 
 
-def _check_load_frame(robot: Robot, meas: Measurements, ob: Observed) -> None:
-    """Raise :class:`InputError` when the nominal model fits the data ten times better (residual sum of squares)
-    with every load (force and moment) turned from the tip frame into the base frame, R(q) F and R(q) M: the loads
-    logged in a flange force/torque sensor's own frame (a fresh user's KR 210: read as logged, ``unexplained`` with
-    four false causes at p = 1e-36 to 1e-62 in 12 of 12 logs, and a calibrated.yaml with k3 a fifth of its truth).
-    Spatial arms only (a planar arm's tip frame turns the loads in its plane: checked too)."""
-    R = np.asarray(robot.tool_frame(meas.q)[0], float)[:, : robot.task_dim, : robot.task_dim]
-    load = load_of(meas)
+def _check_load_frame(robot: Robot, meas: Measurements, ob: Observed, rss_logged: float | None = None) -> None:
+    """Raise :class:`InputError` when the nominal model fits the data ten times better (residual sum of squares;
+    ``rss_logged`` that of the loads as logged) with every load (force and moment) turned from the tip frame into the
+    base frame, R(q) F and R(q) M: the loads logged in a flange force/torque sensor's own frame (a fresh user's KR
+    210: read as logged, ``unexplained`` with four false causes at p = 1e-36 to 1e-62 in 12 of 12 logs, and a
+    calibrated.yaml with k3 a fifth of its truth). A planar arm's tip frame turns the loads in its plane: checked
+    too."""
     d = force_dim(robot)
+    R = np.asarray(robot.tool_frame(meas.q)[0], float)[:, :d, :d]
+    load = load_of(meas)
     turned = load.copy()
-    turned[:, :d] = np.einsum("nij,nj->ni", R[:, :d, :d], load[:, :d])
-    if load.shape[1] - d == 3:
+    turned[:, :d] = np.einsum("nij,nj->ni", R, load[:, :d])
+    if meas.has_moment and d == 3:  # a planar arm's moment (about z) is not turned in its plane
         turned[:, d:] = np.einsum("nij,nj->ni", R, load[:, d:])
-    y = observations(meas, ob).ravel()
-    rss = [fit(_stack(nominal_columns(robot, meas.q, w, ob)), y).rss for w in (load, turned)]
+    rss = [_nominal_rss(robot, meas, ob, load) if rss_logged is None else rss_logged,
+           _nominal_rss(robot, meas, ob, turned)]
     if rss[1] < 0.1 * rss[0]:
-        cols = ["fx_N", "fy_N"] + (["fz_N"] if d == 3 else []) + ([] if load.shape[1] == d else
-                                                                 [f"m{a}_Nm" for a in ("z" if d == 2 else "xyz")])
+        cols = ([c for c in expected_columns(robot) if c.startswith("f")]
+                + (optional_columns(robot)["moment"] if meas.has_moment else []))
         raise InputError(f"expected the loads in the robot's base frame, but the nominal model fits the data "
                          f"{rss[0] / rss[1]:.3g} times better (residual sum of squares) with them turned from the tip "
                          "frame into the base frame: the loads of a force/torque sensor logged in its own frame? Turn "
@@ -2534,9 +2541,6 @@ def _diagnosed(robot: Robot, pre: Prepared, out: dict, sel: Selection, chosen: f
     """The verdict ``out`` given its ``diagnostics`` (:func:`diagnostics`), made ``unexplained`` where effects outside
     the catalogue explain the data (:func:`_outside_verdict`); returns their notes and :func:`_weightless_note`'s."""
     out["diagnostics"], notes = diagnostics(robot, pre, chosen, sel.fits[chosen], alpha)
-    if not ranked:  # no cause chosen: nothing for an effect outside the catalogue to stand in for; found far
-        #             beyond the verdict's level, it is the explanation (of the lack of fit the closed test found)
-        out["diagnostics"]["outside_catalogue"] = _outside_effects(out["diagnostics"], alpha * OUTSIDE_ALONE) or None
     if out["diagnostics"]["outside_catalogue"]:
         out.update(_outside_verdict(out["diagnostics"], ranked))
     return notes + _weightless_note(robot, out, alpha)
@@ -2817,7 +2821,8 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
       signs (:func:`_return_diagnostic`: a backlash that stays where the load pushed it);
     - ``load_scatter``: whether the loads' direction scatters push by push, the error model's ``load_direction``
       component (:func:`_scatter_diagnostic`: a hand-held gauge held off its axis);
-    - ``outside_catalogue``: the effects outside the catalogue (``load_direction``, ``time``) that are significant and
+    - ``outside_catalogue``: the effects outside the catalogue (:data:`OUTSIDE_EFFECTS`; with no cause chosen, found
+      at alpha * :data:`OUTSIDE_ALONE`) that are significant and
       beyond which the chosen causes add nothing (the verdict is then ``unexplained``: :func:`_outside_verdict`), else
       None.
     Returns (dict, notes)."""
@@ -2840,17 +2845,17 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     turned = turned_load_deflections(robot, m, pre.ob, f0.beta) * pre.w[:, None, None]
     unknown = (turned_on_dropped(robot, m, pre.ob_full.take(pre.keep), pre.dropped) * pre.w[:, None, None]
                if len(pre.dropped) else turned[..., :0])
+    offset = _offset_columns(robot, pre, f0.beta)
     out["load_direction"], tilt_note = _tilt_diagnostic(pre, turned, unknown, f0, chosen, alpha)
-    out["load_offset"], offset_note = _offset_diagnostic(robot, pre, f0.beta, f0, chosen, alpha)
+    out["load_offset"], offset_note = _offset_diagnostic(pre, offset, f0, chosen, alpha)
     if out["load_direction"] is not None and out["load_offset"] is not None:
         out["load_direction"]["beyond_load_offset_p"], out["load_offset"]["beyond_load_direction_p"] = (
-            _beyond_each_other(pre, np.concatenate([turned, unknown], -1),
-                               np.concatenate(_offset_columns(robot, pre, f0.beta), -1)))
-        kept = _outside_effects(out, alpha)  # of a tilt and an offset that explain each other, the better one's note
-        tilt_note = None if "load_offset" in kept and "load_direction" not in kept else tilt_note
-        offset_note = None if "load_direction" in kept and "load_offset" not in kept else offset_note
+            _beyond_each_other(pre, np.concatenate([turned, unknown], -1), np.concatenate(offset, -1)))
+    found = _outside_effects(out, alpha)  # of a tilt and an offset that explain each other, the better one's note
+    tilt_note = None if "load_offset" in found and "load_direction" not in found else tilt_note
+    offset_note = None if "load_direction" in found and "load_offset" not in found else offset_note
     notes += [n for n in (tilt_note, offset_note) if n]
-    out["outside_catalogue"] = _outside_effects(out, alpha) or None
+    out["outside_catalogue"] = (found if chosen else _outside_effects(out, alpha * OUTSIDE_ALONE)) or None
     out["return_to_zero"], note = _return_diagnostic(robot, pre, alpha)
     notes += [note] if note else []
     tilted = out["load_direction"] is not None and out["load_direction"]["p_value"] <= alpha
@@ -3239,16 +3244,17 @@ def _offset_columns(robot: Robot, pre: Prepared, k: np.ndarray) -> tuple[np.ndar
     return named * pre.w[:, None, None], unknown * pre.w[:, None, None]
 
 
-def _offset_diagnostic(robot: Robot, pre: Prepared, k: np.ndarray, f0: Fit, chosen, alpha: float):
+def _offset_diagnostic(pre: Prepared, offset: tuple[np.ndarray, np.ndarray], f0: Fit, chosen, alpha: float):
     """(``diagnostics.load_offset`` or None, note): the loads act at a point r off the tool point (a loading bar
     logged without its moment columns, the load cell not at tool_m): the moment (R r) x F added to the nominal model
-    (its deflection through the nominal compliances k per unit of each tip-frame component of r, and through the
-    joints the logged loads never turn with free coefficients), its F-test, r [m], and whether the chosen causes
+    (``offset``, :func:`_offset_columns`: its deflection through the nominal compliances per unit of each tip-frame
+    component of r, and through the joints the logged loads never turn with free coefficients), its F-test, r [m],
+    and whether the chosen causes
     add anything beyond it (a fresh user's UR3 with a loading bar logged without its moments: nonlinear_joint_stiffness,
     unexplained or none with a compliance 2 times its truth). With moment columns: the moments logged about another
     point than the tool point (another user's KR 210, its flange sensor's moments about the sensor: none with k4 and
     k5 at 0.5-0.64 of their truth in 4 of 12 logs, false causes in 3)."""
-    tested = _effect_test(pre, *_offset_columns(robot, pre, k), f0, chosen)
+    tested = _effect_test(pre, *offset, f0, chosen)
     if tested is None:
         return None, None
     p, r, beyond = tested
