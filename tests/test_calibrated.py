@@ -588,8 +588,9 @@ def test_the_verdict_s_next_round_measures_under_the_lab_s_own_loads(tmp_path):
     """The verdict's next round planned every new pose under the test force, which a lab that hangs masses cannot
     apply (a fresh user's Z1: its poses put the cable on the table). lab_loads takes the data's own: the simulator's
     hanging masses (the protocol's magnitudes along gravity, to the load cell's resolution) as hanging masses; its
-    pushes, whose directions change with every configuration (96 distinct loads), as none (the test load then); and
-    the verdict's next_round says which, its plan that of next_round under them."""
+    pushes, whose directions change with every configuration (96 distinct loads), as none (the test load then, and a
+    note says why: a fresh user's gauge pushes differed from design --prior in silence); and the verdict's
+    next_round says which, its plan that of next_round under them."""
     robot = ARMS["2-link"]
     pr = R.PROTOCOLS["hanging x3, reference per visit, 2 passes"]
     data = _lab_data(tmp_path, robot, T.Truth(R.compliances(robot), gap=np.full(2, 2e-4), tau_gap=1e-3))
@@ -602,6 +603,8 @@ def test_the_verdict_s_next_round_measures_under_the_lab_s_own_loads(tmp_path):
     pushes = read_measurements(_lab_data(tmp_path, robot, T.Truth(R.compliances(robot)), name="pushes.csv",
                                          protocol="4 directions x 2, repeated"), robot)
     assert D.lab_loads(robot, pushes) is None
+    k = len(np.unique(np.round(pushes.force, 6), axis=0))  # distinct to a micronewton; the load cell's 0.1 N merges none
+    assert f"the data have {k} distinct loads (more than 16" in D.test_load_note(robot, pushes)
     pre = D.prepare(robot, meas)
     v, cal = D.complete(robot, pre, D.verdict_of(robot, pre, gain=False), data, QT, FT)
     assert v["next_round"]["loads"] == "the data's 3 hanging masses"

@@ -505,6 +505,25 @@ def lab_loads(robot: Robot, meas: Measurements):
     return Loads(np.asarray(forces, float), arm, hanging, f"the data's {len(forces)} {what}")
 
 
+def test_load_note(robot: Robot, meas: Measurements) -> str:
+    """The note of a next round planned under the test load because :func:`lab_loads` found no loads of the lab's
+    to plan under: why, and how to plan under the lab's own (a fresh user's hand-held gauge pushes, 20-50 N held by
+    hand, were 40 distinct loads: the verdict's next round, under the test load, differed from ``design --prior``
+    under the lab's loads and said so only in ``next_round.loads``)."""
+    from ..model.loads import MAX_DATA_LOADS
+    from .measurements import cluster
+
+    k = int(cluster(meas.force, np.full(meas.force.shape[1], meas.resolutions[1])).max()) + 1
+    if meas.has_moment and bar_lever(robot, meas.q, load_of(meas)) is None:
+        why = "the data's moments are no loading bar's (no one lever in the tool frame gives every row's moment)"
+    elif k > MAX_DATA_LOADS:
+        why = f"the data have {k} distinct loads (more than {MAX_DATA_LOADS} to plan over: a hand-held gauge's pushes?)"
+    else:
+        why = "the loading bar's forces are not along the robot's gravity"
+    return (f"next_round: planned under the test load, not the lab's: {why}; to plan the next round under the loads "
+            "the lab applies, give them to stiffcal design --prior calibrated.yaml --loads ...")
+
+
 def observations(meas: Measurements, observed: Observed) -> np.ndarray:
     """(N, r): every row's measured quantities, the rotation [rad] times ``observed.rad_weight`` [m/rad]
     (weighted least squares: every component then has the position noise)."""
@@ -3964,10 +3983,13 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
     nominal = replace(robot, calibration=nominal_cal)
     machining = {"test_load": np.asarray(test_force, float).tolist(), "span_deg": 20.0,
                  **calibrated.path_check(model, nominal, calibrated.machining_path(robot, test_pose), test_force)}
+    loads = lab_loads(robot, pre.m)
     try:
-        summary, notes = calibrated.next_round_summary(model, test_pose, test_force, loads=lab_loads(robot, pre.m))
+        summary, notes = calibrated.next_round_summary(model, test_pose, test_force, loads=loads)
     except InputError as err:  # the verdict and the calibrated model stand without it
         summary, notes = None, [f"next_round is left out: {err.message}"]
+    if summary is not None and loads is None:
+        notes.append(test_load_note(robot, pre.m))
     if not cal.causes:
         notes.append("machining_path: calibrated.yaml holds the nominal model, so the path compensated with the "
                      "nominal model is the calibrated one's: after_nominal equals after_calibrated (the check shows "
