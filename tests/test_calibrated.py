@@ -603,7 +603,7 @@ def test_the_verdict_s_next_round_measures_under_the_lab_s_own_loads(tmp_path):
     pushes = read_measurements(_lab_data(tmp_path, robot, T.Truth(R.compliances(robot)), name="pushes.csv",
                                          protocol="4 directions x 2, repeated"), robot)
     assert D.lab_loads(robot, pushes) is None
-    k = len(np.unique(np.round(pushes.force, 6), axis=0))  # distinct to a micronewton; the load cell's 0.1 N merges none
+    k = len(np.unique(np.round(pushes.force, 6), axis=0))  # distinct to 1 uN; the load cell's 0.1 N merges none
     assert f"the data have {k} distinct loads (more than 16" in D.test_load_note(robot, pushes)
     pre = D.prepare(robot, meas)
     v, cal = D.complete(robot, pre, D.verdict_of(robot, pre, gain=False), data, QT, FT)

@@ -515,9 +515,10 @@ def weak_compliance_notes(robot, cov_diag: np.ndarray) -> list[str]:
     """A note naming the compliances a plan determines far worse than the others, relative to their nominal values
     (the robot file's ``compliances_rad_per_Nm``; none without them): r_j = sqrt(cov_diag_j) / k_j (cov_diag (n,),
     eq. 11) above 1 and above :data:`WEAK_COMPLIANCE_FACTOR` times the median r over the joints (so the note does not
-    depend on the sigma unit); where the median r is itself above 1 the note says so. O_t needs only what the test pose's deflection depends on, so its plan may leave a
-    joint the test load barely turns nearly free; the analysis of the data fits it all the same, and a fresh user's
-    iiwa plan (sd 22 times the nominal k5) gave k5 = -3.5e-5 and predictions 88 um off at other poses."""
+    depend on the sigma unit); where the median r is itself above 1 the note says so. O_t needs only what the test
+    pose's deflection depends on, so its plan may leave a joint the test load barely turns nearly free; the analysis
+    of the data fits it all the same, and a fresh user's iiwa plan (sd 22 times the nominal k5) gave k5 = -3.5e-5
+    and predictions 88 um off at other poses."""
     k = getattr(robot, "compliances", None)
     if k is None:
         return []

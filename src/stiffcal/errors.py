@@ -6,7 +6,7 @@ Every message names the file (when there is one), the field, row or column, and 
 from __future__ import annotations
 
 #: longest message (characters) an InputError prints; a longer one is cut, saying how much was left out
-MAX_MESSAGE = 600
+MAX_MESSAGE = 800
 
 
 def short_repr(value, limit: int = 80) -> str:

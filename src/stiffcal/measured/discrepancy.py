@@ -1449,11 +1449,11 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
     cols = "columns fx_N.. and dx_m.."
     neg = [i for i in range(len(k)) if k[i] + k_ci[i] < 0]
     pos = [i for i in range(len(k)) if k[i] - k_ci[i] > 0]
-    causes = ("likely causes: displacements logged as unloaded minus loaded instead of loaded minus unloaded, "
-              "forces logged with the opposite sign (the force on the tool, not the tool's on the gauge)"
-              + (", or the forces' signs lost (every force component >= 0: magnitudes only, a push along -x logged "
-                 "as +x?)" if np.all(meas.force >= 0) else "") + ", a tracker frame that does not match the robot's "
-              "base frame, or absolute positions instead of displacements")
+    causes = ("likely causes: displacements logged as unloaded minus loaded (expected loaded minus unloaded), forces "
+              "of the opposite sign (expected the force on the tool, a mass's weight, not the tool's on the gauge)"
+              + (", the forces' signs lost (every component >= 0: magnitudes only?)" if np.all(meas.force >= 0)
+                 else "") + ", a tracker frame other than the robot's base frame, or absolute positions instead of "
+              "displacements")
     check_displacement_size(robot, meas.dp, [f"d{a}_m" for a in "xyz"[: robot.task_dim]], meas.source)
     _check_rotation_unit(robot, meas, ob)  # a unit off first: it can make compliances negative too
     rss_logged = _nominal_rss(robot, meas, ob, load_of(meas))
@@ -1520,10 +1520,13 @@ def _check_rotation_unit(robot: Robot, meas: Measurements, ob: Observed) -> None
                          "unit off?", source=meas.source, field=f"columns {', '.join(f'{c}_rad' for c in cols)}")
 
 
-def _nominal_rss(robot: Robot, meas: Measurements, ob: Observed, load: np.ndarray) -> float:
+def _nominal_rss(robot: Robot, meas: Measurements, ob: Observed, load: np.ndarray,
+                 y: np.ndarray | None = None) -> float:
     """The residual sum of squares of the nominal model fitted to the rows of ``meas`` under ``load`` (N, d + d_m)
-    instead of theirs: the unit and frame checks' comparison of the loads as logged with a reading of them."""
-    return fit(_stack(nominal_columns(robot, meas.q, load, ob)), observations(meas, ob).ravel()).rss
+    instead of theirs (and to the observations ``y`` (N, r) instead of theirs, :func:`observations`): the unit and
+    frame checks' comparison of the loads as logged with a reading of them."""
+    y = observations(meas, ob) if y is None else y
+    return fit(_stack(nominal_columns(robot, meas.q, load, ob)), y.ravel()).rss
 
 
 def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed, rss_logged: float | None = None) -> None:
@@ -1552,28 +1555,86 @@ def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed, rss_logge
 
 def _check_load_frame(robot: Robot, meas: Measurements, ob: Observed, rss_logged: float | None = None) -> None:
     """Raise :class:`InputError` when the nominal model fits the data ten times better (residual sum of squares;
-    ``rss_logged`` that of the loads as logged) with every load (force and moment) turned from the tip frame into the
-    base frame, R(q) F and R(q) M: the loads logged in a flange force/torque sensor's own frame (a fresh user's KR
-    210: read as logged, ``unexplained`` with four false causes at p = 1e-36 to 1e-62 in 12 of 12 logs, and a
-    calibrated.yaml with k3 a fifth of its truth). A planar arm's tip frame turns the loads in its plane: checked
-    too."""
+    ``rss_logged`` that of the loads as logged) read in another frame (:func:`_other_frames`, the best of them): the
+    loads of a flange force/torque sensor logged in its own frame (a fresh user's KR 210: ``unexplained`` with four
+    false causes at p = 1e-36 to 1e-62 in 12 of 12 logs, and a calibrated.yaml with k3 a fifth of its truth), one
+    force axis logged with the wrong sign, one displacement column in millimetres (a third user's 6R arm: dz in mm
+    read as four false causes and k2 2700 times its truth), or the displacements and loads logged in a frame turned
+    about the base's vertical axis (a UR's ``base`` is its ``base_link`` turned 180 deg about z; another user's UR5
+    logs of either fault: ``unexplained`` with a drift of thousands of um/h named, the wrist compliances 11-17 times
+    their truth)."""
+    rss0 = _nominal_rss(robot, meas, ob, load_of(meas)) if rss_logged is None else rss_logged
+    best = min(((_nominal_rss(robot, meas, ob, load, y), why, fields) for load, y, why, fields
+                in _other_frames(robot, meas, ob)), key=lambda t: t[0])
+    if best[0] < 0.1 * rss0:
+        raise InputError(best[1].format(ratio=f"{rss0 / best[0]:.3g}"), source=meas.source,
+                         field=f"columns {', '.join(best[2])}")
+
+
+#: a displacement column is read as millimetres labelled metres (:func:`_other_frames`) only when its RMS is this many
+#: times every other's (a real deflection along one axis can dominate the others, but not a thousand-fold)
+MM_COLUMN_RATIO = 30.0
+
+
+def _other_frames(robot: Robot, meas: Measurements, ob: Observed) -> list[tuple]:
+    """The readings of the loads and displacements of ``meas`` that :func:`_check_load_frame` compares with the logged
+    one: (load (N, d + d_m), observations (N, r) or None: as logged, message with a ``{ratio}`` field, columns) for
+    the loads turned from the tip frame into the base frame (R(q) F, R(q) M; a planar arm's moment is not turned in
+    its plane), each force axis negated alone, each displacement column divided by 1000 alone where its RMS is
+    :data:`MM_COLUMN_RATIO` times the others' (millimetres in one column; all of them in millimetres are refused by
+    their size), and everything logged turned 90, 180 and 270 deg about the base's z axis (the plane's normal for a
+    planar arm)."""
     d = force_dim(robot)
-    R = np.asarray(robot.tool_frame(meas.q)[0], float)[:, :d, :d]
     load = load_of(meas)
-    turned = load.copy()
-    turned[:, :d] = np.einsum("nij,nj->ni", R, load[:, :d])
-    if meas.has_moment and d == 3:  # a planar arm's moment (about z) is not turned in its plane
-        turned[:, d:] = np.einsum("nij,nj->ni", R, load[:, d:])
-    rss = [_nominal_rss(robot, meas, ob, load) if rss_logged is None else rss_logged,
-           _nominal_rss(robot, meas, ob, turned)]
-    if rss[1] < 0.1 * rss[0]:
-        cols = ([c for c in expected_columns(robot) if c.startswith("f")]
-                + (optional_columns(robot)["moment"] if meas.has_moment else []))
-        raise InputError(f"expected the loads in the robot's base frame, but the nominal model fits the data "
-                         f"{rss[0] / rss[1]:.3g} times better (residual sum of squares) with them turned from the tip "
-                         "frame into the base frame: the loads of a force/torque sensor logged in its own frame? Turn "
-                         "them into the base frame (R(q) F, and the moment about the tool point R(q) M) "
-                         "(docs/measured-data.md)", source=meas.source, field=f"columns {', '.join(cols)}")
+    forces = [c for c in expected_columns(robot) if c.startswith("f")]
+    moments = optional_columns(robot)["moment"] if meas.has_moment else []
+    R = np.asarray(robot.tool_frame(meas.q)[0], float)[:, :d, :d]
+    tip = load.copy()
+    tip[:, :d] = np.einsum("nij,nj->ni", R, load[:, :d])
+    if meas.has_moment and d == 3:
+        tip[:, d:] = np.einsum("nij,nj->ni", R, load[:, d:])
+    out = [(tip, None, "expected the loads in the robot's base frame, but the nominal model fits the data {ratio} "
+            "times better (residual sum of squares) with them turned from the tip frame into the base frame: the "
+            "loads of a force/torque sensor logged in its own frame? Turn them into the base frame (R(q) F, and the "
+            "moment about the tool point R(q) M) (docs/measured-data.md)", forces + moments)]
+    for a, col in enumerate(forces):
+        flipped = load.copy()
+        flipped[:, a] *= -1.0
+        out.append((flipped, None, "expected the forces on the tool in the robot's base frame, but the nominal model "
+                    "fits the data {ratio} times better (residual sum of squares) with " + col + " negated: that "
+                    "axis logged with the wrong sign (a load cell's axis reversed, or a mass's weight logged as "
+                    "positive along an axis that points up)? (docs/measured-data.md)", [col]))
+    y = observations(meas, ob)
+    size = np.sqrt(np.mean(y[:, : robot.task_dim] ** 2, axis=0))
+    if robot.task_dim > 1:
+        for a, col in enumerate(f"d{c}_m" for c in "xyz"[: robot.task_dim]):
+            if size[a] < MM_COLUMN_RATIO * np.delete(size, a).max():  # millimetres make it ~1000 times the others
+                continue
+            scaled = y.copy()
+            scaled[:, a] *= 1e-3
+            out.append((load, scaled, "expected displacements in metres, but the nominal model fits the data {ratio} "
+                        "times better (residual sum of squares) with " + col + " divided by 1000: that column in "
+                        "millimetres labelled metres? (docs/measured-data.md)", [col]))
+    info = getattr(robot, "urdf_info", None) or {}
+    base = f" ({info['base_frame']})" if info.get("base_frame") else ""
+    for deg in (90, 180, 270):
+        Rz = np.array([[np.cos(np.radians(deg)), -np.sin(np.radians(deg)), 0.0],
+                       [np.sin(np.radians(deg)), np.cos(np.radians(deg)), 0.0], [0.0, 0.0, 1.0]]).round(12)
+        turned, yt = load.copy(), y.copy()
+        turned[:, :d] = load[:, :d] @ Rz[:d, :d].T
+        yt[:, : robot.task_dim] = y[:, : robot.task_dim] @ Rz[: robot.task_dim, : robot.task_dim].T
+        if d == 3:
+            if meas.has_moment:
+                turned[:, d:] = load[:, d:] @ Rz.T
+            if meas.rot is not None:
+                yt[:, 3:] = y[:, 3:] @ Rz.T
+        out.append((turned, yt, f"expected the displacements and loads in the robot's base frame{base}, "
+                    "but the nominal model fits the data {ratio} times better (residual sum of squares) with all of "
+                    f"them turned {deg} deg about the base's z axis: the tracker registered to another frame of the "
+                    "robot (a UR's base is its base_link turned 180 deg about z)? Name the frame the tracker was "
+                    "registered to as the robot file's base_frame, or turn the columns into it (docs/measured-data.md)",
+                    [f"d{a}_m" for a in "xyz"[: robot.task_dim]] + forces + moments))
+    return out
 
 
 #: the lever of the loads' moments (:func:`_bar_lever`), in reaches of the arm, beyond which moments are refused as
@@ -2644,7 +2705,7 @@ def _outside_verdict(diag: dict, ranked: list[str]) -> dict:
     found = diag["outside_catalogue"]
     words = {"load_direction": lambda d: f"the load acts in its logged direction (turned by {d['angle_deg']:.2g} deg)",
              "time": lambda d: f"the rows do not drift (a drift of {np.linalg.norm(d['rate_m_per_h']) * 1e6:.3g} "
-                               f"um/h)",
+                               + ("um/h)" if d["clock"] == "timestamp_s" else "um per 3600 rows)"),
              "load_offset": lambda d: "the loads act at the tool point (they act as if "
                                       f"{np.linalg.norm(d['offset_m']) * 1e3:.3g} mm off it)"}
     key = OUTSIDE_EFFECTS
@@ -2657,9 +2718,8 @@ def _outside_verdict(diag: dict, ranked: list[str]) -> dict:
                   f"{r:.2f}), so a drift and a misfit that grows with the load cannot be told apart"
                   if "time" in found and r is not None and abs(r) >= TIME_LOAD_CONFOUNDED else "")
     return {"cause": "unexplained", "p_value": p, "p_value_of": list(found),
-            "p_value_statement": f"{tests}: something the catalogue does not describe explains the data, which "
-                                 + ("the catalogue's causes only absorb" if ranked else "no catalogue cause describes")
-                                 + confounded}
+            "p_value_statement": f"{tests}: an effect outside the catalogue explains the data"
+                                 + (", which the catalogue's causes only absorb" if ranked else "") + confounded}
 
 
 def _named_causes(sel: Selection, chosen: frozenset, alternatives: list, alone: dict, noise: Noise, alpha: float):
@@ -3934,20 +3994,39 @@ def analysed(robot: Robot, data_path: str, alpha: float = 0.01, test_pose=None, 
     return verdict, cal, meas
 
 
-def model_error(held: dict | None, cal) -> float:
+def tracker_drift_ms(pre: Prepared, diag: dict) -> float:
+    """The mean square [m^2] per position coordinate that a drift of the tracker adds to the loaded rows of ``pre``
+    (``diag``: the verdict's ``diagnostics``): the mean of |rate (t - t_ref)|^2 / d over the rows, where the drift
+    alone is the effect outside the catalogue that explains the data and is not confounded with the load's size
+    (``time.time_load_correlation`` below :data:`TIME_LOAD_CONFOUNDED`); else 0. A drift is the tracker's, not the
+    robot's: a fresh user's drift of 40 um/h, named, went into calibrated.yaml's ``model_error_m`` as 30 um, and
+    predictions' sd were 6 times their error."""
+    t = diag.get("time") or {}
+    r = t.get("time_load_correlation")
+    if diag.get("outside_catalogue") != ["time"] or (r is not None and abs(r) >= TIME_LOAD_CONFOUNDED):
+        return 0.0
+    st = pre.error.structure
+    N, d = pre.m.n_rows, pre.m.dp.shape[1]
+    since = (st.time - st.ref_time)[:N]
+    per_s = np.asarray(t["rate_m_per_h"], float) / 3600.0
+    return float(np.mean(since**2) * (per_s @ per_s) / d)
+
+
+def model_error(held: dict | None, cal, drift_ms: float = 0.0) -> float:
     """The error [m] per position coordinate of a calibrated model the data reject (``unexplained``, or the nominal
     model kept where the extension predicts held-out configurations no better) at configurations it was not fitted
-    to, beyond the noise: sqrt(max(RMS^2 - sigma_m^2, 0)), RMS its leave-one-configuration-out error (``held``, the
-    verdict's ``held_out``) and sigma_m the analysis's noise (``cal``: its
-    :class:`stiffcal.model.calibration.Calibration`). Predictions add its square to their variance; their sd from
-    the parameters' covariance alone covers the model's estimation error, not a bias the data show (a fresh user's
-    iiwa with a backlash the kept nominal model lacks: errors of 8-88 um at new poses against sd 2-13 um). 0 when
-    the held-out check is not known or is of another model."""
+    to, beyond the noise: sqrt(max(RMS^2 - sigma_m^2 - drift_ms, 0)), RMS its leave-one-configuration-out error
+    (``held``, the verdict's ``held_out``) and sigma_m the analysis's noise (``cal``: its
+    :class:`stiffcal.model.calibration.Calibration`), less ``drift_ms`` [m^2] (:func:`tracker_drift_ms`: what a
+    tracker's drift adds to the rows, not the model's error). Predictions add its square to their variance; their sd
+    from the parameters' covariance alone covers the model's estimation error, not a bias the data show (a fresh
+    user's iiwa with a backlash the kept nominal model lacks: errors of 8-88 um at new poses against sd 2-13 um). 0
+    when the held-out check is not known or is of another model."""
     if held is None:
         return 0.0
     rms = (held["rms_nominal_m"] if not cal.causes else
            held["rms_calibrated_m"] if tuple(held["calibrated_causes"]) == tuple(cal.causes) else None)
-    return 0.0 if rms is None else float(np.sqrt(max(rms**2 - cal.sigma_m**2, 0.0)))
+    return 0.0 if rms is None else float(np.sqrt(max(rms**2 - cal.sigma_m**2 - drift_ms, 0.0)))
 
 
 def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose=None, test_force=None):
@@ -3976,7 +4055,7 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
     else:
         cal = calibrated.from_analysis(robot, pre, verdict, data_path)
     if worse or verdict["cause"] == "unexplained":
-        cal = replace(cal, model_error_m=model_error(verdict["held_out"], cal))
+        cal = replace(cal, model_error_m=model_error(verdict["held_out"], cal, tracker_drift_ms(pre, diag)))
     if not with_test:
         return verdict, cal
     model = replace(robot, calibration=cal)
