@@ -1169,8 +1169,8 @@ def test_a_clearance_longer_than_the_arm_is_refused_naming_the_field(tmp_path):
     bodies is refused naming that field; 0.9 m is accepted (the cable's clearance has the schema's bound of 1 m)."""
     for key in ("clearance_m", "self_clearance_m"):
         for value, refused in ((1.5, True), (0.9, False)):
-            _refused_or_read(tmp_path, f"  {key}: {value}\n",
-                             rf"cell.{key}.*longer than the arm itself \(1 m\).*millimetres" if refused else None)
+            expect = rf"cell.{key}.*longer than the arm itself \(1 m, its links without the tool\).*millimetres"
+            _refused_or_read(tmp_path, f"  {key}: {value}\n", expect if refused else None)
 
 
 def test_a_plan_without_a_cell_names_its_poses_below_the_base(root):
@@ -1280,3 +1280,25 @@ def test_a_loading_bar_of_length_0_or_in_millimetres_is_refused(root, tmp_path, 
     assert not (tmp_path / "out").exists()
     assert main(["design", "--robot", str(PAPER), "--test-pose-deg", "60,30", "--force-N", "0,-300", "--experiments",
                  "2", "--no-cache", "--quiet", "--loads", "bar:8,0:100"]) == 0
+
+
+def test_a_missing_mesh_is_named_without_the_loader_s_source_location(tmp_path):
+    """A fresh user's UR5 with a mesh path that does not exist: refused naming the URDF and the mesh, but the
+    message began with coal's C++ source location ("From file: /project/src/mesh_loader/assimp.cpp in function:
+    ..."), which says nothing to a lab. The URDF of real_arms' UR10 copied with its meshes' package:// paths made
+    absolute into a folder that does not exist: the message names the mesh, and not the loader's source."""
+    root = real_arms.robots_dir()
+    if root is None:
+        pytest.skip("example-robot-data is not installed")
+    urdf = (root / real_arms.ARMS["ur10"][0]).read_text(encoding="utf-8")
+    (tmp_path / "ur10.urdf").write_text(urdf.replace("package://", f"{tmp_path / 'nowhere'}/"), encoding="utf-8")
+    path = real_arms.write_robot_file("ur10", tmp_path)
+    text = path.read_text(encoding="utf-8").replace(f"urdf: {root / real_arms.ARMS['ur10'][0]}",
+                                                    f"urdf: {tmp_path / 'ur10.urdf'}")
+    path.write_text(text, encoding="utf-8")
+    from stiffcal.model.workcell import clearance
+
+    expect = r"cannot read the collision geometry of the URDF .*ur10\.urdf: .*nowhere/"
+    with pytest.raises(InputError, match=expect) as err:
+        clearance(load_robot(path), np.zeros((1, 6)))
+    assert "From file" not in str(err.value) and "assimp.cpp" not in str(err.value)

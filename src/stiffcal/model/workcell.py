@@ -57,6 +57,8 @@ the segment runs down to the first half-space it meets (the floor: the mass's he
 from __future__ import annotations
 
 import hashlib
+import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -408,7 +410,8 @@ def _check_clearances(doc: dict, robot, source: str, prefix: str) -> None:
     for key in ("clearance_m", "self_clearance_m", "cable_clearance_m"):
         value = doc.get(key)
         if value is not None and arm > 0 and float(value) > arm:
-            raise InputError(f"{float(value):.4g} m, longer than the arm itself ({arm:.3g} m): no pose keeps that far "
+            raise InputError(f"{float(value):.4g} m, longer than the arm itself ({arm:.3g} m, its links without the "
+                             "tool): no pose keeps that far "
                              "from everything; clearances are in metres (millimetres given?)", source=source,
                              field=_at(prefix, key))
 
@@ -449,13 +452,15 @@ def _obstacles(doc: dict, robot, source: str, prefix: str) -> list[Obstacle]:
         size = 2.0 * o.bounding_radius if o.kind != "half_space" else 0.0
         if size > HUGE_OBSTACLE_REACHES * reach:
             raise InputError(f"obstacle {o.name!r} is {size:.4g} m across, more than {HUGE_OBSTACLE_REACHES:g} times "
-                             f"the arm's reach ({reach:.3g} m): lengths in the cell are in metres (millimetres "
-                             "given?); a floor or a wall is a half-space", source=source, field=_at(prefix, fld))
+                             f"the arm's reach ({reach:.3g} m, with the tool): lengths in the cell are in metres "
+                             "(millimetres given?); a floor or a wall is a half-space", source=source,
+                             field=_at(prefix, fld))
         far = float(o.sdf(np.zeros(3)))
         if far > FAR_OBSTACLE_REACHES * reach:
             raise InputError(f"obstacle {o.name!r} is {far:.4g} m from the base, more than {FAR_OBSTACLE_REACHES:g} "
-                             f"times the arm's reach ({reach:.3g} m): it can never touch the arm; lengths in the "
-                             "cell are in metres (millimetres given?)", source=source, field=_at(prefix, fld))
+                             f"times the arm's reach ({reach:.3g} m, with the tool): it can never touch the arm; "
+                             "lengths in the cell are in metres (millimetres given?)", source=source,
+                             field=_at(prefix, fld))
     return [o for o, _ in found]
 
 
@@ -522,7 +527,7 @@ def _srdf_path(srdf, robot, base_dir, source: str, prefix: str) -> tuple[str | N
         return None, 0
     if robot.kind != "urdf":
         raise InputError("'srdf' belongs to a URDF robot (kind: urdf)", source=source, field=_at(prefix, "srdf"))
-    srdf = str((Path(base_dir) / srdf).resolve())
+    srdf = os.path.abspath(Path(base_dir) / srdf)  # as the user gave it (a symlink not resolved away in messages)
     if not Path(srdf).is_file():
         raise InputError(f"no such file: {srdf}", source=source, field=_at(prefix, "srdf"))
     return srdf, _check_srdf(srdf, robot, source, _at(prefix, "srdf"))
@@ -777,6 +782,12 @@ class _Geom:
     movers: frozenset = frozenset()
 
 
+def _loader_message(err: Exception) -> str:
+    """The mesh loader's error without the C++ source location coal puts first ("From file: ... message: ")."""
+    text = str(err)
+    return re.sub(r"^.*?\bmessage:\s*", "", text, count=1, flags=re.S) if "From file:" in text else text
+
+
 def _package_dirs(urdf: Path) -> list[str]:
     """Where ``package://name/...`` URIs are looked for: every directory above the URDF (Pinocchio looks for
     ``<dir>/name``), nearest first."""
@@ -791,7 +802,6 @@ def _urdf_geometry(robot):
     info = robot.urdf_info
     key = (info["path"], info["base_frame"], info["tip_frame"], tuple(info["joints"]))
     if key not in _GEOMETRY:
-        import os
         import tempfile
 
         import pinocchio as pin
@@ -804,7 +814,7 @@ def _urdf_geometry(robot):
             try:
                 geom = pin.buildGeomFromUrdf(model, path, pin.GeometryType.COLLISION, package_dirs=_package_dirs(path))
             except (ValueError, RuntimeError, OSError) as err:
-                raise InputError(f"cannot read the collision geometry of the URDF {path}: {err}",
+                raise InputError(f"cannot read the collision geometry of the URDF {path}: {_loader_message(err)}",
                                  source=robot.source, field="urdf") from None
             finally:
                 os.dup2(sys_err, 2)
