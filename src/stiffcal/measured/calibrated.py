@@ -290,8 +290,10 @@ def _model_error_um(cal) -> str:
 
 def _negative_compliance_notes(robot: Robot, cal) -> list[str]:
     """Notes on the calibrated compliances below zero: beyond their 95 % interval (z = 1.96; the data were likely
-    logged with a sign reversed or in the wrong frame), or within it (the data barely determine the compliance: a
-    fresh user's Z1 had k5 = -2.1e-4 +- 1.1e-3 and was told its signs were reversed)."""
+    logged with a sign reversed or in the wrong frame; in an extended model, the extension trading it against its own
+    parameters: a fresh user's nonlinear stiffness fitted k4 = -7.1e-6 +- 5.2e-6 on clean signs and was told they
+    were reversed), or within it (the data barely determine the compliance: a fresh user's Z1 had k5 = -2.1e-4 +-
+    1.1e-3 and was told its signs were reversed)."""
     k = cal.compliances(robot.n_joints)
     sd = np.full(robot.n_joints, np.inf)
     sd[list(cal.k_joints)] = np.sqrt(np.clip(np.diag(cal.cov)[: len(cal.k_joints)], 0.0, None))
@@ -299,7 +301,13 @@ def _negative_compliance_notes(robot: Robot, cal) -> list[str]:
     beyond = [robot.joint_names[j] for j in far]
     within = [f"{robot.joint_names[j]} ({k[j]:.3g} +- {1.96 * sd[j]:.2g} rad/(N m), 95 %)" for j in near]
     notes = []
-    if beyond:
+    if beyond and cal.causes:  # the nominal model's compliances passed the analysis's sign and frame checks
+        notes.append(f"the calibrated model's compliance of joint(s) {', '.join(beyond)} is negative beyond its 95 % "
+                     f"interval in its extended model ({'+'.join(cal.causes)}): the extension trades it against its "
+                     "own parameters and is not physical there (its verdict's notes say so), so predictions where "
+                     "that joint turns are doubtful; the nominal model (the verdict's nominal section) is the safer "
+                     "one there")
+    elif beyond:
         notes.append(f"the calibrated model's compliance of joint(s) {', '.join(beyond)} is negative beyond its 95 % "
                      "interval: its deflections push against the load, which no joint does; the data it came from were "
                      "likely logged with the force's or the displacement's sign reversed, or in the wrong frame (its "
