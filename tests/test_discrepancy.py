@@ -413,6 +413,20 @@ def test_masses_in_kg_logged_as_newtons_are_noted_against_the_robot_files_compli
     assert not any("times the robot file's" in n for n in D.analyse(guessed, meas, gain=False)["notes"])
 
 
+def test_a_compliance_far_from_the_robot_file_s_is_named():
+    """A fresh user's clean log (its 6R arm, seed 8) took k6 = 8.4e-5 +- 6.1e-5 rad/(N m), 42 times its file's value
+    and its simulator's truth, in silence (a joint the hanging loads barely turn). Named now, with its ratio (the
+    nominal model's k6 over the file's, computed here); seed 1, whose intervals hold the truth, gets no such note."""
+    robot = load_robot(NEWUSER / "arm6_dh_masses.yaml")
+    v = D.analyse(robot, read_measurements(NEWUSER / "arm6_clean_s8.csv", robot), 0.01, gain=False)
+    k6 = v["nominal"]["k"][v["nominal"]["k_names"].index("k6")]
+    assert k6 / robot.compliances[5] > 10
+    assert any(f"k6 = {k6:.3g} +- " in n and f"({k6 / robot.compliances[5]:.3g} times 2e-06)" in n
+               and "far from the robot file's" in n for n in v["notes"]), v["notes"]
+    clean = D.analyse(robot, read_measurements(NEWUSER / "arm6_clean_s1.csv", robot), 0.01, gain=False)
+    assert not any("far from the robot file's" in n for n in clean["notes"])
+
+
 def test_an_arm_softer_than_the_range_is_analysed_when_its_robot_file_says_so(paper_robot):
     """A fresh user's assistive arm (Jaco2 at 1e-3..5e-3 rad/(N m), 7.7e-4 m/N) was refused as "millimetres or
     kN", with no way to analyse it. The refusal (which now also names masses in kg logged as newtons) says how: the

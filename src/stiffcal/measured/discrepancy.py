@@ -1481,7 +1481,8 @@ def plausibility(robot: Robot, meas: Measurements, k: np.ndarray, k_ci: np.ndarr
         notes.append(f"negative compliance in the nominal model ({listed} "
                      "rad/(N m), below zero beyond its 95 % interval): a joint cannot push back against the load; a "
                      "cause the verdict names may explain it (its extended model's k); if none does, " + causes)
-    return notes + _scale_notes(robot, k, k_ci, params)
+    scale = _scale_notes(robot, k, k_ci, params)
+    return notes + (scale or _far_from_file_notes(robot, k, k_ci, params))
 
 
 #: the nominal model's residual RMS, in units of the noise, beyond which a note asks for the frames and units
@@ -1723,6 +1724,31 @@ def _scale_notes(robot: Robot, k: np.ndarray, k_ci: np.ndarray, params: np.ndarr
                     f"(ratio {mean:.3g}, weighted by their precision; joint by joint {ratio[sure].min():.3g}-"
                     f"{ratio[sure].max():.3g}): {what}? If the file's values are only a guess, ignore this note"]
     return []
+
+
+#: an identified compliance whose 95 % interval lies beyond this factor of the robot file's own is named
+FAR_FROM_FILE_FACTOR = 10.0
+
+
+def _far_from_file_notes(robot: Robot, k: np.ndarray, k_ci: np.ndarray, params: np.ndarray) -> list[str]:
+    """A note naming the identified compliances k (p,) whose whole 95 % interval (half-widths k_ci) lies beyond
+    :data:`FAR_FROM_FILE_FACTOR` times the robot file's ``compliances_rad_per_Nm`` or below its 1/10 (none without
+    them): a joint far softer or stiffer than the file says, or a misfit taken up by a joint the loads barely turn
+    (a fresh user's clean log took k6 = 8.4e-5 +- 6.1e-5 rad/(N m), 42 times its file's and its truth, in silence)."""
+    ref = getattr(robot, "compliances", None)
+    if ref is None:
+        return []
+    nominal = np.asarray(ref, float)[np.asarray(params, int)]
+    far = (nominal > 0) & ((k - k_ci > FAR_FROM_FILE_FACTOR * nominal) | (k + k_ci < nominal / FAR_FROM_FILE_FACTOR))
+    if not far.any():
+        return []
+    names = robot.joint_columns("k")
+    listed = ", ".join(f"{names[int(params[i])]} = {k[i]:.3g} +- {k_ci[i]:.2g} ({k[i] / nominal[i]:.3g} times "
+                       f"{nominal[i]:.3g})" for i in np.flatnonzero(far))
+    return [f"identified compliance(s) far from the robot file's compliances_rad_per_Nm, the whole 95 % interval "
+            f"beyond a factor {FAR_FROM_FILE_FACTOR:g}: {listed} rad/(N m): a joint that much softer or stiffer than "
+            "the file says, or a misfit taken up by a joint the loads barely turn; check the file's value, and measure "
+            "with loads that turn that joint before using it at other poses"]
 
 
 #: at most this fraction of the unloaded rows (and at least one) is named as standing out (a few blunders)
