@@ -894,6 +894,9 @@ def test_absolute_positions_and_millimetres_labelled_metres_are_refused(tmp_path
     (lambda h, rows: (h, rows[:3] + [[f'"{v.replace(".", ",")}"' if j == h.index("q2_deg") else v
                                       for j, v in enumerate(rows[3])]] + rows[4:]),
      r"empty.csv.*row 5 \(data row 3\), column q2_deg.*a decimal comma\? write numbers with a decimal point"),
+    (lambda h, rows: (h, rows[:3] + [[f'"{float(v):.2e}"'.replace(".", ",") if j == h.index("dx_m") else v
+                                      for j, v in enumerate(rows[3])]] + rows[4:]),  # a fresh user's '-8,44e-05'
+     r"empty.csv.*row 5 \(data row 3\), column dx_m.*got '[-0-9]+,[0-9]+e[-+][0-9]+': a decimal comma\?"),
 ])
 def test_an_empty_file_and_a_decimal_comma_are_named(tmp_path, edit, words):
     robot = load_robot(LAB_DIR / "lab_3r.yaml")

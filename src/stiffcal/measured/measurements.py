@@ -464,7 +464,8 @@ def _numbers(df, cols: list[str], source: str) -> np.ndarray:
         if bad.size:
             r = bad[0]
             cell = str(df[c].iloc[r])
-            hint = (": a decimal comma? write numbers with a decimal point" if re.fullmatch(r"\s*[-+]?\d+,\d+\s*", cell)
+            comma = re.fullmatch(r"\s*[-+]?\d+,\d+([eE][-+]?\d+)?\s*", cell)
+            hint = (": a decimal comma? write numbers with a decimal point" if comma
                     else ": a date or clock time? give the time in seconds (any origin)"
                     if c.endswith("_s") and re.search(r"\d[-/.:]\d", cell) else "")
             raise InputError(f"expected a finite number, got {cell!r}{hint}", source=source,
