@@ -2729,9 +2729,12 @@ OUTSIDE_ALONE = 0.01
 
 def _outside_effects(diag: dict, level: float) -> list[str]:
     """The effects outside the catalogue (:data:`OUTSIDE_EFFECTS`) found at ``level`` against the nominal model
-    beyond which the chosen causes add nothing at that level (``chosen_beyond_p`` None: no cause chosen)."""
+    beyond which the chosen causes add nothing at that level (``chosen_beyond_p`` None: no cause chosen) and, where
+    the effect says (``beyond_chosen_p``: a load missing from the log, which a backlash under loads that never reverse
+    mimics), that add something beyond the chosen causes."""
     found = [k for k, p in OUTSIDE_EFFECTS.items() if diag[k] is not None and diag[k][p] <= level
-             and (diag[k]["chosen_beyond_p"] is None or diag[k]["chosen_beyond_p"] > level)]
+             and (diag[k]["chosen_beyond_p"] is None or diag[k]["chosen_beyond_p"] > level)
+             and (diag[k].get("beyond_chosen_p") is None or diag[k]["beyond_chosen_p"] <= level)]
     if "load_direction" in found and "load_offset" in found:  # of a tilt and an offset, the one the other does not
         #                 explain, else the better fitting (smaller p); both where each adds to the other
         tilt = diag["load_direction"].get("beyond_load_offset_p")
@@ -3426,6 +3429,17 @@ def _unlogged_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
     return out
 
 
+def _beyond_chosen(pre: Prepared, named: np.ndarray, unknown: np.ndarray, chosen) -> float:
+    """The F-test p-value of an effect outside the catalogue (its columns ``named`` and ``unknown``, weighted, as
+    :func:`_effect_test` takes them) added to the chosen causes' model: does it add anything beyond them?"""
+    des, noise = pre.des, pre.noise
+    both = np.concatenate([named, unknown], -1) * pre.w[:, None, None]
+    T = (pre.error.whiten(both) if pre.error.blocks else both).reshape(len(des.y), -1)
+    X = des.model(chosen)
+    f1, f2 = fit(X, des.y), fit(np.hstack([X, T]), des.y)
+    return f_test(f1.rss, f1.df, f2.rss, f2.df, noise.s2, noise.df) if f2.rank > f1.rank else 1.0
+
+
 def _unlogged_refined(robot: Robot, pre: Prepared, loads: list[np.ndarray], coef: np.ndarray,
                       iterations: int = 20) -> np.ndarray:
     """The constant load's coefficients (A,) [N] on ``loads`` (:func:`_unlogged_loads`) fitted with the compliances
@@ -3462,14 +3476,22 @@ def _unlogged_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: fl
     if tested is None:
         return None, None
     p, coef, beyond = tested
+    beyond_chosen = _beyond_chosen(pre, named, unknown, chosen) if chosen else None
     coef = _unlogged_refined(robot, pre, loads, coef)
     force = np.sum([c * w[0, : robot.task_dim] for c, w in zip(coef, loads)], axis=0)
     g = np.asarray(robot.gravity, float)[: robot.task_dim]
     kg = float(force @ g / np.linalg.norm(g)) / STANDARD_GRAVITY_M_S2
-    out = {"p_value": p, "force_N": [float(v) for v in force], "mass_kg": kg, "chosen_beyond_p": beyond}
+    out = {"p_value": p, "force_N": [float(v) for v in force], "mass_kg": kg, "chosen_beyond_p": beyond,
+           "beyond_chosen_p": beyond_chosen}
     if p > alpha or (beyond is not None and beyond <= alpha):
         return out, None
     label = "+".join(sorted(chosen, key=CAUSES.index))
+    if beyond_chosen is not None and beyond_chosen > alpha:  # each explains the data as well as the other
+        return out, (f"{label} and a constant load missing from the log ({kg:.3g} kg along gravity, F-test p = "
+                     f"{p:.2g} against the nominal model) explain these data alike (neither adds to the other: p = "
+                     f"{beyond:.2g} and {beyond_chosen:.2g}): under loads that never reverse, a gear's jump and an "
+                     "unlogged hook's weight both shift every loaded row of a configuration by a constant; check "
+                     "that every hanging part was logged, or measure with loads that reverse the joints' torques")
     return out, (f"the nominal model's residuals follow a constant load missing from the log: every loaded row acts "
                  f"as if it carried ({', '.join(f'{v:.3g}' for v in force)}) N more in the base frame ({kg:.3g} kg "
                  f"along gravity; F-test p = {p:.2g}" + (f"; {label} adds nothing beyond it, p = {beyond:.2g}"
