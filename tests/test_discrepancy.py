@@ -2041,27 +2041,40 @@ def test_loads_logged_in_a_force_torque_sensor_s_frame_are_refused_naming_the_fr
     """The same user's KR 210 logs with the wrench left in the flange sensor's frame (its simulator's record): read
     as logged, `unexplained` with four false causes in 12 of 12 and a calibrated.yaml with k3 a fifth of its truth.
     Refused, naming the load columns and the frame; the same log in the base frame (the clean twin) is analysed."""
-    robot = load_robot(root / "config/robots/kuka_kr210_r2700.yaml")
-    with pytest.raises(InputError, match=r"columns fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm.*base frame.*times better "
-                                         r".*turned from the tip frame"):
-        D.analyse(robot, read_measurements(NEWUSER / "kr210_ft_sensorframe_s101.csv", robot), 0.01, gain=False)
-    assert D.analyse(robot, read_measurements(NEWUSER / "kr210_ft_clean_s101.csv", robot), 0.01,
-                     gain=False)["cause"] == "none"
+    _refused_then_clean(load_robot(root / "config/robots/kuka_kr210_r2700.yaml"), [
+        ("kr210_ft_sensorframe_s101.csv", r"columns fx_N, fy_N, fz_N, mx_Nm, my_Nm, mz_Nm.*base frame.*times better "
+                                          r".*turned from the tip frame")], "kr210_ft_clean_s101.csv")
 
 
-def _ur5_on_a_bar(directory):
-    """A fresh user's UR5 (example-robot-data's URDF) with a 1.5 kg loading bar and two SMRs on it, its robot file."""
+def _refused_then_clean(robot, refused: list[tuple[str, str]], clean: str) -> None:
+    """Each log of ``refused`` (file in NEWUSER, message pattern) refused by the analysis with that message, and the
+    clean twin ``clean`` analysed to none."""
+    for name, pattern in refused:
+        with pytest.raises(InputError, match=pattern):
+            D.analyse(robot, read_measurements(NEWUSER / name, robot), 0.01, gain=False)
+    assert D.analyse(robot, read_measurements(NEWUSER / clean, robot), 0.01, gain=False)["cause"] == "none"
+
+
+def _erd_robot(directory, name: str, urdf: str, base: str, tip: str, extra: str):
+    """A fresh user's robot file for a URDF of example-robot-data (``urdf`` under its robots folder, the chain from
+    ``base`` to ``tip``, further keys ``extra``), loaded; the test is skipped without the package."""
     from real_arms import robots_dir
 
     if robots_dir() is None:
         pytest.skip("example-robot-data is not installed")
-    path = Path(directory) / "ur5_bar.yaml"
-    path.write_text(f"name: lab-ur5\nkind: urdf\nurdf: {robots_dir() / 'ur_description/urdf/ur5_robot.urdf'}\n"
-                    "base_frame: base_link\ntip_frame: tool0\ntool_m: [0.0, 0.0, 0.05]\n"
-                    "compliances_rad_per_Nm: [1.0e-5, 1.2e-5, 1.5e-5, 3.0e-5, 3.0e-5, 4.0e-5]\n"
-                    "targets: {A: [0.15, 0.0, 0.07], B: [0.35, 0.0, 0.07]}\npayload_kg: 1.5\n"
-                    "payload_com_m: [0.2, 0.0, 0.05]\ngravity: [0, 0, -1]\n", encoding="utf-8")
+    path = Path(directory) / f"{name}.yaml"
+    path.write_text(f"name: {name}\nkind: urdf\nurdf: {robots_dir() / urdf}\nbase_frame: {base}\ntip_frame: {tip}\n"
+                    + extra, encoding="utf-8")
     return load_robot(path)
+
+
+def _ur5_on_a_bar(directory):
+    """A fresh user's UR5 (example-robot-data's URDF) with a 1.5 kg loading bar and two SMRs on it, its robot file."""
+    return _erd_robot(directory, "lab-ur5", "ur_description/urdf/ur5_robot.urdf", "base_link", "tool0",
+                      "tool_m: [0.0, 0.0, 0.05]\n"
+                      "compliances_rad_per_Nm: [1.0e-5, 1.2e-5, 1.5e-5, 3.0e-5, 3.0e-5, 4.0e-5]\n"
+                      "targets: {A: [0.15, 0.0, 0.07], B: [0.35, 0.0, 0.07]}\npayload_kg: 1.5\n"
+                      "payload_com_m: [0.2, 0.0, 0.05]\ngravity: [0, 0, -1]\n")
 
 
 def test_a_force_axis_of_the_wrong_sign_or_a_turned_base_frame_is_refused(tmp_path):
@@ -2070,14 +2083,10 @@ def test_a_force_axis_of_the_wrong_sign_or_a_turned_base_frame_is_refused(tmp_pa
     ``base`` frame, base_link turned 180 deg about z: read as logged, `unexplained` with a drift of thousands of um/h
     named and the wrist compliances 11-17 times their truth in calibrated.yaml (10 of 10 seeds). Both refused, naming
     the column and the turn; the clean twin is analysed as before (none)."""
-    robot = _ur5_on_a_bar(tmp_path)
-    with pytest.raises(InputError, match=r"columns fz_N'.* times better .*with fz_N negated"):
-        D.analyse(robot, read_measurements(NEWUSER / "ur5_bar_flipfz_s1.csv", robot), 0.01, gain=False)
-    with pytest.raises(InputError, match=r"columns dx_m, dy_m, dz_m, fx_N.*mz_Nm'.*base frame \(base_link\).*turned "
-                                         r"180 deg about the base's z axis"):
-        D.analyse(robot, read_measurements(NEWUSER / "ur5_bar_urbase_s1.csv", robot), 0.01, gain=False)
-    assert D.analyse(robot, read_measurements(NEWUSER / "ur5_bar_clean_s1.csv", robot), 0.01,
-                     gain=False)["cause"] == "none"
+    _refused_then_clean(_ur5_on_a_bar(tmp_path), [
+        ("ur5_bar_flipfz_s1.csv", r"columns fz_N'.* times better .*with fz_N negated"),
+        ("ur5_bar_urbase_s1.csv", r"columns dx_m, dy_m, dz_m, fx_N.*mz_Nm'.*base frame \(base_link\).*displacements "
+                                  r"and loads all turned 180 deg about the base's z axis")], "ur5_bar_clean_s1.csv")
 
 
 def test_displacements_alone_turned_are_refused_and_a_weaker_frame_fault_is_noted(tmp_path):
@@ -2087,19 +2096,13 @@ def test_displacements_alone_turned_are_refused_and_a_weaker_frame_fault_is_note
     (deflections 20-40 um beside 5 um of noise) pushed along +-x, +-y, +-z with fz negated fitted 4.4 times better
     negated, under the ten times of a refusal: `unexplained` with false causes in silence in 6 of 8; now a note
     names the column, and the clean twin has none."""
-    from real_arms import robots_dir
-
     r3 = load_robot(NEWUSER / "r3_masses.yaml")
     with pytest.raises(InputError, match=r"columns dx_m, dy_m'.*displacements alone turned 90 deg"):
         D.analyse(r3, read_measurements(NEWUSER / "r3_hang_displacements_turned90_s1.csv", r3), 0.01, gain=False)
-    if robots_dir() is None:
-        pytest.skip("example-robot-data is not installed")
-    path = tmp_path / "ur5.yaml"
-    path.write_text(f"name: ur5\nkind: urdf\nurdf: {robots_dir() / 'ur_description/urdf/ur5_robot.urdf'}\n"
-                    "base_frame: base_link\ntip_frame: tool0\ntool_m: [0.0, 0.05, 0.10]\n"
-                    "compliances_rad_per_Nm: [1.0e-5, 1.0e-5, 1.5e-5, 3.0e-5, 3.0e-5, 4.0e-5]\ngravity: [0, 0, -1]\n",
-                    encoding="utf-8")
-    ur5 = load_robot(path)
+    ur5 = _erd_robot(tmp_path, "ur5", "ur_description/urdf/ur5_robot.urdf", "base_link", "tool0",
+                     "tool_m: [0.0, 0.05, 0.10]\n"
+                     "compliances_rad_per_Nm: [1.0e-5, 1.0e-5, 1.5e-5, 3.0e-5, 3.0e-5, 4.0e-5]\n"
+                     "gravity: [0, 0, -1]\n")
     notes = D.prepare(ur5, read_measurements(NEWUSER / "ur5_stiff_push_fzneg_s2.csv", ur5)).notes
     assert any(n.startswith("analysed as logged, but the nominal model fits the data") and "fz_N negated" in n
                for n in notes), notes
@@ -2216,16 +2219,9 @@ def test_a_soft_arm_under_a_scattered_gauge_is_corrected_for_its_geometry(tmp_pa
     so the rows were left first-order and the held-out predictions' z came out 2-3. The noise the error model finds
     (21 um) is now the scale: the rows are corrected, and the compliances come closer to the simulator's truth (RMS
     of their z over the identified joints, the 95 % half-width / 1.96 as sd) than uncorrected."""
-    from real_arms import robots_dir
-
-    if robots_dir() is None:
-        pytest.skip("example-robot-data is not installed")
-    path = tmp_path / "jaco2.yaml"
-    path.write_text(f"name: jaco2\nkind: urdf\nurdf: {robots_dir() / 'kinova_description/robots/kinova.urdf'}\n"
-                    "base_frame: base\ntip_frame: j2s6s200_end_effector\ntool_m: [0.0, 0.0, 0.0]\n"
-                    "compliances_rad_per_Nm: [5.0e-4, 3.0e-4, 6.0e-4, 1.2e-3, 1.2e-3, 1.5e-3]\ngravity: [0, 0, -1]\n",
-                    encoding="utf-8")
-    robot = load_robot(path)
+    robot = _erd_robot(tmp_path, "jaco2", "kinova_description/robots/kinova.urdf", "base", "j2s6s200_end_effector",
+                       "tool_m: [0.0, 0.0, 0.0]\ncompliances_rad_per_Nm: [5.0e-4, 3.0e-4, 6.0e-4, 1.2e-3, 1.2e-3, "
+                       "1.5e-3]\ngravity: [0, 0, -1]\n")
     meas = read_measurements(NEWUSER / "jaco2_gauge_exact_s3.csv", robot)
     truth = np.array([6e-4, 2.2e-4, 7.5e-4, 1.0e-3, 1.6e-3, 2.0e-3])  # the simulator's
 
