@@ -3371,15 +3371,19 @@ def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, unknown: np.ndarray, f0:
                  "describes it" + (f", and {label} may only absorb it" if chosen else ""))
 
 
+def _whitened(pre: Prepared, A: np.ndarray) -> np.ndarray:
+    """(N d, k): the weighted columns A (N, d, k) of an effect in the analysis's coordinates (whitened by the rows'
+    error model where rows share errors), stacked as its design's."""
+    return (pre.error.whiten(A) if pre.error.blocks else A).reshape(len(pre.des.y), -1)
+
+
 def _effect_test(pre: Prepared, named: np.ndarray, unknown: np.ndarray, f0: Fit, chosen):
     """(p, coefficients of ``named``, chosen_beyond_p) or None: the F-test of an effect outside the catalogue added
     to the nominal model (fit ``f0``) by its columns (weighted: ``named`` (N, w, A) whose coefficients are reported,
     ``unknown`` (N, w, B) with free coefficients; whitened by the rows' error model), and of the chosen causes beyond
     it (None without causes); None where the columns add no rank."""
-    m, des, noise = pre.m, pre.des, pre.noise
-    N, d = m.n_rows, des.d
-    both = np.concatenate([named, unknown], -1)
-    T = (pre.error.whiten(both) if pre.error.blocks else both).reshape(N * d, -1)
+    des, noise = pre.des, pre.noise
+    T = _whitened(pre, np.concatenate([named, unknown], -1))
     f1 = fit(np.hstack([des.X0, T]), des.y)
     if f1.rank <= f0.rank:
         return None
@@ -3397,7 +3401,7 @@ def _beyond_each_other(pre: Prepared, a: np.ndarray, b: np.ndarray) -> tuple[flo
     tilted in the plane and one acting off the tool point move a planar arm's tool alike); None where one adds no
     rank to the other."""
     des, noise = pre.des, pre.noise
-    white = [(pre.error.whiten(c) if pre.error.blocks else c).reshape(len(des.y), -1) for c in (a, b)]
+    white = [_whitened(pre, c) for c in (a, b)]
     fa, fb = (fit(np.hstack([des.X0, c]), des.y) for c in white)
     f2 = fit(np.hstack([des.X0, *white]), des.y)
     return tuple(f_test(g.rss, g.df, f2.rss, f2.df, noise.s2, noise.df) if f2.rank > g.rank else None
@@ -3420,9 +3424,15 @@ def _offset_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
 def _offset_columns(robot: Robot, pre: Prepared, k: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(named (N, w, E), unknown (N, w, E D)), weighted: the deflection of the moment (R e) x F of every tip-frame
     axis e (:func:`_offset_loads`) through the nominal compliances k, and through the D joints the logged loads never
-    turn with free coefficients."""
+    turn with free coefficients (:func:`_load_effect_columns`)."""
+    return _load_effect_columns(robot, pre, k, _offset_loads(robot, pre.m))
+
+
+def _load_effect_columns(robot: Robot, pre: Prepared, k: np.ndarray, loads) -> tuple[np.ndarray, np.ndarray]:
+    """(named (N, w, E), unknown (N, w, E D)), weighted: the deflection of each of the E further wrenches ``loads``
+    ((N, d + d_m) each) through the nominal compliances k, and through the D joints the logged loads never turn with
+    free coefficients."""
     m = pre.m
-    loads = _offset_loads(robot, m)
     named = np.stack([np.einsum("ndp,p->nd", nominal_columns(robot, m.q, w, pre.ob), k) for w in loads], -1)
     ob_dropped = replace(pre.ob_full.take(pre.keep), params=np.asarray(pre.dropped, int))
     unknown = (np.concatenate([nominal_columns(robot, m.q, w, ob_dropped) for w in loads], -1)
@@ -3480,11 +3490,10 @@ def _unlogged_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
 
 
 def _beyond_chosen(pre: Prepared, named: np.ndarray, unknown: np.ndarray, chosen) -> float:
-    """The F-test p-value of an effect outside the catalogue (its columns ``named`` and ``unknown``, weighted, as
+    """The F-test p-value of an effect outside the catalogue (its weighted columns ``named`` and ``unknown``, as
     :func:`_effect_test` takes them) added to the chosen causes' model: does it add anything beyond them?"""
     des, noise = pre.des, pre.noise
-    both = np.concatenate([named, unknown], -1) * pre.w[:, None, None]
-    T = (pre.error.whiten(both) if pre.error.blocks else both).reshape(len(des.y), -1)
+    T = _whitened(pre, np.concatenate([named, unknown], -1))
     X = des.model(chosen)
     f1, f2 = fit(X, des.y), fit(np.hstack([X, T]), des.y)
     return f_test(f1.rss, f1.df, f2.rss, f2.df, noise.s2, noise.df) if f2.rank > f1.rank else 1.0
@@ -3497,11 +3506,7 @@ def _unlogged_refined(robot: Robot, pre: Prepared, loads: list[np.ndarray], coef
     rows from the first-order ``coef``, found with the nominal fit's k, which took up part of F0 (a 1.5 kg hanger
     read as 1.2 kg)."""
     m, des = pre.m, pre.des
-    N, d = m.n_rows, des.d
-    cols = []
-    for w in loads:
-        A = nominal_columns(robot, m.q, w, pre.ob) * pre.w[:, None, None]
-        cols.append((pre.error.whiten(A) if pre.error.blocks else A).reshape(N * d, -1))
+    cols = [_whitened(pre, nominal_columns(robot, m.q, w, pre.ob) * pre.w[:, None, None]) for w in loads]
     c = np.asarray(coef, float)
     for _ in range(iterations):
         k = fit(des.X0 + sum(ci * Ci for ci, Ci in zip(c, cols)), des.y).beta
@@ -3516,13 +3521,9 @@ def _unlogged_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: fl
     free coefficients, added to the nominal model; its F-test, F0 [N] in the base frame, and whether the chosen
     causes add anything beyond it. A fresh user's UR5 with a 1.5 kg hanger not logged: ``unexplained`` in 10 of 10
     logs with a drift of 4,700 um/h named, no word of a load, and in 6 the extended model in calibrated.yaml."""
-    m = pre.m
-    loads = _unlogged_loads(robot, m)
-    named = np.stack([np.einsum("ndp,p->nd", nominal_columns(robot, m.q, w, pre.ob), f0.beta) for w in loads], -1)
-    ob_dropped = replace(pre.ob_full.take(pre.keep), params=np.asarray(pre.dropped, int))
-    unknown = (np.concatenate([nominal_columns(robot, m.q, w, ob_dropped) for w in loads], -1)
-               if len(pre.dropped) else named[..., :0])
-    tested = _effect_test(pre, named * pre.w[:, None, None], unknown * pre.w[:, None, None], f0, chosen)
+    loads = _unlogged_loads(robot, pre.m)
+    named, unknown = _load_effect_columns(robot, pre, f0.beta, loads)
+    tested = _effect_test(pre, named, unknown, f0, chosen)
     if tested is None:
         return None, None
     p, coef, beyond = tested
