@@ -2267,3 +2267,14 @@ def test_two_visits_back_to_back_without_a_visit_column_are_named(tmp_path):
     rows = df.index[df.pose_id == "C18"].to_numpy()
     assert v["cause"] == "none" and len(notes) == 1 and notes[0].startswith("1 visit(s)")
     assert f"(data rows {', '.join(map(str, rows[:5]))}, ...)" in notes[0]
+
+
+def test_a_p_value_below_the_smallest_double_is_stated_as_such():
+    """A fresh user's backlash of 0.002 rad on a Jaco2 came out with p_value 0.0 (below the smallest double) and the
+    statement "adjusted p = 0": it now reads "< 1e-300"; a representable p is stated as before."""
+    assert D.p_value_statement("backlash", ["backlash"], 0.0, {"backlash": 0.0}, 0.01).startswith(
+        "adjusted p < 1e-300 of 'backlash is not needed'")
+    assert D.p_value_statement("backlash", ["backlash"], 3e-45, {"backlash": 3e-45}, 0.01).startswith(
+        "adjusted p = 3e-45 of 'backlash is not needed'")
+    assert "adjusted p < 1e-300 of 'nothing outside" in D.p_value_statement("unexplained", ["lack_of_fit"], 0.0, {},
+                                                                             0.01)

@@ -3580,21 +3580,23 @@ def p_value_statement(cause: str, p_of: list[str], p_value: float, adjusted: dic
     """What the verdict's ``p_value`` is about, in one sentence: the closed-testing adjusted p-value of the
     intersection "none of ``p_of`` is needed" (the lack of fit for ``unexplained``; every testable cause for
     ``none``). With several causes in ``p_of`` the data need at least one of them, and each one's own adjusted
-    p-value (``adjusted``, cause -> p) may be large: which one cannot be told apart."""
-    p = f"{p_value:.2g}"
+    p-value (``adjusted``, cause -> p) may be large: which one cannot be told apart. A p-value below the smallest
+    double (0.0 in the JSON) reads "< 1e-300" (a fresh user's backlash at 0.002 rad: "adjusted p = 0")."""
+    p = f"{p_value:.2g}" if p_value > 0 else "< 1e-300"
+    p = p if p.startswith("<") else f"= {p}"
     if cause == "unexplained":
-        return (f"adjusted p = {p} of 'nothing outside the catalogue is present' (the lack of fit): something the "
+        return (f"adjusted p {p} of 'nothing outside the catalogue is present' (the lack of fit): something the "
                 "catalogue does not describe is left")
     if cause == "none":
-        return (f"adjusted p = {p} of 'none of the catalogue's causes is needed' (not rejected at alpha = "
+        return (f"adjusted p {p} of 'none of the catalogue's causes is needed' (not rejected at alpha = "
                 f"{alpha:g})" if p_of else "no cause of the catalogue can be tested on these data")
     own = ", ".join(f"{c} {adjusted[c]:.2g}" for c in p_of if adjusted.get(c) is not None)
     if len(p_of) == 1:
-        text = f"adjusted p = {p} of '{cause} is not needed'"
+        text = f"adjusted p {p} of '{cause} is not needed'"
         return text + ("" if p_value <= alpha else f": {cause} is the smallest combination that explains the data, "
                        f"but it is not needed on its own at alpha = {alpha:g}")
     alone = [c for c in p_of if adjusted.get(c) is not None and adjusted[c] <= alpha]
-    text = (f"the data need at least one of {{{', '.join(p_of)}}} (adjusted p = {p} of 'none of them is needed'); "
+    text = (f"the data need at least one of {{{', '.join(p_of)}}} (adjusted p {p} of 'none of them is needed'); "
             f"which one cannot be told apart (each one's own adjusted p: {own})")
     if not alone:
         text += f"; none of them is needed on its own at alpha = {alpha:g}"
