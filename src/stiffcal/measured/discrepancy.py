@@ -2765,10 +2765,14 @@ def _outside_effects(diag: dict, level: float) -> list[str]:
     """The effects outside the catalogue (:data:`OUTSIDE_EFFECTS`) found at ``level`` against the nominal model
     beyond which the chosen causes add nothing at that level (``chosen_beyond_p`` None: no cause chosen) and, where
     the effect says (``beyond_chosen_p``: a load missing from the log, which a backlash under loads that never reverse
-    mimics), that add something beyond the chosen causes."""
+    mimics), that add something beyond the chosen causes; of a drift not confounded with the load and a missing load,
+    the drift (a simulated drift of the 6-axis arm took a missing load of -1.9 kg beside it)."""
     found = [k for k, p in OUTSIDE_EFFECTS.items() if diag[k] is not None and diag[k][p] <= level
              and (diag[k]["chosen_beyond_p"] is None or diag[k]["chosen_beyond_p"] > level)
              and (diag[k].get("beyond_chosen_p") is None or diag[k]["beyond_chosen_p"] <= level)]
+    r = (diag.get("time") or {}).get("time_load_correlation")
+    if "unlogged_load" in found and "time" in found and (r is None or abs(r) < TIME_LOAD_CONFOUNDED):
+        found.remove("unlogged_load")  # a drift not confounded with the load: a constant per load is its shadow
     if "load_direction" in found and "load_offset" in found:  # of a tilt and an offset, the one the other does not
         #                 explain, else the better fitting (smaller p); both where each adds to the other
         tilt = diag["load_direction"].get("beyond_load_offset_p")
@@ -3036,7 +3040,7 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
     if out["load_direction"] is not None and out["load_offset"] is not None:
         out["load_direction"]["beyond_load_offset_p"], out["load_offset"]["beyond_load_direction_p"] = (
             _beyond_each_other(pre, np.concatenate([turned, unknown], -1), np.concatenate(offset, -1)))
-    out["unlogged_load"], unlogged_note = _unlogged_diagnostic(robot, pre, f0, chosen, alpha)
+    out["unlogged_load"], unlogged_note = _unlogged_diagnostic(robot, pre, f0, chosen, alpha, out["time"])
     found = _outside_effects(out, alpha)  # of a tilt and an offset that explain each other, the better one's note
     tilt_note = None if "load_offset" in found and "load_direction" not in found else tilt_note
     offset_note = None if "load_direction" in found and "load_offset" not in found else offset_note
@@ -3514,13 +3518,15 @@ def _unlogged_refined(robot: Robot, pre: Prepared, loads: list[np.ndarray], coef
     return c
 
 
-def _unlogged_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: float):
+def _unlogged_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: float, time: dict | None = None):
     """(``diagnostics.unlogged_load`` or None, note): every loaded row carries a constant load F0 beside its logged
     one (a hook or hanger hung with the masses and not logged, a load cell's zero offset): the deflection of F0
     (:func:`_unlogged_loads`) through the nominal compliances, and through the joints the logged loads never turn with
     free coefficients, added to the nominal model; its F-test, F0 [N] in the base frame, and whether the chosen
     causes add anything beyond it. A fresh user's UR5 with a 1.5 kg hanger not logged: ``unexplained`` in 10 of 10
-    logs with a drift of 4,700 um/h named, no word of a load, and in 6 the extended model in calibrated.yaml."""
+    logs with a drift of 4,700 um/h named, no word of a load, and in 6 the extended model in calibrated.yaml. Where
+    the time since the reference follows the load's size (``time``: ``diagnostics.time``), the note says a drift can
+    look the same."""
     loads = _unlogged_loads(robot, pre.m)
     named, unknown = _load_effect_columns(robot, pre, f0.beta, loads)
     tested = _effect_test(pre, named, unknown, f0, chosen)
@@ -3543,12 +3549,18 @@ def _unlogged_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: fl
                      f"{beyond:.2g} and {beyond_chosen:.2g}): under loads that never reverse, a gear's jump and an "
                      "unlogged hook's weight both shift every loaded row of a configuration by a constant; check "
                      "that every hanging part was logged, or measure with loads that reverse the joints' torques")
+    what = ("a hook or hanger hung with the masses and not logged, or a load cell's zero offset? Add it to every "
+            "loaded row's logged load (what hangs in every reading, the reference included, is the robot file's "
+            "payload_kg)" if kg >= 0 else "less load acted than was logged (weights lighter than labelled, a load "
+            "cell's zero offset)?")
+    r = (time or {}).get("time_load_correlation")
+    if r is not None and abs(r) >= TIME_LOAD_CONFOUNDED:
+        what += (f"; or a drift of the tracker: the time since the reference follows the load's size (correlation "
+                 f"{r:.2f}), and a drift then looks the same (diagnostics.time)")
     return out, (f"the nominal model's residuals follow a constant load missing from the log: every loaded row acts "
                  f"as if it carried ({', '.join(f'{v:.3g}' for v in force)}) N more in the base frame ({kg:.3g} kg "
                  f"along gravity; F-test p = {p:.2g}" + (f"; {label} adds nothing beyond it, p = {beyond:.2g}"
-                                                          if chosen else "") + "): a hook or hanger hung with the "
-                 "masses and not logged, or a load cell's zero offset? Add it to every loaded row's logged load (what "
-                 "hangs in every reading, the reference included, is the robot file's payload_kg); no catalogue cause "
+                                                          if chosen else "") + f"): {what}; no catalogue cause "
                  "describes it" + (f", and {label} may only absorb it" if chosen else ""))
 
 
