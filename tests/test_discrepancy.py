@@ -382,7 +382,7 @@ def test_a_verdict_without_a_cause_says_why_its_gain_is_null(paper_robot):
 
 @pytest.mark.parametrize("force_scale, dp_scale, words", [
     (1.0, -1.0, "no identified joint compliance is above zero.*every one below.*unloaded minus loaded"),
-    (-1.0, 1.0, "no identified joint compliance is above zero.*forces logged with the opposite sign"),
+    (-1.0, 1.0, "no identified joint compliance is above zero.*forces of the opposite sign"),
     (1e-3, 1.0, "end-effector compliance is .* far above serial robots.*kN"),
     (1.0, 1e-4, "end-effector compliance is .* far below serial robots.*micrometres")])
 def test_data_no_elastic_robot_gives_are_refused_with_their_likely_cause(paper_robot, force_scale, dp_scale, words):

@@ -1628,6 +1628,14 @@ def _other_frames(robot: Robot, meas: Measurements, ob: Observed) -> list[tuple]
             out.append((load, scaled, "expected displacements in metres, but the nominal model fits the data {ratio} "
                         "times better (residual sum of squares) with " + col + " divided by 1000: that column in "
                         "millimetres labelled metres? (docs/measured-data.md)", [col]))
+    return out + _turned_frames(robot, meas, load, y, forces + moments)
+
+
+def _turned_frames(robot: Robot, meas: Measurements, load: np.ndarray, y: np.ndarray, load_columns: list) -> list:
+    """:func:`_other_frames`'s readings turned 90, 180 and 270 deg about the base's z axis: the displacements alone
+    (the loads ``load`` right), and the displacements ``y`` and loads together (``load_columns`` their columns)."""
+    d = force_dim(robot)
+    out = []
     info = getattr(robot, "urdf_info", None) or {}
     base = f" ({info['base_frame']})" if info.get("base_frame") else ""
     for deg in (90, 180, 270):
@@ -1653,7 +1661,7 @@ def _other_frames(robot: Robot, meas: Measurements, ob: Observed) -> list[tuple]
                     "another frame of the robot (a UR's base is its base_link turned 180 deg about z)? Name the frame "
                     "the tracker was registered to as the robot file's base_frame, or turn the columns into it "
                     "(docs/measured-data.md)",
-                    [f"d{a}_m" for a in "xyz"[: robot.task_dim]] + forces + moments))
+                    [f"d{a}_m" for a in "xyz"[: robot.task_dim]] + load_columns))
     return out
 
 
@@ -2297,26 +2305,33 @@ def prepare(robot: Robot, meas: Measurements, alpha: float = 0.01, sigma_m: floa
         notes.append(unseen_note(robot, unseen))
     if noise.df < 10:
         notes.append(f"the noise estimate has only {noise.df} degrees of freedom: the tests have little power")
-    if vm is not None and vm.rejected_p is not None:
-        notes.append(f"the replicates' spread suggests a noise that varies with the position of the measured point "
-                     f"(p = {vm.p_value:.2g}, a factor {vm.sigma_ratio:.3g} between rows), but with the errors the "
-                     f"rows share the likelihood does not confirm it (likelihood ratio p = {vm.rejected_p:.2g}): "
-                     "the fits are not weighted")
-        vm = None
-    if vm is not None:
-        notes.append(f"the noise varies with the position of the measured point (a tracker's error grows with "
-                     f"the distance; p = {vm.p_value:.2g}), by a factor {vm.sigma_ratio:.3g} between rows: the fits "
-                     "are weighted by it" + (f", and the error variance the tests use is multiplied by {factor:.3g}, "
-                                             "each configuration weighted as by the variance function fitted without "
-                                             "it (a function fitted to the deviations it weights makes them look "
-                                             "smaller)" if factor != 1.0 else ""))
-    notes += error_model_notes(em)
+    vm, vm_notes = _variance_model_notes(vm, factor)
+    notes += vm_notes + error_model_notes(em)
     noise_scale = float(np.sqrt(noise.s2))
     if (not geometry and geometry_scale is None and vm is None and noise_scale > 0
             and geometry_corrected(robot, raw, ob_raw, des_raw, noise_scale)[1]):
         return prepare(robot, raw, alpha, sigma_m, sigma_rad, noise_scale)
     return Prepared(meas, keep, m, blunders, dropped, ob_full, ob, rw, vm, w, em, des, noise, zp, notes, weighted,
                     w0)
+
+
+def _variance_model_notes(vm, factor: float) -> tuple:
+    """(the variance model the fits use, None where the likelihood rejects it; its notes): the noise varying with
+    the measured point's position (``vm``), and the error variance's correction ``factor`` for weights fitted to the
+    deviations they weight."""
+    if vm is not None and vm.rejected_p is not None:
+        return None, [f"the replicates' spread suggests a noise that varies with the position of the measured point "
+                      f"(p = {vm.p_value:.2g}, a factor {vm.sigma_ratio:.3g} between rows), but with the errors the "
+                      f"rows share the likelihood does not confirm it (likelihood ratio p = {vm.rejected_p:.2g}): "
+                      "the fits are not weighted"]
+    if vm is None:
+        return None, []
+    return vm, [f"the noise varies with the position of the measured point (a tracker's error grows with the "
+                f"distance; p = {vm.p_value:.2g}), by a factor {vm.sigma_ratio:.3g} between rows: the fits are "
+                "weighted by it" + (f", and the error variance the tests use is multiplied by {factor:.3g}, each "
+                                    "configuration weighted as by the variance function fitted without it (a function "
+                                    "fitted to the deviations it weights makes them look smaller)"
+                                    if factor != 1.0 else "")]
 
 
 #: the second-order part of the rows (:func:`second_order_part`), in RMS over the rows and coordinates, relative to
@@ -2991,6 +3006,14 @@ def _gain_notes(robot: Robot, gain: dict | None, diagnostics: dict, ext: list, d
     return notes
 
 
+#: the note of data measured under one load per configuration (``diagnostics.one_load_per_configuration``)
+ONE_LOAD_NOTE = ("every configuration is measured under one load only: at a configuration the load-deflection curve "
+                 "is seen at one point, so a backlash, a nonlinear stiffness and the shared error of its reference "
+                 "reading all look like compliance there, and the data tell them apart only by how they vary across "
+                 "configurations (the compliances' intervals assume the model is right); measure two or more loads of "
+                 "different size per configuration")
+
+
 def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: float) -> tuple[dict, list[str]]:
     """The verdict's ``diagnostics`` and their notes: what a careful analyst checks beside the catalogue (each a
     warning at ``alpha``, Bonferroni within it; none changes the verdict):
@@ -3020,14 +3043,8 @@ def diagnostics(robot: Robot, pre: Prepared, chosen: frozenset, f: Fit, alpha: f
                  "unlogged_load": None, "extended_not_better_held_out": False, "return_to_zero": None,
                  "load_scatter": None, "outside_catalogue": None}
     notes = []
-    loads = m.structure()["loads_per_configuration"]
-    if loads["max"] == 1:
-        out["one_load_per_configuration"] = True
-        notes.append("every configuration is measured under one load only: at a configuration the load-deflection "
-                     "curve is seen at one point, so a backlash, a nonlinear stiffness and the shared error of its "
-                     "reference reading all look like compliance there, and the data tell them apart only by how they "
-                     "vary across configurations (the compliances' intervals assume the model is right); measure two "
-                     "or more loads of different size per configuration")
+    out["one_load_per_configuration"] = m.structure()["loads_per_configuration"]["max"] == 1
+    notes += [ONE_LOAD_NOTE] if out["one_load_per_configuration"] else []
     out["time"], note = _time_diagnostic(pre, chosen, f, alpha)
     notes += [note] if note else []
     f0 = fit(pre.des.X0, pre.des.y)  # the nominal fit: the tilt's regressors and its test's null model
