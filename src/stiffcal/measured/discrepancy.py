@@ -2696,25 +2696,27 @@ def _diagnosed(robot: Robot, pre: Prepared, out: dict, sel: Selection, chosen: f
     """The verdict ``out`` given its ``diagnostics`` (:func:`diagnostics`), made ``unexplained`` where effects outside
     the catalogue explain the data (:func:`_outside_verdict`); returns their notes and :func:`_weightless_note`'s."""
     out["diagnostics"], notes = diagnostics(robot, pre, chosen, sel.fits[chosen], alpha)
-    if out["diagnostics"]["outside_catalogue"]:
+    outside = out["diagnostics"]["outside_catalogue"]
+    if outside:
         out.update(_outside_verdict(out["diagnostics"], ranked))
-    elif out["p_value_of"] == ["lack_of_fit"]:
-        out["p_value_statement"] += _drift_beside(out["diagnostics"].get("time"), alpha)
+    if out["p_value_of"] == ["lack_of_fit"] or (outside and "time" not in outside):
+        out["p_value_statement"] += _drift_beside(out["diagnostics"].get("time"), alpha, not outside)
     return notes + _weightless_note(robot, out, alpha)
 
 
-def _drift_beside(time: dict | None, alpha: float) -> str:
-    """What the statement of an ``unexplained`` verdict (its lack of fit) adds when the rows drift beyond the chosen
-    causes (``time``: ``diagnostics.time``, significant at ``alpha`` and not confounded with the load's size): the
-    drift, as what the lack of fit may be (a fresh user's nonlinear stiffness logged under a drift of 20 um/h: the
-    statement said only that something the catalogue does not describe is left, the drift at p = 1e-9 in a note)."""
+def _drift_beside(time: dict | None, alpha: float, left: bool = True) -> str:
+    """What the statement of an ``unexplained`` verdict adds when the rows drift beyond the chosen causes (``time``:
+    ``diagnostics.time``, significant at ``alpha`` and not confounded with the load's size): the drift, as what the
+    lack of fit may be (``left``; a fresh user's nonlinear stiffness logged under a drift of 20 um/h: the statement
+    said only that something the catalogue does not describe is left, the drift at p = 1e-9 in a note), or beside the
+    effect outside the catalogue the verdict names (another's forgotten hook under a drift of 30 um/h)."""
     if not time or time["p_value"] > alpha:
         return ""
     r = time.get("time_load_correlation")
     if r is not None and abs(r) >= TIME_LOAD_CONFOUNDED:
         return ""
     return (f"; the rows drift beyond the chosen causes ({_drift_rate(time)}, p = {time['p_value']:.2g}, "
-            "diagnostics.time): what is left may be the tracker's drift")
+            "diagnostics.time)" + (": what is left may be the tracker's drift" if left else ""))
 
 
 def _drift_rate(time: dict) -> str:
@@ -3557,15 +3559,30 @@ def _unlogged_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: fl
     kg = float(force @ g / np.linalg.norm(g)) / STANDARD_GRAVITY_M_S2
     out = {"p_value": p, "force_N": [float(v) for v in force], "mass_kg": kg, "chosen_beyond_p": beyond,
            "beyond_chosen_p": beyond_chosen}
-    if p > alpha or (beyond is not None and beyond <= alpha):
-        return out, None
-    label = "+".join(sorted(chosen, key=CAUSES.index))
+    return out, _unlogged_note(out, sorted(chosen, key=CAUSES.index), alpha, time)
+
+
+def _unlogged_note(out: dict, chosen: list[str], alpha: float, time: dict | None) -> str | None:
+    """The note of ``diagnostics.unlogged_load`` (``out``) beside the ``chosen`` causes: none where it is not found
+    at ``alpha``; where both add to each other, that it is there beside them (a fresh user's Panda with a forgotten
+    0.8 kg hook and a real backlash: the load found at p = 4e-15 beyond the chosen offset and coupling, and no word of
+    it); where neither adds to the other, that the two cannot be told apart; else that it explains the data."""
+    p, beyond, beyond_chosen, kg = out["p_value"], out["chosen_beyond_p"], out["beyond_chosen_p"], out["mass_kg"]
+    label = "+".join(chosen)
+    if p > alpha or (beyond is not None and beyond <= alpha and not (beyond_chosen is not None
+                                                                      and beyond_chosen <= alpha)):
+        return None
+    if beyond is not None and beyond <= alpha:  # each adds to the other: both are there
+        return (f"beside {label}, a constant load missing from the log adds to the fit ({kg:.3g} kg along gravity; "
+                f"F-test p = {beyond_chosen:.2g} beyond them): a hook or hanger hung with the masses and not logged? "
+                f"{label} may take up part of it (an offset, a coupling): add it to the logged loads and analyse again "
+                "before using calibrated.yaml")
     if beyond_chosen is not None and beyond_chosen > alpha:  # each explains the data as well as the other
-        return out, (f"{label} and a constant load missing from the log ({kg:.3g} kg along gravity, F-test p = "
-                     f"{p:.2g} against the nominal model) explain these data alike (neither adds to the other: p = "
-                     f"{beyond:.2g} and {beyond_chosen:.2g}): under loads that never reverse, a gear's jump and an "
-                     "unlogged hook's weight both shift every loaded row of a configuration by a constant; check "
-                     "that every hanging part was logged, or measure with loads that reverse the joints' torques")
+        return (f"{label} and a constant load missing from the log ({kg:.3g} kg along gravity, F-test p = {p:.2g} "
+                f"against the nominal model) explain these data alike (neither adds to the other: p = {beyond:.2g} "
+                f"and {beyond_chosen:.2g}): under loads that never reverse, a gear's jump and an unlogged hook's "
+                "weight both shift every loaded row of a configuration by a constant; check that every hanging part "
+                "was logged, or measure with loads that reverse the joints' torques")
     what = ("a hook or hanger hung with the masses and not logged, or a load cell's zero offset? Add it to every "
             "loaded row's logged load (what hangs in every reading, the reference included, is the robot file's "
             "payload_kg)" if kg >= 0 else "less load acted than was logged (weights lighter than labelled, a load "
@@ -3574,11 +3591,11 @@ def _unlogged_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: fl
     if r is not None and abs(r) >= TIME_LOAD_CONFOUNDED:
         what += (f"; or a drift of the tracker: the time since the reference follows the load's size (correlation "
                  f"{r:.2f}), and a drift then looks the same (diagnostics.time)")
-    return out, (f"the nominal model's residuals follow a constant load missing from the log: every loaded row acts "
-                 f"as if it carried ({', '.join(f'{v:.3g}' for v in force)}) N more in the base frame ({kg:.3g} kg "
-                 f"along gravity; F-test p = {p:.2g}" + (f"; {label} adds nothing beyond it, p = {beyond:.2g}"
-                                                          if chosen else "") + f"): {what}; no catalogue cause "
-                 "describes it" + (f", and {label} may only absorb it" if chosen else ""))
+    return (f"the nominal model's residuals follow a constant load missing from the log: every loaded row acts as if "
+            f"it carried ({', '.join(f'{v:.3g}' for v in out['force_N'])}) N more in the base frame ({kg:.3g} kg "
+            f"along gravity; F-test p = {p:.2g}" + (f"; {label} adds nothing beyond it, p = {beyond:.2g}"
+                                                     if chosen else "") + f"): {what}; no catalogue cause describes "
+            "it" + (f", and {label} may only absorb it" if chosen else ""))
 
 
 def _stood_in_for(c: str, ranked: list[str], alternatives: list) -> str:
