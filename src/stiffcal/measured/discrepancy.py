@@ -1520,13 +1520,10 @@ def _check_rotation_unit(robot: Robot, meas: Measurements, ob: Observed) -> None
                          "unit off?", source=meas.source, field=f"columns {', '.join(f'{c}_rad' for c in cols)}")
 
 
-def _nominal_rss(robot: Robot, meas: Measurements, ob: Observed, load: np.ndarray,
-                 y: np.ndarray | None = None) -> float:
+def _nominal_rss(robot: Robot, meas: Measurements, ob: Observed, load: np.ndarray) -> float:
     """The residual sum of squares of the nominal model fitted to the rows of ``meas`` under ``load`` (N, d + d_m)
-    instead of theirs (and to the observations ``y`` (N, r) instead of theirs, :func:`observations`): the unit and
-    frame checks' comparison of the loads as logged with a reading of them."""
-    y = observations(meas, ob) if y is None else y
-    return fit(_stack(nominal_columns(robot, meas.q, load, ob)), y.ravel()).rss
+    instead of theirs: the unit checks' comparison of the loads as logged with a reading of them."""
+    return fit(_stack(nominal_columns(robot, meas.q, load, ob)), observations(meas, ob).ravel()).rss
 
 
 def _check_moment_unit(robot: Robot, meas: Measurements, ob: Observed, rss_logged: float | None = None) -> None:
@@ -1571,9 +1568,16 @@ def _check_load_frame(robot: Robot, meas: Measurements, ob: Observed) -> list[st
     about the base's vertical axis (a UR's ``base`` is its ``base_link`` turned 180 deg about z; another user's UR5
     logs of either fault: ``unexplained`` with a drift of thousands of um/h named, the wrist compliances 11-17 times
     their truth)."""
-    rss0 = _nominal_rss(robot, meas, ob, load_of(meas))
-    best = min(((_nominal_rss(robot, meas, ob, load, y), why, fields) for load, y, why, fields
-                in _other_frames(robot, meas, ob)), key=lambda t: t[0])
+    logged, y0 = load_of(meas), observations(meas, ob)
+    X = _stack(nominal_columns(robot, meas.q, logged, ob))  # the readings that keep the logged loads share it
+
+    def rss(load, y):
+        A = X if load is logged else _stack(nominal_columns(robot, meas.q, load, ob))
+        return fit(A, (y0 if y is None else y).ravel()).rss
+
+    rss0 = rss(logged, None)
+    best = min(((rss(load, y), why, fields) for load, y, why, fields in _other_frames(robot, meas, ob, logged)),
+               key=lambda t: t[0])
     if best[0] < 0.1 * rss0:
         raise InputError(best[1].format(ratio=f"{rss0 / best[0]:.3g}"), source=meas.source,
                          field=f"columns {', '.join(best[2])}")
@@ -1589,7 +1593,7 @@ def _check_load_frame(robot: Robot, meas: Measurements, ob: Observed) -> list[st
 MM_COLUMN_RATIO = 30.0
 
 
-def _other_frames(robot: Robot, meas: Measurements, ob: Observed) -> list[tuple]:
+def _other_frames(robot: Robot, meas: Measurements, ob: Observed, load: np.ndarray | None = None) -> list[tuple]:
     """The readings of the loads and displacements of ``meas`` that :func:`_check_load_frame` compares with the logged
     one: (load (N, d + d_m), observations (N, r) or None: as logged, message with a ``{ratio}`` field, columns) for
     the loads turned from the tip frame into the base frame (R(q) F, R(q) M; a planar arm's moment is not turned in
@@ -1598,7 +1602,7 @@ def _other_frames(robot: Robot, meas: Measurements, ob: Observed) -> list[tuple]
     their size), and everything logged turned 90, 180 and 270 deg about the base's z axis (the plane's normal for a
     planar arm), or the displacements alone (a tracker registered to another frame than the loads')."""
     d = force_dim(robot)
-    load = load_of(meas)
+    load = load_of(meas) if load is None else load  # the logged loads (``load``: as given)
     forces = [c for c in expected_columns(robot) if c.startswith("f")]
     moments = optional_columns(robot)["moment"] if meas.has_moment else []
     R = np.asarray(robot.tool_frame(meas.q)[0], float)[:, :d, :d]
@@ -3400,7 +3404,7 @@ def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, unknown: np.ndarray, f0:
     tested = _effect_test(pre, turned, unknown, f0, chosen)
     if tested is None:
         return None, None
-    p, angle, beyond = tested
+    p, angle, beyond, _ = tested
     size = float(np.degrees(np.linalg.norm(angle)))
     out = {"p_value": p, "angle_deg": size, "axis": (angle / np.linalg.norm(angle)).tolist() if size > 0 else None,
            "chosen_beyond_p": beyond, "beyond_load_offset_p": None}
@@ -3420,22 +3424,27 @@ def _whitened(pre: Prepared, A: np.ndarray) -> np.ndarray:
     return (pre.error.whiten(A) if pre.error.blocks else A).reshape(len(pre.des.y), -1)
 
 
-def _effect_test(pre: Prepared, named: np.ndarray, unknown: np.ndarray, f0: Fit, chosen):
-    """(p, coefficients of ``named``, chosen_beyond_p) or None: the F-test of an effect outside the catalogue added
-    to the nominal model (fit ``f0``) by its columns (weighted: ``named`` (N, w, A) whose coefficients are reported,
-    ``unknown`` (N, w, B) with free coefficients; whitened by the rows' error model), and of the chosen causes beyond
-    it (None without causes); None where the columns add no rank."""
+def _effect_test(pre: Prepared, named: np.ndarray, unknown: np.ndarray, f0: Fit, chosen, both_ways: bool = False):
+    """(p, coefficients of ``named``, chosen_beyond_p, beyond_chosen_p) or None: the F-test of an effect outside the
+    catalogue added to the nominal model (fit ``f0``) by its columns (weighted: ``named`` (N, w, A) whose
+    coefficients are reported, ``unknown`` (N, w, B) with free coefficients; whitened by the rows' error model), of
+    the chosen causes beyond it, and (``both_ways``) of it beyond the chosen causes (each None without causes, the
+    last None too unless asked); None where the columns add no rank."""
     des, noise = pre.des, pre.noise
     T = _whitened(pre, np.concatenate([named, unknown], -1))
     f1 = fit(np.hstack([des.X0, T]), des.y)
     if f1.rank <= f0.rank:
         return None
     p = f_test(f0.rss, f0.df, f1.rss, f1.df, noise.s2, noise.df)
-    beyond = None
+    beyond = beyond_chosen = None
     if chosen:
-        f2 = fit(np.hstack([des.model(chosen), T]), des.y)
+        X = des.model(chosen)
+        f2 = fit(np.hstack([X, T]), des.y)
         beyond = f_test(f1.rss, f1.df, f2.rss, f2.df, noise.s2, noise.df)
-    return p, f1.beta[des.X0.shape[1]:des.X0.shape[1] + named.shape[-1]], beyond
+        if both_ways:
+            fc = fit(X, des.y)
+            beyond_chosen = f_test(fc.rss, fc.df, f2.rss, f2.df, noise.s2, noise.df) if f2.rank > fc.rank else 1.0
+    return p, f1.beta[des.X0.shape[1]:des.X0.shape[1] + named.shape[-1]], beyond, beyond_chosen
 
 
 def _beyond_each_other(pre: Prepared, a: np.ndarray, b: np.ndarray) -> tuple[float | None, float | None]:
@@ -3496,7 +3505,7 @@ def _offset_diagnostic(pre: Prepared, offset: tuple[np.ndarray, np.ndarray], f0:
     tested = _effect_test(pre, *offset, f0, chosen)
     if tested is None:
         return None, None
-    p, r, beyond = tested
+    p, r, beyond, _ = tested
     out = {"p_value": p, "offset_m": [float(v) for v in r], "chosen_beyond_p": beyond, "beyond_load_direction_p": None}
     if p > alpha or (beyond is not None and beyond <= alpha):
         return out, None
@@ -3522,24 +3531,15 @@ def _unlogged_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
     axes = ([g / np.linalg.norm(g)] if np.all(cos >= np.cos(np.radians(HANGING_ANGLE_DEG)))
             else list(np.eye(d)))
     lever = bar_lever(robot, m.q, load_of(m)) if m.has_moment else None
+    arm = None if lever is None else np.einsum("nij,j->ni", np.asarray(robot.tool_frame(m.q)[0], float), lever)
     out = []
     for a in axes:
         wrench = np.zeros((m.n_rows, w))
         wrench[:, :d] = a
-        if lever is not None:
-            wrench[:, d:] = np.cross(np.einsum("nij,j->ni", np.asarray(robot.tool_frame(m.q)[0], float), lever), a)
+        if arm is not None:
+            wrench[:, d:] = np.cross(arm, a)
         out.append(wrench)
     return out
-
-
-def _beyond_chosen(pre: Prepared, named: np.ndarray, unknown: np.ndarray, chosen) -> float:
-    """The F-test p-value of an effect outside the catalogue (its weighted columns ``named`` and ``unknown``, as
-    :func:`_effect_test` takes them) added to the chosen causes' model: does it add anything beyond them?"""
-    des, noise = pre.des, pre.noise
-    T = _whitened(pre, np.concatenate([named, unknown], -1))
-    X = des.model(chosen)
-    f1, f2 = fit(X, des.y), fit(np.hstack([X, T]), des.y)
-    return f_test(f1.rss, f1.df, f2.rss, f2.df, noise.s2, noise.df) if f2.rank > f1.rank else 1.0
 
 
 def _unlogged_refined(robot: Robot, pre: Prepared, loads: list[np.ndarray], coef: np.ndarray,
@@ -3568,11 +3568,10 @@ def _unlogged_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: fl
     look the same."""
     loads = _unlogged_loads(robot, pre.m)
     named, unknown = _load_effect_columns(robot, pre, f0.beta, loads)
-    tested = _effect_test(pre, named, unknown, f0, chosen)
+    tested = _effect_test(pre, named, unknown, f0, chosen, both_ways=True)
     if tested is None:
         return None, None
-    p, coef, beyond = tested
-    beyond_chosen = _beyond_chosen(pre, named, unknown, chosen) if chosen else None
+    p, coef, beyond, beyond_chosen = tested
     coef = _unlogged_refined(robot, pre, loads, coef)
     force = np.sum([c * w[0, : robot.task_dim] for c, w in zip(coef, loads)], axis=0)
     g = np.asarray(robot.gravity, float)[: robot.task_dim]
