@@ -335,6 +335,15 @@ def test_a_cell_lists_the_collision_meshes_pinocchio_reads(tmp_path):
     without_cell = tmp_path / "plain.yaml"
     without_cell.write_text(robot_file.read_text().split("cell:")[0])
     assert robot_inputs(without_cell) == [urdf]
+    # a cell given beside the robot file (a design study's ``cell:`` in the config) reads the same meshes: they are
+    # the study's inputs and the archive's files (a fresh user's inline cell listed none)
+    assert set(robot_inputs(without_cell, cell=True)[1:]) == read
+    from stiffcal.workflow.archive import config_files
+
+    study = {"studies": [{"name": "s", "robot": str(without_cell), "cell": {"floor_m": 0.0}}]}
+    assert {str(p) for p in config_files(study)} == {str(without_cell), urdf, *read}
+    assert {str(p) for p in config_files({"studies": [{**study["studies"][0], "cell": None}]})} == {str(without_cell),
+                                                                                                     urdf}
 
 
 @pytest.mark.parametrize("arm, flange", [("ur10", "wrist_3_link"), ("panda", "panda_link7"),

@@ -1229,7 +1229,8 @@ def test_a_length_beyond_the_schema_in_millimetres_names_the_unit(tmp_path):
 def test_a_test_pose_inside_an_obstacle_names_the_pair(tmp_path):
     """A fresh user's Panda test pose inside a fixture: the note did not say which body met what. The 2-link arm
     at (0, 0) deg lies along the x axis to x = 1 m; a box of 0.1 m about (0.8, 0) m holds link 2 (its axis
-    0.05 m inside the box, by hand): the note names link2 and the box with the signed distance the cell reports."""
+    0.05 m inside the box, by hand): the note names link2 and the box with the depth the cell reports (a pair that
+    overlaps, not the closest: a fresh user's Bravo 7 was told of a cylinder pair where two links overlapped)."""
     from stiffcal.model.workcell import clearance
 
     path = tmp_path / "r.yaml"
@@ -1239,7 +1240,7 @@ def test_a_test_pose_inside_an_obstacle_names_the_pair(tmp_path):
     d, names = clearance(load_robot(path), np.radians([[0.0, 0.0]]))
     assert names[0] == "link2-fixture" and d[0] < -0.05
     res = stiffcal.design(path, [0, 0], [0, -100], experiments=2)
-    assert any("the test pose itself cannot be taken" in n and f"closest: link2-fixture at {d[0] * 1e3:.3g} mm" in n
+    assert any("the test pose itself cannot be taken" in n and f"link2-fixture ({-d[0] * 1e3:.3g} mm deep)" in n
                for n in res.notes), res.notes
 
 

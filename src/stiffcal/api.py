@@ -446,26 +446,6 @@ def _ot_bound(inp: _DesignInputs, found: _Found):
     return bound, over, feasible_bound, feasible_over, converged
 
 
-def _test_pose_cell_note(robot: Robot, base, q_t: np.ndarray) -> list[str]:
-    """A note when the test pose q_t (n,) [rad] cannot be taken in the cell, saying why: a body within the
-    clearance (naming the closest pair and its distance), or (with hanging masses) only the cable, which meets a
-    body or an obstacle (a fresh user's Z1 on a table: told 'a body within the clearance' where the cable lay on
-    the table)."""
-    from .model.workcell import clearance, feasible
-
-    if base.feasible(q_t[None])[0]:
-        return []
-    if base.hang_offset is not None and feasible(robot, q_t[None])[0]:
-        why = ("the cable of the hanging masses meets a body or an obstacle there (the arm itself is clear: the "
-               "masses cannot hang at the test pose, though a push there can be measured)")
-    else:
-        d, names = clearance(robot, q_t[None])
-        closest = f"; closest: {names[0]} at {d[0] * 1e3:.3g} mm" if names[0] and np.isfinite(d[0]) else ""
-        why = "a body within the clearance of an obstacle or of another body" + closest
-    return [f"the test pose itself cannot be taken in the cell ({why}): the plan predicts its compensation error all "
-            "the same"]
-
-
 def _singular_plan_note(inp: _DesignInputs, summ, ot: float) -> list[str]:
     """A note when the plan does not identify the compliances the model keeps (an infinite O_t or variance): a
     criterion such as T (the trace of M, whatever its rank) can be best at a singular plan (a fresh user's Baxter:
@@ -553,7 +533,7 @@ WEAK_MEDIAN_UNITS = 100.0
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
     from .model import criteria
-    from .model.workcell import cell_notes
+    from .model.workcell import cell_notes, test_pose_note
     from .planning.problem import plan_summary, unidentified_notes
 
     robot, base, approx, continuum, poses = inp.robot, inp.base, found.approx, found.continuum, found.poses
@@ -567,8 +547,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     notes += [d.near_singular_note() for d in (continuum, approx) if d is not None and d.near_singular]
     clear, closest, near = _clearances(robot, np.radians(poses))
     notes += cell_notes(robot, np.radians(poses)) + near
-    if robot.cell is not None:
-        notes += _test_pose_cell_note(robot, base, np.radians(inp.q_t))
+    notes += test_pose_note(robot, base, np.radians(inp.q_t))
     ot = float(summ["O_t"])
     ot_star = base.ot_star(inp.m)
     cov_diag = np.array([float(summ[e]) for e in robot.joint_columns("E_dk")])

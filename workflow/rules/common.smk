@@ -128,8 +128,8 @@ def study_files(wildcards):
     """The files a design study reads besides its robot file: its robot's URDF and SRDF, its cell file (and the
     SRDF it names), its candidate CSV; an edit of any reruns the study's jobs."""
     e = STUDIES[wildcards.name]
-    return robot_inputs(e["robot"]) + _cell_inputs(e.get("cell"), ".") + ([e["candidates"]] if e.get("candidates")
-                                                                           else [])
+    return (robot_inputs(e["robot"], cell=e.get("cell") is not None) + _cell_inputs(e.get("cell"), ".")
+            + ([e["candidates"]] if e.get("candidates") else []))
 
 
 def report_inputs(wildcards):

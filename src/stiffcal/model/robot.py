@@ -844,26 +844,28 @@ def narrowed_limits(robot: Robot, limits_deg, src: str | None, field: str = "joi
     return replace(robot, joint_limits_rad=np.radians(np.array(lim)), has_joint_limits=True, unlimited_joints=())
 
 
-def robot_inputs(path: str | Path) -> list[str]:
-    """The files a robot file reads besides itself: its URDF (``kind: urdf``), with a cell the URDF's collision
-    meshes (:func:`stiffcal.model.urdf.collision_meshes`, absolute paths), and its cell's SRDF (or a cell file's SRDF),
-    the others as paths relative to where ``path`` is relative to; nothing for a file that cannot be read (loading
-    it reports why).
-    The workflow lists them as inputs, so that editing a URDF reruns the jobs of its robot."""
+def robot_inputs(path: str | Path, cell: bool = False) -> list[str]:
+    """The files a robot file reads besides itself: its URDF (``kind: urdf``), with a cell (the robot file's own, or
+    ``cell`` True: one given beside it, a design study's ``cell:``) the URDF's collision meshes
+    (:func:`stiffcal.model.urdf.collision_meshes`, absolute paths), and its cell's SRDF (or a cell file's SRDF), the
+    others as paths relative to where ``path`` is relative to; nothing for a file that cannot be read (loading it
+    reports why).
+    The workflow lists them as inputs, so that editing a URDF or a mesh reruns the jobs of its robot (a fresh user's
+    study with its cell in the config listed no mesh: an edited mesh reran nothing and the archive held none)."""
     try:
         doc = read_yaml(path)
     except InputError:
         return []
     out = []
-    cell = (doc.get("cell") if "kind" in doc else doc) if isinstance(doc, dict) else None  # a robot file or a cell file
+    own = (doc.get("cell") if "kind" in doc else doc) if isinstance(doc, dict) else None  # a robot file or a cell file
     if isinstance(doc, dict) and doc.get("kind") == "urdf" and isinstance(doc.get("urdf"), str):
         out.append(str(Path(path).parent / doc["urdf"]))
-        if isinstance(cell, dict):  # a cell reads the URDF's collision meshes
+        if cell or isinstance(own, dict):  # a cell reads the URDF's collision meshes
             from .urdf import collision_meshes
 
             out += collision_meshes(out[0])
-    if isinstance(cell, dict) and isinstance(cell.get("srdf"), str):
-        out.append(str(Path(path).parent / cell["srdf"]))
+    if isinstance(own, dict) and isinstance(own.get("srdf"), str):
+        out.append(str(Path(path).parent / own["srdf"]))
     return out
 
 

@@ -246,14 +246,20 @@ def golden_min(fun, a: np.ndarray, b: np.ndarray, iters: int = GOLDEN_ITERS) -> 
 # ---------------------------------------------------------------------------------------------------
 # the cell
 
+#: the default ``self_clearance_m`` [m]: two bodies of the robot 1 um apart were "feasible" and touched at the
+#: plan's printed digits by coal (a fresh user's Bravo 7: 13 of 35 poses within 5 um of self-contact, 3 in contact)
+SELF_CLEARANCE_M = 1e-3
+
+
 @dataclass(frozen=True)
 class WorkCell:
     """Where the robot stands (module docstring; robot-file key ``cell:``, docs/contracts.md).
 
     obstacles: the half-spaces, boxes and cylinders (:class:`Obstacle`), in the base frame; clearance_m: the
     smallest distance [m] a body of the robot may have to an obstacle; self_clearance_m: between two bodies of
-    the robot (default 0: no contact; collision meshes are drawn with a margin, and the links of a compact arm
-    pass within centimetres of each other by design); self_collision: check the robot against itself;
+    the robot (default :data:`SELF_CLEARANCE_M`, 1 mm: links a micrometre apart touch at a plan's printed digits, its
+    pose repeatability and its deflection under load, and no operator sends a robot there; more would cost compact
+    arms, whose links pass within centimetres of each other by design); self_collision: check the robot against itself;
     link_radius_m: capsule radii [m] per segment of :meth:`stiffcal.model.robot.Robot.link_points` (capsules instead
     of a URDF's meshes; needed for planar and DH arms); srdf: the SRDF whose disabled pairs are not checked
     (URDF arms); ignore_pairs: pairs of bodies (link names, segment names ``link1``.., ``tool``, obstacle names)
@@ -287,7 +293,9 @@ class WorkCell:
 
     @property
     def self_margin(self) -> float:
-        return 0.0 if self.self_clearance_m is None else self.self_clearance_m
+        """The smallest distance [m] two bodies of the robot keep: ``self_clearance_m``, default
+        :data:`SELF_CLEARANCE_M`."""
+        return SELF_CLEARANCE_M if self.self_clearance_m is None else self.self_clearance_m
 
     def ignored(self, a: str, b: str) -> bool:
         return (a, b) in self.ignore_pairs or (b, a) in self.ignore_pairs
@@ -297,8 +305,7 @@ class WorkCell:
         parts = [f"{o.kind.replace('_', '-')} {o.name}" for o in self.obstacles]
         parts.append(f"clearance {self.clearance_m:g} m")
         if self.self_collision:
-            parts.append("self-collision" + ("" if self.self_clearance_m is None
-                                             else f" (clearance {self.self_clearance_m:g} m)"))
+            parts.append(f"self-collision (clearance {self.self_margin:g} m)")
         return ", ".join(parts)
 
 
@@ -1350,6 +1357,7 @@ def cable_hint(robot, q: np.ndarray, hanging, at_most: int = 512) -> str:
 CONTACT_NOTE_M = 1e-3
 
 
+
 def contact_note(clear: np.ndarray, names: list[str], what: str = "the plan") -> list[str]:
     """A note naming ``what``'s poses (the design's plan, a discriminating or compound plan) whose smallest distance
     over the cell's pairs (:func:`clearance`: ``clear`` (M,) [m], ``names`` the closest pair of each) is below
@@ -1361,8 +1369,36 @@ def contact_note(clear: np.ndarray, names: list[str], what: str = "the plan") ->
         return []
     where = "; ".join(f"pose {i + 1}: {1e3 * clear[i]:.3g} mm ({names[i]})" for i in close[:5])
     return [f"{len(close)} pose(s) of {what} lie within {1e3 * CONTACT_NOTE_M:g} mm of contact ({where}): within "
-            "the cell's clearances (self_clearance_m is 0 unless given), but touching; give the cell file a "
-            "self_clearance_m (e.g. 0.005) or a larger clearance_m to keep the bodies apart"]
+            "the cell's clearances, but touching; give the cell file a larger self_clearance_m or clearance_m (e.g. "
+            "0.005) to keep the bodies apart"]
+
+
+def test_pose_note(robot, problem, q_t: np.ndarray) -> list[str]:
+    """A note when the test pose q_t (n,) [rad] cannot be taken in ``robot``'s cell (``problem``: the design's
+    :class:`stiffcal.planning.problem.Problem`, whose ``feasible`` holds the hanging masses' cable too), saying why:
+    the pairs that touch or overlap there (a mesh pair in contact has no depth, coal gives 0: a fresh user's Bravo 7
+    was told of a sensor 19.5 mm into a cylinder where two links' hulls overlapped by 70 mm), else the closest pair
+    within the clearance, or (with hanging masses) only the cable, which meets a body or an obstacle (a fresh user's
+    Z1 on a table: told 'a body within the clearance' where the cable lay on the table); [] without a cell."""
+    if robot.cell is None or problem.feasible(q_t[None])[0]:
+        return []
+    if problem.hang_offset is not None and feasible(robot, q_t[None])[0]:
+        why = ("the cable of the hanging masses meets a body or an obstacle there (the arm itself is clear: the "
+               "masses cannot hang at the test pose, though a push there can be measured)")
+    else:
+        eng = engine(robot)
+        d, names = eng.distances(q_t[None]) if eng is not None else (np.zeros((1, 0)), [])
+        touch = [(names[k], d[0, k]) for k in np.argsort(d[0], kind="stable") if d[0, k] <= 0.0]
+        if touch:
+            why = (f"{len(touch)} pair(s) touch or overlap: "
+                   + ", ".join(n + (f" ({-1e3 * v:.3g} mm deep)" if v < 0 else "") for n, v in touch[:4])
+                   + (", ..." if len(touch) > 4 else ""))
+        else:
+            c, closest = clearance(robot, q_t[None])
+            why = "a body within the clearance of an obstacle or of another body" + (
+                f"; closest: {closest[0]} at {c[0] * 1e3:.3g} mm" if closest[0] and np.isfinite(c[0]) else "")
+    return [f"the test pose itself cannot be taken in the cell ({why}): the plan predicts its compensation error all "
+            "the same"]
 
 
 def clearance(robot, q: np.ndarray) -> tuple[np.ndarray, list[str]]:

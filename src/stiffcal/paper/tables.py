@@ -274,8 +274,9 @@ def study_plan_row(study: Study, m: int, seed: int, design, pool=None, continuum
     design`` uses: one answer for one input) as one row: m, O_t (eq. 16), rms_m = sqrt(O_t), chi (eq. 27), lower_bound
     and gap (in a cell from ``continuum``, the design without the cell: valid for every plan), E_dk1.. (eq. 11),
     within_limits, poses_deg; in a cell also feasible_lower_bound and feasible_gap (exact over the feasible
-    candidates and the plan's own poses), feasible (every pose checked again), min_clearance_m and clearance_m
-    (each pose's smallest distance [m], space-separated) with closest (the pair of each, ';'-separated)."""
+    candidates and the plan's own poses), feasible (every pose checked again at the printed digits), min_clearance_m
+    and clearance_m (each printed pose's smallest distance [m], space-separated) with closest (the pair of each,
+    ';'-separated)."""
     from ..planning.plans import best_plan
     from ..model.workcell import clearance
 
@@ -293,7 +294,8 @@ def study_plan_row(study: Study, m: int, seed: int, design, pool=None, continuum
         row |= {"feasible_lower_bound": fb, "feasible_gap": ot / fb - 1.0}
     row |= {e: float(summ[e]) for e in study.robot.joint_columns("E_dk")}
     row["within_limits"] = not study.robot.outside_limits(q).any()
-    if study.robot.cell is not None:
+    if study.robot.cell is not None:  # checked again at the printed digits: the poses a lab sends the robot to
+        q = np.radians(parse_plan(format_plan(plan.poses_deg)))
         c, closest = clearance(study.robot, q)
         row |= {"feasible": bool(prob.feasible(q).all()), "min_clearance_m": float(np.min(c)),
                 "clearance_m": " ".join(f"{v:.6f}" for v in c), "closest": ";".join(closest)}

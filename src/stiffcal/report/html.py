@@ -202,7 +202,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     import numpy as np
     import pandas as pd
 
-    from ..model.workcell import contact_note
+    from ..model.workcell import contact_note, test_pose_note
 
     robot = study.robot
     versus_m = pd.read_csv(paths["studym"], keep_default_na=False, na_values=[""])
@@ -211,8 +211,9 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     poses = {int(m): g[cols].to_numpy(float).tolist() for m, g in long.groupby("m", sort=True)}
     clearance = ({int(m): [(float(c), str(n)) for c, n in zip(g["clearance_m"], g["closest"])]
                   for m, g in long.groupby("m", sort=True)} if "clearance_m" in long.columns else None)
-    contact = [n for m, pairs in (clearance or {}).items()
-               for n in contact_note(np.array([c for c, _ in pairs]), [nm for _, nm in pairs], f"the plan of M = {m}")]
+    contact = test_pose_note(robot, study.problem("ot"), study.test_pose) + [
+        n for m, pairs in (clearance or {}).items()
+        for n in contact_note(np.array([c for c, _ in pairs]), [nm for _, nm in pairs], f"the plan of M = {m}")]
     certificates = pd.read_csv(paths["studycert"], keep_default_na=False, na_values=[""]).to_dict("records")
     return {
         "entry": entry, "robot": robot_summary(study),

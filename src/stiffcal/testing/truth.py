@@ -54,6 +54,9 @@ class Truth:
     gap and moves to the other only when the total torque passes ``held_torque`` (n,) [N m] towards it, so an
     unloaded reading after a load keeps the jump (:func:`gear_sides`); the joint's offset is held_gap/2 times
     the side (+-1). Needs a :class:`LabLog` (the readings' order); :func:`deflection` ignores it.
+    base_tilt: (c [rad/(N m)], h [m]) a compliant base (outside the catalogue: a pedestal, a floor, a mobile
+    platform): the whole robot tilts about the horizontal axes through a pivot h below the base origin by c times the
+    horizontal part of the load's moment about that pivot (:func:`base_tilt_motion`; spatial arms).
     The joint laws act on the total torque, the load's plus the arm's own weight (:func:`self_weight_torques`),
     and a row's deflection is the difference between the loaded and the unloaded state at the same pose.
     """
@@ -70,6 +73,7 @@ class Truth:
     load_tilt: np.ndarray | None = None
     held_gap: np.ndarray | None = None
     held_torque: np.ndarray | None = None
+    base_tilt: tuple[float, float] | None = None
     extra: dict = field(default_factory=dict)
 
 
@@ -212,13 +216,33 @@ def _tilted(robot: Robot, truth: Truth, force: np.ndarray, moment: np.ndarray | 
     return real, moment + np.cross(lever, turn)
 
 
+def base_tilt_motion(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, moment: np.ndarray | None,
+                     points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(displacement (N, 3) [m] of points (N, 3), rotation (N, 3) [rad])`` of a robot on a compliant base
+    (``truth.base_tilt`` = (c, h)): the base turns by w = c P M about the pivot p0 = -h u below its origin (u the up
+    direction, minus the robot file's gravity; P the projection on the horizontal plane), M = (x - p0) x F + M_tool
+    the load's moment about the pivot (x the tool point, F (N, 3) [N], M_tool (N, 3) [N m] about the tool point),
+    and every point p moves by w x (p - p0): a rigid rotation of the whole arm on a rotational spring at its
+    foot."""
+    if robot.task_dim != 3:
+        raise ValueError("a compliant base (Truth.base_tilt) needs a spatial arm")
+    c, h = (float(v) for v in truth.base_tilt)
+    up = -np.asarray(robot.gravity, float)
+    up = up / np.linalg.norm(up)
+    pivot = -h * up
+    x = target_world(robot, q, None, None)
+    M = np.cross(x - pivot, as_xyz(force)) + (0.0 if moment is None or not np.any(moment) else _moment3(robot, moment))
+    turn = c * (M - np.outer(M @ up, up))
+    return np.cross(turn, points - pivot), turn
+
+
 def deflection(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, moment: np.ndarray | None = None,
                target: np.ndarray | None = None, target_names=None, orientation: bool = False) -> np.ndarray:
     """Noise-free deflection (N, d (+ d_r)) [m (, rad)] of the robot between the unloaded and the loaded
     state at poses q (N, n) under force (N, d) (and moment (N, d_m)), at each row's target (``target`` (N,)
     indices into ``target_names``; None: the tool point), with the tool's rotation after the position when
-    ``orientation``: joint laws on the total torque (:func:`loaded_deflections`), link bending, the load's
-    tilt. No measuring-system effect (offset, drift)."""
+    ``orientation``: joint laws on the total torque (:func:`loaded_deflections`), link bending, a compliant base,
+    the load's tilt. No measuring-system effect (offset, drift)."""
     q = np.asarray(q, float)
     force, moment = _tilted(robot, truth, np.asarray(force, float), moment)
     tau = joint_torques(robot, q, force, moment)
@@ -228,11 +252,16 @@ def deflection(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, mom
         dp = np.einsum("ndj,nj->nd", robot.jacobian(q), dq)
         if truth.link_bending is not None:
             dp = dp + link_bending_displacement(robot, q, force, np.asarray(truth.link_bending, float))
+        if truth.base_tilt is not None:
+            dp = dp + base_tilt_motion(robot, truth, q, force, moment, target_world(robot, q, None, None))[0]
         return dp
     pts = target_world(robot, q, target, target_names)
     disp, rot = joint_motion(robot, q, dq, pts)
     if truth.link_bending is not None:
         bd, br = link_bending_motion(robot, q, force, np.asarray(truth.link_bending, float), moment, pts)
+        disp, rot = disp + bd, rot + br
+    if truth.base_tilt is not None:
+        bd, br = base_tilt_motion(robot, truth, q, force, moment, pts)
         disp, rot = disp + bd, rot + br
     d = robot.task_dim
     return np.hstack([disp[:, :d], (rot[:, 2:] if d == 2 else rot)]) if orientation else disp[:, :d]

@@ -150,16 +150,16 @@ def config_files(config, root: str | Path = ".") -> list[Path]:
     root = Path(root)
     found: set[Path] = set()
 
-    def walk(v):
-        if isinstance(v, dict):
-            for x in v.values():
-                walk(x)
+    def walk(v, cell=False):
+        if isinstance(v, dict):  # a study's robot with the study's cell reads the URDF's meshes
+            for k, x in v.items():
+                walk(x, k == "robot" and v.get("cell") is not None)
         elif isinstance(v, list):
             for x in v:
                 walk(x)
         elif isinstance(v, str) and v and (root / v).is_file():
             found.add(Path(v))
-            urdfs = robot_inputs(root / v) if Path(v).suffix in (".yaml", ".yml") else []
+            urdfs = robot_inputs(root / v, cell) if Path(v).suffix in (".yaml", ".yml") else []
             for u in urdfs:  # relative to root / v's folder: made relative to root again
                 q = Path(u) if Path(v).is_absolute() else Path(os.path.relpath(u, root))
                 if (root / q).is_file():

@@ -215,11 +215,14 @@ def study_plans(p: dict, robot: str, m_values: list[int], seed: int, design_json
     design and the candidate pool (pool_npy, written by the study's design job) are read once."""
     import pandas as pd
 
+    from ..model.workcell import test_pose_note
     from ..paper import tables
 
     study = _study(p, robot, f"studies.{p['name']}")
     design, continuum = _design(design_json), _design(design_json, "continuum")
     pool = _pool(pool_npy, study.robot.n_joints)
+    for note in test_pose_note(study.robot, study.problem("ot"), study.test_pose):
+        _log(f"{p['name']}: note: {note}")
     rows = []
     for m in sorted(int(m) for m in m_values):
         _log(f"{p['name']}: best plan of {m} poses")
