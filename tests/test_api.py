@@ -55,6 +55,19 @@ def test_a_plan_that_repeats_a_configuration_says_how_to_measure_the_repeats(roo
     assert seen == {True, False}
 
 
+def test_copies_apart_by_round_off_are_one_configuration():
+    """A fresh user's D-optimal Z1 plan printed copies of one pose as 9.172572, 9.172573 and 9.172574 deg, and the note
+    on repeats stayed silent: the plan's copies within COPY_TOL_DEG (1e-4 deg) in every joint are now one pose, the
+    first, and the note counts them; poses 1e-3 deg apart stay apart."""
+    from stiffcal.api import merged_copies, repeated_poses_note
+
+    base = np.array([[9.172572, -40.0, 30.0], [20.0, 10.0, 0.0]])
+    poses = np.vstack([base, base[0] + [1e-6, -1e-6, 0.0], base[0] + [2e-6, 0.0, 5e-7], base[1] + [1e-3, 0.0, 0.0]])
+    merged = merged_copies(poses)
+    assert np.array_equal(merged[[2, 3]], base[[0, 0]]) and np.array_equal(merged[[0, 1, 4]], poses[[0, 1, 4]])
+    assert "pose 1 x3" in repeated_poses_note(poses)[0] and "pose 2" not in repeated_poses_note(poses)[0]
+
+
 def test_design_result_is_the_cli_json(root, capsys, monkeypatch):
     monkeypatch.chdir(root)
     res = stiffcal.design(PAPER_ROBOT, [60, 30], [0, -1], criterion="a", seed=3)

@@ -397,6 +397,18 @@ def test_candidate_poses_from_a_csv_are_filtered_and_the_bound_is_exact_over_the
                        res.poses_deg)
 
 
+def test_candidates_that_cannot_identify_the_model_are_named_not_the_load(tmp_path, root):
+    """A fresh user's one-pose candidate file: the error blamed the load ('use a load with another direction') and
+    named only the robot file. A planar 3R has three compliances and one pose gives two rows: the message names the
+    candidate file and asks for more poses; over the whole joint space the same load identifies them."""
+    robot = root / "tests/data/newuser/planar_3r.yaml"
+    csv = tmp_path / "one.csv"
+    csv.write_text("q1_deg,q2_deg,q3_deg\n10,40,-30\n")
+    with pytest.raises(InputError, match=r"at the 1 pose\(s\) of the candidate file.*give the candidate file more"):
+        stiffcal.design(robot, [0, 60, -30], [0, -100], experiments=3, candidates=csv)
+    assert np.isfinite(stiffcal.design(robot, [0, 60, -30], [0, -100], experiments=3).O_t)
+
+
 def test_loads_apart_from_the_test_wrench(root):
     """--loads: every pose measured under every load, the force the test pose's alone: O_t scales as |F_t|^2 /
     |F_meas|^2 for the same plan, pushes in a few directions, a loading bar and explicit wrenches are read."""

@@ -475,12 +475,27 @@ def _ot_star_note(base, ot_star: float) -> list[str]:
             "(eq. 17) does not exist here; compare O_t with lower_bound instead"]
 
 
+#: poses of a plan within this many degrees of each other in every joint are copies of one configuration
+COPY_TOL_DEG = 1e-4
+
+
+def merged_copies(poses_deg: np.ndarray) -> np.ndarray:
+    """(M, n) [deg]: the plan's poses with each one within :data:`COPY_TOL_DEG` of an earlier pose in every joint
+    replaced by that pose: the polish moves copies of one configuration apart by round-off (a fresh user's D-optimal
+    plan printed one pose as 9.172572, 9.172573 and 9.172574 deg, and the note on repeats stayed silent)."""
+    out = np.array(poses_deg, float, copy=True)
+    for i in range(1, len(out)):
+        near = np.flatnonzero(np.abs(out[:i] - out[i]).max(axis=1) < COPY_TOL_DEG)
+        if near.size:
+            out[i] = out[near[0]]
+    return out
+
+
 def repeated_poses_note(poses_deg: np.ndarray) -> list[str]:
     """A note where the plan (poses_deg (M, n) [deg]) repeats a configuration: each repeat is a visit of its own (the
     robot leaving and returning), and the analysis tells visits apart by a ``visit`` column or the row order (a fresh
     user measured a plan's repeats back to back without one: 17 visits read for 24)."""
-    _, first, counts = np.unique(np.round(np.asarray(poses_deg, float), 6), axis=0, return_index=True,
-                                 return_counts=True)
+    _, first, counts = np.unique(merged_copies(poses_deg), axis=0, return_index=True, return_counts=True)
     repeated = [(int(i) + 1, int(c)) for i, c in sorted(zip(first, counts)) if c > 1]
     if not repeated:
         return []
@@ -536,7 +551,8 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     from .model.workcell import cell_notes, test_pose_note
     from .planning.problem import plan_summary, unidentified_notes
 
-    robot, base, approx, continuum, poses = inp.robot, inp.base, found.approx, found.continuum, found.poses
+    robot, base, approx, continuum = inp.robot, inp.base, found.approx, found.continuum
+    poses = merged_copies(found.poses)
     summ = plan_summary(inp.study, poses)
     bound, over, feasible_bound, feasible_over, converged = _ot_bound(inp, found)
     notes = found.notes + unidentified_notes(robot, base)

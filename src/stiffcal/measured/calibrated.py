@@ -581,8 +581,12 @@ def untested_backlash_reversed(robot: Robot, cal, q: np.ndarray, load: np.ndarra
         return out
     from .discrepancy import torques
 
+    from ..model.catalogue import _signs
+
     t0 = robot.gravity_torques(q)
-    out[:, joints] = (np.sign(t0 + torques(robot, q, load)) * np.sign(t0) < 0)[:, joints]
+    tau = torques(robot, q, load)
+    scale = np.maximum(np.abs(tau), np.abs(t0)).max(axis=-1, keepdims=True)  # the catalogue's round-off rule
+    out[:, joints] = (_signs(t0 + tau, scale) * _signs(t0, scale) < 0)[:, joints]
     return out
 
 
@@ -626,6 +630,9 @@ def _unset_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) ->
     not include."""
     if "backlash" not in cal.causes:
         return []
+    from functools import partial
+
+    from ..model.catalogue import _signs
     from .discrepancy import _preload, torques
 
     tau = torques(robot, q, load)
@@ -639,8 +646,10 @@ def _unset_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) ->
         if robot.compliances is not None:
             k = np.where(k > 0, k, np.asarray(robot.compliances, float))
         sagged, loaded = q + k * t0, q + k * total
-        flipped = ((np.sign(robot.gravity_torques(sagged)) != np.sign(t0))
-                   | (np.sign(robot.gravity_torques(loaded) + torques(robot, loaded, load)) != np.sign(total)))
+        sign = partial(_signs, scale=scale)  # a torque within round-off of zero has no sign (a UR10's wrist 2: its
+        #                                      weight's torque +-4e-17 N m was read as flipping, "near balance")
+        flipped = ((sign(robot.gravity_torques(sagged)) != sign(t0))
+                   | (sign(robot.gravity_torques(loaded) + torques(robot, loaded, load)) != sign(total)))
         loose |= flipped
     unset = {j: np.flatnonzero(loose[:, j]) for j in gaps}
     unset = {j: rows for j, rows in unset.items() if rows.size and abs(gaps[j]) > 0}

@@ -2957,8 +2957,10 @@ def second_order_note(robot: Robot, m: Measurements, ob: Observed, k: np.ndarray
     return [f"the deflections are large enough for the first-order model (eq. 4, dp = J(q) dq) to leave "
             f"{rms * 1e6:.3g} um RMS at the measured points ({rms / sigma:.2g} times the noise; the joints turn by up "
             f"to {np.abs(dq).max() * 1e3:.3g} mrad under the loads and {np.abs(dq_w).max() * 1e3:.3g} mrad under the "
-            "arm's own weight, with the compliances identified here): the geometry's change under load is outside "
-            "the catalogue, and a cause named may stand for it; smaller loads make it smaller (as their square)"]
+            "arm's own weight, with the compliances identified here); the rows were left first order (corrected for "
+            "it, they fitted the nominal model no better, or it was below a fifth of the residuals: docs/measured-"
+            "data.md, 'The arm's exact statics'), so the geometry's change under load is outside the model, and a "
+            "cause named may stand for it; smaller loads make it smaller (as their square)"]
 
 
 #: the share of the held-out sum of squares above which one configuration is said to dominate it

@@ -125,10 +125,15 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
             "a combination of the compliances of joints " + ", ".join(map(str, joints)))
     load = (f"the loads {problem.loads.spec}" if problem.loads is not None else
             f"the force {problem.force.tolist()} N")
-    where = "at any pose" if problem.robot.cell is None else "at any pose the cell allows"
-    raise InputError(f"{what} cannot be identified with {load} {where}: the loads never load it (zero torque "
-                     "about that axis, or the same effect as other joints); use a load with another direction",
-                     source=problem.robot.source)
+    if problem.candidates is not None:  # a fresh user's one-pose candidate file was told to change the load
+        where = (f"at the {len(P)} pose(s) of the candidate file (--candidates, `candidates`)"
+                 + ("" if problem.robot.cell is None else " that the cell allows"))
+        cure = "give the candidate file more poses (of other configurations), or a load with another direction"
+    else:
+        where = "at any pose" if problem.robot.cell is None else "at any pose the cell allows"
+        cure = "use a load with another direction"
+    raise InputError(f"{what} cannot be identified with {load} {where}: the loads never load it there (zero torque "
+                     f"about that axis, or the same effect as other joints); {cure}", source=problem.robot.source)
 
 
 #: eigenvalues of a design's information matrix below this fraction of its largest are zero to working precision
