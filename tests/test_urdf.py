@@ -487,6 +487,28 @@ def test_the_report_counts_the_identifiable_compliances(root, tmp_path):
                            "left out")
 
 
+def test_the_report_prints_limits_and_poses_within_the_limits(root):
+    """A fresh user's Bravo 7: the report printed a limit of 200.5352 deg as "0 to 201" and a plan's pose at 200.54
+    (2 decimals, rounded outward). The limits are printed rounded inward to 2 decimals, each within 0.01 deg of the
+    robot's, and the study's poses within them."""
+    from stiffcal.model.robot import round_within
+    from stiffcal.planning.study import study_from_entry
+    from stiffcal.report.html import robot_summary
+
+    entry = {"name": "panda", "robot": "tests/data/urdf/franka_panda.yaml", "force_N": [20, 0, -30], "sigma_m": 1e-5,
+             "test_pose_deg": [0, -30, 0, -120, 0, 90, 45]}
+    study = study_from_entry(entry, root)
+    printed = np.array(robot_summary(study)["limits_deg"], float)
+    true = study.robot.limits_deg
+    assert np.all(printed[:, 0] >= true[:, 0]) and np.all(printed[:, 1] <= true[:, 1])
+    assert np.abs(printed - true).max() < 0.01
+    from stiffcal.report.html import _limits_text
+
+    assert _limits_text(np.array([[0.0, np.degrees(3.5)], [-200.5352, -0.004]])) == [["0", "200.53"], ["-200.53", "-0.01"]]
+    at_limit = np.where(np.arange(7) == 3, true[:, 0] + 1e-4, 0.0)  # joint 4 just inside its lower limit
+    assert round_within(at_limit[None], true, 2)[0, 3] >= true[3, 0]
+
+
 def test_plans_csv_prints_a_pose_at_a_joint_limit_within_it(root):
     """A fresh user's Panda study: plans.csv printed q4 = -176.0012 where the URDF's limit is -176.001176 (rounded
     outward to 1e-4 deg); every printed angle lies within its limit, the nearest 1e-4 deg inside it."""

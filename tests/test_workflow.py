@@ -361,6 +361,8 @@ def test_archive_verifies_and_names_a_changed_file(built, tmp_path):
     res = _snakemake(built, "archive")
     assert res.returncode == 0, res.stderr[-3000:]
     (tgz,) = (built / "results/archive").glob("stiffcal-*.tar.gz")
+    again = _snakemake(built, "-n", "archive")  # made, it is up to date (a start time among its params rebuilt it)
+    assert again.returncode == 0 and "Nothing to be done" in again.stdout + again.stderr, again.stdout[-2000:]
     cli = Path(sys.executable).with_name("stiffcal")
     ok = subprocess.run([str(cli), "verify-archive", str(tgz)], capture_output=True, text=True)
     assert ok.returncode == 0, ok.stderr

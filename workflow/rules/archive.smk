@@ -1,12 +1,9 @@
 # The archive for reviewers (`make archive`): exactly what this config's workflow made (the outputs `all` asks
 # for, the report, the logs of their jobs), the effective config and every file the config refers to, with
 # provenance.json and SHA256SUMS; `stiffcal verify-archive FILE` checks it. Not part of `all`.
-import datetime as _dt
-
 from stiffcal.workflow.archive import config_files as _config_files
 from stiffcal.workflow.archive import run_status as _run_status
 
-RUN_STARTED = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
 # named for its commit, with '-dirty' when the tree or an input (the config, a file it names) is not as committed
 ARCHIVE = f"results/archive/stiffcal-{_run_status(config, '.', CONFIG_SOURCE, packages=False)['commit']}.tar.gz"
 
@@ -21,7 +18,6 @@ rule archive:
     output:
         tgz=ARCHIVE,
     params:
-        started=RUN_STARTED,
         config=config,
         files=archive_files,
         config_source=CONFIG_SOURCE,

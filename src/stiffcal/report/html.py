@@ -189,11 +189,21 @@ def robot_summary(study) -> dict:
     return {"name": robot.name, "kind": robot.kind, "n": robot.n_joints, "n_params": prob.n_params,
             "d": prob.rows_per_pose, "source": robot.reference, "dh": dh, "convention": robot.convention,
             "tool_m": None if robot.tool_m is None else robot.tool_m.tolist(),
-            "limits_deg": np.degrees(robot.joint_limits_rad).round(3).tolist(),
+            "limits_deg": _limits_text(np.degrees(robot.joint_limits_rad)),
             "has_limits": robot.has_joint_limits, "limited": robot.limited.tolist(),
             "inert": [robot.joint_names[j] for j in range(robot.n_joints) if j not in prob.params],
             "inert_notes": unidentified_notes(robot, prob),
             "joint_keys": robot.joint_columns(""), "joint_names": list(robot.joint_names), "urdf": robot.urdf}
+
+
+def _limits_text(limits_deg) -> list[list[str]]:
+    """The joint limits (n, 2) [deg] as the report prints them: rounded inward to 2 decimals, trailing zeros dropped
+    (a URDF's 3.5 rad, 200.5352 deg, was printed "201", beside a pose at 200.54 in its plan)."""
+    import numpy as np
+
+    lo, hi = np.ceil(limits_deg[:, 0] * 100 - 1e-6) / 100, np.floor(limits_deg[:, 1] * 100 + 1e-6) / 100
+    text = lambda v: f"{v + 0.0:.2f}".rstrip("0").rstrip(".")  # noqa: E731
+    return [[text(a), text(b)] for a, b in zip(lo, hi)]
 
 
 def study_context(study, entry: dict, paths: dict) -> dict:
@@ -202,13 +212,15 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     import numpy as np
     import pandas as pd
 
+    from ..model.robot import round_within
     from ..model.workcell import contact_note, test_pose_note
 
     robot = study.robot
     versus_m = pd.read_csv(paths["studym"], keep_default_na=False, na_values=[""])
     long = pd.read_csv(paths["studyplans"], keep_default_na=False, na_values=[""])
     cols = robot.joint_columns("q", "_deg")
-    poses = {int(m): g[cols].to_numpy(float).tolist() for m, g in long.groupby("m", sort=True)}
+    poses = {int(m): round_within(g[cols].to_numpy(float), robot.limits_deg, 2).tolist()  # printed within limits
+             for m, g in long.groupby("m", sort=True)}
     clearance = ({int(m): [(float(c), str(n)) for c, n in zip(g["clearance_m"], g["closest"])]
                   for m, g in long.groupby("m", sort=True)} if "clearance_m" in long.columns else None)
     contact = test_pose_note(robot, study.problem("ot"), study.test_pose) + [

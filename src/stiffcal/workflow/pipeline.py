@@ -591,17 +591,20 @@ def effective_config(config: dict, out: str) -> None:
                       f"provenance.json)\n{text}")
 
 
-def archive(config: dict, started: str, out_tgz: str, files: list[str], config_source: str | None = None) -> None:
+def archive(config: dict, out_tgz: str, files: list[str], config_source: str | None = None) -> None:
     """results/archive/stiffcal-<commit>.tar.gz: the files of this config's run (``files``: its outputs, the
     logs of their jobs, the report, the effective config) and every file the config refers to
     (:func:`stiffcal.workflow.archive.config_files`), with provenance.json and SHA256SUMS (``stiffcal verify-archive``
     checks it). provenance.json names every input git does not vouch for (``config_source``, the config file the
-    run read, and the files the config names; :func:`stiffcal.workflow.archive.input_status`)."""
+    run read, and the files the config names; :func:`stiffcal.workflow.archive.input_status`), and the start and end of
+    this archiving job (not a parameter of the rule: a start time among its params made every run rebuild the archive,
+    `snakemake -n` never up to date)."""
     import datetime
 
     from . import archive as arc
     from ..report import html as report
 
+    started = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
     inputs = arc.config_files(config, ".")
     members = sorted({*map(Path, files), *inputs}, key=lambda p: p.as_posix())
     ended = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
