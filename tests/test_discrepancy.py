@@ -1725,6 +1725,12 @@ def test_a_negative_backlash_gap_is_not_read_as_a_gear():
     assert len(notes) == 1 and "b2_rad = -1.5e-05" in notes[0] and "b1_rad" not in notes[0]
     assert D._negative_gap_note({**ext, "parameters": [2e-5, -0.5e-5]}) == []
     assert D._negative_gap_note({**ext, "causes": ["joint_coupling"]}) == []
+    # a link that bends against its load (another user's UR10 on a pedestal: c5 below zero, nothing said)
+    link = {"causes": ["link_compliance"], "parameter_names": ["c4_1/(N m^2)", "c5_1/(N m^2)", "k2_rad/(N m)"],
+            "parameters": [2e-5, -1.06e-4, -1e-6], "parameters_ci95": [1e-5, 0.97e-4, 0.5e-6]}
+    notes = D._negative_gap_note(link)
+    assert len(notes) == 1 and "c5_1/(N m^2) = -0.000106" in notes[0] and "c4" not in notes[0] and "k2" not in notes[0]
+    assert "no link bends against its load" in notes[0]
 
 
 def _real_arm_file(tmp_path, name: str, rest: str) -> Path:

@@ -2766,19 +2766,30 @@ def _weightless_note(robot: Robot, out: dict, alpha: float) -> list[str]:
             "own weight\"); a rough estimate is better than none"]
 
 
+#: the extended model's parameters that no real arm has below zero: cause -> (its parameters' prefix, what it is, what
+#: has no negative one)
+SIGNED_PARAMETERS = {"backlash": ("b", "backlash has a negative gap", "no gear has"),
+                     "link_compliance": ("c", "link compliance is negative", "no link bends against its load")}
+
+
 def _negative_gap_note(extended: dict | None) -> list[str]:
-    """A note when the extended model's backlash has a gap below zero beyond its 95 % interval: no gear's (a fresh
-    user's clean log named backlash with b2 = -1.5e-5 +- 0.8e-5 rad, and nothing said)."""
-    if not extended or "backlash" not in extended.get("causes", []):
-        return []
-    bad = [f"{n} = {v:.3g} +- {c:.2g}" for n, v, c in zip(extended["parameter_names"], extended["parameters"],
-                                                          extended["parameters_ci95"])
-           if n.startswith("b") and v is not None and c is not None and v + c < 0]
-    if not bad:
-        return []
-    return [f"the extended model's backlash has a negative gap ({', '.join(bad)}, 95 %), which no gear has: it stands "
-            "for something else the data show at those joints (a misfit that changes sign with the load, a frame or "
-            "sign error), or is a chance result; read the backlash as not confirmed there"]
+    """A note per cause of :data:`SIGNED_PARAMETERS` whose parameters in the extended model are below zero beyond their
+    95 % interval: no gear has a negative gap (a fresh user's clean log named backlash with b2 = -1.5e-5 +- 0.8e-5
+    rad, and nothing said), no link bends against its load (another's UR10 on a pedestal: link_compliance with
+    c5 = -1.06e-4 +- 0.97e-4 per N m^2, and nothing said)."""
+    notes = []
+    for cause, (prefix, what, none) in SIGNED_PARAMETERS.items():
+        if not extended or cause not in extended.get("causes", []):
+            continue
+        bad = [f"{n} = {v:.3g} +- {c:.2g}" for n, v, c in zip(extended["parameter_names"], extended["parameters"],
+                                                              extended["parameters_ci95"])
+               if n.startswith(prefix) and v is not None and c is not None and v + c < 0]
+        if bad:
+            notes.append(f"the extended model's {what} ({', '.join(bad)}, 95 %), which {none}: it stands for "
+                         "something else the data show there (a misfit that changes sign with the load, an effect "
+                         "outside the catalogue it absorbs, a frame or sign error), or is a chance result; read the "
+                         f"{cause} as not confirmed there")
+    return notes
 
 
 def _calibrated_robot_note(robot: Robot) -> list[str]:
