@@ -504,7 +504,8 @@ def test_the_report_prints_limits_and_poses_within_the_limits(root):
     assert np.abs(printed - true).max() < 0.01
     from stiffcal.report.html import _limits_text
 
-    assert _limits_text(np.array([[0.0, np.degrees(3.5)], [-200.5352, -0.004]])) == [["0", "200.53"], ["-200.53", "-0.01"]]
+    assert _limits_text(np.array([[0.0, np.degrees(3.5)], [-200.5352, -0.004]])) == [["0", "200.53"],
+                                                                                      ["-200.53", "-0.01"]]
     at_limit = np.where(np.arange(7) == 3, true[:, 0] + 1e-4, 0.0)  # joint 4 just inside its lower limit
     assert round_within(at_limit[None], true, 2)[0, 3] >= true[3, 0]
 
