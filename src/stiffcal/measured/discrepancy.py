@@ -3590,7 +3590,7 @@ def _base_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: float)
                  + "): a pedestal, floor or mounting plate that gives under load? No catalogue cause describes it"
                  + (f", and {label} may only absorb it" if chosen and absorbed else
                     f"; {label}'s model does not hold it, and its compliances are biased by it" if chosen else "")
-                 + "; a target on the base, read with the others, measures it")
+                 + "; a target fixed to the base, read with the others, shows whether it moves; stiffen the mounting")
 
 
 def _unlogged_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
