@@ -2820,6 +2820,7 @@ def _outside_effects(diag: dict, level: float) -> list[str]:
     mimics), that add something beyond the chosen causes; of a drift not confounded with the load and a missing load,
     the drift (a simulated drift of the 6-axis arm took a missing load of -1.9 kg beside it)."""
     found = [k for k, p in OUTSIDE_EFFECTS.items() if diag[k] is not None and diag[k][p] <= level
+             and diag[k].get("physical", True)
              and (diag[k]["chosen_beyond_p"] is None or diag[k]["chosen_beyond_p"] > level)
              and (diag[k].get("beyond_chosen_p") is None or diag[k]["beyond_chosen_p"] <= level)]
     r = (diag.get("time") or {}).get("time_load_correlation")
@@ -3576,21 +3577,38 @@ def _base_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: float)
         return None, None
     p, (c, ch, _), beyond, beside = tested
     depth = float(ch / c) if c > 0 else None
-    out = {"p_value": p, "compliance_rad_per_Nm": float(c), "pivot_depth_m": depth, "chosen_beyond_p": beyond,
-           "beyond_chosen_p": beside}
+    out = {"p_value": p, "compliance_rad_per_Nm": float(c), "pivot_depth_m": depth, "physical": bool(c > 0),
+           "chosen_beyond_p": beyond, "beyond_chosen_p": beside}
+    return out, _base_note(out, chosen, alpha)
+
+
+def _base_note(out: dict, chosen, alpha: float) -> str | None:
+    """The note of :func:`_base_diagnostic`'s result ``out`` beside the chosen causes: None where the tilt is not
+    significant at ``alpha``, its compliance is not positive (a base that tilts against the load is no mounting's: the
+    shape stands for something else), or the chosen causes hold it; else what it is to them: the explanation they
+    only absorb (the verdict is then ``unexplained``, :func:`_outside_effects`), an effect beside them, or one they
+    cannot be told from (neither adds to the other: a fresh user's iiwa under hanging masses, where a bending link and
+    a tilting base gave each other nothing, was told to stiffen its mounting for a real bending link)."""
+    p, c, depth, beyond, beside = (out[k] for k in ("p_value", "compliance_rad_per_Nm", "pivot_depth_m",
+                                                     "chosen_beyond_p", "beyond_chosen_p"))
     absorbed = beyond is None or beyond > alpha
-    if p > alpha or not (absorbed or beside <= alpha):
-        return out, None
+    adds = beside is None or beside <= alpha
+    if p > alpha or not out["physical"] or not (absorbed or adds):
+        return None
     label = "+".join(sorted(chosen, key=CAUSES.index))
-    pivot = f", about a pivot {depth:.2g} m below the base" if depth is not None and abs(depth) < 100 else ""
-    return out, (f"the nominal model's residuals follow a tilt of the whole robot under the load's moment, as on a "
-                 f"base of compliance {c:.2g} rad/(N m) about the horizontal axes{pivot} (F-test p = {p:.2g}"
-                 + ("" if not chosen else f"; {label} adds nothing beyond it, p = {beyond:.2g}" if absorbed else
-                    f", and beyond {label}, p = {beside:.2g}")
-                 + "): a pedestal, floor or mounting plate that gives under load? No catalogue cause describes it"
-                 + (f", and {label} may only absorb it" if chosen and absorbed else
-                    f"; {label}'s model does not hold it, and its compliances are biased by it" if chosen else "")
-                 + "; a target fixed to the base, read with the others, shows whether it moves; stiffen the mounting")
+    pivot = f", about a pivot {depth:.2g} m below the base" if depth is not None and 0 < depth < 5 else ""
+    found = (f"the nominal model's residuals follow a tilt of the whole robot under the load's moment, as on a base of "
+             f"compliance {c:.2g} rad/(N m) about the horizontal axes{pivot} (F-test p = {p:.2g}")
+    if chosen and absorbed and not adds:
+        return (found + f"), and {label} explains them as well (neither adds to the other: p = {beyond:.2g} and "
+                f"{beside:.2g}): under these loads a base that gives and {label} cannot be told apart. Loads that push "
+                "sideways, or a target fixed to the base read apart from this log, separate them")
+    return (found + ("" if not chosen else f"; {label} adds nothing beyond it, p = {beyond:.2g}" if absorbed else
+                     f", and beyond {label}, p = {beside:.2g}")
+            + "): a pedestal, floor or mounting plate that gives under load? No catalogue cause describes it"
+            + (f", and {label} may only absorb it" if chosen and absorbed else
+               f"; {label}'s model does not hold it, and its compliances are biased by it" if chosen else "")
+            + "; a target fixed to the base, read apart from this log, shows whether it moves")
 
 
 def _unlogged_loads(robot: Robot, m: Measurements) -> list[np.ndarray]:
