@@ -404,7 +404,8 @@ def test_candidates_that_cannot_identify_the_model_are_named_not_the_load(tmp_pa
     robot = root / "tests/data/newuser/planar_3r.yaml"
     csv = tmp_path / "one.csv"
     csv.write_text("q1_deg,q2_deg,q3_deg\n10,40,-30\n")
-    with pytest.raises(InputError, match=r"at the 1 pose\(s\) of the candidate file.*give the candidate file more"):
+    with pytest.raises(InputError, match=r"at the 1 pose\(s\) of the candidate file.*2 equation\(s\) for 3 "
+                                         r"compliances: too few poses; give the candidate file more"):
         stiffcal.design(robot, [0, 60, -30], [0, -100], experiments=3, candidates=csv)
     assert np.isfinite(stiffcal.design(robot, [0, 60, -30], [0, -100], experiments=3).O_t)
 

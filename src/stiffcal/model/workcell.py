@@ -821,8 +821,10 @@ def _urdf_geometry(robot):
             try:
                 geom = pin.buildGeomFromUrdf(model, path, pin.GeometryType.COLLISION, package_dirs=_package_dirs(path))
             except (ValueError, RuntimeError, OSError) as err:
-                raise InputError(f"cannot read the collision geometry of the URDF {path}: {_loader_message(err)}",
-                                 source=robot.source, field="urdf") from None
+                where = ("; package:// paths are looked for as DIR/<package>/... for every folder DIR above the URDF"
+                         if "package://" in str(err) else "")
+                raise InputError(f"cannot read the collision geometry of the URDF {path}: {_loader_message(err)}"
+                                 + where, source=robot.source, field="urdf") from None
             finally:
                 os.dup2(sys_err, 2)
                 os.close(sys_err)

@@ -213,7 +213,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     import pandas as pd
 
     from ..model.robot import round_within
-    from ..model.workcell import contact_note, test_pose_note
+    from ..model.workcell import cell_notes, contact_note, test_pose_note
 
     robot = study.robot
     versus_m = pd.read_csv(paths["studym"], keep_default_na=False, na_values=[""])
@@ -223,7 +223,9 @@ def study_context(study, entry: dict, paths: dict) -> dict:
              for m, g in long.groupby("m", sort=True)}
     clearance = ({int(m): [(float(c), str(n)) for c, n in zip(g["clearance_m"], g["closest"])]
                   for m, g in long.groupby("m", sort=True)} if "clearance_m" in long.columns else None)
-    contact = test_pose_note(robot, study.problem("ot"), study.test_pose) + [
+    cell = (cell_notes(robot) + test_pose_note(robot, study.problem("ot"), study.test_pose)  # as `design` says them
+            if robot.cell is not None else [])
+    contact = cell + [
         n for m, pairs in (clearance or {}).items()
         for n in contact_note(np.array([c for c, _ in pairs]), [nm for _, nm in pairs], f"the plan of M = {m}")]
     certificates = pd.read_csv(paths["studycert"], keep_default_na=False, na_values=[""]).to_dict("records")

@@ -512,8 +512,9 @@ def fig_study_plan(study: Study, plan_deg: np.ndarray, m: int, clearance_m=None)
         mid = 0.5 * (lo + hi)
         if robot.cell is not None:
             draw_cell(ax, robot, mid - half, mid + half)
-            ax.plot([], [], "-", color="0.45", label=f"cell (clearance {robot.cell.clearance_m:g} m"
-                    + (": pose (smallest distance)" if clearance_m is not None else "") + ")")
+            ax.plot([], [], "-", color="0.45", label=f"cell (clearance {robot.cell.clearance_m:g} m, between links "
+                    f"{robot.cell.self_margin:g} m" + (": pose (distance to the nearest body, link or cell)"
+                                                       if clearance_m is not None else "") + ")")
         ax.set_xlim(mid[0] - half, mid[0] + half)
         ax.set_ylim(mid[1] - half, mid[1] + half)
         ax.set_zlim(mid[2] - half, mid[2] + half)
