@@ -410,6 +410,23 @@ def test_candidates_that_cannot_identify_the_model_are_named_not_the_load(tmp_pa
     assert np.isfinite(stiffcal.design(robot, [0, 60, -30], [0, -100], experiments=3).O_t)
 
 
+def test_the_config_check_refuses_a_study_whose_candidates_are_too_few(tmp_path, root):
+    """The same one-pose file as a design study's ``candidates``: the config check let it pass (the docs say it
+    refuses plans that cannot identify every compliance), and the study's design job failed after the dry run. It is
+    refused before any job, naming the study's field; two poses (4 equations for 3 compliances) pass."""
+    from stiffcal.planning.study import design_studies
+
+    one = tmp_path / "one.csv"
+    one.write_text("q1_deg,q2_deg,q3_deg\n10,40,-30\n")
+    two = tmp_path / "two.csv"
+    two.write_text("q1_deg,q2_deg,q3_deg\n10,40,-30\n-50,80,20\n")
+    entry = {"name": "r3", "robot": str(root / "tests/data/newuser/planar_3r.yaml"), "test_pose_deg": [0, 60, -30],
+             "force_N": [0, -100], "sigma_m": 1e-5, "m_values": [3]}
+    with pytest.raises(InputError, match=r"studies\[0\]\.candidates.*1 give 2 equations for 3 compliances"):
+        design_studies({"studies": [{**entry, "candidates": str(one)}]}, root, "config.yaml")
+    assert "r3" in design_studies({"studies": [{**entry, "candidates": str(two)}]}, root, "config.yaml")
+
+
 def test_loads_apart_from_the_test_wrench(root):
     """--loads: every pose measured under every load, the force the test pose's alone: O_t scales as |F_t|^2 /
     |F_meas|^2 for the same plan, pushes in a few directions, a loading bar and explicit wrenches are read."""

@@ -212,5 +212,9 @@ def design_studies(config: dict, root: str | Path = ".", source: str = "config")
             raise InputError(f"expected m >= {prob.min_poses}: {too_few[0]} poses give "
                              f"{too_few[0] * prob.rows_per_pose} equations for {prob.n_params} compliances",
                              source=source, field=f"studies[{i}].m_values")
+        if prob.candidates is not None and len(prob.candidates) < prob.min_poses:  # as the design job would say
+            raise InputError(f"expected at least {prob.min_poses} candidate poses: {len(prob.candidates)} give "
+                             f"{len(prob.candidates) * prob.rows_per_pose} equations for {prob.n_params} compliances",
+                             source=source, field=f"studies[{i}].candidates")
         out[e["name"]] = (st, e)
     return out
