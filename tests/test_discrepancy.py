@@ -2448,3 +2448,26 @@ def test_a_tilting_base_and_a_bending_link_that_hanging_masses_cannot_tell_apart
         said = [n for n in v["notes"] if "tilt of the whole robot" in n]
         assert (len(said) == 1 and "cannot be told apart" in said[0] and "may only absorb" not in said[0]) == tie
         assert bool(said) == tie, said
+
+
+def test_a_warned_effect_outside_the_catalogue_adds_the_models_error_to_predictions(tmp_path):
+    """A fresh user's KR 210 (tests/data/newuser/kr210_masses.yaml, its own simulator: hanging masses of 50-300 kg, a
+    reference per visit, two passes) on a plate that tilts 2.5e-9 rad/(N m) about a pivot 0.3 m below the base: `none`
+    with a note of the tilt at p = 0.004, and calibrated.yaml without a model error, its predictions' sd a third of
+    their held-out error. The warned effect now puts the leave-one-configuration-out error beyond the noise into
+    ``model_error_m``; the clean twin, warned of nothing, has none."""
+    import yaml
+
+    robot = NEWUSER / "kr210_masses.yaml"
+    for name, warned in (("kr210_plate_tilt_s1.csv", True), ("kr210_plate_clean_s1.csv", False)):
+        out = tmp_path / name
+        assert main(["discrepancy", "--robot", str(robot), "--data", str(NEWUSER / name), "--out", str(out),
+                     "--no-figures", "--quiet"]) == 0
+        v = json.loads((out / "verdict.json").read_text())
+        cal = yaml.safe_load((out / "calibrated.yaml").read_text())["calibration"]
+        assert v["cause"] == "none" and (v["diagnostics"]["base_compliance"]["p_value"] <= 0.01) == warned
+        held, sigma = v["held_out"]["rms_nominal_m"], v["nominal"]["sigma_m"]
+        if warned:  # model_error is the held-out RMS beyond the noise (no drift here)
+            assert cal["model_error_m"] == pytest.approx(np.sqrt(held**2 - sigma**2), rel=1e-6)
+        else:
+            assert "model_error_m" not in cal

@@ -4415,7 +4415,9 @@ def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose
                                               f"extended one ({', '.join(verdict['extended']['causes'])}): {why}"])
     else:
         cal = calibrated.from_analysis(robot, pre, verdict, data_path)
-    if worse or verdict["cause"] == "unexplained":
+    warned = bool(diag) and bool(_outside_effects(diag, verdict["alpha"]))  # an effect outside the catalogue warned
+    if worse or warned or verdict["cause"] == "unexplained":  # of: its predictions' error is the model's too (a fresh
+        #   user's KR 210 on a plate that gave: `none` with a base warning, k2 4 % off, held-out errors 2.4 sd RMS)
         cal = replace(cal, model_error_m=model_error(verdict["held_out"], cal, tracker_drift_ms(pre, diag)))
     if not with_test:
         return verdict, cal
