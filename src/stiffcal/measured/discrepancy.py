@@ -4036,8 +4036,8 @@ def physical_choice(des: Design, sel: Selection, chosen: frozenset, alternatives
                     robot: Robot, observed: Observed, notes: list[str]) -> tuple[frozenset, list, list[str]]:
     """The combination the extended model holds, among the smallest compatible ones closed testing found equally
     good (``chosen`` first, then ``alternatives``: the verdict's ``equivalent_combinations``): the first whose
-    joint and link compliances are nowhere below zero beyond their 95 % interval (:func:`_negative`), else ``chosen``. The selection itself
-    is unchanged; only which of the equivalent combinations comes first.
+    joint and link compliances are nowhere below zero beyond their 95 % interval (:func:`_negative`), else
+    ``chosen``. The selection itself is unchanged; only which of the equivalent combinations comes first.
 
     Returns (the combination, the others in their order, ``notes`` with what was found: a combination passed
     over, an extension that is not physical, parameters the data do not determine (:func:`estimability`)).
