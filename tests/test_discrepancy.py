@@ -2471,7 +2471,7 @@ def test_a_warned_effect_outside_the_catalogue_adds_the_models_error_to_predicti
 def test_a_link_that_would_bend_against_its_load_is_not_the_physical_extension(root, tmp_path, arm, i):
     """A planar arm's coupled joints are described as well by a bending link (the two coincide in the plane), and the
     golden logs of a coupled pair (tools/golden.py) named link_compliance with c1 = -3.8e-6 +- 0.7e-6 per N m^2 in 11
-    of 42: a link that bends against its load, which none does. The physical extension among the equivalent ones now
+    of 28: a link that bends against its load, which none does. The physical extension among the equivalent ones now
     excludes a negative link compliance as it did a negative joint compliance: joint_coupling, with link_compliance
     indistinguishable from it and a note saying why."""
     arms = R.robots(root)

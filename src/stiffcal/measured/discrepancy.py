@@ -4026,7 +4026,7 @@ def _negative(names: list[str], value: list, half: list, n: int) -> list[str]:
     and below zero beyond their 95 % interval, as "name = value +- half-width" (``names``, ``value``, ``half``:
     :func:`_parameters`): no joint pushes back against the load, no link bends against it (a planar arm's coupled
     joints, which a bending link describes as well, were named link_compliance with c1 = -3.8e-6 +- 0.7e-6 per N m^2
-    in 11 of 42 golden logs, joint_coupling beside it). A lost motion may be truly zero, and then dips below zero by
+    in 11 of 28 golden logs, joint_coupling beside it). A lost motion may be truly zero, and then dips below zero by
     chance (:func:`_negative_gap_note`)."""
     return [f"{names[i]} = {value[i]:.3g} +- {half[i]:.2g}" for i in range(len(names))
             if (i < n or LINK_PARAMETER.fullmatch(names[i])) and value[i] is not None and value[i] + half[i] < 0]
