@@ -143,7 +143,7 @@ def test_a_study_in_a_cell_keeps_every_pose_feasible_and_is_the_api_s_plan(built
     for q in long[["q1_deg", "q2_deg"]].to_numpy(float):
         assert _planar_violations(_points_along(robot, q)) == (False, False), q
     html = (built / "paper/build/report.html").read_text()
-    assert "The robot stands in a cell" in html and "clearance [mm]" in html
+    assert "The robot stands in a cell" in html and "distance to the nearest body [mm]" in html
     s = CELL_STUDY
     cell = {**s["cell"]}
     for m in s["m_values"]:
