@@ -62,8 +62,10 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
     from . import discrepancy as D
 
     causes = tuple(verdict["extended"]["causes"]) if verdict.get("extended") else ()
-    f = D.fit(pre.des.model(frozenset(causes)), pre.des.y)
-    ok, _ = D.estimability(pre.des.model(frozenset(causes)))
+    X = pre.des.model(frozenset(causes))
+    f = D.fit(X, pre.des.y)
+    ok, _ = D.estimability(X)
+    free = D.free_directions(X)
     params = pre.ob.model_params(robot)
     names = [robot.joint_columns("k")[int(j)] for j in params]
     names += [name for c in sorted(causes, key=D.CAUSES.index) for name in D.parameter_names(c, robot, pre.ob)]
@@ -80,7 +82,8 @@ def from_analysis(robot: Robot, pre, verdict: dict, data_path=None) -> Calibrati
                        pre.noise.s2 * cov, tuple(bool(e) for e in ok), pre.ob.rows_per(robot),
                        float(np.sqrt(pre.noise.s2)), verdict["nominal"]["rotation_weight_m_per_rad"],
                        verdict.get("error_model") or {}, src,
-                       untested_backlash=tuple(D.unseen_backlash_joints(robot, pre)))
+                       untested_backlash=tuple(D.unseen_backlash_joints(robot, pre)),
+                       free_directions=free if len(free) else None)
 
 
 def calibrated_document(robot: Robot, cal: Calibration, out_dir) -> dict:
@@ -390,8 +393,12 @@ def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.nd
     1e-9 of the row's largest identified joint's; a joint whose axis passes through the measured point, a Panda's
     flange joint turned by a loading bar's moment, moves nothing there), the row's load reverses the total torque of
     no joint whose backlash the data could not test (:func:`untested_backlash_reversed`), and no parameter it did not
-    determine (its estimable flag; the prediction uses its minimum-norm value) has a column of X (N, r, p) above 1e-9
-    of the row's largest (scaled by the parameter's standard deviation, so that units do not decide)."""
+    determine moves the row's prediction: no parameter it did not determine (its estimable flag) has a column of X
+    (N, r, p) above 1e-9 of the row's largest (scaled by the parameter's standard deviation, so that units do not
+    decide), or X times no free direction of the data (:attr:`Calibration.free_directions`, where the file has them)
+    is above :data:`stiffcal.measured.discrepancy.ESTIMABLE_TOL` of the sum of its terms' sizes (two link segments the
+    data determine only in a sum leave a row that sees only their sum determined: a fresh user's UR10 had 20 of 20
+    held-out rows flagged, though they did not move along it)."""
     n = robot.n_joints
     missing = np.array([j for j in range(n) if j not in cal.k_joints], int)
     ok = np.ones(len(q), bool)
@@ -400,11 +407,21 @@ def determined_rows(robot: Robot, cal, q: np.ndarray, load: np.ndarray, X: np.nd
         scale = np.abs(X[..., : len(cal.k_joints)]).max(axis=(1, 2)) if len(cal.k_joints) else moves.max(axis=1)
         ok &= ~np.any(moves > ROUND_OFF * scale[:, None], axis=1)
     ok &= ~untested_backlash_reversed(robot, cal, q, load).any(axis=1)
-    undetermined = ~np.asarray(cal.estimable, bool)[: X.shape[-1]]
-    if undetermined.any():
-        sd = np.sqrt(np.clip(np.diag(cal.cov), 0.0, None))[: X.shape[-1]]
+    from .discrepancy import ESTIMABLE_TOL
+
+    p = X.shape[-1]
+    undetermined = ~np.asarray(cal.estimable, bool)[:p]
+    if undetermined.any():  # the rows a parameter the data did not determine moves above round-off
+        sd = np.sqrt(np.clip(np.diag(cal.cov), 0.0, None))[:p]
         size = np.abs(X).max(axis=1) * np.where(sd > 0, sd, 1.0)  # (N, p)
-        ok &= ~np.any(size[:, undetermined] > 1e-9 * size.max(axis=1, keepdims=True), axis=1)
+        loose = np.any(size[:, undetermined] > 1e-9 * size.max(axis=1, keepdims=True), axis=1)
+        free = cal.free_directions
+        if free is not None and len(free) and free.shape[1] >= p:  # ... and along a free direction of the data, not
+            v = free[:, :p]  # only along sums they determine (each term x_j v_j a displacement: unit-free)
+            moved = np.abs(np.einsum("nrp,kp->nrk", X, v))
+            terms = np.einsum("nrp,kp->nrk", np.abs(X), np.abs(v))
+            loose &= np.any(moved > ESTIMABLE_TOL * np.maximum(terms, 1e-300), axis=(1, 2))
+        ok &= ~loose
     return ok
 
 

@@ -3903,6 +3903,19 @@ def _scaled_row_space(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return scale, (Vt[s > RANK_RTOL * s[0]] if s.size else np.zeros((0, X.shape[1])))
 
 
+def free_directions(X: np.ndarray) -> np.ndarray:
+    """(k, p): an orthonormal basis of the null space of the design X (N, p), in the parameters' own units: the
+    directions along which the data leave the parameters free (X v = 0), the rank decided as :func:`fit` decides it;
+    (0, p) where X has full column rank. A prediction c b is estimable exactly where c v = 0 for every such v (Searle,
+    *Linear Models*, 1971, sec. 5.4)."""
+    scale, V = _scaled_row_space(X)
+    p = X.shape[1]
+    if len(V) == p:
+        return np.zeros((0, p))
+    null = np.linalg.svd(np.eye(p) - V.T @ V)[0][:, : p - len(V)]  # the scaled null space: X (u / scale) = 0
+    return np.linalg.qr(null / scale[:, None])[0].T
+
+
 def in_row_space(X: np.ndarray, C: np.ndarray) -> bool:
     """Whether every row of C (k, p) lies in the row space of the design X (N, p), so that the predictions C b
     are estimable (Searle, *Linear Models*, 1971, sec. 5.4): X's columns scaled to unit norm (and C's

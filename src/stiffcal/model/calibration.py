@@ -34,7 +34,9 @@ class Calibration:
     beyond the noise (0: none known), which predictions add to their variance; untested_backlash: the joints
     (0-based) the loads turned but whose total torque no load of the data reversed (the arm's weight preloads them),
     so that a backlash there could not show (the verdict's note), which predictions name where their load reverses
-    it."""
+    it; free_directions (k, p): unit vectors along which the data leave the parameters free (the null space of their
+    design; None where they determine every parameter): a prediction is determined where it does not move along
+    them."""
     causes: tuple[str, ...]
     k_joints: tuple[int, ...]
     names: tuple[str, ...]
@@ -48,6 +50,7 @@ class Calibration:
     source: dict = field(default_factory=dict)
     model_error_m: float = 0.0
     untested_backlash: tuple[int, ...] = ()
+    free_directions: np.ndarray | None = None
 
     def compliances(self, n_joints: int) -> np.ndarray:
         """(n,) [rad/(N m)]: the identified compliance of every joint, NaN for one the data did not identify."""
@@ -66,7 +69,9 @@ class Calibration:
                           "error_model": self.error_model, "source": self.source,
                           **({"model_error_m": float(self.model_error_m)} if self.model_error_m > 0 else {}),
                           **({"untested_backlash_joints": [int(j) + 1 for j in self.untested_backlash]}
-                             if self.untested_backlash else {})})
+                             if self.untested_backlash else {}),
+                          **({"free_directions": [[float(v) for v in row] for row in self.free_directions]}
+                             if self.free_directions is not None and len(self.free_directions) else {})})
 
 
 #: the largest standard deviation of a calibration's parameter accepted (SI units: rad/(N m), rad, m, 1/(N m^2))
@@ -132,7 +137,19 @@ def from_dict(doc: dict, robot: Robot, source: str) -> Calibration:
     return Calibration(causes, tuple(joints), names, theta, cov, est, int(doc["n_offsets"]), float(doc["sigma_m"]),
                        doc.get("rotation_weight_m_per_rad"), dict(doc.get("error_model") or {}),
                        dict(doc.get("source") or {}), float(doc.get("model_error_m", 0.0)),
-                       _untested(doc, robot, bad))
+                       _untested(doc, robot, bad), _free(doc, theta.size, bad))
+
+
+def _free(doc: dict, p: int, bad) -> np.ndarray | None:
+    """The section's ``free_directions`` (k, p): unit vectors of the parameters along which the data leave them free
+    (None where the file has none: written before they were, or every parameter determined)."""
+    rows = doc.get("free_directions")
+    if not rows:
+        return None
+    V = np.asarray(rows, float)
+    if V.ndim != 2 or V.shape[1] != p or not np.all(np.isfinite(V)):
+        raise bad(f"expected rows of {p} numbers (one per parameter), got shape {V.shape}", "free_directions")
+    return V
 
 
 def _names_of(cause: str, robot: Robot, n_offsets: int) -> list[str]:
