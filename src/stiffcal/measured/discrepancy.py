@@ -301,7 +301,9 @@ def _stack(X: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class Fit:
-    """Least-squares fit: beta (p,), rss, rank, df (rows - rank), cov_unscaled (p, p) = (X^T X)^+."""
+    """Least-squares fit: beta (p,), rss, rank, df (rows - rank), cov_unscaled (p, p): (X^T X)^-1 at full rank, else a
+    generalised inverse of X^T X (the pseudo-inverse of the column-scaled design's, scaled back: the same variance
+    for every estimable combination, but its null space is not X's; :func:`free_directions` gives that)."""
     beta: np.ndarray
     rss: float
     rank: int
