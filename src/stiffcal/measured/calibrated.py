@@ -598,12 +598,10 @@ def untested_backlash_reversed(robot: Robot, cal, q: np.ndarray, load: np.ndarra
         return out
     from .discrepancy import torques
 
-    from ..model.catalogue import _signs
+    from ..model.catalogue import preloaded_signs
 
-    t0 = robot.gravity_torques(q)
-    tau = torques(robot, q, load)
-    scale = np.maximum(np.abs(tau), np.abs(t0)).max(axis=-1, keepdims=True)  # the catalogue's round-off rule
-    out[:, joints] = (_signs(t0 + tau, scale) * _signs(t0, scale) < 0)[:, joints]
+    total, weight = preloaded_signs(torques(robot, q, load), robot.gravity_torques(q))
+    out[:, joints] = (total * weight < 0)[:, joints]
     return out
 
 
@@ -649,7 +647,7 @@ def _unset_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) ->
         return []
     from functools import partial
 
-    from ..model.catalogue import _signs
+    from ..model.catalogue import torque_signs
     from .discrepancy import _preload, torques
 
     tau = torques(robot, q, load)
@@ -663,8 +661,9 @@ def _unset_backlash_notes(robot: Robot, cal, q: np.ndarray, load: np.ndarray) ->
         if robot.compliances is not None:
             k = np.where(k > 0, k, np.asarray(robot.compliances, float))
         sagged, loaded = q + k * t0, q + k * total
-        sign = partial(_signs, scale=scale)  # a torque within round-off of zero has no sign (a UR10's wrist 2: its
-        #                                      weight's torque +-4e-17 N m was read as flipping, "near balance")
+        # a torque within round-off of zero has no sign (a UR10's wrist 2: its weight's torque +-4e-17 N m was read as
+        # flipping, "near balance")
+        sign = partial(torque_signs, scale=scale)
         flipped = ((sign(robot.gravity_torques(sagged)) != sign(t0))
                    | (sign(robot.gravity_torques(loaded) + torques(robot, loaded, load)) != sign(total)))
         loose |= flipped

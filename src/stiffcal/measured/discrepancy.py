@@ -3574,6 +3574,19 @@ def _base_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: float)
     return out, _base_note(out, chosen, alpha)
 
 
+def _standing(out: dict, alpha: float) -> str | None:
+    """How an effect outside the catalogue (its diagnostics ``out``: ``p_value``, ``chosen_beyond_p``,
+    ``beyond_chosen_p``) stands to the chosen causes at ``alpha``: None where it is not found or they hold it;
+    ``explains`` where they add nothing beyond it (and it adds to them, or no cause is chosen); ``beside`` where each
+    adds to the other; ``alike`` where neither does (the two cannot be told apart)."""
+    p, beyond, beside = out["p_value"], out["chosen_beyond_p"], out["beyond_chosen_p"]
+    if p > alpha:
+        return None
+    if beyond is None or beyond > alpha:
+        return "alike" if beside is not None and beside > alpha else "explains"
+    return "beside" if beside is not None and beside <= alpha else None
+
+
 def _base_note(out: dict, chosen, alpha: float) -> str | None:
     """The note of :func:`_base_diagnostic`'s result ``out`` beside the chosen causes: None where the tilt is not
     significant at ``alpha``, its compliance is not positive (a base that tilts against the load is no mounting's: the
@@ -3583,18 +3596,18 @@ def _base_note(out: dict, chosen, alpha: float) -> str | None:
     a tilting base gave each other nothing, was told to stiffen its mounting for a real bending link)."""
     p, c, depth, beyond, beside = (out[k] for k in ("p_value", "compliance_rad_per_Nm", "pivot_depth_m",
                                                      "chosen_beyond_p", "beyond_chosen_p"))
-    absorbed = beyond is None or beyond > alpha
-    adds = beside is None or beside <= alpha
-    if p > alpha or not out["physical"] or not (absorbed or adds):
+    standing = _standing(out, alpha)
+    if standing is None or not out["physical"]:
         return None
     label = "+".join(sorted(chosen, key=CAUSES.index))
     pivot = f", about a pivot {depth:.2g} m below the base" if depth is not None and 0 < depth < 5 else ""
     found = (f"the nominal model's residuals follow a tilt of the whole robot under the load's moment, as on a base of "
              f"compliance {c:.2g} rad/(N m) about the horizontal axes{pivot} (F-test p = {p:.2g}")
-    if chosen and absorbed and not adds:
+    if standing == "alike":
         return (found + f"), and {label} explains them as well (neither adds to the other: p = {beyond:.2g} and "
                 f"{beside:.2g}): under these loads a base that gives and {label} cannot be told apart. Loads that push "
                 "sideways, or a target fixed to the base read apart from this log, separate them")
+    absorbed = standing == "explains"
     return (found + ("" if not chosen else f"; {label} adds nothing beyond it, p = {beyond:.2g}" if absorbed else
                      f", and beyond {label}, p = {beside:.2g}")
             + "): a pedestal, floor or mounting plate that gives under load? No catalogue cause describes it"
@@ -3672,15 +3685,15 @@ def _unlogged_note(out: dict, chosen: list[str], alpha: float, time: dict | None
     it); where neither adds to the other, that the two cannot be told apart; else that it explains the data."""
     p, beyond, beyond_chosen, kg = out["p_value"], out["chosen_beyond_p"], out["beyond_chosen_p"], out["mass_kg"]
     label = "+".join(chosen)
-    if p > alpha or (beyond is not None and beyond <= alpha and not (beyond_chosen is not None
-                                                                      and beyond_chosen <= alpha)):
+    standing = _standing(out, alpha)
+    if standing is None:
         return None
-    if beyond is not None and beyond <= alpha:  # each adds to the other: both are there
+    if standing == "beside":  # each adds to the other: both are there
         return (f"beside {label}, a constant load missing from the log adds to the fit ({kg:.3g} kg along gravity; "
                 f"F-test p = {beyond_chosen:.2g} beyond them): a hook or hanger hung with the masses and not logged? "
                 f"{label} may take up part of it (an offset, a coupling): add it to the logged loads and analyse again "
                 "before using calibrated.yaml")
-    if beyond_chosen is not None and beyond_chosen > alpha:  # each explains the data as well as the other
+    if standing == "alike":  # each explains the data as well as the other
         return (f"{label} and a constant load missing from the log ({kg:.3g} kg along gravity, F-test p = {p:.2g} "
                 f"against the nominal model) explain these data alike (neither adds to the other: p = {beyond:.2g} "
                 f"and {beyond_chosen:.2g}): under loads that never reverse, a gear's jump and an unlogged hook's "

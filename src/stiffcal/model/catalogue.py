@@ -35,9 +35,17 @@ class Cause:
     preloaded: bool = False
 
 
-def _signs(tau: np.ndarray, scale: np.ndarray) -> np.ndarray:
+def torque_signs(tau: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """sign(tau) with a torque within round-off of zero (relative to ``scale``, (N, 1)) taken as zero."""
     return np.sign(tau) * (np.abs(tau) > 1e-12 * scale)
+
+
+def preloaded_signs(tau: np.ndarray, t0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(sign(t0 + tau), sign(t0)) (N, n) of the total torque and the arm's own weight's (``tau`` the load's,
+    ``t0`` the weight's [N m]), each within round-off of the row's largest torque taken as zero
+    (:func:`torque_signs`): the backlash's law, and where a load reverses a joint's total torque."""
+    scale = np.maximum(np.abs(tau), np.abs(t0)).max(axis=-1, keepdims=True)
+    return torque_signs(t0 + tau, scale), torque_signs(t0, scale)
 
 
 def _coupling(J: np.ndarray, tau: np.ndarray, t0: np.ndarray) -> np.ndarray:
@@ -55,8 +63,8 @@ def _cubic(J: np.ndarray, tau: np.ndarray, t0: np.ndarray) -> np.ndarray:
 def _backlash(J: np.ndarray, tau: np.ndarray, t0: np.ndarray) -> np.ndarray:
     """dq_i = b_i (sign(t0 + tau) - sign(t0)): a gap preloaded by the weight jumps only where the load reverses
     the total torque; a torque within round-off of zero (the arm along the force) has no sign."""
-    scale = np.maximum(np.abs(tau), np.abs(t0)).max(axis=-1, keepdims=True)
-    return J * (_signs(t0 + tau, scale) - _signs(t0, scale))[:, None, :]
+    total, weight = preloaded_signs(tau, t0)
+    return J * (total - weight)[:, None, :]
 
 
 def _offset_names(robot, rotation: list[str]) -> list[str]:

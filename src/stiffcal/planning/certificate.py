@@ -125,17 +125,17 @@ def check_identifiable(problem: Problem, P: np.ndarray) -> None:
             "a combination of the compliances of joints " + ", ".join(map(str, joints)))
     load = (f"the loads {problem.loads.spec}" if problem.loads is not None else
             f"the force {problem.force.tolist()} N")
+    why = "the loads never load it there (zero torque about that axis, or the same effect as other joints)"
     if problem.candidates is not None:  # a fresh user's one-pose candidate file was told to change the load
         rows = len(P) * problem.rows_per_pose * (1 if problem.loads is None else len(problem.loads.wrenches))
         where = (f"at the {len(P)} pose(s) of the candidate file (--candidates, `candidates`)"
-                 + ("" if problem.robot.cell is None else " that the cell allows")
-                 + (f", {rows} equation(s) for {problem.n_params} compliances" if rows < problem.n_params else ""))
+                 + ("" if problem.robot.cell is None else " that the cell allows"))
+        if rows < problem.n_params:
+            where, why = f"{where}, {rows} equation(s) for {problem.n_params} compliances", "too few poses"
         cure = "give the candidate file more poses (of other configurations), or a load with another direction"
     else:
         where = "at any pose" if problem.robot.cell is None else "at any pose the cell allows"
         cure = "use a load with another direction"
-    why = ("too few poses" if problem.candidates is not None and "equation(s) for" in where else
-           "the loads never load it there (zero torque about that axis, or the same effect as other joints)")
     raise InputError(f"{what} cannot be identified with {load} {where}: {why}; {cure}", source=problem.robot.source)
 
 

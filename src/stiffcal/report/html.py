@@ -199,11 +199,10 @@ def robot_summary(study) -> dict:
 def _limits_text(limits_deg) -> list[list[str]]:
     """The joint limits (n, 2) [deg] as the report prints them: rounded inward to 2 decimals, trailing zeros dropped
     (a URDF's 3.5 rad, 200.5352 deg, was printed "201", beside a pose at 200.54 in its plan)."""
-    import numpy as np
+    from ..model.robot import round_within
 
-    lo, hi = np.ceil(limits_deg[:, 0] * 100 - 1e-6) / 100, np.floor(limits_deg[:, 1] * 100 + 1e-6) / 100
-    text = lambda v: f"{v + 0.0:.2f}".rstrip("0").rstrip(".")  # noqa: E731
-    return [[text(a), text(b)] for a, b in zip(lo, hi)]
+    lo, hi = round_within(limits_deg.T, limits_deg, 2)  # each limit held within itself, as the poses are
+    return [[f"{v:.2f}".rstrip("0").rstrip(".") for v in pair] for pair in zip(lo, hi)]
 
 
 def study_context(study, entry: dict, paths: dict) -> dict:
