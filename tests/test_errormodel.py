@@ -610,6 +610,45 @@ def test_a_visit_column_that_disagrees_with_the_rows_is_noted(tmp_path, paper_ro
                                                     for n in v["notes"])
 
 
+def test_pass_labels_that_meet_at_one_configuration_are_not_a_split_visit(tmp_path, paper_robot):
+    """A helper's Z1 log, visits labelled by their pass (1, 2) under a reference per configuration: the shuffled
+    second pass began at the configuration where the first ended, and the note asked "one visit split under two
+    labels?" of two passes. The 2-link arm's log with its revisits reordered so that the second pass begins there
+    (timestamps kept increasing): no such note; the same log with that configuration's two visits labelled apart
+    from every other (V7a, V7b: labels of its own) is still asked about."""
+    pr = R.PROTOCOLS["hanging x3, reference per configuration, half revisited"]
+    _, _, path = _log_csv(tmp_path, paper_robot, pr, n_configs=10, seed=5)
+    rows = list(csv.reader(path.open(encoding="utf-8")))
+    header, body = rows[0], rows[1:]
+    q = [header.index(c) for c in header if c.endswith("_deg")]
+    first = [r for r in body if not r[0].startswith("R")]
+    later = [r for r in body if r[0].startswith("R")]
+    last = tuple(first[-1][i] for i in q)
+    assert any(tuple(r[i] for i in q) == last for r in later), "seed 5 revisits the last configuration"
+    later = sorted(later, key=lambda r: tuple(r[i] for i in q) != last)  # stable: that revisit's rows first
+    t = header.index("timestamp_s")
+    times = sorted(float(r[t]) for r in body)
+    body = first + later
+    for r, s in zip(body, times):
+        r[t] = f"{s:.1f}"
+
+    def write(label, name):
+        out = tmp_path / name
+        out.write_text("\n".join(",".join(r) for r in [header + ["visit"]] + [r + [label(i, r)] for i, r in
+                                                                             enumerate(body)]) + "\n",
+                       encoding="utf-8")
+        return D.analyse(paper_robot, read_measurements(out, paper_robot), gain=False)["notes"]
+
+    def by_pass(i, r):
+        return "1" if i < len(first) else "2"
+
+    def own_at_last(i, r):
+        return ("V7a" if i < len(first) else "V7b") if tuple(r[j] for j in q) == last else by_pass(i, r)
+
+    assert not any("follow each other at one configuration" in n for n in write(by_pass, "passes.csv"))
+    assert any("follow each other at one configuration" in n for n in write(own_at_last, "own.csv"))
+
+
 def test_a_log_without_its_reference_rows_is_noted(tmp_path, paper_robot):
     """A fresh user's UR3 log with its reference rows left out got false causes in 3 of 4 clean seeds and no word.
     The 2-link arm's log (a reference per visit, two passes): as written (exact-zero reference rows), no note; without

@@ -538,7 +538,9 @@ def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:
     at a configuration, or a later one) have one (a reference row lost: a later visit with none is the protocol of a
     reference per configuration); visit labels whose rows are not consecutive in time (rows of other visits between
     them: one label used for two visits?); and consecutive visits at one configuration with no other between them,
-    the second without a reference reading of its own (one visit split under two labels?). ``visit`` (n,): the
+    the second without a reference reading of its own, one of the two labels used at that configuration alone (one
+    visit split under two labels? Labels of passes, each at many configurations, meet at one where a shuffled pass
+    begins where the last ended: a helper's Z1 log). ``visit`` (n,): the
     visits of :func:`_visits`."""
     order = np.lexsort((f["rows"], f["time"]))
     first_at = {}
@@ -571,8 +573,12 @@ def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:
                      "consecutive in time (rows of other visits between them): one label used for two visits? Rows of "
                      "one configuration and label are read as one visit")
     own = {v for v, _ in with_zero}  # a visit that begins with its own reference reading is a new visit
+    at: dict = {}  # label -> the configurations it labels: a label at several is a pass's (a shuffled second pass
+    for c, lab in zip(f["config"], f["visit"]):  # may begin where the first ended: two passes, not a split visit)
+        at.setdefault(str(lab), set()).add(int(c))
     twice = [f"{label[int(visit[a])]} and {label[int(visit[b])]}" for a, b in zip(runs[:-1], runs[1:])
-             if f["config"][a] == f["config"][b] and int(visit[b]) not in own]
+             if f["config"][a] == f["config"][b] and int(visit[b]) not in own
+             and min(len(at[label[int(visit[a])]]), len(at[label[int(visit[b])]])) == 1]
     if twice:
         notes.append(f"visit labels {', '.join(twice[:3])}{' ...' if len(twice) > 3 else ''} follow each other at one "
                      "configuration with no other configuration between them: one visit split under two labels? (A "
