@@ -2368,8 +2368,23 @@ def test_the_base_tilt_law_is_a_rigid_turn_and_the_regressors_are_the_simulators
     path.write_text(",".join(cols) + "\n" + "\n".join(",".join(str(v) for v in r) for r in rows) + "\n")
     meas = read_measurements(path, robot)
     ob = D.Observed.of(robot, meas)
-    X = D._base_columns(robot, SimpleNamespace(m=meas, ob=ob, w=np.ones(12)))
+    pre = SimpleNamespace(m=meas, ob=ob, w=np.ones(12))
+    X = D._base_columns(robot, pre)
     assert np.allclose(X @ np.array([c, c * h, c * h * h]), moved, rtol=1e-9, atol=1e-15)
+    # a base compliant by c_x about the base's x axis and c_y about its y (gravity along -z): w = (c_x M_x, c_y M_y, 0)
+    cx, cy = 5e-7, 1e-7
+    plate = replace(truth, base_tilt=(cx, cy, h))
+    disp, rot = T.base_tilt_motion(robot, plate, q, F, Mt, pts)
+    assert np.allclose(rot, M * [cx, cy, 0.0], rtol=1e-12, atol=0)
+    moved = (T.deflection(robot, plate, q, F, Mt, target, ("A", "B"), orientation=True)
+             - T.deflection(robot, replace(truth, base_tilt=None), q, F, Mt, target, ("A", "B"), orientation=True))
+    E = D._horizontal_basis(robot)[1]  # the analysis's axes: C = E^T diag(c_x, c_y, 0) E, components C11, C22, C12
+    C = E.T @ np.diag([cx, cy, 0.0]) @ E
+    coef = np.array([C[0, 0], C[1, 1], C[0, 1]])
+    assert np.allclose(D._base_columns(robot, pre, axes=True) @ np.concatenate([coef, coef * h, coef * h * h]), moved,
+                       rtol=1e-9, atol=1e-15)
+    soft, axis = D._principal(robot, C)
+    assert np.allclose(soft, [cx, cy], rtol=1e-12) and np.allclose(axis, [1.0, 0.0, 0.0], atol=1e-12)
 
 
 def test_a_compliant_pedestal_is_named_outside_the_catalogue(tmp_path):
@@ -2392,12 +2407,15 @@ def test_a_compliant_pedestal_is_named_outside_the_catalogue(tmp_path):
     assert base["p_value"] < 1e-6 and 2e-7 < base["compliance_rad_per_Nm"] < 8e-7
     assert 0.1 < base["pivot_depth_m"] < 1.2
     assert "base of compliance" in v["p_value_statement"] or "the base stays put" in v["p_value_statement"]
+    # calibrated.yaml's compliances absorb the tilt (a fresh user's IRB 4600: k2 3.5 times its truth, no word)
+    absorbed = "calibrated.yaml's compliances are the nominal model's fitted to rows moved by a base that tilts"
+    assert any(n.startswith(absorbed) for n in v["notes"]), v["notes"]
     v = verdicts["ur10_pedestal_backlash_s3.csv"]
     assert v["cause"] == "backlash" and any("tilt of the whole robot" in n and "beyond backlash" in n
                                             for n in v["notes"]), v["notes"]
     v = verdicts["ur10_pedestal_clean_s1.csv"]
     assert v["cause"] == "none" and v["diagnostics"]["base_compliance"]["p_value"] > 0.01
-    assert not any("tilt of the whole robot" in n for n in v["notes"])
+    assert not any("tilt of the whole robot" in n or n.startswith(absorbed) for n in v["notes"])
 
 
 def test_a_base_tilt_is_not_taken_for_a_real_cause_or_found_in_clean_data(tmp_path):
@@ -2422,6 +2440,30 @@ def test_a_base_tilt_is_not_taken_for_a_real_cause_or_found_in_clean_data(tmp_pa
                 assert v["cause"] == "unexplained" and v["diagnostics"]["outside_catalogue"] == ["base_compliance"]
             else:
                 assert v["causes"] == ([] if name == "clean" else ["joint_coupling"]) and not noted, (name, seed)
+
+
+def test_a_base_stiffer_about_one_axis_is_named_with_its_softest_axis(tmp_path):
+    """A fresh user's KR 210 on a plate stiffer about one horizontal axis than the other: `none` in 5 of 5 logs under
+    a loading bar, the base's test (one compliance about every horizontal axis) short of its level. stiffcal's own
+    simulator, the UR10 on a base 15 times softer about x than about y (c_x = 3e-7, c_y = 2e-8 rad/(N m), pivot 0.5 m
+    down) under a loading bar, a reference per visit, two passes: `unexplained` with the base named in 6 of 6 seeds
+    (5 of 6 with the isotropic test alone; `none` in the sixth, seed 4, tested here), its softest axis the base's x
+    and its principal compliances near the truth; under hanging masses 4 of 6 (1 of 6 before)."""
+    robot = _ur10_lab(tmp_path)
+    protocol = replace(R.PROTOCOLS["loading bar x3, reference per visit, 2 passes"], magnitudes_N=(19.6, 49.0, 98.1),
+                       sigma_m=1.5e-5, sigma_per_m=0.0)
+    k = np.array([3.0e-6, 2.5e-6, 4.0e-6, 1.2e-5, 1.2e-5, 1.5e-5])
+    for seed in (3, 4):
+        rng = np.random.default_rng(seed)
+        log = T.lab_log(robot, protocol, rng, 30)
+        path = _write(tmp_path, T.lab_csv(robot, log, T.measure(robot, T.Truth(k, base_tilt=(3e-7, 2e-8, 0.5)), log,
+                                                                rng)))
+        v = D.analyse(robot, read_measurements(path, robot), 0.01, gain=False)
+        base = v["diagnostics"]["base_compliance"]
+        assert v["cause"] == "unexplained" and v["diagnostics"]["outside_catalogue"] == ["base_compliance"], seed
+        soft, stiff = base["principal_compliances_rad_per_Nm"]
+        assert abs(base["softest_axis"][0]) > 0.95 and 1.5e-7 < soft < 6e-7 and abs(stiff) < soft / 2, base
+        assert any("about the horizontal axis (" in n for n in v["notes"])
 
 
 def test_a_tilting_base_and_a_bending_link_that_hanging_masses_cannot_tell_apart_are_said_to_be(tmp_path):

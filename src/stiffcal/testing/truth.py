@@ -56,7 +56,9 @@ class Truth:
     the side (+-1). Needs a :class:`LabLog` (the readings' order); :func:`deflection` ignores it.
     base_tilt: (c [rad/(N m)], h [m]) a compliant base (outside the catalogue: a pedestal, a floor, a mobile
     platform): the whole robot tilts about the horizontal axes through a pivot h below the base origin by c times the
-    horizontal part of the load's moment about that pivot (:func:`base_tilt_motion`; spatial arms).
+    horizontal part of the load's moment about that pivot (:func:`base_tilt_motion`; spatial arms); (c_x, c_y, h) a
+    base compliant by c_x about the horizontal axis along the base's x (:func:`horizontal_axes`) and by c_y about the
+    one across it (a plate stiffer one way, a pedestal on rails).
     The joint laws act on the total torque, the load's plus the arm's own weight (:func:`self_weight_torques`),
     and a row's deflection is the difference between the loaded and the unloaded state at the same pose.
     """
@@ -73,7 +75,7 @@ class Truth:
     load_tilt: np.ndarray | None = None
     held_gap: np.ndarray | None = None
     held_torque: np.ndarray | None = None
-    base_tilt: tuple[float, float] | None = None
+    base_tilt: tuple[float, ...] | None = None
     extra: dict = field(default_factory=dict)
 
 
@@ -220,20 +222,33 @@ def base_tilt_motion(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarra
                      points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(displacement (N, 3) [m] of points (N, 3), rotation (N, 3) [rad])`` of a robot on a compliant base
     (``truth.base_tilt`` = (c, h)): the base turns by w = c P M about the pivot p0 = -h u below its origin (u the up
-    direction, minus the robot file's gravity; P the projection on the horizontal plane), M = (x - p0) x F + M_tool
+    direction, minus the robot file's gravity; P the projection on the horizontal plane; with (c_x, c_y, h),
+    w = c_x (M . e1) e1 + c_y (M . e2) e2, :func:`horizontal_axes`), M = (x - p0) x F + M_tool
     the load's moment about the pivot (x the tool point, F (N, 3) [N], M_tool (N, 3) [N m] about the tool point),
     and every point p moves by w x (p - p0): a rigid rotation of the whole arm on a rotational spring at its
     foot."""
     if robot.task_dim != 3:
         raise ValueError("a compliant base (Truth.base_tilt) needs a spatial arm")
-    c, h = (float(v) for v in truth.base_tilt)
-    up = -np.asarray(robot.gravity, float)
-    up = up / np.linalg.norm(up)
+    *c, h = (float(v) for v in truth.base_tilt)
+    up, e1, e2 = horizontal_axes(robot)
     pivot = -h * up
     x = target_world(robot, q, None, None)
     M = np.cross(x - pivot, as_xyz(force)) + (0.0 if moment is None or not np.any(moment) else _moment3(robot, moment))
-    turn = c * (M - np.outer(M @ up, up))
+    cx, cy = (c[0], c[0]) if len(c) == 1 else c
+    turn = cx * np.outer(M @ e1, e1) + cy * np.outer(M @ e2, e2)
     return np.cross(turn, points - pivot), turn
+
+
+def horizontal_axes(robot: Robot) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(up, e1, e2), unit (3,) each in the base frame: up = minus the robot file's gravity, e1 the base's x axis made
+    horizontal (its y axis where x is nearly vertical), e2 = up x e1: the axes of a compliant base's
+    ``Truth.base_tilt`` = (c_x, c_y, h)."""
+    up = -np.asarray(robot.gravity, float)
+    up = up / np.linalg.norm(up)
+    x = np.eye(3)[0] if abs(up[0]) < 0.9 else np.eye(3)[1]
+    e1 = x - (x @ up) * up
+    e1 /= np.linalg.norm(e1)
+    return up, e1, np.cross(up, e1)
 
 
 def deflection(robot: Robot, truth: Truth, q: np.ndarray, force: np.ndarray, moment: np.ndarray | None = None,
