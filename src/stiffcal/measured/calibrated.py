@@ -280,9 +280,9 @@ def _model_error_note(cal) -> list[str]:
     if not cal.model_error_m > 0:
         return []
     return [f"the data reject this model (verdict {cal.source.get('verdict_cause')}): sd includes its error at "
-            f"configurations it was not fitted to, {_model_error_um(cal)} (its held-out RMS beyond the noise, "
-            "calibration.model_error_m), an estimate from the measured configurations: farther from them the error "
-            "can be larger"]
+            f"configurations it was not fitted to, {_model_error_um(cal)} (its held-out RMS beyond what a right model "
+            "leaves, calibration.model_error_m), an estimate from the measured configurations: farther from them the "
+            "error can be larger"]
 
 
 def _model_error_um(cal) -> str:

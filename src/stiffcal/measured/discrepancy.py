@@ -4163,14 +4163,18 @@ def parameter_names(cause: str, robot: Robot, observed: Observed | None = None) 
 
 
 def loco_predictions(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None,
-                     des: Design | None = None, error=None, weights: np.ndarray | None = None):
+                     des: Design | None = None, error=None, weights: np.ndarray | None = None,
+                     s2: float | None = None):
     """Leave-one-configuration-out predictions of the positions: each robot configuration (all its loads,
     targets and replicates) left out in turn and predicted from the others (fitted on every measured quantity,
     ``observed``). With the analysis's design ``des`` (weighted by ``weights`` (N,) and whitened by the error
     model ``error``) the fits are its generalised least squares (configurations are independent blocks, so
     leaving one out drops its rows) and a held-out configuration's measured rows are taken less the shared
     error its own unloaded rows predict. Returns (predicted (N, d), measured (N, d)) [m], or None when fewer
-    than two configurations."""
+    than two configurations; with ``s2`` (the error variance of the whitened rows [m^2]) and ``des``, also the
+    variance (N, d) [m^2] of each row's prediction error if the model were right: the row's noise and the shared
+    error its unloaded rows do not predict (:func:`held_out_noise`), and the prediction's from the parameters
+    fitted without its configuration (Cov beta_(-g) = s2 (X_(-g)^T X_(-g))^+, whitened)."""
     if meas.n_configurations < 2:
         return None
     ob = observed or Observed.of(robot, meas)
@@ -4185,20 +4189,34 @@ def loco_predictions(robot: Robot, meas: Measurements, causes=(), observed: Obse
     else:
         Xw, yw = X, y
     pred = np.empty((len(y), d))
+    var = None if s2 is None or des is None else held_out_noise(error, w, len(y), des.d)[:, :d] * s2
     groups = rows_by_label(meas.config, meas.n_configurations)
-    for test, beta in zip(groups, _leave_one_group_out(Xw, yw, groups)):
+    for test, (beta, cov) in zip(groups, _leave_one_group_out(Xw, yw, groups, covariance=var is not None)):
         pred[test] = np.einsum("ndp,p->nd", X[test], beta)[:, :d]
-    return pred, y[:, :d]
+        if var is not None:
+            var[test] += s2 * np.einsum("ndp,pq,ndq->nd", X[test][:, :d], cov, X[test][:, :d])
+    return (pred, y[:, :d]) if var is None else (pred, y[:, :d], var)
 
 
-def _leave_one_group_out(X: np.ndarray, y: np.ndarray, groups: list[np.ndarray]):
+def held_out_noise(error, weights: np.ndarray, n: int, w: int) -> np.ndarray:
+    """(n, w): each loaded row's error variance [in units of the whitened rows' variance] less what its own
+    configuration's unloaded rows predict (``error``'s blocks: the conditional covariance H_(L|U) = (W^T W)^-1;
+    rows sharing no error: 1), in the rows' own units (divided by the noise weight squared, ``weights`` (n,))."""
+    out = np.ones((n, w))
+    for rows, _, W, _ in (() if error is None else error.blocks):
+        out[rows] = np.diag(np.linalg.inv(W.T @ W)).reshape(len(rows), w)
+    return out / np.asarray(weights, float)[:, None] ** 2
+
+
+def _leave_one_group_out(X: np.ndarray, y: np.ndarray, groups: list[np.ndarray], covariance: bool = False):
     """Yield, for each group (``groups``: the rows of each, :func:`stiffcal.measured.measurements.rows_by_label`), the
     coefficients (p,) of :func:`fit` on the rows of X (N, w, p), y (N, w) outside it, without refitting: with the
     SVD of the whole (column-scaled) X = U S V^T, dropping group g's rows leaves the normal equations
     (I - U_g^T U_g) c = U^T y - U_g^T y_g in c = S V^T beta (the block deletion formula; Belsley, Kuh & Welsch,
     *Regression Diagnostics*, 1980, ch. 2): one small solve per group, so the whole is linear in the rows. Where a
     group carries a direction that the others barely do (the deletion would change :func:`fit`'s rank decision),
-    that group is refitted from scratch."""
+    that group is refitted from scratch. Each with (beta, C): C (p, p) the coefficients' covariance over the noise
+    variance, (X_(-g)^T X_(-g))^+ (None without ``covariance``)."""
     X2, y2, w = _stack(X), y.ravel(), X.shape[1]
     scale = np.linalg.norm(X2, axis=0)
     scale[scale == 0] = 1.0
@@ -4212,11 +4230,14 @@ def _leave_one_group_out(X: np.ndarray, y: np.ndarray, groups: list[np.ndarray])
         Ug = U[mine]
         M = np.eye(len(s)) - Ug.T @ Ug
         if s.size and np.linalg.eigvalsh(M)[0] > safe:
-            yield Vt.T @ (np.linalg.solve(M, c - Ug.T @ y2[mine]) / s) / scale
+            A = Vt.T / s / scale[:, None] if covariance else None  # beta = A (S V^T beta)
+            yield (Vt.T @ (np.linalg.solve(M, c - Ug.T @ y2[mine]) / s) / scale,
+                   A @ np.linalg.solve(M, A.T) if covariance else None)
         else:
             out = np.ones(len(y2), bool)
             out[mine] = False
-            yield fit(X2[out], y2[out]).beta
+            P = np.linalg.pinv(X2[out] / scale, rcond=RANK_RTOL) / scale[:, None] if covariance else None
+            yield fit(X2[out], y2[out]).beta, (P @ P.T if covariance else None)
 
 
 def loco_rms(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None, des: Design | None = None,
@@ -4232,19 +4253,26 @@ class HeldOut:
     """The held-out check (:func:`held_out`): measured (N, d) [m] the rows' positions (less the shared error
     their unloaded rows predict), nominal and calibrated (N, d) [m] the leave-one-configuration-out predictions
     of the nominal and the calibrated model (the extended one, else the nominal), config (N,) the rows'
-    configurations, labels: one per configuration."""
+    configurations, labels: one per configuration; expected_nominal, expected_calibrated (N, d) [m^2]: each row's
+    expected squared error if that model were right (:func:`loco_predictions` with ``s2``), or None."""
     measured: np.ndarray
     nominal: np.ndarray
     calibrated: np.ndarray
     config: np.ndarray
     labels: tuple
     causes: tuple
+    expected_nominal: np.ndarray | None = None
+    expected_calibrated: np.ndarray | None = None
 
     def as_dict(self) -> dict:
         """The verdict's ``held_out``: per configuration its label, rows and the RMS error [m] of either model's
-        prediction, and the RMS over all rows."""
+        prediction, the RMS over all rows, and the RMS each would have if that model were right (noise, shared
+        errors and the parameters' uncertainty; None where not computed)."""
         def rms(pred, rows=slice(None)):
             return float(np.sqrt(np.mean((self.measured[rows] - pred[rows]) ** 2)))
+
+        def expected(var):
+            return None if var is None else float(np.sqrt(np.mean(var)))
 
         table = [{"configuration": str(self.labels[g]) if g < len(self.labels) else str(g),
                   "rows": len(mine), "rms_nominal_m": rms(self.nominal, mine),
@@ -4252,20 +4280,22 @@ class HeldOut:
                  for g, mine in zip(*rows_by_value(self.config))]
         return {"method": "leave-one-configuration-out", "calibrated_causes": list(self.causes),
                 "rms_nominal_m": rms(self.nominal), "rms_calibrated_m": rms(self.calibrated),
-                "per_configuration": table}
+                "rms_expected_nominal_m": expected(self.expected_nominal),
+                "rms_expected_calibrated_m": expected(self.expected_calibrated), "per_configuration": table}
 
 
 def held_out(robot: Robot, pre: "Prepared", causes=()) -> HeldOut | None:
     """The held-out check of an analysis (:func:`prepare`) for the calibrated model nominal + ``causes``:
     :func:`loco_predictions` of both models on the analysis's generalised least squares. None with fewer than
     two configurations."""
-    args = (pre.ob, pre.des, pre.error, pre.w)
+    args = (pre.ob, pre.des, pre.error, pre.w, pre.noise.s2)
     nom = loco_predictions(robot, pre.m, (), *args)
     if nom is None:
         return None
     cal = loco_predictions(robot, pre.m, tuple(causes), *args) if causes else nom
     m = pre.m
-    return HeldOut(nom[1], nom[0], cal[0], np.asarray(m.config), tuple(m.config_labels), tuple(causes))
+    return HeldOut(nom[1], nom[0], cal[0], np.asarray(m.config), tuple(m.config_labels), tuple(causes), nom[2],
+                   cal[2])
 
 
 def _gain(robot, des, causes, s2, test_pose, test_force, ob: Observed, ho: dict | None, loads=None) -> dict:
@@ -4446,18 +4476,29 @@ def tracker_drift_ms(pre: Prepared, diag: dict) -> float:
 def model_error(held: dict | None, cal, drift_ms: float = 0.0) -> float:
     """The error [m] per position coordinate of a calibrated model the data reject (``unexplained``, or the nominal
     model kept where the extension predicts held-out configurations no better) at configurations it was not fitted
-    to, beyond the noise: sqrt(max(RMS^2 - sigma_m^2 - drift_ms, 0)), RMS its leave-one-configuration-out error
-    (``held``, the verdict's ``held_out``) and sigma_m the analysis's noise (``cal``: its
-    :class:`stiffcal.model.calibration.Calibration`), less ``drift_ms`` [m^2] (:func:`tracker_drift_ms`: what a
-    tracker's drift adds to the rows, not the model's error). Predictions add its square to their variance; their sd
-    from the parameters' covariance alone covers the model's estimation error, not a bias the data show (a fresh
-    user's iiwa with a backlash the kept nominal model lacks: errors of 8-88 um at new poses against sd 2-13 um). 0
-    when the held-out check is not known or is of another model."""
+    to, beyond what a right model leaves: sqrt(max(RMS^2 - max(E^2, sigma_m^2 + drift_ms), 0)), RMS its
+    leave-one-configuration-out error (``held``, the verdict's ``held_out``), E the RMS that error would have if the
+    model were right (its ``rms_expected_*_m``: the rows' noise, the shared errors of their reference readings that
+    their unloaded rows do not predict, and the parameters' uncertainty; a fresh user's Panda under a drift, a
+    reference per configuration reused on revisits: 6.6-13 um of model error where the model was exact, the shared
+    errors counted as the model's), sigma_m the analysis's noise (``cal``: its
+    :class:`stiffcal.model.calibration.Calibration`) and ``drift_ms`` [m^2] (:func:`tracker_drift_ms`: what a
+    tracker's drift adds to the rows, not the model's error). The larger of the two baselines, not their sum: the
+    error model's shared components take up a drift where the rows of a visit or configuration share its time (a
+    drift of 40 um/h read as a return error of 68 um), so E may hold it already.
+    Predictions add its square to their variance; their sd from the parameters' covariance alone covers the model's
+    estimation error, not a bias the data show (a fresh user's iiwa with a backlash the kept nominal model lacks:
+    errors of 8-88 um at new poses against sd 2-13 um). 0 when the held-out check is not known or is of another
+    model."""
     if held is None:
         return 0.0
-    rms = (held["rms_nominal_m"] if not cal.causes else
-           held["rms_calibrated_m"] if tuple(held["calibrated_causes"]) == tuple(cal.causes) else None)
-    return 0.0 if rms is None else float(np.sqrt(max(rms**2 - cal.sigma_m**2 - drift_ms, 0.0)))
+    which = ("nominal" if not cal.causes else
+             "calibrated" if tuple(held["calibrated_causes"]) == tuple(cal.causes) else None)
+    if which is None:
+        return 0.0
+    rms, right = held[f"rms_{which}_m"], held.get(f"rms_expected_{which}_m")
+    baseline = cal.sigma_m**2 + drift_ms
+    return float(np.sqrt(max(rms**2 - (baseline if right is None else max(right**2, baseline)), 0.0)))
 
 
 def _absorbed_note(effects: list[str]) -> str:
@@ -4467,7 +4508,7 @@ def _absorbed_note(effects: list[str]) -> str:
     moved = " and ".join(what[e] for e in effects)
     return (f"calibrated.yaml's compliances are the nominal model's fitted to rows moved by {moved} "
             "(diagnostics.outside_catalogue): they absorb it, biased by as much as it moves the rows (their intervals "
-            "do not cover that), and its predictions carry the held-out error beyond the noise (and a drift) as "
+            "do not cover that), and its predictions carry the held-out error beyond what a right model leaves as "
             "model_error_m; "
             "remove the effect (or model it) and measure again for compliances to trust")
 
