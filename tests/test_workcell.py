@@ -1081,6 +1081,47 @@ def test_a_ur10_cable_through_its_own_flange_is_refused_as_the_meshes_say(tmp_pa
 
 
 @needs_arms
+def test_a_cable_that_starts_inside_a_hand_is_said_to_be_unchecked_against_it(tmp_path):
+    """A fresh user's Panda with its hand, the tool point at the flange (panda_link8) under hanging masses: the cable
+    ran 35-104 mm inside panda_hand at every planned pose (by the user's check), the hand left unchecked because its
+    hull held the tool point, and nothing said it. coal on the hand's convex hull: the flange point lies inside it,
+    more than 1 mm deep; design's notes now name panda_hand and the hook; with the tool point at a hook 15 mm past the
+    fingertips (outside every hull) no such note."""
+    import coal
+    import pinocchio as pin
+
+    from stiffcal.model.workcell import cell_notes
+
+    root = real_arms.robots_dir()
+    urdf = root / real_arms.ARMS["panda"][0]
+    model = pin.buildModelFromUrdf(str(urdf))
+    geom = pin.buildGeomFromUrdf(model, str(urdf), pin.GeometryType.COLLISION, package_dirs=[str(root.parent.parent)])
+    data, gdata = model.createData(), pin.GeometryData(geom)
+    pin.framesForwardKinematics(model, data, np.zeros(model.nq))
+    pin.updateGeometryPlacements(model, data, geom, gdata)
+    flange = data.oMf[model.getFrameId("panda_link8")].translation
+    hand = [i for i, g in enumerate(geom.geometryObjects) if g.name.startswith("panda_hand")
+            and "tcp" not in g.name][0]
+    mesh = geom.geometryObjects[hand].geometry
+    mesh.buildConvexHull(True, "Qt")
+    T = coal.Transform3s(gdata.oMg[hand].rotation, gdata.oMg[hand].translation)
+    deep = [coal.distance(mesh.convex, T, coal.Sphere(1e-9), coal.Transform3s(np.eye(3), flange + d),
+                          coal.DistanceRequest(), coal.DistanceResult()) < 0 or
+            coal.collide(mesh.convex, T, coal.Sphere(1e-9), coal.Transform3s(np.eye(3), flange + d),
+                         coal.CollisionRequest(), coal.CollisionResult())
+            for d in [np.zeros(3)] + [s * 1e-3 * e for e in np.eye(3) for s in (1, -1)]]
+    assert all(deep)
+    said = "the hanging masses' cable starts inside the hull of panda_hand"
+    for tip, hook, expect in (("panda_link8", 0.0, True), ("panda_hand_tcp", 0.015, False)):
+        path = tmp_path / f"{tip}.yaml"
+        path.write_text(f"name: panda\nkind: urdf\nurdf: {urdf}\nbase_frame: panda_link0\ntip_frame: {tip}\n"
+                        f"tool_m: [0, 0, {hook}]\ncell:\n  floor_m: -1.5\n  cable_length_m: 0.3\n", encoding="utf-8")
+        robot = load_robot(path)
+        assert any(n.startswith(said) for n in cell_notes(robot, hanging=True)) == expect, tip
+        assert not any(n.startswith(said) for n in cell_notes(robot))  # no hanging masses: no cable
+
+
+@needs_arms
 def test_a_cable_from_a_fingertip_is_checked_against_the_fingers(tmp_path):
     """A fresh user's Panda (tool point panda_hand_tcp, on the closed fingertips' faces) under hanging masses: every
     planned pose tilted the gripper 62-87 deg and hung the cable through the fingertips (8.5 mm deep by the user's

@@ -562,7 +562,7 @@ def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
         notes.append("over its feasible candidates, " + approx.convergence_note())
     notes += [d.near_singular_note() for d in (continuum, approx) if d is not None and d.near_singular]
     clear, closest, near = _clearances(robot, np.radians(poses))
-    notes += cell_notes(robot, np.radians(poses)) + near
+    notes += cell_notes(robot, np.radians(poses), base.hang_offset) + near
     notes += test_pose_note(robot, base, np.radians(inp.q_t))
     ot = float(summ["O_t"])
     ot_star = base.ot_star(inp.m)

@@ -1071,6 +1071,22 @@ class MeshEngine(_Base):
                     break
         return hits
 
+    def cable_exempt(self, hanging) -> list[str]:
+        """The links of the bodies the cable hangs from whose hull holds its start (``hanging``: :meth:`feasible`'s)
+        at least :data:`CABLE_START_M` deep: :meth:`cable_hits` does not check the cable against them. They are fixed
+        to the tool's link, so what holds at the zero pose holds at every pose."""
+        import pinocchio as pin
+
+        _, model, _ = _urdf_geometry(self.robot)
+        q0 = np.zeros((1, self.robot.n_joints))
+        data = model.createData()
+        T_wb = self._T_wb(data)
+        gd = pin.GeometryData(self.geom)
+        pin.updateGeometryPlacements(model, data, self.geom, gd, full_configuration(self.robot, model, q0)[0])
+        start = T_wb.act(self.cable(q0, _offset(hanging))[0][0])
+        return list(dict.fromkeys(b.link for b in self.bodies if b.tip and _deep_inside(
+            self._hull_shape(b.index), _transform(gd.oMg[b.index]), start, CABLE_START_M)))
+
     def _T_wb(self, data):
         import pinocchio as pin
 
@@ -1263,10 +1279,11 @@ def _srdf_names(root) -> set:
     return {e.get(a) for tag, attrs in SRDF_NAME_ATTRIBUTES.items() for e in root.iter(tag) for a in attrs} - {None}
 
 
-def cell_notes(robot, q: np.ndarray | None = None) -> list[str]:
-    """What the cell's engine decided about pairs (pairs not checked, checked for contact only); for a spatial
-    robot without a cell, that its poses are checked against the joint limits only, and which of the planned poses
-    ``q`` (M, n) [rad] (None: not known) reach below the base's mounting plane (:func:`below_base_note`)."""
+def cell_notes(robot, q: np.ndarray | None = None, hanging=None) -> list[str]:
+    """What the cell's engine decided about pairs (pairs not checked, checked for contact only) and, with hanging
+    masses (``hanging``: :func:`feasible`'s), about the cable (:func:`cable_exempt_note`); for a spatial robot without
+    a cell, that its poses are checked against the joint limits only, and which of the planned poses ``q`` (M, n)
+    [rad] (None: not known) reach below the base's mounting plane (:func:`below_base_note`)."""
     if robot.cell is None:
         return [] if robot.planar else [
             "the robot has no cell: the poses are checked against the joint limits only, not against the table, the "
@@ -1278,7 +1295,22 @@ def cell_notes(robot, q: np.ndarray | None = None) -> list[str]:
              "give the robot's SRDF (cell.srdf) for the pairs its makers disabled"]
             if robot.cell.self_collision and getattr(robot, "urdf_info", None) and not robot.cell.srdf
             and isinstance(eng, MeshEngine) else [])
-    return [] if eng is None else bare + list(dict.fromkeys(eng.notes))  # a link of several collision shapes: once
+    cable = cable_exempt_note(eng, hanging) if hanging is not None and isinstance(eng, MeshEngine) else []
+    return [] if eng is None else bare + list(dict.fromkeys(eng.notes)) + cable  # a link of several shapes: once
+
+
+def cable_exempt_note(eng: MeshEngine, hanging) -> list[str]:
+    """A note naming the bodies whose hull holds the hanging masses' cable start (:meth:`MeshEngine.cable_exempt`),
+    which the cable is not checked against: right for a hook between a gripper's jaws, wrong for a tool point at a
+    flange that carries a hand (a fresh user's Panda, the tool point at panda_link8: the cable ran 35-104 mm inside
+    panda_hand at every planned pose, and nothing said it)."""
+    links = eng.cable_exempt(hanging)
+    if not links:
+        return []
+    return [f"the hanging masses' cable starts inside the hull of {', '.join(links)} (the tool point, or the bar's "
+            "end, lies in it): the cable is not checked against that body, as for a hook between a gripper's jaws; if "
+            "the mass hangs from a hook outside it (a hand on the flange), give tool_m that hook and the cable is "
+            "checked against the hand too"]
 
 
 #: a point this far [m] below the base's mounting plane is named by :func:`below_base_note`

@@ -222,8 +222,9 @@ def study_context(study, entry: dict, paths: dict) -> dict:
              for m, g in long.groupby("m", sort=True)}
     clearance = ({int(m): [(float(c), str(n)) for c, n in zip(g["clearance_m"], g["closest"])]
                   for m, g in long.groupby("m", sort=True)} if "clearance_m" in long.columns else None)
-    cell = (cell_notes(robot) + test_pose_note(robot, study.problem("ot"), study.test_pose)  # as `design` says them
-            if robot.cell is not None else [])
+    ot = study.problem("ot")
+    cell = (cell_notes(robot, hanging=ot.hang_offset) + test_pose_note(robot, ot, study.test_pose)  # as `design`
+            if robot.cell is not None else [])                                                      # says them
     contact = cell + [
         n for m, pairs in (clearance or {}).items()
         for n in contact_note(np.array([c for c, _ in pairs]), [nm for _, nm in pairs], f"the plan of M = {m}")]
