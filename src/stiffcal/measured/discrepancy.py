@@ -4224,13 +4224,13 @@ def _leave_one_group_out(X: np.ndarray, y: np.ndarray, groups: list[np.ndarray],
     keep = s > RANK_RTOL * s[0] if s.size else np.zeros(0, bool)
     U, s, Vt = U[:, keep], s[keep], Vt[keep]
     c = U.T @ y2
+    A = Vt.T / s / scale[:, None] if covariance else None  # beta = A (S V^T beta)
     safe = (10 * RANK_RTOL * s[0] / s[-1]) ** 2 if s.size else 1.0  # the least eigenvalue of I - U_g^T U_g
     for rows in groups:
         mine = flat_index(rows, w)  # the group's flattened rows
         Ug = U[mine]
         M = np.eye(len(s)) - Ug.T @ Ug
         if s.size and np.linalg.eigvalsh(M)[0] > safe:
-            A = Vt.T / s / scale[:, None] if covariance else None  # beta = A (S V^T beta)
             yield (Vt.T @ (np.linalg.solve(M, c - Ug.T @ y2[mine]) / s) / scale,
                    A @ np.linalg.solve(M, A.T) if covariance else None)
         else:
@@ -4509,8 +4509,7 @@ def _absorbed_note(effects: list[str]) -> str:
     return (f"calibrated.yaml's compliances are the nominal model's fitted to rows moved by {moved} "
             "(diagnostics.outside_catalogue): they absorb it, biased by as much as it moves the rows (their intervals "
             "do not cover that), and its predictions carry the held-out error beyond what a right model leaves as "
-            "model_error_m; "
-            "remove the effect (or model it) and measure again for compliances to trust")
+            "model_error_m; remove the effect (or model it) and measure again for compliances to trust")
 
 
 def complete(robot: Robot, pre: Prepared, verdict: Verdict, data_path, test_pose=None, test_force=None):
