@@ -252,7 +252,7 @@ def test_a_compliance_the_plan_leaves_free_is_named():
     are alike (sigma = 1 in the paper's units makes every ratio large)."""
     from dataclasses import replace
 
-    from stiffcal.api import weak_compliance_notes
+    from stiffcal.planning.problem import weak_compliance_notes
     from stiffcal.model.robot import planar_robot
 
     robot = replace(planar_robot([0.6, 0.4, 0.3]), compliances=np.array([2e-6, 1e-6, 1e-6]))

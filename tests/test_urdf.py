@@ -510,6 +510,40 @@ def test_the_report_prints_limits_and_poses_within_the_limits(root):
     assert round_within(at_limit[None], true, 2)[0, 3] >= true[3, 0]
 
 
+def test_the_report_names_a_compliance_a_study_plan_leaves_nearly_free(root, tmp_path):
+    """A fresh reviewer's Panda study: the plan of M = 3 left joint 5 with an sd 1200 times its nominal compliance,
+    `design` said so in its notes, the report's study said nothing (the README promises the note). The study's
+    section now carries it for every M whose plan does, from versus_m.csv's E[dk^2] (eq. 11) and the robot file's
+    compliances: here the plan of M = 3 names panda_joint5 at sqrt(9.2e-3) / 8e-5 = 1200 times its nominal, and the
+    plan of M = 4, every joint determined alike, nothing."""
+    from stiffcal.planning.study import study_from_entry
+    from stiffcal.report.html import study_context
+
+    entry = {"name": "panda", "robot": "tests/data/urdf/franka_panda.yaml", "force_N": [20, 0, -30], "sigma_m": 1e-5,
+             "test_pose_deg": [0, -30, 0, -120, 0, 90, 45]}
+    study = study_from_entry(entry, root)
+    robot = study.robot
+    k = np.asarray(robot.compliances, float)
+    sd = np.where(np.arange(7) == 4, 1200.0, 0.1) * k  # M = 3: joint 5 nearly free
+    sd[6] = np.inf  # joint 7: its axis through the tool point
+    rows = [{"m": 3, **dict(zip(robot.joint_columns("E_dk"), sd**2))},
+            {"m": 4, **dict(zip(robot.joint_columns("E_dk"), np.where(np.arange(7) == 6, np.inf, (0.1 * k) ** 2)))}]
+    paths = {"studym": tmp_path / "versus_m.csv", "studyplans": tmp_path / "plans.csv",
+             "studycert": tmp_path / "certificate.csv", "studyfigplan": tmp_path / "a.png",
+             "studyfigm": tmp_path / "b.png"}
+    import pandas as pd
+
+    pd.DataFrame(rows).to_csv(paths["studym"], index=False)
+    plan = {"plan": "M=3", "m": 3, "pose": 1, **dict(zip(robot.joint_columns("q", "_deg"), [0.0] * 7))}
+    pd.DataFrame([plan]).to_csv(paths["studyplans"], index=False)
+    pd.DataFrame([{"lower_bound": 1.0}]).to_csv(paths["studycert"], index=False)
+    for f in ("studyfigplan", "studyfigm"):
+        paths[f].write_bytes(b"")
+    notes = study_context(study, entry, paths)["plan_notes"]
+    assert len(notes) == 1 and notes[0].startswith("the plan of M = 3: this plan determines the compliance of "
+                                                   "joint(s) panda_joint5 (1.2e+03 times its nominal)"), notes
+
+
 def test_plans_csv_prints_a_pose_at_a_joint_limit_within_it(root):
     """A fresh user's Panda study: plans.csv printed q4 = -176.0012 where the URDF's limit is -176.001176 (rounded
     outward to 1e-4 deg); every printed angle lies within its limit, the nearest 1e-4 deg inside it."""

@@ -506,50 +506,13 @@ def repeated_poses_note(poses_deg: np.ndarray) -> list[str]:
             "are read as one visit"]
 
 
-def weak_compliance_notes(robot, cov_diag: np.ndarray) -> list[str]:
-    """A note naming the compliances a plan determines far worse than the others, relative to their nominal values (the
-    robot file's ``compliances_rad_per_Nm``; none without them): r_j = sqrt(cov_diag_j) / k_j (cov_diag (n,), eq.
-    11) above 1 and above :data:`WEAK_COMPLIANCE_FACTOR` times the median r over the joints (so the note does not
-    depend on the sigma unit); where the median r is itself above 1 (below :data:`WEAK_MEDIAN_UNITS`) the note says
-    so. O_t needs only what the test pose's deflection depends on, so its plan may leave a joint the test load
-    barely turns nearly free; the analysis of the data fits it all the same, and a fresh user's iiwa plan (sd 22
-    times the nominal k5) gave k5 = -3.5e-5 and predictions 88 um off at other poses."""
-    k = getattr(robot, "compliances", None)
-    if k is None:
-        return []
-    r = np.sqrt(np.asarray(cov_diag, float)) / np.where(np.asarray(k) > 0, k, np.nan)
-    known = np.isfinite(r)
-    if not known.any():
-        return []
-    median = float(np.median(r[known]))
-    weak = [j for j in np.flatnonzero(known) if r[j] > max(1.0, WEAK_COMPLIANCE_FACTOR * median)]
-    if not weak:
-        return []
-    listed = ", ".join(f"{robot.joint_names[j]} ({r[j]:.2g} times its nominal)" for j in weak)
-    whole = (f"; the median joint's sd is itself {median:.2g} times its nominal: a model identified from this plan "
-             "predicts the test pose (what O_t asks for), and at other poses it can be worse than the robot file's"
-             if 1.0 <= median < WEAK_MEDIAN_UNITS else "")
-    return [f"this plan determines the compliance of joint(s) {listed} far worse than the others (sd over the robot "
-            f"file's compliance; the median joint {median:.2g}): O_t does not need it (the test load barely turns "
-            "it), but the analysis of the data fits every compliance, and one this free can come out far off (below "
-            f"zero) and bias the model at other poses{whole}; to calibrate the whole arm add poses or plan with "
-            "--criterion a"]
-
-
-#: a compliance whose sd over its nominal value is this many times the median joint's is named (weak_compliance_notes;
-#: at 10 a fresh user's Panda plan named k7 at 37 times its nominal but not k1 and k5 at 4.9 and 4.3, the median 1.3,
-#: and the model identified from it predicted other poses 4.5 times worse than the robot file's flat guess)
-WEAK_COMPLIANCE_FACTOR = 3.0
-#: ... and the median joint's ratio is said to be undetermined too when it is at least 1 and below this (beyond, the
-#: sigma is no tracker's noise in metres under these loads: the paper's sigma = 1 and F = 1 N give ratios of 1e3-1e7)
-WEAK_MEDIAN_UNITS = 100.0
 
 
 def _design_result(inp: _DesignInputs, found: _Found) -> DesignResult:
     """The :class:`DesignResult` of the plan found: its summary, bound, notes and clearance in the cell."""
     from .model import criteria
     from .model.workcell import cell_notes, test_pose_note
-    from .planning.problem import plan_summary, unidentified_notes
+    from .planning.problem import plan_summary, unidentified_notes, weak_compliance_notes
 
     robot, base, approx, continuum = inp.robot, inp.base, found.approx, found.continuum
     poses = merged_copies(found.poses)

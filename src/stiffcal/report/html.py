@@ -213,6 +213,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
 
     from ..model.robot import round_within
     from ..model.workcell import cell_notes, contact_note, test_pose_note
+    from ..planning.problem import weak_compliance_notes
 
     robot = study.robot
     versus_m = pd.read_csv(paths["studym"], keep_default_na=False, na_values=[""])
@@ -228,6 +229,8 @@ def study_context(study, entry: dict, paths: dict) -> dict:
     contact = cell + [
         n for m, pairs in (clearance or {}).items()
         for n in contact_note(np.array([c for c, _ in pairs]), [nm for _, nm in pairs], f"the plan of M = {m}")]
+    weak = [f"the plan of M = {int(row['m'])}: {n}" for row in versus_m.to_dict("records")  # as `design` says them
+            for n in weak_compliance_notes(robot, np.array([row[c] for c in robot.joint_columns("E_dk")], float))]
     certificates = pd.read_csv(paths["studycert"], keep_default_na=False, na_values=[""]).to_dict("records")
     return {
         "entry": entry, "robot": robot_summary(study),
@@ -235,6 +238,7 @@ def study_context(study, entry: dict, paths: dict) -> dict:
         "sigma": study.sigma, "micro": study.sigma < 1e-2,
         "certificate": certificates[0], "certificates": certificates,
         "plans": versus_m.to_dict("records"), "poses": poses, "clearance": clearance, "contact_notes": contact,
+        "plan_notes": weak,
         "cell": None if robot.cell is None else robot.cell.describe(),
         "loads": None if study.loads is None else study.loads.spec,
         "candidates": entry.get("candidates"),
