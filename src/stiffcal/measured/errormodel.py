@@ -494,8 +494,8 @@ def _label_notes(f: dict, visit: np.ndarray) -> list[str]:
         orphan = sorted({label for _, _, label in keys(np.flatnonzero(~f["exact"])) - keys(exact)})
         if orphan:
             notes.append(f"reference label(s) {', '.join(orphan[:5])}{' ...' if len(orphan) > 5 else ''} have no "
-                         "exact-zero row while other labels do: a typo? Their rows are taken as measured from an "
-                         "unlogged reading of their own")
+                         "exact-zero row while other labels do: a reference row lost, or a typo? Their rows are taken "
+                         "as measured from an unlogged reading of their own, one per label")
     return notes
 
 
@@ -561,9 +561,10 @@ def _visit_column_notes(f: dict, visit: np.ndarray) -> list[str]:
         lost = [_visit_name(f, visit, v) for v in sorted(set(lost))]
         notes.append(f"the visit(s) {'; '.join(lost[:3])}{' ...' if len(lost) > 3 else ''} have no "
                      "exact-zero reference row of a target they measure, while most visits of their kind do: a "
-                     "reference row lost, or a label that splits a visit? Their rows are read against the last "
-                     "reference of their target at their configuration before them (else as measured from an unlogged "
-                     "reading of their own)")
+                     "reference row lost, or a label that splits a visit? "
+                     + ("The reference column says which reading their rows were taken from" if f["reference"]
+                        is not None else "Their rows are read against the last reference of their target at their "
+                        "configuration before them (else as measured from an unlogged reading of their own)"))
     runs = [int(order[0])] + [int(b) for a, b in zip(order[:-1], order[1:]) if visit[a] != visit[b]] if len(order) \
         else []
     seen = [int(visit[i]) for i in runs]  # a visit is a configuration and a label: labels may repeat across them
