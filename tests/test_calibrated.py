@@ -347,7 +347,8 @@ def _loco_by_hand(X: np.ndarray, y: np.ndarray, config: np.ndarray) -> np.ndarra
 def test_leave_one_group_out_without_refitting_equals_refitting_each_group():
     """The block deletion formula (one SVD, a small solve per configuration) gives what fit() on the rows outside
     each group gives: predictions of the held-out rows equal to 1e-9, on a design that is rank-deficient as a
-    whole (two equal columns) and where one group alone carries a column (its deletion drops the rank: refitted)."""
+    whole (two equal columns) and where one group alone carries a column (its deletion drops the rank: refitted);
+    and their covariance (over the noise variance) what numpy's pseudo-inverse of the others' normal matrix gives."""
     rng = np.random.default_rng(5)
     n_groups, w, p = 60, 2, 6
     group = np.repeat(np.arange(n_groups), 3)
@@ -356,11 +357,18 @@ def test_leave_one_group_out_without_refitting_equals_refitting_each_group():
     X[..., 5] = 0.0
     X[group == 7, :, 5] = rng.normal(size=(3, w))  # only group 7 sees parameter 6
     y = rng.normal(size=(len(group), w))
-    fast = list(D._leave_one_group_out(X, y, rows_by_label(group, n_groups)))
+    fast = list(D._leave_one_group_out(X, y, rows_by_label(group, n_groups), covariance=True))
     for g in range(n_groups):
         out = group != g
         slow = D.fit(X[out].reshape(-1, p), y[out].ravel()).beta
-        np.testing.assert_allclose(X[~out] @ fast[g], X[~out] @ slow, rtol=1e-9, atol=1e-12)
+        beta, cov = fast[g]
+        np.testing.assert_allclose(X[~out] @ beta, X[~out] @ slow, rtol=1e-9, atol=1e-12)
+        # the predictions' covariance over the noise variance: X_g (X_(-g)^T X_(-g))^+ X_g^T, by numpy's pseudo-inverse
+        # of the others' rows (columns scaled to unit norm, as fit() does, so that the rank decisions agree)
+        Xg, Xo = X[~out].reshape(-1, p), X[out].reshape(-1, p)
+        sc = np.where(np.linalg.norm(Xo, axis=0) > 0, np.linalg.norm(Xo, axis=0), 1.0)
+        P = np.linalg.pinv(Xo / sc) / sc[:, None]
+        np.testing.assert_allclose(Xg @ cov @ Xg.T, Xg @ P @ P.T @ Xg.T, rtol=1e-7, atol=1e-12)
 
 
 def test_held_out_against_a_refit_by_hand(tmp_path):

@@ -3412,21 +3412,35 @@ def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, unknown: np.ndarray, f0:
     the D joints the logged loads never turn, :func:`turned_on_dropped`, with free coefficients), its F-test and the
     angle; then whether the chosen causes still add anything beyond it (when they do not, the tilt explains the data
     as well as they do, and the warning says so)."""
-    tested = _effect_test(pre, turned, unknown, f0, chosen)
+    tested = _effect_test(pre, turned, unknown, f0, chosen, both_ways=True)
     if tested is None:
         return None, None
-    p, angle, beyond, _ = tested
+    p, angle, beyond, beside = tested
     size = float(np.degrees(np.linalg.norm(angle)))
     out = {"p_value": p, "angle_deg": size, "axis": (angle / np.linalg.norm(angle)).tolist() if size > 0 else None,
-           "chosen_beyond_p": beyond, "beyond_load_offset_p": None}
-    if p > alpha or (out["chosen_beyond_p"] is not None and out["chosen_beyond_p"] <= alpha):
+           "chosen_beyond_p": beyond, "beyond_chosen_p": beside, "beyond_load_offset_p": None}
+    standing = _standing(out, alpha)
+    if standing not in ("explains", "alike"):
         return out, None
+    found = f"the nominal model's residuals follow the load turned by {size:.2g} deg from its logged direction"
+    if standing == "alike":
+        return out, _alike_note(found, p, chosen, beyond, beside, "a load turned from its logged direction")
     label = "+".join(sorted(chosen, key=CAUSES.index))
-    beyond = f"; {label} adds nothing beyond it, p = {out['chosen_beyond_p']:.2g}" if chosen else ""
-    return out, (f"the nominal model's residuals follow the load turned by {size:.2g} deg from its logged direction "
-                 f"(F-test p = {p:.2g}{beyond}): the load's real direction may differ from the logged one (a pulley, a "
-                 "tilted fixture, a frame mismatch between the load cell and the tracker?); no catalogue cause "
-                 "describes it" + (f", and {label} may only absorb it" if chosen else ""))
+    beyond = f"; {label} adds nothing beyond it, p = {beyond:.2g}" if chosen else ""
+    return out, (f"{found} (F-test p = {p:.2g}{beyond}): the load's real direction may differ from the logged one (a "
+                 "pulley, a tilted fixture, a frame mismatch between the load cell and the tracker?); no catalogue "
+                 "cause describes it" + (f", and {label} may only absorb it" if chosen else ""))
+
+
+def _alike_note(found: str, p: float, chosen, beyond: float, beside: float, what: str) -> str:
+    """The note of an effect outside the catalogue (``found``: what the residuals follow, its F-test ``p``) and chosen
+    causes that explain the data as well as each other (``beyond``: the causes beyond it, ``beside``: it beyond the
+    causes; neither at alpha): the verdict keeps the causes (a planar arm's real coupled pair, read as a load acting
+    off the tool point and `unexplained`, in 9 of 59 missed powered causes of the rate matrix's slice)."""
+    label = "+".join(sorted(chosen, key=CAUSES.index))
+    return (f"{found} (F-test p = {p:.2g}), and {label} explains them as well (neither adds to the other: p = "
+            f"{beyond:.2g} and {beside:.2g}): under these loads {what} and {label} cannot be told apart; the verdict "
+            f"keeps {label}")
 
 
 def _whitened(pre: Prepared, A: np.ndarray) -> np.ndarray:
@@ -3513,16 +3527,21 @@ def _offset_diagnostic(pre: Prepared, offset: tuple[np.ndarray, np.ndarray], f0:
     unexplained or none with a compliance 2 times its truth). With moment columns: the moments logged about another
     point than the tool point (another user's KR 210, its flange sensor's moments about the sensor: none with k4 and
     k5 at 0.5-0.64 of their truth in 4 of 12 logs, false causes in 3)."""
-    tested = _effect_test(pre, *offset, f0, chosen)
+    tested = _effect_test(pre, *offset, f0, chosen, both_ways=True)
     if tested is None:
         return None, None
-    p, r, beyond, _ = tested
-    out = {"p_value": p, "offset_m": [float(v) for v in r], "chosen_beyond_p": beyond, "beyond_load_direction_p": None}
-    if p > alpha or (beyond is not None and beyond <= alpha):
+    p, r, beyond, beside = tested
+    out = {"p_value": p, "offset_m": [float(v) for v in r], "chosen_beyond_p": beyond, "beyond_chosen_p": beside,
+           "beyond_load_direction_p": None}
+    standing = _standing(out, alpha)
+    if standing not in ("explains", "alike"):
         return out, None
+    found = (f"the nominal model's residuals follow a moment of the loads about the tool point, as if they acted "
+             f"at ({', '.join(f'{v:.3g}' for v in r)}) m from it in the tip frame")
+    if standing == "alike":
+        return out, _alike_note(found, p, chosen, beyond, beside, "loads acting off the tool point")
     label = "+".join(sorted(chosen, key=CAUSES.index))
-    return out, (f"the nominal model's residuals follow a moment of the loads about the tool point, as if they acted "
-                 f"at ({', '.join(f'{v:.3g}' for v in r)}) m from it in the tip frame (F-test p = {p:.2g}"
+    return out, (f"{found} (F-test p = {p:.2g}"
                  + (f"; {label} adds nothing beyond it, p = {beyond:.2g}" if chosen else "") + "): "
                  + ("the moments logged about another point than the tool point (a force/torque sensor's origin?)"
                     if pre.m.has_moment else "a loading bar logged without its moment columns (mx_Nm ..)")
