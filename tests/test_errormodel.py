@@ -610,6 +610,29 @@ def test_a_visit_column_that_disagrees_with_the_rows_is_noted(tmp_path, paper_ro
                                                     for n in v["notes"])
 
 
+def test_a_lost_reference_row_under_a_reference_column_is_read_as_the_column_says(tmp_path, paper_robot):
+    """A fresh user's UR5 log with visit and reference columns, two of B's reference readings lost: the visit note
+    said the rows were read against the configuration's last reference before them, the reference note that they were
+    measured from an unlogged reading of their own, and called the lost reading "a typo?". The 2-link arm's log (a
+    reference per visit, two passes) with both columns and visit V7's exact-zero row deleted: the visit note defers
+    to the reference column, the label note asks whether a reference row was lost, and the rows of V7 share one
+    unlogged reading (the error model's reference groups: one more than the exact-zero rows)."""
+    pr = R.PROTOCOLS["hanging x3, reference per visit, 2 passes"]
+    _, _, path = _log_csv(tmp_path, paper_robot, pr, n_configs=10)
+
+    def lose(header, body):  # a reference column (R + the visit label), and V7's reference row lost
+        header = header + ["reference"]
+        body = [r + ["R" + r[-1]] for r in body]
+        zero = [all(float(r[header.index(c)]) == 0.0 for c in ("dx_m", "dy_m")) for r in body]
+        return header, [r for r, z in zip(body, zero) if not (r[-2] == "V7" and z)]
+    v = D.analyse(paper_robot, read_measurements(_with_visit_column(path, lose), paper_robot), gain=False)
+    visit = [n for n in v["notes"] if n.startswith("the visit(s) label V7 at configuration ")]
+    assert len(visit) == 1 and "The reference column says which reading their rows were taken from" in visit[0]
+    assert "read against the last reference" not in visit[0]
+    assert any(n.startswith("reference label(s) RV7 have no exact-zero row") and "a reference row lost, or a typo?"
+               in n for n in v["notes"]), v["notes"]
+
+
 def test_pass_labels_that_meet_at_one_configuration_are_not_a_split_visit(tmp_path, paper_robot):
     """A helper's Z1 log, visits labelled by their pass (1, 2) under a reference per configuration: the shuffled
     second pass began at the configuration where the first ended, and the note asked "one visit split under two
