@@ -1381,7 +1381,8 @@ def cable_hint(robot, q: np.ndarray, hanging, at_most: int = 512) -> str:
         where = ", ".join(f"{name} {n}" for name, n in links)
         lower = ", or lower cable_clearance_m" if robot.cell.cable_clearance_m > 0 else ""
         parts.append(f"at {sum(1 for h in hits if h)} the cable runs through the arm ({where}; from a tool point on "
-                     "a fingertip it runs along it once the tool tilts: set tool_m to a hook past the fingertips"
+                     "a fingertip it runs along it once the tool tilts: set tool_m to a hook past the fingertips; from "
+                     "the end of a capsule, give that segment a smaller link_radius_m (a list, one per segment)"
                      f"{lower})")
     return (f"the masses' cable hangs free at none of the {len(q)} the arm can take: " + "; ".join(parts)
             if parts else "")
