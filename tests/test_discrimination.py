@@ -497,8 +497,15 @@ def test_truth_is_the_verdicts_combination_not_the_one_with_most_parameters():
     assert len(res.rivals.truth.beta) < len(next(m.beta for m in res.rivals.models if m.causes == ("joint_coupling",)))
     assert rss[("joint_coupling",)] < rss[chosen]  # the rival the smallest RSS would have chosen
     assert out["verdict"]["significant_on_its_own"] == []
-    # the verdict is unexplained (the moments' offset test explains the rows as well): the plan says what it separates
-    assert any(n.startswith("the verdict is 'unexplained'") for n in out["notes"])
+    # the moments' offset test explains the rows as well as joint_coupling and neither adds to the other: the verdict
+    # keeps the cause (it was `unexplained` by the offset), with a note that the two cannot be told apart
+    assert verdict["cause"] != "unexplained" and any("cannot be told apart; the verdict keeps joint_coupling" in n
+                                                     for n in D.analyse(robot, meas, 0.01, gain=False)["notes"])
+    # an unexplained verdict's plan says what it separates
+    res = X.discriminate(robot, meas, 2, X.load_set(None, robot.task_dim, meas.force),
+                         verdict={**verdict, "cause": "unexplained"},
+                         effort=X.Effort(pool_log2=7, search_log2=8, n_starts=0, rounds=0), m_curve=[1])
+    assert any(n.startswith("the verdict is 'unexplained'") for n in X.to_json(res)["notes"])
 
 
 def test_power_bound_holds_for_the_plan_itself(lab3):

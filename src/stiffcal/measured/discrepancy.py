@@ -3545,7 +3545,7 @@ def _offset_diagnostic(pre: Prepared, offset: tuple[np.ndarray, np.ndarray], f0:
     found = (f"the nominal model's residuals follow a moment of the loads about the tool point, as if they acted "
              f"at ({', '.join(f'{v:.3g}' for v in r)}) m from it in the tip frame")
     if standing == "alike":
-        return out, _alike_note(found, p, chosen, beyond, beside, "loads acting off the tool point")
+        return out, _alike_note(found, p, chosen, beyond, beside, "a load acting off the tool point")
     label = "+".join(sorted(chosen, key=CAUSES.index))
     return out, (f"{found} (F-test p = {p:.2g}"
                  + (f"; {label} adds nothing beyond it, p = {beyond:.2g}" if chosen else "") + "): "
