@@ -3441,8 +3441,9 @@ def _tilt_diagnostic(pre: Prepared, turned: np.ndarray, unknown: np.ndarray, f0:
 def _alike_note(found: str, p: float, chosen, beyond: float, beside: float, what: str) -> str:
     """The note of an effect outside the catalogue (``found``: what the residuals follow, its F-test ``p``) and chosen
     causes that explain the data as well as each other (``beyond``: the causes beyond it, ``beside``: it beyond the
-    causes; neither at alpha): the verdict keeps the causes (a planar arm's real coupled pair, read as a load acting
-    off the tool point and `unexplained`, in 9 of 59 missed powered causes of the rate matrix's slice)."""
+    causes; neither at alpha): the verdict keeps the causes (a planar arm's real coupled pair read as a load acting off
+    the tool point, a 6-axis arm's measurement offset read as a turned load: `unexplained` in 13 of the 59 powered
+    causes a slice of the rate matrix missed, named since)."""
     label = "+".join(sorted(chosen, key=CAUSES.index))
     return (f"{found} (F-test p = {p:.2g}), and {label} explains them as well (neither adds to the other: p = "
             f"{beyond:.2g} and {beside:.2g}): under these loads {what} and {label} cannot be told apart; the verdict "
