@@ -472,6 +472,27 @@ def test_plans_are_the_same_as_with_the_general_inverse_scoring(arm, m, paper_ro
     assert fast.loss == slow.loss
 
 
+def test_a_pool_too_large_for_its_quadratic_forms_is_scored_by_the_direct_path(rng, monkeypatch):
+    """A fresh user's three-cause extended model on a 6-axis arm (p about 40, 9 rows a candidate, 4096 candidates):
+    the pool's quadratic forms took 3.2 GB. Beyond QUAD_MAX_BYTES they are not built and every candidate is scored by
+    the direct path: the same plan as the plain exchange from the same starts (as with the forms), and the same
+    value."""
+    from stiffcal.planning import plans as P
+
+    K, d, p, m = 150, 6, 9, 4
+    X = rng.normal(size=(K, d, p)) * rng.uniform(0.5, 2.0, p)
+    Xt = rng.normal(size=(3, p))
+    info = np.einsum("kdi,kdj->kij", X, X)
+    starts = [rng.choice(K, m) for _ in range(3)]
+    ref = min((reference_exchange(info, Xt, s) for s in starts), key=lambda r: r[1])
+    assert P.pool_forms(X).quad is not None
+    monkeypatch.setattr(P, "QUAD_MAX_BYTES", P._quad_bytes(K, d, p) - 1)
+    assert P.pool_forms(X).quad is None
+    res = fedorov_exchange(X, Xt, m, starts=starts, n_starts=0)
+    np.testing.assert_array_equal(res.indices, ref[0])
+    assert res.value == pytest.approx(ref[1], rel=1e-10)
+
+
 def test_fedorov_exchange_for_a_generic_linear_model(rng):
     """A linear model with more parameters than joints (as the discrepancy analysis has): the engine gives
     the plain exchange's plan from the same starts, the value is tr(X_t M^-1 X_t^T) computed independently,

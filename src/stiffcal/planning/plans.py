@@ -182,6 +182,18 @@ class PoolForms:
     unit: np.ndarray | None = None
 
 
+#: the quadratic forms of :func:`pool_forms` are built only within this many bytes (they and their temporaries take
+#: about twice it): a fresh user's extended model of three causes on a 6-axis arm, 4096 candidates under three loads
+#: (p about 40, 9 rows a candidate), took 3.2 GB and 75 s of an analysis for them; beyond, the exchange scores every
+#: candidate by the direct path (:func:`exchange_scores`), whose memory is the pool's information matrices alone
+QUAD_MAX_BYTES = 256e6
+
+
+def _quad_bytes(k: int, d: int, p: int) -> float:
+    """Bytes of :func:`pool_forms`' quadratic forms for k candidates of d rows and p parameters."""
+    return 8.0 * k * (d * (d + 1) // 2) * (p * (p + 1) // 2)
+
+
 def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> PoolForms:
     """Precompute the quadratic forms of a candidate pool: from its regressors X (K, d, p) or, without
     them, its information matrices info (K, p, p) (factored as ``X_c = sqrt(Lambda) V^T`` on their rank)."""
@@ -190,7 +202,7 @@ def pool_forms(X: np.ndarray | None = None, info: np.ndarray | None = None) -> P
     p = info.shape[-1]
     quad, d = None, 0
     unit = None
-    if p > 3:
+    if p > 3 and _quad_bytes(len(info), p if X is None else X.shape[-2], p) <= QUAD_MAX_BYTES:
         if X is None:
             lam, V = np.linalg.eigh(info)
             rank = int(np.max(np.sum(lam > p * np.finfo(float).eps * np.maximum(lam[:, -1:], 0.0), axis=1)))
