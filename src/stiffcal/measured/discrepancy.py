@@ -3573,10 +3573,10 @@ def _base_columns(robot: Robot, pre: Prepared, axes: bool = False) -> np.ndarray
     up, E = _horizontal_basis(robot)
     M0 = np.cross(x, F) + load[:, 3:]
     side = np.cross(up, F)  # the force's moment arm about the pivot, per unit depth (horizontal already)
-    parts = [E @ E.T] if not axes else [np.outer(E[:, 0], E[:, 0]), np.outer(E[:, 1], E[:, 1]),
-                                        np.outer(E[:, 0], E[:, 1]) + np.outer(E[:, 1], E[:, 0])]
+    parts = [np.outer(E[:, 0], E[:, 0]), np.outer(E[:, 1], E[:, 1]),
+             np.outer(E[:, 0], E[:, 1]) + np.outer(E[:, 1], E[:, 0])]
     turns, moves = [], []
-    for power in range(3):  # w per unit of c h^power: from M_0 and the force's arm, as the law above
+    for power in range(3):  # w per unit of C's components times h^power: from M_0 and the force's arm, as above
         for B in parts:
             horizontal, arm = M0 @ B, side @ B
             turns.append([horizontal, arm, np.zeros_like(F)][power])
@@ -3584,7 +3584,14 @@ def _base_columns(robot: Robot, pre: Prepared, axes: bool = False) -> np.ndarray
                           np.cross(arm, up)][power])
     move, turn = np.stack(moves, -1), np.stack(turns, -1)
     X = observe(robot, np.concatenate([move, turn], 1), R, ob.offsets(robot, m.n_rows), ob.orientation, ob.rad_weight)
-    return X * pre.w[:, None, None]
+    X = X * pre.w[:, None, None]
+    return X if axes else _isotropic(X)
+
+
+def _isotropic(X: np.ndarray) -> np.ndarray:
+    """(N, w, 3): the isotropic base's columns (c, c h, c h^2) from the 2 x 2 base's (N, w, 9) of
+    :func:`_base_columns`: C = c I, so C_11 = C_22 = c and C_12 = 0."""
+    return X[..., 0::3] + X[..., 1::3]
 
 
 def _horizontal_basis(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
@@ -3620,8 +3627,8 @@ def _base_diagnostic(robot: Robot, pre: Prepared, f0: Fit, chosen, alpha: float)
     if robot.task_dim != 3:
         return None, None
     fits = []
-    for axes in (False, True):
-        cols = _base_columns(robot, pre, axes)
+    plate = _base_columns(robot, pre, axes=True)
+    for axes, cols in ((False, _isotropic(plate)), (True, plate)):
         tested = _effect_test(pre, cols, cols[..., :0], f0, chosen, both_ways=True)
         if tested is not None:
             fits.append(_base_fit(robot, tested, axes))
@@ -4199,17 +4206,18 @@ def parameter_names(cause: str, robot: Robot, observed: Observed | None = None) 
 
 def loco_predictions(robot: Robot, meas: Measurements, causes=(), observed: Observed | None = None,
                      des: Design | None = None, error=None, weights: np.ndarray | None = None,
-                     s2: float | None = None):
+                     s2: float | None = None, noise_var: np.ndarray | None = None):
     """Leave-one-configuration-out predictions of the positions: each robot configuration (all its loads,
     targets and replicates) left out in turn and predicted from the others (fitted on every measured quantity,
     ``observed``). With the analysis's design ``des`` (weighted by ``weights`` (N,) and whitened by the error
     model ``error``) the fits are its generalised least squares (configurations are independent blocks, so
     leaving one out drops its rows) and a held-out configuration's measured rows are taken less the shared
     error its own unloaded rows predict. Returns (predicted (N, d), measured (N, d)) [m], or None when fewer
-    than two configurations; with ``s2`` (the error variance of the whitened rows [m^2]) and ``des``, also the
-    variance (N, d) [m^2] of each row's prediction error if the model were right: the row's noise and the shared
-    error its unloaded rows do not predict (:func:`held_out_noise`), and the prediction's from the parameters
-    fitted without its configuration (Cov beta_(-g) = s2 (X_(-g)^T X_(-g))^+, whitened)."""
+    than two configurations; with ``des``, ``s2`` (the error variance of the whitened rows [m^2]) and ``noise_var``
+    (N, d) [m^2] (each row's noise and the shared error its unloaded rows do not predict: :func:`held_out_noise`
+    times s2, the same for every model), also the variance (N, d) [m^2] of each row's prediction error if the model
+    were right: noise_var and the prediction's from the parameters fitted without its configuration
+    (Cov beta_(-g) = s2 (X_(-g)^T X_(-g))^+, whitened)."""
     if meas.n_configurations < 2:
         return None
     ob = observed or Observed.of(robot, meas)
@@ -4224,7 +4232,7 @@ def loco_predictions(robot: Robot, meas: Measurements, causes=(), observed: Obse
     else:
         Xw, yw = X, y
     pred = np.empty((len(y), d))
-    var = None if s2 is None or des is None else held_out_noise(error, w, len(y), des.d)[:, :d] * s2
+    var = None if noise_var is None or des is None else np.array(noise_var, float)
     groups = rows_by_label(meas.config, meas.n_configurations)
     for test, (beta, cov) in zip(groups, _leave_one_group_out(Xw, yw, groups, covariance=var is not None)):
         pred[test] = np.einsum("ndp,p->nd", X[test], beta)[:, :d]
@@ -4323,10 +4331,12 @@ def held_out(robot: Robot, pre: "Prepared", causes=()) -> HeldOut | None:
     """The held-out check of an analysis (:func:`prepare`) for the calibrated model nominal + ``causes``:
     :func:`loco_predictions` of both models on the analysis's generalised least squares. None with fewer than
     two configurations."""
-    args = (pre.ob, pre.des, pre.error, pre.w, pre.noise.s2)
-    nom = loco_predictions(robot, pre.m, (), *args)
-    if nom is None:
+    if pre.m.n_configurations < 2:
         return None
+    s2 = pre.noise.s2  # the rows' own noise, whatever the model: computed once for both
+    args = (pre.ob, pre.des, pre.error, pre.w, s2,
+            held_out_noise(pre.error, pre.w, pre.m.n_rows, pre.des.d)[:, :robot.task_dim] * s2)
+    nom = loco_predictions(robot, pre.m, (), *args)
     cal = loco_predictions(robot, pre.m, tuple(causes), *args) if causes else nom
     m = pre.m
     return HeldOut(nom[1], nom[0], cal[0], np.asarray(m.config), tuple(m.config_labels), tuple(causes), nom[2],
