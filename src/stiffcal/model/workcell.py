@@ -1041,11 +1041,9 @@ class MeshEngine(_Base):
         import coal
         import pinocchio as pin
 
-        _, model, _ = _urdf_geometry(self.robot)
+        model, data, gd, T_wb = self._placing()
         Q = full_configuration(self.robot, model, q)
-        data = model.createData()
-        gd = pin.GeometryData(self.geom)
-        req, T_wb = coal.CollisionRequest(), self._T_wb(data)
+        req = coal.CollisionRequest()
         bodies = [(b.index, self._hull_shape(b.index), b.tip, b.link) for b in self.bodies]
         clear = max(1e-6, self.cell.cable_clearance_m)
         hits = [""] * len(q)
@@ -1077,15 +1075,21 @@ class MeshEngine(_Base):
         to the tool's link, so what holds at the zero pose holds at every pose."""
         import pinocchio as pin
 
-        _, model, _ = _urdf_geometry(self.robot)
+        model, data, gd, T_wb = self._placing()
         q0 = np.zeros((1, self.robot.n_joints))
-        data = model.createData()
-        T_wb = self._T_wb(data)
-        gd = pin.GeometryData(self.geom)
         pin.updateGeometryPlacements(model, data, self.geom, gd, full_configuration(self.robot, model, q0)[0])
         start = T_wb.act(self.cable(q0, _offset(hanging))[0][0])
         return list(dict.fromkeys(b.link for b in self.bodies if b.tip and _deep_inside(
             self._hull_shape(b.index), _transform(gd.oMg[b.index]), start, CABLE_START_M)))
+
+    def _placing(self):
+        """(model, data, geometry data, T_wb): what places the bodies at a pose (pinocchio's
+        ``updateGeometryPlacements``) and the base frame's placement in the world, for the cable's checks."""
+        import pinocchio as pin
+
+        _, model, _ = _urdf_geometry(self.robot)
+        data = model.createData()
+        return model, data, pin.GeometryData(self.geom), self._T_wb(data)
 
     def _T_wb(self, data):
         import pinocchio as pin
